@@ -1,0 +1,594 @@
+#include "sonicboom/acoustics/features.h"
+
+#include <fftw3.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <mutex>
+#include <numbers>
+#include <utility>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+
+void FeatureConfig::Serialize(Archive* a) {
+  a->Visit("window_s", &window_s, Bounds::Positive());
+  a->Visit("n_fft", &n_fft, Bounds::Positive());
+  a->Visit("hop", &hop, Bounds::Positive());
+  a->Visit("n_mels", &n_mels, Bounds::Positive());
+  a->Visit("f_min_hz", &f_min_hz, Bounds::NonNegative());
+  a->Visit("f_max_hz", &f_max_hz, Bounds::NonNegative());
+  a->Visit("log_mel", &log_mel);
+  a->Visit("gcc_max_lag", &gcc_max_lag, Bounds::NonNegative());
+  a->Visit("onset_frame_s", &onset_frame_s, Bounds::Positive());
+  a->Visit("onset_threshold", &onset_threshold, Bounds{0.0, 1.0, true, false});
+}
+
+namespace {
+
+// The FFTW planner (plan creation and destruction) is not thread-safe; every plan made or
+// destroyed in this file goes through this lock. Plan execution is thread-safe.
+std::mutex& FftwPlannerMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+// An FFTW-aligned array of T (fftw_malloc), so that every scratch buffer has the same
+// alignment as the arrays the plans were made with and new-array execution is allowed.
+template <typename T>
+class FftwArray {
+ public:
+  FftwArray() = default;
+  explicit FftwArray(int64_t size) : size_(size) {
+    const size_t bytes = sizeof(T) * static_cast<size_t>(std::max<int64_t>(size, 1));
+    data_ = static_cast<T*>(fftw_malloc(bytes));
+    if (data_ == nullptr) throw std::bad_alloc();
+    std::memset(static_cast<void*>(data_), 0, bytes);
+  }
+  ~FftwArray() { fftw_free(data_); }
+  FftwArray(FftwArray&& other) noexcept
+      : data_(std::exchange(other.data_, nullptr)), size_(std::exchange(other.size_, 0)) {}
+  FftwArray& operator=(FftwArray&& other) noexcept {
+    std::swap(data_, other.data_);
+    std::swap(size_, other.size_);
+    return *this;
+  }
+  FftwArray(const FftwArray&) = delete;
+  FftwArray& operator=(const FftwArray&) = delete;
+  T* data() const { return data_; }
+  int64_t size() const { return size_; }
+  T& operator[](int64_t i) const { return data_[i]; }
+
+ private:
+  T* data_{nullptr};
+  int64_t size_{0};
+};
+
+// Owns an fftw_plan; destroys it under the planner lock.
+class FftwPlan {
+ public:
+  FftwPlan() = default;
+  ~FftwPlan() { Destroy(); }
+  // Takes ownership of a plan made under the planner lock (call without holding it).
+  void Adopt(fftw_plan plan) {
+    Destroy();
+    if (plan == nullptr) throw NumericalError("FFTW could not create a plan");
+    plan_ = plan;
+  }
+  FftwPlan(const FftwPlan&) = delete;
+  FftwPlan& operator=(const FftwPlan&) = delete;
+  fftw_plan get() const { return plan_; }
+
+ private:
+  void Destroy() {
+    if (plan_ == nullptr) return;
+    std::lock_guard<std::mutex> lock(FftwPlannerMutex());
+    fftw_destroy_plan(plan_);
+    plan_ = nullptr;
+  }
+  fftw_plan plan_{nullptr};
+};
+
+// A pool of scratch objects shared by the threads that call one const object. A call leases
+// one object (created only when every existing one is in use), so in steady state nothing is
+// allocated and no two concurrent calls share scratch.
+template <typename T>
+class ScratchPool {
+ public:
+  explicit ScratchPool(std::function<std::unique_ptr<T>()> make) : make_(std::move(make)) {}
+
+  class Lease {
+   public:
+    Lease(const ScratchPool* pool, std::unique_ptr<T> item) : pool_(pool), item_(std::move(item)) {}
+    ~Lease() { pool_->Release(std::move(item_)); }
+    Lease(const Lease&) = delete;
+    Lease& operator=(const Lease&) = delete;
+    T& operator*() const { return *item_; }
+    T* operator->() const { return item_.get(); }
+
+   private:
+    const ScratchPool* pool_;
+    std::unique_ptr<T> item_;
+  };
+
+  Lease Acquire() const {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!free_.empty()) {
+        std::unique_ptr<T> item = std::move(free_.back());
+        free_.pop_back();
+        return Lease(this, std::move(item));
+      }
+    }
+    return Lease(this, make_());
+  }
+
+ private:
+  void Release(std::unique_ptr<T> item) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    free_.push_back(std::move(item));
+  }
+
+  std::function<std::unique_ptr<T>()> make_;
+  mutable std::mutex mutex_;
+  mutable std::vector<std::unique_ptr<T>> free_;
+};
+
+// Smallest m >= n whose only prime factors are 2, 3 and 5 (fast FFTW sizes). The golden
+// script scripts/make_goldens.py uses the same rule, since PHAT output depends on the size.
+int64_t NextFastFftSize(int64_t n) {
+  for (int64_t m = std::max<int64_t>(n, 1);; ++m) {
+    int64_t r = m;
+    for (int64_t p : {2, 3, 5}) {
+      while (r % p == 0) r /= p;
+    }
+    if (r == 1) return m;
+  }
+}
+
+// Reflect-pads index i into [0, n) without repeating the edge sample (torch "reflect"),
+// folding again when the padding is longer than the signal.
+int64_t ReflectIndex(int64_t i, int64_t n) {
+  if (n == 1) return 0;
+  const int64_t period = 2 * (n - 1);
+  int64_t k = i % period;
+  if (k < 0) k += period;
+  return k < n ? k : period - k;
+}
+
+double HzToMelHtk(double hz) { return 2595.0 * std::log10(1.0 + hz / 700.0); }
+double MelToHzHtk(double mel) { return 700.0 * (std::pow(10.0, mel / 2595.0) - 1.0); }
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// MelSpectrogram
+
+struct MelSpectrogram::Impl {
+  // Per-call scratch: one windowed frame (n_fft), its spectrum and power (n_fft/2+1), double.
+  struct Scratch {
+    FftwArray<double> frame;
+    FftwArray<fftw_complex> spectrum;
+    Eigen::VectorXd power;
+  };
+
+  int64_t n_fft{0};
+  int64_t hop{0};
+  int64_t n_mels{0};
+  int64_t n_freqs{0};
+  Eigen::VectorXd window;           // periodic Hann (n_fft)
+  Eigen::MatrixXf filterbank;       // (n_mels x n_freqs), float copy for callers
+  Eigen::MatrixXd filterbank_d;     // (n_mels x n_freqs)
+  std::vector<int64_t> band_begin;  // per mel band: first non-zero frequency bin
+  std::vector<int64_t> band_end;    // per mel band: one past the last non-zero bin
+  FftwPlan plan;                    // r2c of one frame
+  std::unique_ptr<ScratchPool<Scratch>> pool;
+
+  std::unique_ptr<Scratch> MakeScratch() const {
+    auto s = std::make_unique<Scratch>();
+    s->frame = FftwArray<double>(n_fft);
+    s->spectrum = FftwArray<fftw_complex>(n_freqs);
+    s->power = Eigen::VectorXd::Zero(n_freqs);
+    return s;
+  }
+};
+
+MelSpectrogram::MelSpectrogram(int64_t n_fft, int64_t hop, int64_t n_mels, double f_min_hz,
+                               double f_max_hz, double sample_rate_hz)
+    : impl_(std::make_unique<Impl>()) {
+  if (n_fft <= 0) throw ConfigError(fmt::format("mel n_fft must be > 0, got {}", n_fft));
+  if (hop <= 0) throw ConfigError(fmt::format("mel hop must be > 0, got {}", hop));
+  if (n_mels <= 0) throw ConfigError(fmt::format("mel n_mels must be > 0, got {}", n_mels));
+  if (!(sample_rate_hz > 0.0)) {
+    throw ConfigError(fmt::format("mel sample rate must be > 0 Hz, got {}", sample_rate_hz));
+  }
+  if (!(f_min_hz >= 0.0 && f_min_hz < f_max_hz && f_max_hz <= sample_rate_hz / 2.0)) {
+    throw ConfigError(fmt::format("mel band must satisfy 0 <= f_min < f_max <= {} Hz, got [{}, {}]",
+                                  sample_rate_hz / 2.0, f_min_hz, f_max_hz));
+  }
+  Impl& m = *impl_;
+  m.n_fft = n_fft;
+  m.hop = hop;
+  m.n_mels = n_mels;
+  m.n_freqs = n_fft / 2 + 1;
+
+  // Periodic Hann window of length n_fft (torch.hann_window(periodic=True)).
+  m.window.resize(n_fft);
+  for (int64_t k = 0; k < n_fft; ++k) {
+    m.window[k] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(k) / n_fft);
+  }
+
+  // HTK triangular filterbank without area normalisation (torchaudio melscale_fbanks): bin
+  // centres linspace(0, floor(sr/2), n_freqs) Hz, n_mels+2 corner frequencies equally spaced
+  // in mel between f_min and f_max.
+  const double nyquist_floor = std::floor(sample_rate_hz / 2.0);
+  Eigen::VectorXd bin_hz(m.n_freqs);
+  for (int64_t k = 0; k < m.n_freqs; ++k) {
+    bin_hz[k] = m.n_freqs == 1 ? 0.0 : nyquist_floor * static_cast<double>(k) / (m.n_freqs - 1);
+  }
+  const double mel_lo = HzToMelHtk(f_min_hz);
+  const double mel_hi = HzToMelHtk(f_max_hz);
+  Eigen::VectorXd corner_hz(n_mels + 2);
+  for (int64_t i = 0; i < n_mels + 2; ++i) {
+    corner_hz[i] = MelToHzHtk(mel_lo + (mel_hi - mel_lo) * static_cast<double>(i) / (n_mels + 1));
+  }
+  m.filterbank_d = Eigen::MatrixXd::Zero(n_mels, m.n_freqs);
+  m.band_begin.assign(n_mels, 0);
+  m.band_end.assign(n_mels, 0);
+  for (int64_t j = 0; j < n_mels; ++j) {
+    const double left = corner_hz[j], centre = corner_hz[j + 1], right = corner_hz[j + 2];
+    int64_t begin = m.n_freqs, end = 0;
+    for (int64_t k = 0; k < m.n_freqs; ++k) {
+      const double down = (bin_hz[k] - left) / (centre - left);
+      const double up = (right - bin_hz[k]) / (right - centre);
+      const double w = std::max(0.0, std::min(down, up));
+      m.filterbank_d(j, k) = w;
+      if (w > 0.0) {
+        begin = std::min(begin, k);
+        end = k + 1;
+      }
+    }
+    m.band_begin[j] = std::min(begin, end);
+    m.band_end[j] = end;
+  }
+  m.filterbank = m.filterbank_d.cast<float>();
+
+  // One r2c plan for a single frame; Compute runs it on per-call scratch arrays.
+  {
+    FftwArray<double> in(n_fft);
+    FftwArray<fftw_complex> out(m.n_freqs);
+    fftw_plan plan = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(FftwPlannerMutex());
+      plan = fftw_plan_dft_r2c_1d(static_cast<int>(n_fft), in.data(), out.data(), FFTW_ESTIMATE);
+    }
+    m.plan.Adopt(plan);
+  }
+  const Impl* self = impl_.get();
+  m.pool = std::make_unique<ScratchPool<Impl::Scratch>>([self] { return self->MakeScratch(); });
+}
+
+MelSpectrogram::~MelSpectrogram() = default;
+
+int64_t MelSpectrogram::Frames(int64_t n) const { return 1 + n / impl_->hop; }
+
+const Eigen::MatrixXf& MelSpectrogram::filterbank() const { return impl_->filterbank; }
+
+void MelSpectrogram::Compute(const float* x, int64_t n, Eigen::MatrixXf* out) const {
+  if (n <= 0) throw Error(fmt::format("mel spectrogram of an empty signal (n = {})", n));
+  const Impl& m = *impl_;
+  const int64_t frames = Frames(n);
+  out->resize(m.n_mels, frames);
+  auto scratch = m.pool->Acquire();
+  double* frame = scratch->frame.data();
+  fftw_complex* spectrum = scratch->spectrum.data();
+  const int64_t half = m.n_fft / 2;
+  for (int64_t f = 0; f < frames; ++f) {
+    // Frame f covers padded samples [f*hop, f*hop + n_fft), i.e. input samples from
+    // f*hop - n_fft/2 (center=True), reflected at both ends, times the Hann window.
+    const int64_t first = f * m.hop - half;
+    for (int64_t k = 0; k < m.n_fft; ++k) {
+      const int64_t i = first + k;
+      const double sample = (i >= 0 && i < n) ? x[i] : x[ReflectIndex(i, n)];
+      frame[k] = m.window[k] * sample;
+    }
+    fftw_execute_dft_r2c(m.plan.get(), frame, spectrum);
+    // Power spectrum |X|^2 (n_freqs), then sparse product with each triangular band.
+    for (int64_t k = 0; k < m.n_freqs; ++k) {
+      scratch->power[k] = spectrum[k][0] * spectrum[k][0] + spectrum[k][1] * spectrum[k][1];
+    }
+    for (int64_t j = 0; j < m.n_mels; ++j) {
+      double sum = 0.0;
+      for (int64_t k = m.band_begin[j]; k < m.band_end[j]; ++k) {
+        sum += m.filterbank_d(j, k) * scratch->power[k];
+      }
+      (*out)(j, f) = static_cast<float>(sum);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// GccPhat
+
+struct GccPhat::Impl {
+  // Per-call scratch: the zero-padded channel (fft_size), the spectra of all channels
+  // (channels x (fft_size/2+1)), the PHAT-weighted cross spectrum and its inverse (fft_size).
+  struct Scratch {
+    FftwArray<double> signal;
+    std::vector<FftwArray<fftw_complex>> spectra;
+    FftwArray<fftw_complex> cross;
+    FftwArray<double> correlation;
+  };
+
+  int64_t n{0};
+  int64_t max_lag{0};
+  int channels{0};
+  int64_t fft_size{0};
+  int64_t n_bins{0};
+  std::vector<std::pair<int, int>> pairs;  // itertools.combinations(range(C), 2) order
+  FftwPlan forward;                        // r2c, fft_size
+  FftwPlan inverse;                        // c2r, fft_size
+  std::unique_ptr<ScratchPool<Scratch>> pool;
+
+  std::unique_ptr<Scratch> MakeScratch() const {
+    auto s = std::make_unique<Scratch>();
+    s->signal = FftwArray<double>(fft_size);
+    for (int c = 0; c < channels; ++c) s->spectra.emplace_back(n_bins);
+    s->cross = FftwArray<fftw_complex>(n_bins);
+    s->correlation = FftwArray<double>(fft_size);
+    return s;
+  }
+};
+
+GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels) : impl_(std::make_unique<Impl>()) {
+  if (n <= 0) throw ConfigError(fmt::format("GCC-PHAT window must be > 0 samples, got {}", n));
+  if (max_lag < 0 || max_lag >= n) {
+    throw ConfigError(
+        fmt::format("GCC-PHAT max_lag must be in [0, {}) samples, got {}", n, max_lag));
+  }
+  if (channels < 1) throw ConfigError(fmt::format("GCC-PHAT needs >= 1 channel, got {}", channels));
+  Impl& g = *impl_;
+  g.n = n;
+  g.max_lag = max_lag;
+  g.channels = channels;
+  // Linear (not circular) correlation for |lag| <= max_lag needs fft_size >= n + max_lag.
+  g.fft_size = NextFastFftSize(n + max_lag);
+  g.n_bins = g.fft_size / 2 + 1;
+  for (int i = 0; i < channels; ++i) {
+    for (int j = i + 1; j < channels; ++j) g.pairs.emplace_back(i, j);
+  }
+  {
+    FftwArray<double> real(g.fft_size);
+    FftwArray<fftw_complex> complex(g.n_bins);
+    fftw_plan forward = nullptr, inverse = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(FftwPlannerMutex());
+      forward = fftw_plan_dft_r2c_1d(static_cast<int>(g.fft_size), real.data(), complex.data(),
+                                     FFTW_ESTIMATE);
+      inverse = fftw_plan_dft_c2r_1d(static_cast<int>(g.fft_size), complex.data(), real.data(),
+                                     FFTW_ESTIMATE);
+    }
+    g.forward.Adopt(forward);
+    g.inverse.Adopt(inverse);
+  }
+  const Impl* self = impl_.get();
+  g.pool = std::make_unique<ScratchPool<Impl::Scratch>>([self] { return self->MakeScratch(); });
+}
+
+GccPhat::~GccPhat() = default;
+
+void GccPhat::Compute(const Eigen::MatrixXf& window, Eigen::MatrixXf* out) const {
+  const Impl& g = *impl_;
+  if (window.rows() != g.channels || window.cols() != g.n) {
+    throw Error(fmt::format("GCC-PHAT expects a ({} x {}) window, got ({} x {})", g.channels, g.n,
+                            window.rows(), window.cols()));
+  }
+  const int64_t lags = 2 * g.max_lag + 1;
+  out->resize(static_cast<int64_t>(g.pairs.size()), lags);
+  auto scratch = g.pool->Acquire();
+  Impl::Scratch& s = *scratch;
+
+  // Spectrum of every channel, zero-padded from n to fft_size samples.
+  std::fill(s.signal.data() + g.n, s.signal.data() + g.fft_size, 0.0);
+  for (int c = 0; c < g.channels; ++c) {
+    for (int64_t t = 0; t < g.n; ++t) s.signal[t] = window(c, t);
+    fftw_execute_dft_r2c(g.forward.get(), s.signal.data(), s.spectra[c].data());
+  }
+
+  // Per pair (i, j): G = X_i conj(X_j), PHAT weight G / (|G| + 1e-10), inverse FFT / fft_size.
+  // Output column m is lag m - max_lag; negative lag L sits at index fft_size + L.
+  const double scale = 1.0 / static_cast<double>(g.fft_size);
+  for (size_t p = 0; p < g.pairs.size(); ++p) {
+    const fftw_complex* x = s.spectra[g.pairs[p].first].data();
+    const fftw_complex* y = s.spectra[g.pairs[p].second].data();
+    for (int64_t k = 0; k < g.n_bins; ++k) {
+      const double re = x[k][0] * y[k][0] + x[k][1] * y[k][1];
+      const double im = x[k][1] * y[k][0] - x[k][0] * y[k][1];
+      const double weight = 1.0 / (std::hypot(re, im) + 1e-10);
+      s.cross[k][0] = re * weight;
+      s.cross[k][1] = im * weight;
+    }
+    fftw_execute_dft_c2r(g.inverse.get(), s.cross.data(), s.correlation.data());
+    for (int64_t m = 0; m < lags; ++m) {
+      const int64_t lag = m - g.max_lag;
+      const int64_t index = lag >= 0 ? lag : g.fft_size + lag;
+      (*out)(static_cast<int64_t>(p), m) = static_cast<float>(s.correlation[index] * scale);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Onset
+
+int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
+                    double threshold) {
+  if (!(sample_rate_hz > 0.0)) {
+    throw ConfigError(fmt::format("onset sample rate must be > 0 Hz, got {}", sample_rate_hz));
+  }
+  if (!(frame_s > 0.0)) {
+    throw ConfigError(fmt::format("features.onset_frame_s must be > 0, got {}", frame_s));
+  }
+  if (!(threshold > 0.0 && threshold <= 1.0)) {
+    throw ConfigError(fmt::format("features.onset_threshold must be in (0, 1], got {}", threshold));
+  }
+  const int64_t total = audio.cols();
+  if (total == 0) return 0;
+  const int64_t frame = std::max<int64_t>(1, std::llround(frame_s * sample_rate_hz));
+  // Energy of frame [start, start+frame): sum over channels and samples of x^2 (last frame
+  // may be short).
+  auto energy = [&](int64_t start) {
+    const int64_t len = std::min(frame, total - start);
+    return static_cast<double>(audio.middleCols(start, len).cast<double>().squaredNorm());
+  };
+  double peak = 0.0;
+  for (int64_t start = 0; start < total; start += frame) peak = std::max(peak, energy(start));
+  const double level = threshold * peak;
+  for (int64_t start = 0; start < total; start += frame) {
+    if (energy(start) >= level) return start;
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// FeatureExtractor
+
+struct FeatureExtractor::Impl {
+  // Per-call scratch: the window (channels x window_samples) and one channel of it.
+  struct Scratch {
+    Eigen::MatrixXf window;
+    std::vector<float> row;
+  };
+
+  FeatureConfig config;
+  double sample_rate_hz{0.0};
+  int channels{0};
+  int64_t window_samples{0};
+  std::unique_ptr<MelSpectrogram> mel;
+  std::unique_ptr<GccPhat> gcc;
+  std::unique_ptr<ScratchPool<Scratch>> pool;
+};
+
+namespace {
+
+// Checks a FeatureConfig against the sample rate; throws ConfigError naming the key.
+void ValidateFeatureConfig(const FeatureConfig& c, double fs, int channels) {
+  if (!(fs > 0.0)) throw ConfigError(fmt::format("sample rate must be > 0 Hz, got {}", fs));
+  if (channels < 1) throw ConfigError(fmt::format("channels must be >= 1, got {}", channels));
+  if (!(c.window_s > 0.0)) {
+    throw ConfigError(fmt::format("features.window_s must be > 0, got {}", c.window_s));
+  }
+  const int64_t window_samples = std::llround(c.window_s * fs);
+  if (window_samples < 1) {
+    throw ConfigError(
+        fmt::format("features.window_s must be at least one sample, got {} s", c.window_s));
+  }
+  if (c.n_fft <= 0) throw ConfigError(fmt::format("features.n_fft must be > 0, got {}", c.n_fft));
+  if (c.n_fft > window_samples) {
+    throw ConfigError(fmt::format("features.n_fft must be <= window samples ({}), got {}",
+                                  window_samples, c.n_fft));
+  }
+  if (c.hop <= 0) throw ConfigError(fmt::format("features.hop must be > 0, got {}", c.hop));
+  if (c.n_mels <= 0) {
+    throw ConfigError(fmt::format("features.n_mels must be > 0, got {}", c.n_mels));
+  }
+  const double nyquist = fs / 2.0;
+  if (!(c.f_min_hz >= 0.0)) {
+    throw ConfigError(fmt::format("features.f_min_hz must be >= 0, got {}", c.f_min_hz));
+  }
+  if (!(c.f_max_hz >= 0.0 && c.f_max_hz <= nyquist)) {
+    throw ConfigError(fmt::format("features.f_max_hz must be in [0, Nyquist = {}] Hz, got {}",
+                                  nyquist, c.f_max_hz));
+  }
+  const double f_max = c.f_max_hz == 0.0 ? nyquist : c.f_max_hz;
+  if (!(c.f_min_hz < f_max)) {
+    throw ConfigError(
+        fmt::format("features.f_min_hz must be < f_max ({} Hz), got {}", f_max, c.f_min_hz));
+  }
+  if (c.gcc_max_lag < 0 || c.gcc_max_lag >= window_samples) {
+    throw ConfigError(
+        fmt::format("features.gcc_max_lag must be in [0, window samples = {}), "
+                    "got {}",
+                    window_samples, c.gcc_max_lag));
+  }
+  if (!(c.onset_frame_s > 0.0)) {
+    throw ConfigError(fmt::format("features.onset_frame_s must be > 0, got {}", c.onset_frame_s));
+  }
+  if (!(c.onset_threshold > 0.0 && c.onset_threshold <= 1.0)) {
+    throw ConfigError(
+        fmt::format("features.onset_threshold must be in (0, 1], got {}", c.onset_threshold));
+  }
+}
+
+}  // namespace
+
+FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_rate_hz, int channels)
+    : impl_(std::make_unique<Impl>()) {
+  ValidateFeatureConfig(config, sample_rate_hz, channels);
+  Impl& e = *impl_;
+  e.config = config;
+  e.sample_rate_hz = sample_rate_hz;
+  e.channels = channels;
+  e.window_samples = std::llround(config.window_s * sample_rate_hz);
+  const double f_max = config.f_max_hz == 0.0 ? sample_rate_hz / 2.0 : config.f_max_hz;
+  e.mel = std::make_unique<MelSpectrogram>(config.n_fft, config.hop, config.n_mels, config.f_min_hz,
+                                           f_max, sample_rate_hz);
+  e.gcc = std::make_unique<GccPhat>(e.window_samples, config.gcc_max_lag, channels);
+  const int64_t n = e.window_samples;
+  e.pool = std::make_unique<ScratchPool<Impl::Scratch>>([channels, n] {
+    auto s = std::make_unique<Impl::Scratch>();
+    s->window = Eigen::MatrixXf::Zero(channels, n);
+    s->row.assign(static_cast<size_t>(n), 0.0f);
+    return s;
+  });
+}
+
+FeatureExtractor::~FeatureExtractor() = default;
+
+int64_t FeatureExtractor::window_samples() const { return impl_->window_samples; }
+int64_t FeatureExtractor::mel_frames() const { return impl_->mel->Frames(impl_->window_samples); }
+int64_t FeatureExtractor::gcc_lags() const { return 2 * impl_->config.gcc_max_lag + 1; }
+int FeatureExtractor::channels() const { return impl_->channels; }
+
+StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio) const {
+  const Impl& e = *impl_;
+  if (audio.rows() != e.channels) {
+    throw Error(
+        fmt::format("feature extraction expects {} channels, got {}", e.channels, audio.rows()));
+  }
+  StrikeFeatures features;
+  features.onset_sample =
+      DetectOnset(audio, e.sample_rate_hz, e.config.onset_frame_s, e.config.onset_threshold);
+  const int64_t n = e.window_samples;
+  features.window_start = features.onset_sample - n / 2;
+
+  // Window (channels x n) centred on the onset; samples outside the record are zero.
+  auto scratch = e.pool->Acquire();
+  Eigen::MatrixXf& window = scratch->window;
+  window.setZero();
+  const int64_t lo = std::max<int64_t>(0, features.window_start);
+  const int64_t hi = std::min<int64_t>(audio.cols(), features.window_start + n);
+  if (hi > lo) {
+    window.middleCols(lo - features.window_start, hi - lo) = audio.middleCols(lo, hi - lo);
+  }
+
+  // Power mel (n_mels x frames) per channel, optionally log10(power + 1e-10).
+  features.mel.resize(static_cast<size_t>(e.channels));
+  for (int c = 0; c < e.channels; ++c) {
+    for (int64_t t = 0; t < n; ++t) scratch->row[t] = window(c, t);
+    e.mel->Compute(scratch->row.data(), n, &features.mel[c]);
+    if (e.config.log_mel) {
+      features.mel[c] = features.mel[c].unaryExpr(
+          [](float p) { return static_cast<float>(std::log10(static_cast<double>(p) + 1e-10)); });
+    }
+  }
+
+  // GCC-PHAT (pairs x lags) on the same window.
+  e.gcc->Compute(window, &features.gcc);
+  return features;
+}
+
+}  // namespace sonicboom::acoustics

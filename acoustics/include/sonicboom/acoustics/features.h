@@ -1,0 +1,104 @@
+#pragma once
+/// Strike features as the paper computes them, with the published code's faults fixed
+/// (reference_impl.md §2, §7): onset from an all-channel energy envelope, a window around it,
+/// power mel spectrograms and GCC-PHAT without circular wrap-around.
+/// DSP blocks are configured once (FFT plans, filterbanks) and computed many times.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "sonicboom/core/archive.h"
+
+namespace sonicboom::acoustics {
+
+struct FeatureConfig {
+  double window_s{1.5};            // analysis window, onset at its centre
+  int64_t n_fft{512};              // mel STFT size = window length (periodic Hann)
+  int64_t hop{128};
+  int64_t n_mels{50};              // HTK mel, norm none
+  double f_min_hz{0.0};
+  double f_max_hz{0.0};            // 0 = Nyquist
+  bool log_mel{false};             // paper: power mel, no log; log10(power + 1e-10) when true
+  int64_t gcc_max_lag{441};        // lags -max..+max samples (883 values)
+  double onset_frame_s{0.0029};    // energy-envelope frame (~128 samples at 44.1 kHz)
+  double onset_threshold{0.1};     // fraction of the envelope peak that marks the onset
+
+  void Serialize(Archive* a);
+};
+
+/// Features of one strike. Shapes: mel (C x n_mels x frames), gcc (C(C-1)/2 x 2*max_lag+1).
+struct StrikeFeatures {
+  int64_t onset_sample{0};         // onset in the input record, samples
+  int64_t window_start{0};         // first input sample of the window (may be negative: zero-padded)
+  std::vector<Eigen::MatrixXf> mel;  // per channel (n_mels x frames)
+  Eigen::MatrixXf gcc;             // (pairs x lags), pairs in itertools.combinations order
+};
+
+/// Computes StrikeFeatures from a (C x T) record. Immutable after construction; Compute is
+/// const and thread-safe (per-call scratch comes from an internal per-thread pool).
+class FeatureExtractor {
+ public:
+  FeatureExtractor(const FeatureConfig& config, double sample_rate_hz, int channels);
+  ~FeatureExtractor();
+  FeatureExtractor(const FeatureExtractor&) = delete;
+  FeatureExtractor& operator=(const FeatureExtractor&) = delete;
+
+  StrikeFeatures Compute(const Eigen::MatrixXf& audio) const;
+
+  int64_t window_samples() const;  // round(window_s * fs)
+  int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded)
+  int64_t gcc_lags() const;        // 2 * gcc_max_lag + 1
+  int channels() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Lower-level blocks, exposed for tests and the hardware path.
+
+/// Power mel spectrogram of one channel, torchaudio.transforms.MelSpectrogram semantics:
+/// periodic Hann, center=True with reflect padding, power 2, HTK mel, norm none.
+class MelSpectrogram {
+ public:
+  MelSpectrogram(int64_t n_fft, int64_t hop, int64_t n_mels, double f_min_hz, double f_max_hz,
+                 double sample_rate_hz);
+  ~MelSpectrogram();
+  MelSpectrogram(const MelSpectrogram&) = delete;
+  MelSpectrogram& operator=(const MelSpectrogram&) = delete;
+  int64_t Frames(int64_t n) const;  // 1 + n / hop
+  /// x: n samples; out: (n_mels x Frames(n)), resized if needed.
+  void Compute(const float* x, int64_t n, Eigen::MatrixXf* out) const;
+  /// (n_mels x n_fft/2+1) triangular filterbank.
+  const Eigen::MatrixXf& filterbank() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// GCC-PHAT of all channel pairs over a window of n samples, zero-padded to avoid circular
+/// wrap-around. Row p is pair p in combinations order; column j is lag (j - max_lag) samples;
+/// a positive lag means the first channel of the pair receives later.
+class GccPhat {
+ public:
+  GccPhat(int64_t n, int64_t max_lag, int channels);
+  ~GccPhat();
+  GccPhat(const GccPhat&) = delete;
+  GccPhat& operator=(const GccPhat&) = delete;
+  /// window: (C x n); out: (pairs x 2*max_lag+1), resized if needed.
+  void Compute(const Eigen::MatrixXf& window, Eigen::MatrixXf* out) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Onset: first frame where the all-channel energy envelope exceeds threshold * its peak.
+/// Returns the onset in samples.
+int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
+                    double threshold);
+
+}  // namespace sonicboom::acoustics

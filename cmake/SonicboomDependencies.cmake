@@ -1,0 +1,27 @@
+# Every external dependency, found once. All come from Debian 12 packages (scripts/install-deps.sh).
+find_package(PkgConfig REQUIRED)
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(yaml-cpp REQUIRED)
+find_package(nlohmann_json REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(fmt REQUIRED)
+find_package(spdlog REQUIRED)
+find_package(TBB REQUIRED)
+find_package(HDF5 REQUIRED COMPONENTS C)
+pkg_check_modules(FFTW3 REQUIRED IMPORTED_TARGET fftw3)
+pkg_check_modules(SNDFILE REQUIRED IMPORTED_TARGET sndfile)
+find_package(Torch REQUIRED)
+
+# yaml-cpp 0.7 exports a plain target name
+if(TARGET yaml-cpp AND NOT TARGET yaml-cpp::yaml-cpp)
+  add_library(yaml-cpp::yaml-cpp ALIAS yaml-cpp)
+endif()
+
+# HDF5 as one imported target (FindHDF5 in CMake 3.25 provides hdf5::hdf5)
+if(NOT TARGET hdf5::hdf5)
+  add_library(sonicboom_hdf5 INTERFACE)
+  target_include_directories(sonicboom_hdf5 INTERFACE ${HDF5_INCLUDE_DIRS})
+  target_link_libraries(sonicboom_hdf5 INTERFACE ${HDF5_LIBRARIES})
+  target_compile_definitions(sonicboom_hdf5 INTERFACE ${HDF5_DEFINITIONS})
+  add_library(hdf5::hdf5 ALIAS sonicboom_hdf5)
+endif()

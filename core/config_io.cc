@@ -1,0 +1,340 @@
+#include "sonicboom/core/config_io.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom {
+
+// ---- Bounds ----
+
+bool Bounds::Contains(double v) const {
+  if (std::isnan(v)) return false;
+  if (lo_open ? !(v > lo) : !(v >= lo)) return false;
+  if (hi_open ? !(v < hi) : !(v <= hi)) return false;
+  return true;
+}
+
+std::string Bounds::Describe() const {
+  return fmt::format("{}{}, {}{}", lo_open ? "(" : "[", lo, hi, hi_open ? ")" : "]");
+}
+
+// ---- layers ----
+
+struct ConfigLayers::Impl {
+  YAML::Node merged{YAML::NodeType::Map};
+  std::map<std::string, std::string> origin;  // dotted key -> file or override that set it
+
+  // recursive merge: maps merge key by key, everything else replaces
+  void Merge(YAML::Node dst, const YAML::Node& src, const std::string& prefix,
+             const std::string& from) {
+    for (const auto& kv : src) {
+      const std::string key = kv.first.as<std::string>();
+      const std::string path = prefix.empty() ? key : prefix + "." + key;
+      origin[path] = from;
+      if (kv.second.IsMap() && dst[key] && dst[key].IsMap()) {
+        Merge(dst[key], kv.second, path, from);
+      } else {
+        dst[key] = YAML::Clone(kv.second);
+        MarkOrigins(kv.second, path, from);
+      }
+    }
+  }
+  void MarkOrigins(const YAML::Node& node, const std::string& prefix, const std::string& from) {
+    if (!node.IsMap()) return;
+    for (const auto& kv : node) {
+      const std::string path = prefix + "." + kv.first.as<std::string>();
+      origin[path] = from;
+      MarkOrigins(kv.second, path, from);
+    }
+  }
+  std::string OriginOf(const std::string& path) const {
+    // the closest enclosing key that a layer set
+    std::string p = path;
+    while (true) {
+      auto it = origin.find(p);
+      if (it != origin.end()) return it->second;
+      const auto dot = p.rfind('.');
+      if (dot == std::string::npos) return "defaults";
+      p = p.substr(0, dot);
+    }
+  }
+};
+
+ConfigLayers::ConfigLayers() : impl_(std::make_unique<Impl>()) {}
+ConfigLayers::~ConfigLayers() = default;
+ConfigLayers::ConfigLayers(ConfigLayers&&) noexcept = default;
+ConfigLayers& ConfigLayers::operator=(ConfigLayers&&) noexcept = default;
+
+void ConfigLayers::AddFile(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw IoError(fmt::format("{}: no such config file", path));
+  std::ifstream in(path);
+  if (!in) throw IoError(fmt::format("{}: cannot read config file", path));
+  std::stringstream text;
+  text << in.rdbuf();
+  AddText(text.str(), path);
+}
+
+void ConfigLayers::AddText(const std::string& yaml_text, const std::string& origin) {
+  YAML::Node node;
+  try {
+    node = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(fmt::format("{}: invalid YAML at line {}, column {}: {}", origin,
+                                  e.mark.line + 1, e.mark.column + 1, e.msg));
+  }
+  if (node.IsNull()) return;
+  if (!node.IsMap()) throw ConfigError(fmt::format("{}: a config must be a YAML mapping", origin));
+  impl_->Merge(impl_->merged, node, "", origin);
+}
+
+void ConfigLayers::AddOverride(const std::string& assignment) {
+  // "a.b.c=value" -> nested mapping {a: {b: {c: value}}}
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw ConfigError(fmt::format("--set '{}': expected key=value", assignment));
+  }
+  const std::string key = assignment.substr(0, eq);
+  const std::string value = assignment.substr(eq + 1);
+  YAML::Node leaf;
+  try {
+    leaf = YAML::Load(value);
+  } catch (const YAML::Exception&) {
+    leaf = YAML::Node(value);
+  }
+  std::vector<std::string> parts;
+  std::stringstream ss(key);
+  for (std::string part; std::getline(ss, part, '.');) {
+    if (part.empty()) throw ConfigError(fmt::format("--set '{}': empty key segment", assignment));
+    parts.push_back(part);
+  }
+  // built leaf-first; Node::reset rebinds (operator= would copy into the old node)
+  YAML::Node node = leaf;
+  for (size_t i = parts.size(); i-- > 0;) {
+    YAML::Node parent(YAML::NodeType::Map);
+    parent[parts[i]] = node;
+    node.reset(parent);
+  }
+  const YAML::Node root = node;
+  impl_->Merge(impl_->merged, root, "", "--set " + assignment);
+}
+
+// ---- strict YAML reader ----
+
+namespace {
+
+class YamlReadArchive : public Archive {
+ public:
+  YamlReadArchive(const YAML::Node& root, std::function<std::string(const std::string&)> origin_of)
+      : origin_of_(std::move(origin_of)) {
+    frames_.push_back({root, "", {}});
+  }
+
+  void Visit(std::string_view name, double* value, Bounds bounds) override {
+    if (auto node = Child(name)) {
+      *value = Convert<double>(node, name, "a number");
+      CheckBounds(name, *value, bounds);
+    }
+  }
+  void Visit(std::string_view name, int64_t* value, Bounds bounds) override {
+    if (auto node = Child(name)) {
+      *value = Convert<int64_t>(node, name, "an integer");
+      CheckBounds(name, static_cast<double>(*value), bounds);
+    }
+  }
+  void Visit(std::string_view name, bool* value) override {
+    if (auto node = Child(name)) *value = Convert<bool>(node, name, "true or false");
+  }
+  void Visit(std::string_view name, std::string* value) override {
+    if (auto node = Child(name)) *value = Convert<std::string>(node, name, "a string");
+  }
+  void Visit(std::string_view name, std::vector<double>* value, Bounds bounds) override {
+    if (auto node = Child(name)) {
+      if (!node.IsSequence()) Fail(name, "expected a list of numbers", node);
+      value->clear();
+      for (const auto& item : node) {
+        value->push_back(Convert<double>(item, name, "a list of numbers"));
+        CheckBounds(name, value->back(), bounds);
+      }
+    }
+  }
+  void Visit(std::string_view name, std::vector<std::string>* value) override {
+    if (auto node = Child(name)) {
+      if (!node.IsSequence()) Fail(name, "expected a list of strings", node);
+      value->clear();
+      for (const auto& item : node) value->push_back(Convert<std::string>(item, name, "strings"));
+    }
+  }
+  void VisitChoice(std::string_view name, std::string* value,
+                   const std::vector<std::string>& choices) override {
+    if (auto node = Child(name)) {
+      const auto s = Convert<std::string>(node, name, "a string");
+      if (std::find(choices.begin(), choices.end(), s) == choices.end()) {
+        std::string list;
+        for (const auto& c : choices) list += (list.empty() ? "" : ", ") + c;
+        throw ConfigError(fmt::format("config key '{}' = '{}' (from {}) is not one of: {}",
+                                      Path(name), s, origin_of_(Path(name)), list));
+      }
+      *value = s;
+    }
+  }
+
+  // unknown keys at the root
+  void Finish() { CheckUnknown(frames_.back()); }
+
+ protected:
+  void BeginGroup(std::string_view name) override {
+    YAML::Node node = Child(name);
+    if (node && !node.IsMap()) Fail(name, "expected a mapping", node);
+    frames_.push_back({node ? node : YAML::Node(), Path(name), {}});
+  }
+  void EndGroup() override {
+    CheckUnknown(frames_.back());
+    frames_.pop_back();
+  }
+
+ private:
+  struct Frame {
+    YAML::Node node;
+    std::string path;
+    std::set<std::string> visited;
+  };
+
+  std::string Path(std::string_view name) const {
+    const auto& prefix = frames_.back().path;
+    return prefix.empty() ? std::string(name) : prefix + "." + std::string(name);
+  }
+  YAML::Node Child(std::string_view name) {
+    auto& frame = frames_.back();
+    frame.visited.insert(std::string(name));
+    if (!frame.node || !frame.node.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
+    YAML::Node child = frame.node[std::string(name)];
+    if (!child || child.IsNull()) return YAML::Node(YAML::NodeType::Undefined);
+    return child;
+  }
+  template <typename T>
+  T Convert(const YAML::Node& node, std::string_view name, const char* expected) {
+    try {
+      if (!node.IsScalar()) throw YAML::Exception(YAML::Mark::null_mark(), "not a scalar");
+      return node.as<T>();
+    } catch (const YAML::Exception&) {
+      Fail(name, fmt::format("expected {}", expected), node);
+    }
+  }
+  [[noreturn]] void Fail(std::string_view name, const std::string& what, const YAML::Node& node) {
+    std::string shown = node.IsScalar() ? node.Scalar() : (node.IsSequence() ? "a list" : "a mapping");
+    throw ConfigError(fmt::format("config key '{}' (from {}): {}, got '{}'", Path(name),
+                                  origin_of_(Path(name)), what, shown));
+  }
+  void CheckBounds(std::string_view name, double v, const Bounds& bounds) {
+    if (!bounds.Contains(v)) {
+      throw ConfigError(fmt::format("config key '{}' = {} (from {}) is out of range {}", Path(name),
+                                    v, origin_of_(Path(name)), bounds.Describe()));
+    }
+  }
+  void CheckUnknown(const Frame& frame) {
+    if (!frame.node || !frame.node.IsMap()) return;
+    for (const auto& kv : frame.node) {
+      const auto key = kv.first.as<std::string>();
+      if (!frame.visited.count(key)) {
+        const std::string path = frame.path.empty() ? key : frame.path + "." + key;
+        throw ConfigError(
+            fmt::format("unknown config key '{}' (from {})", path, origin_of_(path)));
+      }
+    }
+  }
+
+  std::vector<Frame> frames_;
+  std::function<std::string(const std::string&)> origin_of_;
+};
+
+// ---- YAML writer ----
+
+class YamlWriteArchive : public Archive {
+ public:
+  YamlWriteArchive() { stack_.push_back({"", YAML::Node(YAML::NodeType::Map)}); }
+
+  void Visit(std::string_view name, double* value, Bounds) override {
+    Set(name, YAML::Node(FormatDouble(*value)));
+  }
+  void Visit(std::string_view name, int64_t* value, Bounds) override {
+    Set(name, YAML::Node(*value));
+  }
+  void Visit(std::string_view name, bool* value) override { Set(name, YAML::Node(*value)); }
+  void Visit(std::string_view name, std::string* value) override { Set(name, YAML::Node(*value)); }
+  void Visit(std::string_view name, std::vector<double>* value, Bounds) override {
+    YAML::Node seq(YAML::NodeType::Sequence);
+    seq.SetStyle(YAML::EmitterStyle::Flow);
+    for (double v : *value) seq.push_back(YAML::Node(FormatDouble(v)));
+    Set(name, seq);
+  }
+  void Visit(std::string_view name, std::vector<std::string>* value) override {
+    YAML::Node seq(YAML::NodeType::Sequence);
+    seq.SetStyle(YAML::EmitterStyle::Flow);
+    for (const auto& v : *value) seq.push_back(YAML::Node(v));
+    Set(name, seq);
+  }
+  void VisitChoice(std::string_view name, std::string* value,
+                   const std::vector<std::string>&) override {
+    Set(name, YAML::Node(*value));
+  }
+
+  std::string Emit() const {
+    YAML::Emitter out;
+    out << stack_.front().second;
+    return std::string(out.c_str()) + "\n";
+  }
+
+ protected:
+  void BeginGroup(std::string_view name) override {
+    stack_.push_back({std::string(name), YAML::Node(YAML::NodeType::Map)});
+  }
+  void EndGroup() override {
+    // attach the finished group under its name in the parent
+    auto group = stack_.back();
+    stack_.pop_back();
+    stack_.back().second[group.first] = group.second;
+  }
+
+ private:
+  static std::string FormatDouble(double v) { return fmt::format("{}", v); }
+  void Set(std::string_view name, const YAML::Node& node) {
+    stack_.back().second[std::string(name)] = node;
+  }
+
+  std::vector<std::pair<std::string, YAML::Node>> stack_;  // (group name, mapping)
+};
+
+}  // namespace
+
+std::unique_ptr<Archive> ConfigLayers::MakeReadArchive() const {
+  const Impl* impl = impl_.get();
+  return std::make_unique<YamlReadArchive>(
+      impl->merged, [impl](const std::string& path) { return impl->OriginOf(path); });
+}
+
+void ConfigLayers::FinishRead(Archive* archive) const {
+  static_cast<YamlReadArchive*>(archive)->Finish();
+}
+
+}  // namespace sonicboom
+
+namespace sonicboom::internal {
+
+std::unique_ptr<Archive> MakeYamlWriteArchive() { return std::make_unique<YamlWriteArchive>(); }
+
+std::string FinishYamlWrite(Archive* archive) {
+  return static_cast<YamlWriteArchive*>(archive)->Emit();
+}
+
+}  // namespace sonicboom::internal

@@ -1,0 +1,791 @@
+#include "sonicboom/core/dataset.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <limits>
+#include <map>
+#include <string>
+#include <tuple>
+#include <unordered_set>
+#include <utility>
+
+#include "internal/h5util.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom {
+namespace {
+
+namespace h5 = internal::h5;
+
+// int16 PCM full scale: stored value = round(clamp(x, -1, 1) * 32767).
+constexpr double kInt16FullScale = 32767.0;
+// Rows per chunk of the per-sample scalar and label columns.
+constexpr hsize_t kColumnChunkRows = 1024;
+// Proprio chunks hold as many samples as fit in about this many bytes (at least one).
+constexpr hsize_t kProprioChunkBytes = 256 * 1024;
+// deflate level of the audio and proprio chunks (after the shuffle filter).
+constexpr int kDeflateLevel = 1;
+// An unfinished file is flushed at most this often, so a crash leaves a readable prefix.
+constexpr std::chrono::seconds kFlushInterval{2};
+
+// Dataset paths below the root.
+constexpr const char* kAudioPath = "audio";
+constexpr const char* kProprioPath = "proprio";
+constexpr const char* kSampleIndexPath = "index/sample_index";
+constexpr const char* kSeedPath = "index/seed";
+constexpr const char* kValidPath = "index/valid";
+constexpr const char* kInvalidReasonPath = "index/invalid_reason";
+constexpr const char* kClippedPath = "index/clipped";
+
+// Scalar float64 label columns, shape (N).
+struct ScalarLabelField {
+  const char* path;
+  double ContactLabel::*member;
+};
+constexpr std::array<ScalarLabelField, 6> kScalarLabels{{
+    {"label/z_m", &ContactLabel::z_m},
+    {"label/theta_rad", &ContactLabel::theta_rad},
+    {"label/impulse_Ns", &ContactLabel::impulse_Ns},
+    {"label/time_s", &ContactLabel::time_s},
+    {"label/normal_speed_m_s", &ContactLabel::normal_speed_m_s},
+    {"label/duration_s", &ContactLabel::duration_s},
+}};
+
+// 3-vector float64 label columns in the tube frame, shape (N, 3).
+struct VectorLabelField {
+  const char* path;
+  Eigen::Vector3d ContactLabel::*member;
+};
+constexpr std::array<VectorLabelField, 2> kVectorLabels{{
+    {"label/point_m", &ContactLabel::point_m},
+    {"label/normal", &ContactLabel::normal},
+}};
+
+// Open handles of every dataset of a dataset file.
+struct Columns {
+  h5::Handle audio;
+  h5::Handle proprio;
+  std::array<h5::Handle, kScalarLabels.size()> scalar_labels;
+  std::array<h5::Handle, kVectorLabels.size()> vector_labels;
+  h5::Handle sample_index;
+  h5::Handle seed;
+  h5::Handle valid;
+  h5::Handle invalid_reason;
+  h5::Handle clipped;
+
+  // (handle, path) of every column, for checks that apply to all of them.
+  std::vector<std::pair<hid_t, std::string>> All() const {
+    std::vector<std::pair<hid_t, std::string>> all = {
+        {audio.get(), kAudioPath},
+        {proprio.get(), kProprioPath},
+        {sample_index.get(), kSampleIndexPath},
+        {seed.get(), kSeedPath},
+        {valid.get(), kValidPath},
+        {invalid_reason.get(), kInvalidReasonPath},
+        {clipped.get(), kClippedPath}};
+    for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+      all.emplace_back(scalar_labels[f].get(), kScalarLabels[f].path);
+    }
+    for (size_t f = 0; f < kVectorLabels.size(); ++f) {
+      all.emplace_back(vector_labels[f].get(), kVectorLabels[f].path);
+    }
+    return all;
+  }
+
+  // Closes every column, reporting failures (pending writes) as IoError.
+  void CloseAll(const std::string& file) {
+    audio.Close(file, kAudioPath);
+    proprio.Close(file, kProprioPath);
+    for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+      scalar_labels[f].Close(file, kScalarLabels[f].path);
+    }
+    for (size_t f = 0; f < kVectorLabels.size(); ++f) {
+      vector_labels[f].Close(file, kVectorLabels[f].path);
+    }
+    sample_index.Close(file, kSampleIndexPath);
+    seed.Close(file, kSeedPath);
+    valid.Close(file, kValidPath);
+    invalid_reason.Close(file, kInvalidReasonPath);
+    clipped.Close(file, kClippedPath);
+  }
+};
+
+// Current UTC time as ISO 8601, e.g. "2024-05-01T12:34:56Z".
+std::string UtcNow() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
+
+// Refuses dataset metadata that cannot describe a file.
+void CheckInfo(const std::string& path, const DatasetInfo& info) {
+  auto fail = [&](const std::string& what) {
+    throw ConfigError(path + ": dataset " + what);
+  };
+  if (info.channels < 1) fail("channels must be >= 1, got " + std::to_string(info.channels));
+  if (info.audio_frames < 1) {
+    fail("audio_frames must be >= 1, got " + std::to_string(info.audio_frames));
+  }
+  if (info.proprio_rows < 0) {
+    fail("proprio_rows must be >= 0, got " + std::to_string(info.proprio_rows));
+  }
+  if (!(info.sample_rate_hz > 0.0)) {
+    fail("sample_rate_hz must be > 0, got " + std::to_string(info.sample_rate_hz));
+  }
+  if (!(info.proprio_rate_hz > 0.0)) {
+    fail("proprio_rate_hz must be > 0, got " + std::to_string(info.proprio_rate_hz));
+  }
+  if (info.num_shards < 1) fail("num_shards must be >= 1, got " + std::to_string(info.num_shards));
+  if (info.shard < 0 || info.shard >= info.num_shards) {
+    fail("shard must be in [0, " + std::to_string(info.num_shards) + "), got " +
+         std::to_string(info.shard));
+  }
+}
+
+// int16 PCM value of a full-scale sample; non-finite values (only in invalid samples) become 0.
+int16_t ToPcm16(float x) {
+  if (!std::isfinite(x)) return 0;
+  // Round half away from zero, as std::lround, without its cost per audio value.
+  const double scaled = std::clamp(static_cast<double>(x), -1.0, 1.0) * kInt16FullScale;
+  return static_cast<int16_t>(scaled >= 0.0 ? scaled + 0.5 : scaled - 0.5);
+}
+
+// Reads one row of a column of fixed-size values.
+template <typename T>
+T ReadOne(hid_t dataset, hid_t mem_type, int64_t i, const std::string& file, const char* path) {
+  T value{};
+  h5::ReadRows(dataset, mem_type, &value, static_cast<hsize_t>(i), 1, file, path);
+  return value;
+}
+
+// Reads the first n rows of a 1-D column.
+template <typename T>
+std::vector<T> ReadColumn(hid_t dataset, hid_t mem_type, int64_t n, const std::string& file,
+                          const char* path) {
+  std::vector<T> values(n);
+  h5::ReadRows(dataset, mem_type, values.data(), 0, static_cast<hsize_t>(n), file, path);
+  return values;
+}
+
+// A complete (or, when allowed, incomplete) dataset file opened for reading.
+class DatasetFile {
+ public:
+  DatasetFile(const std::string& path, bool allow_incomplete) : path_(path) {
+    file_ = h5::OpenFileReadOnly(path);
+    const hid_t root = file_.get();
+
+    // Identity: schema name and version, then completeness.
+    std::string schema;
+    if (h5::HasAttr(root, "schema", path)) {
+      try {
+        schema = h5::ReadStringAttr(root, "schema", path);
+      } catch (const IoError&) {
+        schema = "(not a string)";
+      }
+    }
+    if (schema != kDatasetSchema) {
+      throw SchemaError(path + ": not a sonicboom dataset (schema attribute '" + schema +
+                        "', expected '" + kDatasetSchema + "')");
+    }
+    const std::string version = h5::HasAttr(root, "schema_version", path)
+                                    ? h5::ReadStringAttr(root, "schema_version", path)
+                                    : std::string("(missing)");
+    if (version != kDatasetSchemaVersion) {
+      throw SchemaError(path + ": dataset schema_version " + version + ", this build reads " +
+                        kDatasetSchemaVersion);
+    }
+    info_.complete = h5::IsComplete(root, path);
+    if (!info_.complete && !allow_incomplete) {
+      throw SchemaError(path +
+                        ": incomplete dataset (no `complete` attribute): written by a run that "
+                        "did not finish");
+    }
+
+    // Root metadata.
+    info_.source = h5::ReadStringAttr(root, "source", path);
+    info_.config_yaml = h5::ReadStringAttr(root, "config_yaml", path);
+    info_.software_version = h5::ReadStringAttr(root, "software_version", path);
+    info_.sample_rate_hz = h5::ReadDoubleAttr(root, "sample_rate_hz", path);
+    info_.proprio_rate_hz = h5::ReadDoubleAttr(root, "proprio_rate_hz", path);
+    info_.global_seed = h5::ReadUint64Attr(root, "global_seed", path);
+    info_.shard = h5::ReadInt64Attr(root, "shard", path);
+    info_.num_shards = h5::ReadInt64Attr(root, "num_shards", path);
+
+    // Every column.
+    columns_.audio = h5::OpenDataset(root, kAudioPath, path);
+    columns_.proprio = h5::OpenDataset(root, kProprioPath, path);
+    for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+      columns_.scalar_labels[f] = h5::OpenDataset(root, kScalarLabels[f].path, path);
+    }
+    for (size_t f = 0; f < kVectorLabels.size(); ++f) {
+      columns_.vector_labels[f] = h5::OpenDataset(root, kVectorLabels[f].path, path);
+    }
+    columns_.sample_index = h5::OpenDataset(root, kSampleIndexPath, path);
+    columns_.seed = h5::OpenDataset(root, kSeedPath, path);
+    columns_.valid = h5::OpenDataset(root, kValidPath, path);
+    columns_.invalid_reason = h5::OpenDataset(root, kInvalidReasonPath, path);
+    columns_.clipped = h5::OpenDataset(root, kClippedPath, path);
+
+    // Shapes: audio (N, C, T) int16 or float32 with `scale`, proprio (N, K, 10).
+    const std::vector<hsize_t> audio_dims = h5::Dims(columns_.audio.get(), path, kAudioPath);
+    if (audio_dims.size() != 3) {
+      throw SchemaError(path + ": /audio has rank " + std::to_string(audio_dims.size()) +
+                        ", expected 3 (N, C, T)");
+    }
+    info_.channels = static_cast<int>(audio_dims[1]);
+    info_.audio_frames = static_cast<int64_t>(audio_dims[2]);
+    h5::Handle audio_type(
+        h5::CheckId(H5Dget_type(columns_.audio.get()), path, kAudioPath, "read type of"));
+    const std::string audio_dtype = h5::DtypeName(audio_type.get());
+    if (audio_dtype != "int16" && audio_dtype != "float32") {
+      throw SchemaError(path + ": /audio is " + audio_dtype + ", expected int16 or float32");
+    }
+    info_.audio_int16 = audio_dtype == "int16";
+    audio_scale_ = h5::ReadDoubleAttr(columns_.audio.get(), "scale", path);
+    const std::vector<hsize_t> proprio_dims =
+        h5::Dims(columns_.proprio.get(), path, kProprioPath);
+    if (proprio_dims.size() != 3 || proprio_dims[2] != kProprioFeatures) {
+      throw SchemaError(path + ": /proprio must have shape (N, K, " +
+                        std::to_string(kProprioFeatures) + ")");
+    }
+    info_.proprio_rows = static_cast<int64_t>(proprio_dims[1]);
+
+    // Sample count: the rows every column has (a crashed writer may leave ragged columns).
+    hsize_t rows = std::numeric_limits<hsize_t>::max();
+    hsize_t most_rows = 0;
+    for (const auto& [dataset, name] : columns_.All()) {
+      const hsize_t column_rows = h5::Dims(dataset, path, name).at(0);
+      rows = std::min(rows, column_rows);
+      most_rows = std::max(most_rows, column_rows);
+    }
+    info_.num_samples = static_cast<int64_t>(rows);
+    if (info_.complete) {
+      const int64_t declared = h5::ReadInt64Attr(root, "num_samples", path);
+      if (declared != info_.num_samples || most_rows != rows) {
+        throw SchemaError(path + ": num_samples attribute is " + std::to_string(declared) +
+                          " but the columns hold between " + std::to_string(rows) + " and " +
+                          std::to_string(most_rows) + " rows");
+      }
+    }
+  }
+
+  const std::string& path() const { return path_; }
+  const DatasetInfo& info() const { return info_; }
+  int64_t size() const { return info_.num_samples; }
+
+  // Index fields, labels and proprio of sample i.
+  void ReadMeta(int64_t i, StrikeSample* sample) const {
+    CheckRange(i);
+    const hid_t u64 = H5T_NATIVE_UINT64;
+    const hid_t u8 = H5T_NATIVE_UINT8;
+    sample->index = ReadOne<uint64_t>(columns_.sample_index.get(), u64, i, path_,
+                                      kSampleIndexPath);
+    sample->seed = ReadOne<uint64_t>(columns_.seed.get(), u64, i, path_, kSeedPath);
+    sample->valid = ReadOne<uint8_t>(columns_.valid.get(), u8, i, path_, kValidPath) != 0;
+    sample->clipped = ReadOne<uint8_t>(columns_.clipped.get(), u8, i, path_, kClippedPath) != 0;
+    sample->invalid_reason = h5::ReadStringRows(columns_.invalid_reason.get(),
+                                                static_cast<hsize_t>(i), 1, path_,
+                                                kInvalidReasonPath)
+                                 .at(0);
+    for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+      sample->label.*kScalarLabels[f].member = ReadOne<double>(
+          columns_.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, i, path_, kScalarLabels[f].path);
+    }
+    for (size_t f = 0; f < kVectorLabels.size(); ++f) {
+      Eigen::Vector3d& v = sample->label.*kVectorLabels[f].member;
+      h5::ReadRows(columns_.vector_labels[f].get(), H5T_NATIVE_DOUBLE, v.data(),
+                   static_cast<hsize_t>(i), 1, path_, kVectorLabels[f].path);
+    }
+    // (K, 10) row-major in the file.
+    const int64_t k = info_.proprio_rows;
+    std::vector<float> proprio(static_cast<size_t>(k) * kProprioFeatures);
+    h5::ReadRows(columns_.proprio.get(), H5T_NATIVE_FLOAT, proprio.data(),
+                 static_cast<hsize_t>(i), 1, path_, kProprioPath);
+    sample->proprio =
+        Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            proprio.data(), k, kProprioFeatures);
+  }
+
+  // Audio of sample i, (channels x T) in full-scale units.
+  Eigen::MatrixXf ReadAudio(int64_t i) const {
+    CheckRange(i);
+    using RowMajorInt16 =
+        Eigen::Matrix<int16_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    using RowMajorFloat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const int64_t c = info_.channels;
+    const int64_t t = info_.audio_frames;
+    if (info_.audio_int16) {
+      RowMajorInt16 pcm(c, t);
+      h5::ReadRows(columns_.audio.get(), H5T_NATIVE_INT16, pcm.data(), static_cast<hsize_t>(i),
+                   1, path_, kAudioPath);
+      return (pcm.cast<double>() * audio_scale_).cast<float>();
+    }
+    RowMajorFloat audio(c, t);
+    h5::ReadRows(columns_.audio.get(), H5T_NATIVE_FLOAT, audio.data(), static_cast<hsize_t>(i), 1,
+                 path_, kAudioPath);
+    if (audio_scale_ != 1.0) audio *= static_cast<float>(audio_scale_);
+    return audio;
+  }
+
+  const Columns& columns() const { return columns_; }
+
+ private:
+  void CheckRange(int64_t i) const {
+    if (i < 0 || i >= info_.num_samples) {
+      throw IoError(path_ + ": sample " + std::to_string(i) + " out of range [0, " +
+                    std::to_string(info_.num_samples) + ")");
+    }
+  }
+
+  std::string path_;
+  h5::Handle file_;
+  Columns columns_;
+  DatasetInfo info_;
+  double audio_scale_{1.0};
+};
+
+// {"min": .., "max": .., "mean": ..} of values (nulls when empty).
+nlohmann::ordered_json RangeJson(const std::vector<double>& values, bool with_mean) {
+  nlohmann::ordered_json range = {{"min", nullptr}, {"max", nullptr}};
+  if (with_mean) range["mean"] = nullptr;
+  if (values.empty()) return range;
+  const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
+  range["min"] = *lo;
+  range["max"] = *hi;
+  if (with_mean) {
+    double sum = 0.0;
+    for (double v : values) sum += v;
+    range["mean"] = sum / static_cast<double>(values.size());
+  }
+  return range;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// DatasetWriter
+
+struct DatasetWriter::Impl {
+  std::string path;
+  std::string partial;
+  DatasetInfo info;
+  h5::Handle file_handle;
+  Columns columns;
+  h5::Handle string_type;
+  int64_t count{0};
+  bool finished{false};
+  std::unordered_set<uint64_t> indices;
+  std::chrono::steady_clock::time_point last_flush;
+
+  // Throws SchemaError when the sample does not fit the file; `raw_audio`: audio comes as a
+  // stored chunk (merge), not in the sample.
+  void CheckSample(const StrikeSample& sample, bool raw_audio) const;
+  // Appends the sample's audio row.
+  void WriteAudio(const StrikeSample& sample);
+  // Appends proprio, labels and index fields, counts the sample and flushes now and then.
+  void WriteAllButAudio(const StrikeSample& sample);
+};
+
+DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info)
+    : impl_(std::make_unique<Impl>()) {
+  CheckInfo(path, info);
+  Impl& s = *impl_;
+  s.path = path;
+  s.partial = h5::PartialPath(path);
+  s.info = info;
+  if (s.info.software_version.empty()) s.info.software_version = SONICBOOM_VERSION;
+  h5::PrepareAtomicWrite(path);
+  s.file_handle = h5::CreateFile(s.partial);
+  s.string_type = h5::VlenStringType();
+  const hid_t root = s.file_handle.get();
+  const std::string& file = s.partial;
+
+  // Root attributes; num_samples and `complete` follow in Finish().
+  h5::WriteStringAttr(root, "schema", kDatasetSchema, file);
+  h5::WriteStringAttr(root, "schema_version", kDatasetSchemaVersion, file);
+  h5::WriteStringAttr(root, "software_version", s.info.software_version, file);
+  h5::WriteStringAttr(root, "source", s.info.source, file);
+  h5::WriteStringAttr(root, "config_yaml", s.info.config_yaml, file);
+  h5::WriteDoubleAttr(root, "sample_rate_hz", s.info.sample_rate_hz, file);
+  h5::WriteDoubleAttr(root, "proprio_rate_hz", s.info.proprio_rate_hz, file);
+  h5::WriteUint64Attr(root, "global_seed", s.info.global_seed, file);
+  h5::WriteInt64Attr(root, "shard", s.info.shard, file);
+  h5::WriteInt64Attr(root, "num_shards", s.info.num_shards, file);
+  h5::WriteStringAttr(root, "created_utc", UtcNow(), file);
+
+  // Audio (N, C, T): one sample per chunk, shuffle + deflate; `scale` maps to full scale 1.
+  const hsize_t c = static_cast<hsize_t>(s.info.channels);
+  const hsize_t t = static_cast<hsize_t>(s.info.audio_frames);
+  s.columns.audio =
+      h5::CreateExtendable(root, kAudioPath, s.info.audio_int16 ? H5T_STD_I16LE : H5T_IEEE_F32LE,
+                           {{c, t}, 1, kDeflateLevel}, file);
+  h5::WriteDoubleAttr(s.columns.audio.get(), "scale",
+                      s.info.audio_int16 ? 1.0 / kInt16FullScale : 1.0, file);
+
+  // Proprio (N, K, 10) float32, chunks of about kProprioChunkBytes.
+  const hsize_t k = static_cast<hsize_t>(s.info.proprio_rows);
+  const hsize_t proprio_row_bytes = std::max<hsize_t>(k * kProprioFeatures * sizeof(float), 1);
+  const hsize_t proprio_chunk_rows =
+      std::clamp<hsize_t>(kProprioChunkBytes / proprio_row_bytes, 1, kColumnChunkRows);
+  s.columns.proprio = h5::CreateExtendable(root, kProprioPath, H5T_IEEE_F32LE,
+                                           {{k, kProprioFeatures}, proprio_chunk_rows,
+                                            kDeflateLevel},
+                                           file);
+
+  // Labels (N) and (N, 3) float64; index columns (N).
+  for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+    s.columns.scalar_labels[f] = h5::CreateExtendable(root, kScalarLabels[f].path, H5T_IEEE_F64LE,
+                                                      {{}, kColumnChunkRows, -1}, file);
+  }
+  for (size_t f = 0; f < kVectorLabels.size(); ++f) {
+    s.columns.vector_labels[f] = h5::CreateExtendable(root, kVectorLabels[f].path, H5T_IEEE_F64LE,
+                                                      {{3}, kColumnChunkRows, -1}, file);
+  }
+  s.columns.sample_index = h5::CreateExtendable(root, kSampleIndexPath, H5T_STD_U64LE,
+                                                {{}, kColumnChunkRows, -1}, file);
+  s.columns.seed =
+      h5::CreateExtendable(root, kSeedPath, H5T_STD_U64LE, {{}, kColumnChunkRows, -1}, file);
+  s.columns.valid =
+      h5::CreateExtendable(root, kValidPath, H5T_STD_U8LE, {{}, kColumnChunkRows, -1}, file);
+  s.columns.invalid_reason = h5::CreateExtendable(root, kInvalidReasonPath, s.string_type.get(),
+                                                  {{}, kColumnChunkRows, -1}, file);
+  s.columns.clipped =
+      h5::CreateExtendable(root, kClippedPath, H5T_STD_U8LE, {{}, kColumnChunkRows, -1}, file);
+  s.last_flush = std::chrono::steady_clock::now();
+}
+
+DatasetWriter::~DatasetWriter() = default;
+
+void DatasetWriter::Append(const StrikeSample& sample) {
+  impl_->CheckSample(sample, /*raw_audio=*/false);
+  impl_->WriteAudio(sample);
+  impl_->WriteAllButAudio(sample);
+}
+
+void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio) const {
+  SONICBOOM_DEMAND(!finished);
+  const std::string where = partial + ": sample " + std::to_string(sample.index);
+  const int64_t c = info.channels;
+  const int64_t t = info.audio_frames;
+  const int64_t k = info.proprio_rows;
+  // Shapes: audio (C x T), proprio (K x 10); an invalid sample may carry neither (zeros stored).
+  const bool audio_missing = !sample.valid && sample.audio.size() == 0;
+  if (!raw_audio && !audio_missing &&
+      (sample.audio.rows() != c || sample.audio.cols() != t)) {
+    throw SchemaError(where + ": audio is " + std::to_string(sample.audio.rows()) + " x " +
+                      std::to_string(sample.audio.cols()) + ", expected " + std::to_string(c) +
+                      " x " + std::to_string(t));
+  }
+  const bool proprio_missing = !sample.valid && sample.proprio.size() == 0;
+  if (!proprio_missing &&
+      (sample.proprio.rows() != k || sample.proprio.cols() != kProprioFeatures)) {
+    throw SchemaError(where + ": proprio is " + std::to_string(sample.proprio.rows()) + " x " +
+                      std::to_string(sample.proprio.cols()) + ", expected " + std::to_string(k) +
+                      " x " + std::to_string(kProprioFeatures));
+  }
+  if (!raw_audio && sample.valid && !sample.audio.allFinite()) {
+    throw SchemaError(where + ": valid sample has non-finite audio");
+  }
+  if (indices.count(sample.index) > 0) {
+    throw SchemaError(where + ": sample index written twice");
+  }
+}
+
+void DatasetWriter::Impl::WriteAudio(const StrikeSample& sample) {
+  // One (C, T) row-major row as int16 PCM or float32; zeros when an invalid sample has none.
+  const int64_t c = info.channels;
+  const int64_t t = info.audio_frames;
+  const bool audio_missing = sample.audio.size() == 0;
+  if (info.audio_int16) {
+    std::vector<int16_t> pcm(static_cast<size_t>(c * t), 0);
+    if (!audio_missing) {
+      for (int64_t ch = 0; ch < c; ++ch) {
+        for (int64_t j = 0; j < t; ++j) pcm[ch * t + j] = ToPcm16(sample.audio(ch, j));
+      }
+    }
+    h5::AppendRows(columns.audio.get(), H5T_NATIVE_INT16, pcm.data(), 1, partial, kAudioPath);
+    return;
+  }
+  std::vector<float> audio(static_cast<size_t>(c * t), 0.0f);
+  if (!audio_missing) {
+    for (int64_t ch = 0; ch < c; ++ch) {
+      for (int64_t j = 0; j < t; ++j) audio[ch * t + j] = sample.audio(ch, j);
+    }
+  }
+  h5::AppendRows(columns.audio.get(), H5T_NATIVE_FLOAT, audio.data(), 1, partial, kAudioPath);
+}
+
+void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
+  const std::string& file = partial;
+  // Proprio row, (K, 10) row-major float32; zeros when an invalid sample has none.
+  const int64_t k = info.proprio_rows;
+  std::vector<float> proprio(static_cast<size_t>(k * kProprioFeatures), 0.0f);
+  if (sample.proprio.size() > 0) {
+    for (int64_t r = 0; r < k; ++r) {
+      for (int j = 0; j < kProprioFeatures; ++j) {
+        proprio[r * kProprioFeatures + j] = sample.proprio(r, j);
+      }
+    }
+  }
+  h5::AppendRows(columns.proprio.get(), H5T_NATIVE_FLOAT, proprio.data(), 1, file, kProprioPath);
+
+  // Labels.
+  for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+    const double value = sample.label.*kScalarLabels[f].member;
+    h5::AppendRows(columns.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, &value, 1, file,
+                   kScalarLabels[f].path);
+  }
+  for (size_t f = 0; f < kVectorLabels.size(); ++f) {
+    const Eigen::Vector3d value = sample.label.*kVectorLabels[f].member;
+    h5::AppendRows(columns.vector_labels[f].get(), H5T_NATIVE_DOUBLE, value.data(), 1, file,
+                   kVectorLabels[f].path);
+  }
+
+  // Index columns.
+  const uint8_t valid = sample.valid ? 1 : 0;
+  const uint8_t clipped = sample.clipped ? 1 : 0;
+  const char* reason = sample.invalid_reason.c_str();
+  h5::AppendRows(columns.sample_index.get(), H5T_NATIVE_UINT64, &sample.index, 1, file,
+                 kSampleIndexPath);
+  h5::AppendRows(columns.seed.get(), H5T_NATIVE_UINT64, &sample.seed, 1, file, kSeedPath);
+  h5::AppendRows(columns.valid.get(), H5T_NATIVE_UINT8, &valid, 1, file, kValidPath);
+  h5::AppendRows(columns.invalid_reason.get(), string_type.get(), &reason, 1, file,
+                 kInvalidReasonPath);
+  h5::AppendRows(columns.clipped.get(), H5T_NATIVE_UINT8, &clipped, 1, file, kClippedPath);
+  indices.insert(sample.index);
+  ++count;
+
+  // Periodic flush so that a crash leaves a readable .partial.
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_flush >= kFlushInterval) {
+    h5::CheckStatus(H5Fflush(file_handle.get(), H5F_SCOPE_LOCAL), file, "", "flush");
+    last_flush = now;
+  }
+}
+
+void DatasetWriter::Finish() {
+  Impl& s = *impl_;
+  SONICBOOM_DEMAND(!s.finished);
+  h5::WriteInt64Attr(s.file_handle.get(), "num_samples", s.count, s.partial);
+  // `complete` is the last thing written.
+  h5::MarkComplete(s.file_handle.get(), s.partial);
+  s.columns.CloseAll(s.partial);
+  s.string_type.Reset();
+  s.file_handle.Close(s.partial, "");
+  h5::CommitAtomicWrite(s.path);
+  s.finished = true;
+}
+
+int64_t DatasetWriter::count() const { return impl_->count; }
+
+// ---------------------------------------------------------------------------------------------
+// DatasetReader
+
+struct DatasetReader::Impl {
+  DatasetFile file;
+};
+
+DatasetReader::DatasetReader(const std::string& path, bool allow_incomplete)
+    : impl_(std::make_unique<Impl>(Impl{DatasetFile(path, allow_incomplete)})) {}
+
+DatasetReader::~DatasetReader() = default;
+DatasetReader::DatasetReader(DatasetReader&&) noexcept = default;
+DatasetReader& DatasetReader::operator=(DatasetReader&&) noexcept = default;
+
+const DatasetInfo& DatasetReader::info() const { return impl_->file.info(); }
+
+int64_t DatasetReader::size() const { return impl_->file.size(); }
+
+StrikeSample DatasetReader::ReadMeta(int64_t i) const {
+  StrikeSample sample;
+  impl_->file.ReadMeta(i, &sample);
+  return sample;
+}
+
+StrikeSample DatasetReader::Read(int64_t i) const {
+  StrikeSample sample;
+  impl_->file.ReadMeta(i, &sample);
+  sample.audio = impl_->file.ReadAudio(i);
+  return sample;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Merging and summaries
+
+void MergeDatasets(const std::vector<std::string>& shard_paths, const std::string& out_path) {
+  if (shard_paths.empty()) throw ConfigError("merge: no shard files given");
+  // Every shard must be complete (the reader refuses incomplete ones) and match the first.
+  std::vector<DatasetFile> shards;
+  shards.reserve(shard_paths.size());
+  for (const std::string& path : shard_paths) shards.emplace_back(path, false);
+  const DatasetFile& first = shards.front();
+  for (const DatasetFile& shard : shards) {
+    const DatasetInfo& a = first.info();
+    const DatasetInfo& b = shard.info();
+    auto refuse = [&](const std::string& what, const std::string& va, const std::string& vb) {
+      throw SchemaError("merge: " + shard.path() + " has " + what + " " + vb + " but " +
+                        first.path() + " has " + va);
+    };
+    if (b.config_yaml != a.config_yaml) {
+      throw SchemaError("merge: " + shard.path() + " was generated with a different config_yaml " +
+                        "than " + first.path());
+    }
+    if (b.source != a.source) refuse("source", a.source, b.source);
+    if (b.global_seed != a.global_seed) {
+      refuse("global_seed", std::to_string(a.global_seed), std::to_string(b.global_seed));
+    }
+    if (b.sample_rate_hz != a.sample_rate_hz) {
+      refuse("sample_rate_hz", std::to_string(a.sample_rate_hz), std::to_string(b.sample_rate_hz));
+    }
+    if (b.proprio_rate_hz != a.proprio_rate_hz) {
+      refuse("proprio_rate_hz", std::to_string(a.proprio_rate_hz),
+             std::to_string(b.proprio_rate_hz));
+    }
+    if (b.channels != a.channels || b.audio_frames != a.audio_frames) {
+      refuse("audio shape", std::to_string(a.channels) + " x " + std::to_string(a.audio_frames),
+             std::to_string(b.channels) + " x " + std::to_string(b.audio_frames));
+    }
+    if (b.proprio_rows != a.proprio_rows) {
+      refuse("proprio_rows", std::to_string(a.proprio_rows), std::to_string(b.proprio_rows));
+    }
+    if (b.audio_int16 != a.audio_int16) {
+      refuse("audio dtype", a.audio_int16 ? "int16" : "float32",
+             b.audio_int16 ? "int16" : "float32");
+    }
+  }
+
+  // (sample index, shard, row) of every sample, ordered by sample index; no index twice.
+  std::vector<std::tuple<uint64_t, size_t, int64_t>> order;
+  for (size_t k = 0; k < shards.size(); ++k) {
+    const std::vector<uint64_t> indices =
+        ReadColumn<uint64_t>(shards[k].columns().sample_index.get(), H5T_NATIVE_UINT64,
+                             shards[k].size(), shards[k].path(), kSampleIndexPath);
+    for (int64_t row = 0; row < shards[k].size(); ++row) order.emplace_back(indices[row], k, row);
+  }
+  std::sort(order.begin(), order.end());
+  for (size_t n = 1; n < order.size(); ++n) {
+    const auto& [index, k, row] = order[n];
+    const auto& [previous_index, previous_k, previous_row] = order[n - 1];
+    if (index == previous_index) {
+      throw SchemaError("merge: sample index " + std::to_string(index) + " appears in " +
+                        shards[previous_k].path() + " (row " + std::to_string(previous_row) +
+                        ") and " + shards[k].path() + " (row " + std::to_string(row) + ")");
+    }
+  }
+
+  // One unsharded output, written atomically by DatasetWriter.
+  DatasetInfo out_info = first.info();
+  out_info.shard = 0;
+  out_info.num_shards = 1;
+  DatasetWriter writer(out_path, out_info);
+  DatasetWriter::Impl& out = *writer.impl_;
+  std::vector<bool> copy_raw_audio(shards.size());
+  for (size_t k = 0; k < shards.size(); ++k) {
+    copy_raw_audio[k] = h5::SameChunkStorage(shards[k].columns().audio.get(),
+                                             out.columns.audio.get(), shards[k].path(), kAudioPath);
+  }
+  for (const auto& [index, k, row] : order) {
+    StrikeSample sample;
+    shards[k].ReadMeta(row, &sample);
+    // Audio: copy the stored (compressed) chunk when the layouts agree, else decode and encode.
+    if (copy_raw_audio[k]) {
+      const h5::RawChunk chunk =
+          h5::ReadRawChunk(shards[k].columns().audio.get(), {static_cast<hsize_t>(row), 0, 0},
+                           shards[k].path(), kAudioPath);
+      if (!chunk.bytes.empty()) {
+        out.CheckSample(sample, /*raw_audio=*/true);
+        h5::AppendRawChunkRow(out.columns.audio.get(), chunk, out.partial, kAudioPath);
+        out.WriteAllButAudio(sample);
+        continue;
+      }
+    }
+    sample.audio = shards[k].ReadAudio(row);
+    writer.Append(sample);
+  }
+  writer.Finish();
+}
+
+std::string SummarizeDatasetJson(const std::string& path) {
+  const DatasetFile dataset(path, /*allow_incomplete=*/true);
+  const DatasetInfo& info = dataset.info();
+  const Columns& columns = dataset.columns();
+  const int64_t n = dataset.size();
+
+  // Whole index and label columns (one value per sample).
+  const std::vector<uint8_t> valid =
+      ReadColumn<uint8_t>(columns.valid.get(), H5T_NATIVE_UINT8, n, path, kValidPath);
+  const std::vector<uint8_t> clipped =
+      ReadColumn<uint8_t>(columns.clipped.get(), H5T_NATIVE_UINT8, n, path, kClippedPath);
+  const std::vector<std::string> reasons = h5::ReadStringRows(
+      columns.invalid_reason.get(), 0, static_cast<hsize_t>(n), path, kInvalidReasonPath);
+  auto label_column = [&](const char* name) {
+    for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+      if (std::string(kScalarLabels[f].path) == name) {
+        return ReadColumn<double>(columns.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, n, path,
+                                  name);
+      }
+    }
+    throw IoError(path + ": no label column " + name);
+  };
+  const std::vector<double> z = label_column("label/z_m");
+  const std::vector<double> theta = label_column("label/theta_rad");
+  const std::vector<double> impulse = label_column("label/impulse_Ns");
+  const std::vector<double> speed = label_column("label/normal_speed_m_s");
+
+  // Counts, and label/audio statistics over valid samples only.
+  int64_t valid_count = 0;
+  int64_t clipped_count = 0;
+  std::map<std::string, int64_t> invalid_reasons;
+  std::vector<double> valid_z, valid_theta, valid_impulse, valid_speed, audio_peak;
+  for (int64_t i = 0; i < n; ++i) {
+    if (clipped[i] != 0) ++clipped_count;
+    if (valid[i] == 0) {
+      ++invalid_reasons[reasons[i].empty() ? std::string("(no reason)") : reasons[i]];
+      continue;
+    }
+    ++valid_count;
+    valid_z.push_back(z[i]);
+    valid_theta.push_back(theta[i]);
+    valid_impulse.push_back(impulse[i]);
+    valid_speed.push_back(speed[i]);
+    audio_peak.push_back(dataset.ReadAudio(i).cwiseAbs().maxCoeff());
+  }
+
+  nlohmann::ordered_json summary;
+  summary["file"] = path;
+  summary["kind"] = "dataset";
+  summary["schema_version"] = kDatasetSchemaVersion;
+  summary["complete"] = info.complete;
+  summary["source"] = info.source;
+  summary["software_version"] = info.software_version;
+  summary["num_samples"] = n;
+  summary["valid"] = valid_count;
+  summary["invalid"] = n - valid_count;
+  summary["invalid_reasons"] = invalid_reasons;
+  summary["clipped"] = clipped_count;
+  summary["channels"] = info.channels;
+  summary["audio_frames"] = info.audio_frames;
+  summary["audio_dtype"] = info.audio_int16 ? "int16" : "float32";
+  summary["sample_rate_hz"] = info.sample_rate_hz;
+  summary["proprio_rows"] = info.proprio_rows;
+  summary["proprio_rate_hz"] = info.proprio_rate_hz;
+  summary["shard"] = info.shard;
+  summary["num_shards"] = info.num_shards;
+  summary["global_seed"] = info.global_seed;
+  summary["z_m"] = RangeJson(valid_z, true);
+  summary["theta_rad"] = RangeJson(valid_theta, false);
+  summary["impulse_Ns"] = RangeJson(valid_impulse, false);
+  summary["normal_speed_m_s"] = RangeJson(valid_speed, false);
+  summary["audio_peak"] = RangeJson(audio_peak, false);
+  return summary.dump(2);
+}
+
+}  // namespace sonicboom

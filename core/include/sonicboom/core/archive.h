@@ -1,0 +1,59 @@
+#pragma once
+/// Drake-style config serialization: every config struct has
+///   void Serialize(sonicboom::Archive* a) { a->Visit("name_unit", &name_unit, Bounds::Positive()); ... }
+/// and the same function drives YAML reading (strict: unknown keys are errors), YAML writing
+/// (resolved configs beside every output) and docs. Archive implementations live in .cc files.
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace sonicboom {
+
+/// Allowed range of a numeric config value; checked when a config is read.
+struct Bounds {
+  double lo{-std::numeric_limits<double>::infinity()};
+  double hi{std::numeric_limits<double>::infinity()};
+  bool lo_open{false};  // lo itself excluded
+  bool hi_open{false};  // hi itself excluded
+
+  static Bounds Any() { return {}; }
+  static Bounds Positive() { return {0.0, std::numeric_limits<double>::infinity(), true, false}; }
+  static Bounds NonNegative() { return {0.0, std::numeric_limits<double>::infinity(), false, false}; }
+  static Bounds Closed(double lo, double hi) { return {lo, hi, false, false}; }
+  static Bounds Open(double lo, double hi) { return {lo, hi, true, true}; }
+  bool Contains(double v) const;
+  std::string Describe() const;  // e.g. "(0, inf)"
+};
+
+/// Visitor over named config fields. Nested structs are visited through their Serialize.
+class Archive {
+ public:
+  virtual ~Archive() = default;
+
+  virtual void Visit(std::string_view name, double* value, Bounds bounds = {}) = 0;
+  virtual void Visit(std::string_view name, int64_t* value, Bounds bounds = {}) = 0;
+  virtual void Visit(std::string_view name, bool* value) = 0;
+  virtual void Visit(std::string_view name, std::string* value) = 0;
+  virtual void Visit(std::string_view name, std::vector<double>* value, Bounds bounds = {}) = 0;
+  virtual void Visit(std::string_view name, std::vector<std::string>* value) = 0;
+  /// A string restricted to a fixed set of choices.
+  virtual void VisitChoice(std::string_view name, std::string* value,
+                           const std::vector<std::string>& choices) = 0;
+
+  /// A nested config struct with its own Serialize.
+  template <typename T>
+  void Visit(std::string_view name, T* value) {
+    BeginGroup(name);
+    value->Serialize(this);
+    EndGroup();
+  }
+
+ protected:
+  virtual void BeginGroup(std::string_view name) = 0;
+  virtual void EndGroup() = 0;
+};
+
+}  // namespace sonicboom

@@ -1,0 +1,102 @@
+#pragma once
+/// The strike dataset file (HDF5, docs/dataset.md). HDF5 headers stay in dataset.cc.
+///
+/// Layout (N samples, C channels, T audio frames, K proprio rows):
+///   /audio                  (N, C, T) int16 or float32; attr `scale` maps stored values to full scale 1
+///   /label/z_m (N) f64, /label/theta_rad (N) f64, /label/point_m (N,3) f64 tube frame,
+///   /label/normal (N,3) f64, /label/impulse_Ns (N) f64, /label/time_s (N) f64,
+///   /label/normal_speed_m_s (N) f64, /label/duration_s (N) f64
+///   /proprio                (N, K, 10) f32: position m (3), quaternion wxyz (4), velocity m/s (3)
+///   /index/sample_index (N) u64, /index/seed (N) u64, /index/valid (N) u8,
+///   /index/invalid_reason (N) variable-length string, /index/clipped (N) u8
+///   root attrs: schema, schema_version, software_version, source, config_yaml, sample_rate_hz,
+///               proprio_rate_hz, global_seed, shard, num_shards, num_samples, created_utc,
+///               and `complete` = 1, written last.
+/// The file is written as "<path>.partial" and renamed after `complete` is set.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sonicboom/core/sample.h"
+
+namespace sonicboom {
+
+inline constexpr const char* kDatasetSchema = "sonicboom.strikes";
+inline constexpr const char* kDatasetSchemaVersion = "1.0";
+
+/// File-level metadata of a dataset.
+struct DatasetInfo {
+  std::string source{"sim"};         // "sim" or "hardware"
+  std::string config_yaml;           // resolved config that produced the file
+  std::string software_version;      // filled by the writer when empty
+  double sample_rate_hz{44100.0};
+  double proprio_rate_hz{100.0};
+  int channels{6};
+  int64_t audio_frames{0};           // T
+  int64_t proprio_rows{0};           // K
+  bool audio_int16{true};            // store audio as int16 PCM (the DAQ's output) or float32
+  uint64_t global_seed{0};
+  int64_t shard{0};
+  int64_t num_shards{1};
+  int64_t num_samples{0};            // reader: samples in the file
+  bool complete{false};              // reader: the `complete` attribute
+};
+
+/// Appends samples in order; single-threaded. Finish() sets `complete` and renames the file.
+/// Destroyed without Finish(), it leaves only "<path>.partial", plainly incomplete.
+class DatasetWriter {
+ public:
+  /// Creates "<path>.partial" (overwriting a stale one). Throws IoError.
+  DatasetWriter(const std::string& path, const DatasetInfo& info);
+  ~DatasetWriter();
+  DatasetWriter(const DatasetWriter&) = delete;
+  DatasetWriter& operator=(const DatasetWriter&) = delete;
+
+  /// Appends one sample; its audio must be (channels x audio_frames) and its proprio
+  /// (proprio_rows x 10). Throws IoError / SchemaError.
+  void Append(const StrikeSample& sample);
+  /// Writes num_samples and `complete`, closes, renames to the final path.
+  void Finish();
+  int64_t count() const;
+
+ private:
+  // Merging copies compressed audio chunks straight into the writer's file.
+  friend void MergeDatasets(const std::vector<std::string>& shard_paths,
+                            const std::string& out_path);
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Random access to a complete dataset file. Safe to use from one thread at a time.
+class DatasetReader {
+ public:
+  /// Opens `path`. Throws IoError when missing or not HDF5, SchemaError when it is not a
+  /// sonicboom dataset, has another schema version, or lacks `complete` (unless allow_incomplete).
+  explicit DatasetReader(const std::string& path, bool allow_incomplete = false);
+  ~DatasetReader();
+  DatasetReader(DatasetReader&&) noexcept;
+  DatasetReader& operator=(DatasetReader&&) noexcept;
+
+  const DatasetInfo& info() const;
+  int64_t size() const;
+  /// Labels, index fields and proprio of sample i (no audio).
+  StrikeSample ReadMeta(int64_t i) const;
+  /// Everything of sample i, audio scaled to full scale 1.
+  StrikeSample Read(int64_t i) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Joins shard files (same schema and config, any order) into one file ordered by sample index.
+/// Refuses incomplete shards, mismatched configs and duplicate indices (SchemaError).
+void MergeDatasets(const std::vector<std::string>& shard_paths, const std::string& out_path);
+
+/// A human-readable (and JSON) summary of a dataset file: counts, valid/invalid with reasons,
+/// label ranges, audio peak statistics, completeness.
+std::string SummarizeDatasetJson(const std::string& path);
+
+}  // namespace sonicboom

@@ -1,0 +1,17 @@
+#pragma once
+/// Small file helpers shared by every writer: atomic text files and checked reads.
+
+#include <string>
+
+namespace sonicboom {
+
+/// Writes `text` to "<path>.partial" and renames it to `path`. Throws IoError naming the path.
+void WriteTextAtomic(const std::string& path, const std::string& text);
+/// Reads a whole text file. Throws IoError naming the path when missing or unreadable.
+std::string ReadText(const std::string& path);
+/// Creates a directory (and parents). Throws IoError naming it on failure.
+void MakeDirectories(const std::string& path);
+/// Current UTC time as YYYYmmdd-HHMMSS.
+std::string UtcTimestamp();
+
+}  // namespace sonicboom

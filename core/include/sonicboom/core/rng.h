@@ -1,0 +1,50 @@
+#pragma once
+/// Deterministic random numbers. Every draw derives from (global seed, sample index, stream),
+/// so results do not depend on thread count, shard count or the order of work.
+
+#include <cmath>
+#include <cstdint>
+
+namespace sonicboom {
+
+/// SplitMix64 finalizer: a bijective 64-bit mix.
+constexpr uint64_t SplitMix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  return x ^ (x >> 31);
+}
+
+/// Seed of sample `index` under `global_seed`.
+constexpr uint64_t SampleSeed(uint64_t global_seed, uint64_t index) {
+  return SplitMix64(SplitMix64(global_seed) ^ SplitMix64(index * 0xD1B54A32D192ED03ULL + 1));
+}
+
+/// Named sub-streams of one sample (geometry, noise, ...), so adding draws to one stage
+/// does not shift the numbers of another.
+enum class Stream : uint64_t { kStrike = 1, kAcoustics = 2, kDaq = 3, kNoise = 4, kSplit = 5, kTrain = 6 };
+
+/// xoshiro256** generator with its own uniform and normal draws (no implementation-defined
+/// std distributions, so numbers are identical across standard libraries).
+class Rng {
+ public:
+  explicit Rng(uint64_t seed);
+  Rng(uint64_t sample_seed, Stream stream);
+
+  uint64_t NextU64();
+  /// Uniform in [0, 1).
+  double Uniform();
+  double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
+  /// Uniform integer in [0, n).
+  uint64_t UniformInt(uint64_t n);
+  /// Standard normal (Box-Muller, both values used).
+  double Normal();
+  double Normal(double mean, double stddev) { return mean + stddev * Normal(); }
+
+ private:
+  uint64_t s_[4];
+  double spare_{0.0};
+  bool has_spare_{false};
+};
+
+}  // namespace sonicboom

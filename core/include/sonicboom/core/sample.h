@@ -1,0 +1,50 @@
+#pragma once
+/// One strike sample as it travels from sim through acoustics into a dataset file.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace sonicboom {
+
+/// Ground-truth label of the (first, localized) tube contact of a strike.
+struct ContactLabel {
+  double z_m{0.0};                          // along the tube axis from the tube centre
+  double theta_rad{0.0};                    // (-pi, pi] about the tube axis from +x
+  Eigen::Vector3d point_m{Eigen::Vector3d::Zero()};   // (3) tube frame, on the outer surface
+  Eigen::Vector3d normal{Eigen::Vector3d::Zero()};    // (3) tube frame, outward unit normal
+  double impulse_Ns{0.0};                   // normal impulse delivered to the tube
+  double time_s{0.0};                       // first contact, from the start of the record
+  double normal_speed_m_s{0.0};             // relative normal approach speed
+  double duration_s{0.0};                   // contact duration
+};
+
+/// One striker-tube contact as sim hands it to acoustics (tube frame).
+struct ContactEvent {
+  double time_s{0.0};                       // first touch, from the start of the record
+  double z_m{0.0};
+  double theta_rad{0.0};
+  double normal_speed_m_s{0.0};             // relative approach speed along the normal
+  double effective_mass_kg{0.0};            // striker (or struck rod) mass seen at the contact
+  double striker_radius_m{0.0};             // radius of the striker's contact surface
+  double striker_youngs_modulus_pa{0.0};
+  double striker_poisson_ratio{0.0};
+};
+
+/// Number of proprioception features per row: position (3), quaternion w,x,y,z (4), velocity (3).
+inline constexpr int kProprioFeatures = 10;
+
+/// A simulated or recorded strike.
+struct StrikeSample {
+  uint64_t index{0};                        // global sample index
+  uint64_t seed{0};                         // SampleSeed(global seed, index)
+  bool valid{true};
+  std::string invalid_reason;               // empty when valid
+  ContactLabel label;
+  Eigen::MatrixXf audio;                    // (channels x T) in [-1, 1] full scale
+  Eigen::MatrixXf proprio;                  // (K x kProprioFeatures) at the proprio rate
+  bool clipped{false};                      // any audio sample hit full scale
+};
+
+}  // namespace sonicboom

@@ -1,0 +1,63 @@
+#include "sonicboom/core/rng.h"
+
+#include <numbers>
+
+namespace sonicboom {
+namespace {
+
+constexpr uint64_t Rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+
+}  // namespace
+
+Rng::Rng(uint64_t seed) {
+  // fill the 256-bit state from a SplitMix64 sequence (never all zero)
+  uint64_t x = seed;
+  for (auto& s : s_) {
+    x += 0x9E3779B97F4A7C15ULL;
+    s = SplitMix64(x);
+  }
+}
+
+Rng::Rng(uint64_t sample_seed, Stream stream)
+    : Rng(SplitMix64(sample_seed ^ (static_cast<uint64_t>(stream) * 0xA0761D6478BD642FULL))) {}
+
+uint64_t Rng::NextU64() {
+  // xoshiro256** step
+  const uint64_t result = Rotl(s_[1] * 5, 7) * 9;
+  const uint64_t t = s_[1] << 17;
+  s_[2] ^= s_[0];
+  s_[3] ^= s_[1];
+  s_[1] ^= s_[2];
+  s_[0] ^= s_[3];
+  s_[2] ^= t;
+  s_[3] = Rotl(s_[3], 45);
+  return result;
+}
+
+double Rng::Uniform() { return static_cast<double>(NextU64() >> 11) * 0x1.0p-53; }
+
+uint64_t Rng::UniformInt(uint64_t n) {
+  // rejection sampling avoids modulo bias
+  if (n == 0) return 0;
+  const uint64_t limit = UINT64_MAX - UINT64_MAX % n;
+  uint64_t x = NextU64();
+  while (x >= limit) x = NextU64();
+  return x % n;
+}
+
+double Rng::Normal() {
+  if (has_spare_) {
+    has_spare_ = false;
+    return spare_;
+  }
+  // Box-Muller on (0, 1] x [0, 1)
+  const double u1 = 1.0 - Uniform();
+  const double u2 = Uniform();
+  const double r = std::sqrt(-2.0 * std::log(u1));
+  const double phi = 2.0 * std::numbers::pi * u2;
+  spare_ = r * std::sin(phi);
+  has_spare_ = true;
+  return r * std::cos(phi);
+}
+
+}  // namespace sonicboom

@@ -1,0 +1,143 @@
+#include "sonicboom/experiments/cli.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <iostream>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/log.h"
+#include "sonicboom/core/progress.h"
+#include "sonicboom/experiments/commands.h"
+
+namespace sonicboom::experiments {
+
+int RunCli(int argc, char** argv) {
+  CLI::App app{"SonicBoom: acoustic contact localization on a robot link, from simulated strikes "
+               "to trained localizers", "sonicboom"};
+  app.require_subcommand(1);
+  app.fallthrough();
+  app.set_version_flag("--version", SONICBOOM_VERSION);
+
+  // global options, accepted before or after the subcommand
+  GlobalOptions g;
+  int verbose = 0;
+  app.add_option("--config", g.sources.files, "YAML config file (repeatable, merged in order)");
+  app.add_option("--set", g.sources.overrides, "override one key: dotted.key=value (repeatable)");
+  app.add_option("--seed", g.sources.seed, "global seed (sample i uses seed and i)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--threads", g.threads, "worker threads (0 = all cores)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("-v,--verbose", verbose, "more log output (repeatable)");
+  app.add_flag("-q,--quiet", g.quiet, "warnings and errors only, no progress");
+  app.add_flag("--json", g.json, "machine-readable result on stdout (logs stay on stderr)");
+
+  // subcommands and their options
+  std::function<CommandResult()> run;
+  std::string out, in, data, model, wav, proprio, boundary = "simply-supported", joints, path;
+  int64_t count = -1, first_index = -1, shard = 0, num_shards = 1, index = 0, mode_count = 20;
+  bool resume = false, ideal = false;
+  std::vector<std::string> shards;
+
+  auto* demo = app.add_subcommand("demo", "generate a small dataset, train, evaluate on held-out "
+                                          "strikes and print the result table");
+  demo->add_option("--out", out, "run directory (default runs/demo-<UTC time>)");
+  demo->callback([&] { run = [&] { return RunDemo(g, out); }; });
+
+  auto* generate = app.add_subcommand("generate", "simulate strikes into an HDF5 dataset");
+  generate->add_option("--out", out, "dataset file (.h5)")->required();
+  generate->add_option("--count", count, "number of strikes (default dataset.count)");
+  generate->add_option("--first-index", first_index, "global index of the first strike");
+  generate->add_option("--shard", shard, "this shard (owns indices i with i % num-shards == shard)");
+  generate->add_option("--num-shards", num_shards, "number of shards");
+  generate->callback([&] {
+    run = [&] { return RunGenerate(g, out, count, first_index, shard, num_shards); };
+  });
+
+  auto* merge = app.add_subcommand("merge", "join dataset shards into one file");
+  merge->add_option("--out", out, "merged dataset file")->required();
+  merge->add_option("shards", shards, "shard files")->required();
+  merge->callback([&] { run = [&] { return RunMerge(g, out, shards); }; });
+
+  auto* synth = app.add_subcommand("synth", "one strike as a 6-channel WAV plus a JSON label");
+  synth->add_option("--out", out, "WAV file")->required();
+  synth->add_option("--index", index, "sample index (with --seed it fixes the strike)");
+  synth->callback([&] { run = [&] { return RunSynth(g, out, index); }; });
+
+  auto* modes = app.add_subcommand("modes", "natural frequencies of the tube");
+  modes->add_option("--boundary", boundary, "simply-supported | free");
+  modes->add_flag("--ideal", ideal, "ideal uniform tube (no seam, no holes)");
+  modes->add_option("--count", mode_count, "number of modes (pairs count twice)");
+  modes->callback([&] { run = [&] { return RunModes(g, boundary, ideal, mode_count); }; });
+
+  auto* features = app.add_subcommand("features", "mel spectrograms and GCC-PHAT of a WAV or dataset");
+  features->add_option("--in", in, "WAV file or dataset (.h5)")->required();
+  features->add_option("--out", out, "features file (.h5)")->required();
+  features->add_option("--proprio", proprio, "robot log CSV for a WAV input");
+  features->callback([&] { run = [&] { return RunFeatures(g, in, out, proprio); }; });
+
+  auto* train = app.add_subcommand("train", "train a localizer on a dataset");
+  train->add_option("--data", data, "training dataset (.h5)")->required();
+  train->add_option("--out", out, "run directory")->required();
+  train->add_flag("--resume", resume, "continue from the run directory's checkpoint");
+  train->callback([&] { run = [&] { return RunTrain(g, data, out, resume); }; });
+
+  auto* eval = app.add_subcommand("eval", "evaluate a trained localizer on a dataset");
+  eval->add_option("--model", model, "run directory")->required();
+  eval->add_option("--data", data, "dataset (.h5)")->required();
+  eval->callback([&] { run = [&] { return RunEval(g, model, data); }; });
+
+  auto* localize = app.add_subcommand("localize", "locate the contact of one recorded strike");
+  localize->add_option("--model", model, "run directory")->required();
+  localize->add_option("--wav", wav, "6-channel WAV")->required();
+  localize->add_option("--proprio", proprio, "robot log CSV");
+  localize->callback([&] { run = [&] { return RunLocalize(g, model, wav, proprio); }; });
+
+  auto* fk = app.add_subcommand("fk", "flange and tube poses of the Panda for joint angles");
+  fk->add_option("--joints", joints, "q1,...,q7 in rad")->required();
+  fk->callback([&] { run = [&] { return RunFk(g, joints); }; });
+
+  auto* inspect = app.add_subcommand("inspect", "summarize a file or run directory SonicBoom wrote");
+  inspect->add_option("path", path, "dataset, features file, WAV, run directory or config")
+      ->required();
+  inspect->callback([&] { run = [&] { return RunInspect(g, path); }; });
+
+  auto* config = app.add_subcommand("config", "print the resolved config");
+  config->callback([&] { run = [&] { return RunConfig(g); }; });
+
+  // parse; usage errors exit 2 with CLI11's message
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;
+  }
+
+  // run; bad input exits 1 with a message naming the culprit
+  SetUpLogging(g.quiet ? -1 : verbose);
+  Progress::SetQuiet(g.quiet);
+  try {
+    if (first_index < 0) first_index = -1;
+    const CommandResult result = run();
+    std::cout << (g.json ? result.json + "\n" : result.text);
+    std::cout.flush();
+    return 0;
+  } catch (const Error& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "internal error: %s\n", e.what());
+    return 3;
+  }
+}
+
+}  // namespace sonicboom::experiments

@@ -1,0 +1,483 @@
+#include "sonicboom/experiments/commands.h"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <sstream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/acoustics/features.h"
+#include "sonicboom/core/array_file.h"
+#include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/dataset.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/core/tube.h"
+#include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/hardware/capture.h"
+#include "sonicboom/learning/learning.h"
+#include "sonicboom/sim/franka.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+constexpr double kPi = std::numbers::pi;
+
+SonicBoomConfig Resolve(const GlobalOptions& g) { return ResolveConfig(g.sources); }
+
+// the resolved config beside an output file
+void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config) {
+  WriteTextAtomic(output + ".config.yaml", ConfigToYaml(config));
+}
+
+// the parent directory of an output must exist
+void RequireParentDir(const std::string& path) {
+  const fs::path parent = fs::path(path).parent_path();
+  if (!parent.empty() && !fs::is_directory(parent)) {
+    throw IoError(fmt::format("{}: directory {} does not exist", path, parent.string()));
+  }
+}
+
+json MetricsJson(const learning::Metrics& m) {
+  return {{"n", m.n},
+          {"med_cm", m.med_cm},
+          {"height_err_cm", m.height_err_cm},
+          {"angle_err_deg", m.angle_err_deg},
+          {"reference_med_cm", m.reference_med_cm}};
+}
+
+json LabelJson(const ContactLabel& l) {
+  return {{"z_m", l.z_m},
+          {"theta_rad", l.theta_rad},
+          {"point_m", {l.point_m.x(), l.point_m.y(), l.point_m.z()}},
+          {"normal", {l.normal.x(), l.normal.y(), l.normal.z()}},
+          {"impulse_Ns", l.impulse_Ns},
+          {"time_s", l.time_s},
+          {"normal_speed_m_s", l.normal_speed_m_s},
+          {"duration_s", l.duration_s}};
+}
+
+// a run directory's own config: the base layer for eval and localize
+SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_dir) {
+  ConfigSources sources = g.sources;
+  const std::string path = (fs::path(run_dir) / "config.yaml").string();
+  if (!fs::is_directory(run_dir)) throw IoError(fmt::format("{}: no such run directory", run_dir));
+  sources.embedded_yaml = ReadText(path);
+  sources.embedded_name = path;
+  return ResolveConfig(sources);
+}
+
+// features -> train/val split -> training, writing into run_dir
+learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::string& data,
+                                 const std::string& run_dir, bool resume, int threads, bool quiet) {
+  std::vector<uint64_t> indices;
+  const learning::FeatureSet all = ComputeDatasetFeatures(data, config, threads, !quiet, &indices);
+  const auto [train_rows, val_rows] = SplitRows(indices, config.train.val_fraction, config.seed);
+  if (train_rows.empty() || val_rows.empty()) {
+    throw ConfigError(fmt::format("{}: {} valid samples cannot be split into train and validation "
+                                  "with train.val_fraction = {}",
+                                  data, all.size(), config.train.val_fraction));
+  }
+  spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
+  return learning::Train(SelectRows(all, train_rows), SelectRows(all, val_rows), config.model,
+                         config.train, config.tube.outer_radius_m, config.seed, run_dir, resume,
+                         !quiet);
+}
+
+std::string MetricsRow(const std::string& name, const learning::Metrics& m) {
+  return fmt::format("| {:<28} | {:>13.2f} | {:>15.2f} | {:>15.1f} |\n", name, m.med_cm,
+                     m.height_err_cm, m.angle_err_deg);
+}
+
+}  // namespace
+
+const std::string& DemoConfigYaml() {
+  // small, fast model and short training: the demo must finish in minutes on 2 cores
+  static const std::string yaml = R"(model:
+  audio_encoder: compact
+  width: 64
+  blocks: 2
+  heads: 4
+  dropout: 0.0
+train:
+  epochs: 30
+  batch_size: 32
+  learning_rate: 0.001
+  lr_step_epochs: 12
+  lr_gamma: 0.5
+)";
+  return yaml;
+}
+
+CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
+  const auto start = std::chrono::steady_clock::now();
+  ConfigSources sources = g.sources;
+  sources.embedded_yaml = DemoConfigYaml();
+  sources.embedded_name = "demo defaults";
+  const SonicBoomConfig config = ResolveConfig(sources);
+
+  // a fresh run directory; never overwrite a finished run
+  const std::string run_dir = out_dir_arg.empty() ? "runs/demo-" + UtcTimestamp() : out_dir_arg;
+  if (fs::exists(fs::path(run_dir) / "metrics.json")) {
+    throw IoError(fmt::format("{}: holds a finished run; choose another --out", run_dir));
+  }
+  MakeDirectories(run_dir);
+  WriteTextAtomic((fs::path(run_dir) / "config.yaml").string(), ConfigToYaml(config));
+  spdlog::info("demo run directory: {}", run_dir);
+
+  // data: training strikes and held-out strikes with disjoint sample indices
+  const std::string train_path = (fs::path(run_dir) / "train.h5").string();
+  const std::string test_path = (fs::path(run_dir) / "test.h5").string();
+  spdlog::info("step 1/3: simulating {} training and {} held-out strikes", config.demo.train_count,
+               config.demo.test_count);
+  const GenerateResult gen_train = GenerateDataset(config, train_path, config.demo.train_count, 0,
+                                                   0, 1, g.threads, !g.quiet);
+  const GenerateResult gen_test = GenerateDataset(
+      config, test_path, config.demo.test_count, config.demo.train_count, 0, 1, g.threads, !g.quiet);
+
+  // training
+  spdlog::info("step 2/3: training ({} epochs)", config.train.epochs);
+  const std::string model_dir = (fs::path(run_dir) / "model").string();
+  MakeDirectories(model_dir);
+  WriteTextAtomic((fs::path(model_dir) / "config.yaml").string(), ConfigToYaml(config));
+  const auto train_start = std::chrono::steady_clock::now();
+  const learning::Metrics val = TrainOnDataset(config, train_path, model_dir, false, g.threads, g.quiet);
+  const double train_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - train_start).count();
+
+  // evaluation on held-out strikes, against a constant predictor (training mean z, mean angle)
+  spdlog::info("step 3/3: evaluating on held-out strikes");
+  const learning::FeatureSet test = ComputeDatasetFeatures(test_path, config, g.threads, !g.quiet);
+  learning::Localizer localizer(model_dir);
+  const learning::Metrics model_metrics =
+      learning::ComputeMetrics(localizer.Predict(test), test, config.tube.outer_radius_m);
+  DatasetReader train_reader(train_path);
+  double z_sum = 0, c_sum = 0, s_sum = 0;
+  int64_t n_valid = 0;
+  for (int64_t i = 0; i < train_reader.size(); ++i) {
+    const StrikeSample meta = train_reader.ReadMeta(i);
+    if (!meta.valid) continue;
+    z_sum += meta.label.z_m;
+    c_sum += std::cos(meta.label.theta_rad);
+    s_sum += std::sin(meta.label.theta_rad);
+    ++n_valid;
+  }
+  const learning::Prediction constant{z_sum / n_valid, std::atan2(s_sum, c_sum)};
+  const learning::Metrics baseline = learning::ComputeMetrics(
+      std::vector<learning::Prediction>(test.size(), constant), test, config.tube.outer_radius_m);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // results: metrics.json is written last and marks the run finished
+  json result = {{"run_dir", run_dir},
+                 {"train_strikes", gen_train.written},
+                 {"test_strikes", gen_test.written},
+                 {"valid_train", gen_train.valid},
+                 {"valid_test", gen_test.valid},
+                 {"model", MetricsJson(model_metrics)},
+                 {"validation", MetricsJson(val)},
+                 {"constant_baseline", MetricsJson(baseline)},
+                 {"generate_s", gen_train.wall_s + gen_test.wall_s},
+                 {"train_s", train_s},
+                 {"wall_s", wall_s}};
+  WriteTextAtomic((fs::path(run_dir) / "metrics.json").string(), result.dump(2) + "\n");
+
+  std::string text = fmt::format(
+      "\nSonicBoom demo: {} held-out strikes (trained on {}, {} epochs, {} encoder, width {})\n\n",
+      model_metrics.n, gen_train.valid, config.train.epochs, config.model.audio_encoder,
+      config.model.width);
+  text += "| method                       | 3-D MED (cm)  | height err (cm) | angle err (deg) |\n";
+  text += "|------------------------------|---------------|-----------------|-----------------|\n";
+  text += MetricsRow("multimodal transformer", model_metrics);
+  text += MetricsRow("constant (train mean)", baseline);
+  text += fmt::format("\nMED: mean 3-D distance between surface points (r = {} m). "
+                      "Wall time {:.0f} s (simulate {:.0f} s, train {:.0f} s).\n"
+                      "Run directory: {}\n",
+                      config.tube.outer_radius_m, wall_s, gen_train.wall_s + gen_test.wall_s,
+                      train_s, run_dir);
+  return {result.dump(), text};
+}
+
+CommandResult RunGenerate(const GlobalOptions& g, const std::string& out, int64_t count,
+                          int64_t first_index, int64_t shard, int64_t num_shards) {
+  const SonicBoomConfig config = Resolve(g);
+  RequireParentDir(out);
+  const int64_t n = count > 0 ? count : config.dataset.count;
+  if (count == 0 || count < -1) throw ConfigError(fmt::format("--count must be >= 1, got {}", count));
+  const int64_t first = first_index >= 0 ? first_index : config.dataset.first_index;
+  WriteConfigBeside(out, config);
+  const GenerateResult r =
+      GenerateDataset(config, out, n, first, shard, num_shards, g.threads, !g.quiet);
+  json j = {{"path", r.path}, {"written", r.written}, {"valid", r.valid},
+            {"clipped", r.clipped}, {"wall_s", r.wall_s},
+            {"strikes_per_s", r.written / std::max(r.wall_s, 1e-9)}};
+  return {j.dump(), fmt::format("wrote {} strikes ({} valid, {} clipped) to {} in {:.1f} s\n",
+                                r.written, r.valid, r.clipped, r.path, r.wall_s)};
+}
+
+CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
+                       const std::vector<std::string>& shards) {
+  RequireParentDir(out);
+  MergeDatasets(shards, out);
+  DatasetReader reader(out);
+  json j = {{"path", out}, {"num_samples", reader.size()}, {"shards", shards.size()}};
+  return {j.dump(), fmt::format("merged {} shards into {} ({} samples)\n", shards.size(), out,
+                                reader.size())};
+}
+
+CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index) {
+  const SonicBoomConfig config = Resolve(g);
+  RequireParentDir(out_wav);
+  if (index < 0) throw ConfigError(fmt::format("--index must be >= 0, got {}", index));
+  StrikePipeline pipeline(config);
+  const StrikeSample s = pipeline.Simulate(static_cast<uint64_t>(index));
+  if (!s.valid) {
+    throw NumericalError(fmt::format("strike {} (seed {}) is invalid: {}", index, config.seed,
+                                     s.invalid_reason));
+  }
+  // label sidecar and config first, the WAV last: a WAV on disk means the set is complete
+  const std::string stem = (fs::path(out_wav).parent_path() / fs::path(out_wav).stem()).string();
+  json label = LabelJson(s.label);
+  label["index"] = s.index;
+  label["seed"] = s.seed;
+  label["global_seed"] = config.seed;
+  label["sample_rate_hz"] = config.audio.sample_rate_hz;
+  label["clipped"] = s.clipped;
+  label["frame"] = "tube";
+  WriteTextAtomic(stem + ".json", label.dump(2) + "\n");
+  WriteConfigBeside(out_wav, config);
+  try {
+    WriteWav(out_wav, AudioClip{s.audio, config.audio.sample_rate_hz}, true);
+  } catch (...) {
+    fs::remove(stem + ".json");
+    throw;
+  }
+  json j = {{"wav", out_wav}, {"label", stem + ".json"}, {"z_m", s.label.z_m},
+            {"theta_rad", s.label.theta_rad}, {"clipped", s.clipped},
+            {"peak", s.audio.cwiseAbs().maxCoeff()}};
+  return {j.dump(), fmt::format("wrote {} (6 channels, {} Hz) and {}: z = {:.4f} m, theta = "
+                                "{:.4f} rad\n",
+                                out_wav, config.audio.sample_rate_hz, stem + ".json", s.label.z_m,
+                                s.label.theta_rad)};
+}
+
+CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool ideal,
+                       int64_t count) {
+  const SonicBoomConfig config = Resolve(g);
+  if (count < 1 || count > 100000) throw ConfigError(fmt::format("--count must be in [1, 100000], got {}", count));
+  const std::vector<double> f =
+      acoustics::ClosedFormFrequencies(config.tube, config.material, boundary, static_cast<int>(count));
+  json j = {{"frequencies_hz", f},
+            {"boundary", boundary},
+            {"model", "closed-form ideal shell (Flügge for simply-supported, Rayleigh for free)"},
+            {"ideal", true}};
+  std::string text = fmt::format("{} lowest modes, {} ideal tube (pairs listed twice):\n", f.size(), boundary);
+  for (size_t i = 0; i < f.size(); ++i) text += fmt::format("{:4d}  {:10.1f} Hz\n", i + 1, f[i]);
+  if (!ideal) spdlog::info("only the ideal tube is modelled so far; reporting it");
+  return {j.dump(), text};
+}
+
+CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
+                          const std::string& proprio_csv) {
+  const SonicBoomConfig config = Resolve(g);
+  RequireParentDir(out);
+  std::vector<NamedArray> arrays;
+  int64_t n = 1;
+  learning::FeatureSet set;
+  if (fs::path(in).extension() == ".h5") {
+    // every valid sample of a dataset
+    set = ComputeDatasetFeatures(in, config, g.threads, !g.quiet);
+    n = set.size();
+    arrays.push_back({"z_m", {n}, std::vector<float>(set.z_m.begin(), set.z_m.end())});
+    arrays.push_back({"theta_rad", {n}, std::vector<float>(set.theta_rad.begin(), set.theta_rad.end())});
+    arrays.push_back({"mel", {n, set.channels, set.mels, set.frames}, set.mel});
+    arrays.push_back({"gcc", {n, set.gcc_pairs, set.gcc_lags}, set.gcc});
+    arrays.push_back({"proprio", {n, set.proprio_rows, set.proprio_features}, set.proprio});
+  } else {
+    // one WAV (and optional robot log)
+    const hardware::Capture cap =
+        hardware::LoadCapture(in, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
+    set = ComputeRecordFeatures(cap.audio, cap.sample_rate_hz, cap.proprio, config);
+    arrays.push_back({"mel", {set.channels, set.mels, set.frames}, set.mel});
+    arrays.push_back({"gcc", {set.gcc_pairs, set.gcc_lags}, set.gcc});
+    if (cap.proprio.size() > 0) {
+      arrays.push_back({"proprio", {set.proprio_rows, set.proprio_features}, set.proprio});
+    }
+  }
+  WriteConfigBeside(out, config);
+  WriteArrayFile(out, "sonicboom.features", arrays,
+                 {{"source", in}, {"config_yaml", ConfigToYaml(config)},
+                  {"mel_layout", fmt::format("power mel, n_fft {}, hop {}, {} HTK bands, {}",
+                                             config.features.n_fft, config.features.hop,
+                                             config.features.n_mels,
+                                             config.features.log_mel ? "log10" : "no log")},
+                  {"gcc_layout", "15 pairs in combinations order x lags -max..+max samples"}});
+  json j = {{"path", out}, {"samples", n}, {"mel_shape", {set.channels, set.mels, set.frames}},
+            {"gcc_shape", {set.gcc_pairs, set.gcc_lags}}};
+  return {j.dump(), fmt::format("wrote {}: mel {} x {} x {}, GCC-PHAT {} x {} ({} sample{})\n", out,
+                                set.channels, set.mels, set.frames, set.gcc_pairs, set.gcc_lags, n,
+                                n == 1 ? "" : "s")};
+}
+
+CommandResult RunTrain(const GlobalOptions& g, const std::string& data, const std::string& out_dir,
+                       bool resume) {
+  const SonicBoomConfig config = Resolve(g);
+  if (!fs::exists(data)) throw IoError(fmt::format("{}: no such dataset", data));
+  MakeDirectories(out_dir);
+  WriteTextAtomic((fs::path(out_dir) / "config.yaml").string(), ConfigToYaml(config));
+  const learning::Metrics m = TrainOnDataset(config, data, out_dir, resume, g.threads, g.quiet);
+  json j = MetricsJson(m);
+  j["run_dir"] = out_dir;
+  return {j.dump(), fmt::format("trained {}: validation MED {:.2f} cm, height {:.2f} cm, angle "
+                                "{:.1f} deg ({} strikes)\n",
+                                out_dir, m.med_cm, m.height_err_cm, m.angle_err_deg, m.n)};
+}
+
+CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
+                      const std::string& data) {
+  const SonicBoomConfig config = ResolveWithRun(g, model_dir);
+  learning::Localizer localizer(model_dir);
+  const learning::FeatureSet set = ComputeDatasetFeatures(data, config, g.threads, !g.quiet);
+  const learning::Metrics m =
+      learning::ComputeMetrics(localizer.Predict(set), set, localizer.surface_radius_m());
+  return {MetricsJson(m).dump(),
+          fmt::format("{} strikes: MED {:.2f} cm, height {:.2f} cm, angle {:.1f} deg "
+                      "(published-code MED {:.2f})\n",
+                      m.n, m.med_cm, m.height_err_cm, m.angle_err_deg, m.reference_med_cm)};
+}
+
+CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
+                          const std::string& wav, const std::string& proprio_csv) {
+  const SonicBoomConfig config = ResolveWithRun(g, model_dir);
+  learning::Localizer localizer(model_dir);
+  const hardware::Capture cap =
+      hardware::LoadCapture(wav, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
+  const learning::FeatureSet set =
+      ComputeRecordFeatures(cap.audio, cap.sample_rate_hz, cap.proprio, config);
+  const learning::Prediction p = localizer.Predict(set).front();
+  const Eigen::Vector3d point = SurfacePoint(config.tube, p.z_m, p.theta_rad);
+  json j = {{"z_m", p.z_m}, {"theta_rad", p.theta_rad}, {"point_m", {point.x(), point.y(), point.z()}},
+            {"frame", "tube"}};
+  return {j.dump(), fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, "
+                                "{:.4f}, {:.4f}) m in the tube frame\n",
+                                p.z_m, p.theta_rad, point.x(), point.y(), point.z())};
+}
+
+CommandResult RunFk(const GlobalOptions& g, const std::string& joints) {
+  const SonicBoomConfig config = Resolve(g);
+  // seven comma-separated angles inside the joint limits
+  std::vector<double> q_list;
+  std::stringstream ss(joints);
+  for (std::string cell; std::getline(ss, cell, ',');) {
+    try {
+      size_t used = 0;
+      q_list.push_back(std::stod(cell, &used));
+      if (used != cell.size()) throw std::invalid_argument(cell);
+    } catch (const std::exception&) {
+      throw ConfigError(fmt::format("--joints: '{}' is not a number", cell));
+    }
+  }
+  if (q_list.size() != sim::kPandaJoints) {
+    throw ConfigError(fmt::format("--joints needs {} values, got {}", sim::kPandaJoints, q_list.size()));
+  }
+  sim::JointVector q;
+  const sim::JointVector lo = sim::PandaLowerLimits(), hi = sim::PandaUpperLimits();
+  for (int i = 0; i < sim::kPandaJoints; ++i) {
+    q[i] = q_list[i];
+    if (!std::isfinite(q[i]) || q[i] < lo[i] || q[i] > hi[i]) {
+      throw ConfigError(fmt::format("--joints: joint {} = {} rad is outside its limits [{}, {}]",
+                                    i + 1, q[i], lo[i], hi[i]));
+    }
+  }
+  const sim::PandaPoses poses = sim::PandaForwardKinematics(q, config.tube.center_from_flange_m);
+  auto quat = [](const Eigen::Isometry3d& t) {
+    const Eigen::Quaterniond qt(t.linear());
+    return std::vector<double>{qt.w(), qt.x(), qt.y(), qt.z()};
+  };
+  auto pos = [](const Eigen::Isometry3d& t) {
+    return std::vector<double>{t.translation().x(), t.translation().y(), t.translation().z()};
+  };
+  json j = {{"flange_pos_m", pos(poses.flange)},
+            {"flange_quat_wxyz", quat(poses.flange)},
+            {"tube_center_pos_m", pos(poses.tube)},
+            {"tube_quat_wxyz", quat(poses.tube)}};
+  const auto fp = pos(poses.flange), tp = pos(poses.tube);
+  return {j.dump(), fmt::format("flange at ({:.4f}, {:.4f}, {:.4f}) m, tube centre at ({:.4f}, "
+                                "{:.4f}, {:.4f}) m (robot base frame)\n",
+                                fp[0], fp[1], fp[2], tp[0], tp[1], tp[2])};
+}
+
+CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
+  if (!fs::exists(path)) throw IoError(fmt::format("{}: no such file or directory", path));
+  json j;
+  if (fs::is_directory(path)) {
+    // a run directory: its config, model card and metrics
+    j = {{"kind", "run"}, {"path", path}};
+    for (const char* name : {"model.json", "metrics.json"}) {
+      const fs::path p = fs::path(path) / name;
+      if (fs::exists(p)) j[fs::path(name).stem().string()] = json::parse(ReadText(p.string()), nullptr, false);
+    }
+    const fs::path metrics_lines = fs::path(path) / "metrics.jsonl";
+    if (fs::exists(metrics_lines)) {
+      std::stringstream ss(ReadText(metrics_lines.string()));
+      int64_t epochs = 0;
+      std::string last;
+      for (std::string line; std::getline(ss, line);) {
+        if (!line.empty()) {
+          ++epochs;
+          last = line;
+        }
+      }
+      j["epochs_logged"] = epochs;
+      if (!last.empty()) j["last_epoch"] = json::parse(last, nullptr, false);
+    }
+    j["complete"] = fs::exists(fs::path(path) / "model.json") || fs::exists(fs::path(path) / "metrics.json");
+  } else if (fs::path(path).extension() == ".wav") {
+    // a WAV and its label sidecar
+    const AudioClip clip = ReadWav(path);
+    j = {{"kind", "wav"}, {"path", path}, {"channels", clip.channels()},
+         {"frames", clip.frames()}, {"sample_rate_hz", clip.sample_rate_hz},
+         {"duration_s", clip.frames() / clip.sample_rate_hz},
+         {"peak", clip.samples.cwiseAbs().maxCoeff()},
+         {"finite", clip.samples.allFinite()}};
+    std::vector<double> rms;
+    for (int c = 0; c < clip.channels(); ++c) {
+      rms.push_back(std::sqrt(clip.samples.row(c).cast<double>().squaredNorm() / clip.frames()));
+    }
+    j["rms"] = rms;
+    const std::string sidecar =
+        (fs::path(path).parent_path() / fs::path(path).stem()).string() + ".json";
+    if (fs::exists(sidecar)) j["label"] = json::parse(ReadText(sidecar), nullptr, false);
+  } else if (fs::path(path).extension() == ".yaml" || fs::path(path).extension() == ".yml") {
+    // a config: resolve and validate it
+    GlobalOptions with_file = g;
+    with_file.sources.files.insert(with_file.sources.files.begin(), path);
+    const SonicBoomConfig config = Resolve(with_file);
+    j = {{"kind", "config"}, {"path", path}, {"valid", true}, {"resolved_yaml", ConfigToYaml(config)}};
+  } else {
+    // HDF5: a dataset or any other file we write
+    std::string schema;
+    try {
+      schema = ReadStringAttr(path, "schema");
+    } catch (const Error&) {
+      schema.clear();
+    }
+    j = json::parse(schema == kDatasetSchema ? SummarizeDatasetJson(path) : SummarizeH5Json(path));
+  }
+  return {j.dump(), j.dump(2) + "\n"};
+}
+
+CommandResult RunConfig(const GlobalOptions& g) {
+  const SonicBoomConfig config = Resolve(g);
+  const std::string yaml = ConfigToYaml(config);
+  return {json{{"config_yaml", yaml}}.dump(), yaml};
+}
+
+}  // namespace sonicboom::experiments

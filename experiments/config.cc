@@ -1,0 +1,82 @@
+#include "sonicboom/experiments/config.h"
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/config_io.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::experiments {
+
+void DatasetConfig::Serialize(Archive* a) {
+  a->Visit("count", &count, Bounds::Closed(1, 1e9));
+  a->Visit("first_index", &first_index, Bounds::Closed(0, 1e15));
+  a->Visit("audio_int16", &audio_int16);
+}
+
+void DemoConfig::Serialize(Archive* a) {
+  a->Visit("train_count", &train_count, Bounds::Closed(10, 1e9));
+  a->Visit("test_count", &test_count, Bounds::Closed(1, 1e9));
+}
+
+void SonicBoomConfig::Serialize(Archive* a) {
+  int64_t seed_value = static_cast<int64_t>(seed);
+  a->Visit("seed", &seed_value, Bounds::Closed(0, 9.007199254740992e15));
+  seed = static_cast<uint64_t>(seed_value);
+  a->Visit("tube", &tube);
+  a->Visit("material", &material);
+  a->Visit("mics", &mics);
+  a->Visit("audio", &audio);
+  a->Visit("strike", &strike);
+  a->Visit("acoustics", &acoustics);
+  a->Visit("daq", &daq);
+  a->Visit("noise", &noise);
+  a->Visit("features", &features);
+  a->Visit("model", &model);
+  a->Visit("train", &train);
+  a->Visit("dataset", &dataset);
+  a->Visit("demo", &demo);
+}
+
+void SonicBoomConfig::Validate() const {
+  tube.Validate();
+  mics.Validate(tube);
+  strike.Validate();
+  model.Validate();
+  train.Validate();
+  if (audio.onset_time_s >= audio.record_duration_s) {
+    throw ConfigError(fmt::format("audio.onset_time_s = {} must lie inside the record "
+                                  "(audio.record_duration_s = {})",
+                                  audio.onset_time_s, audio.record_duration_s));
+  }
+  const double proprio_s = strike.proprio_rows / strike.proprio_rate_hz;
+  if (proprio_s > audio.record_duration_s) {
+    throw ConfigError(fmt::format("strike.proprio_rows / strike.proprio_rate_hz = {} s is longer "
+                                  "than the record (audio.record_duration_s = {})",
+                                  proprio_s, audio.record_duration_s));
+  }
+  if (acoustics.max_frequency_hz >= 0.5 * audio.sample_rate_hz) {
+    throw ConfigError(fmt::format("acoustics.max_frequency_hz = {} must be below Nyquist "
+                                  "(audio.sample_rate_hz / 2 = {})",
+                                  acoustics.max_frequency_hz, 0.5 * audio.sample_rate_hz));
+  }
+}
+
+SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
+  // layers: struct defaults, embedded layer, files in order, --set overrides, --seed
+  ConfigLayers layers;
+  if (!sources.embedded_yaml.empty()) layers.AddText(sources.embedded_yaml, sources.embedded_name);
+  for (const auto& file : sources.files) layers.AddFile(file);
+  for (const auto& assignment : sources.overrides) layers.AddOverride(assignment);
+  if (sources.seed >= 0) layers.AddOverride(fmt::format("seed={}", sources.seed));
+  SonicBoomConfig config;
+  layers.ReadInto(&config);
+  config.Validate();
+  return config;
+}
+
+std::string ConfigToYaml(const SonicBoomConfig& config) {
+  SonicBoomConfig copy = config;
+  return ToYaml(copy);
+}
+
+}  // namespace sonicboom::experiments

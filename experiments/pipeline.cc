@@ -1,0 +1,309 @@
+#include "sonicboom/experiments/pipeline.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
+
+#include <chrono>
+#include <cmath>
+#include <mutex>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "sonicboom/acoustics/features.h"
+#include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/dataset.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/progress.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/sim/strike.h"
+
+namespace sonicboom::experiments {
+
+struct StrikePipeline::Impl {
+  SonicBoomConfig config;
+  std::unique_ptr<sim::StrikeModel> strikes;
+  std::unique_ptr<acoustics::StrikeSynthesizer> synth;
+};
+
+StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_unique<Impl>()) {
+  impl_->config = config;
+  impl_->strikes = std::make_unique<sim::StrikeModel>(config.strike, config.tube, config.audio);
+  impl_->synth = std::make_unique<acoustics::StrikeSynthesizer>(
+      config.tube, config.material, config.mics, config.audio, config.acoustics, config.daq,
+      config.noise);
+}
+
+StrikePipeline::~StrikePipeline() = default;
+
+const SonicBoomConfig& StrikePipeline::config() const { return impl_->config; }
+
+StrikeSample StrikePipeline::Simulate(uint64_t index) const {
+  const SonicBoomConfig& c = impl_->config;
+  StrikeSample sample;
+  sample.index = index;
+  sample.seed = SampleSeed(c.seed, index);
+
+  // strike kinematics and the contact
+  sim::StrikeEvents ev = impl_->strikes->Generate(sample.seed);
+  sample.label = ev.label;
+  sample.proprio = ev.proprio;
+  sample.valid = ev.valid;
+  sample.invalid_reason = ev.invalid_reason;
+
+  // audio; a numerical failure marks the sample invalid instead of ending the run
+  const int64_t frames = c.audio.num_samples();
+  try {
+    if (!sample.valid) throw NumericalError("no contact to play");
+    acoustics::RenderedStrike r = impl_->synth->Render(ev.contact, ev.joint_speed_rad_s,
+                                                       ev.joint_speed_rate_hz, sample.seed);
+    sample.audio = std::move(r.audio);
+    sample.clipped = r.clipped;
+    sample.label.impulse_Ns = r.impulse_ns;
+    sample.label.duration_s = r.duration_s;
+  } catch (const NumericalError& e) {
+    if (sample.valid) {
+      sample.valid = false;
+      sample.invalid_reason = fmt::format("acoustics: {}", e.what());
+    }
+    sample.audio = Eigen::MatrixXf::Zero(c.mics.count(), frames);
+  }
+
+  // a label must lie on the tube surface inside the contact region; never clamp it silently
+  if (sample.valid) {
+    const double r = std::hypot(sample.label.point_m.x(), sample.label.point_m.y());
+    SONICBOOM_DEMAND(std::abs(r - c.tube.outer_radius_m) < 1e-9);
+    SONICBOOM_DEMAND(sample.label.z_m >= c.tube.contact_z_min_m &&
+                     sample.label.z_m <= c.tube.contact_z_max_m);
+  }
+  return sample;
+}
+
+GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string& out_path,
+                               int64_t count, int64_t first_index, int64_t shard,
+                               int64_t num_shards, int threads, bool show_progress) {
+  if (num_shards < 1) throw ConfigError(fmt::format("--num-shards must be >= 1, got {}", num_shards));
+  if (shard < 0 || shard >= num_shards) {
+    throw ConfigError(fmt::format("--shard must be in [0, {}), got {}", num_shards, shard));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  StrikePipeline pipeline(config);
+
+  // the indices this shard owns
+  std::vector<uint64_t> indices;
+  for (int64_t i = first_index; i < first_index + count; ++i) {
+    if (i % num_shards == shard) indices.push_back(static_cast<uint64_t>(i));
+  }
+
+  DatasetInfo info;
+  info.source = "sim";
+  info.config_yaml = ConfigToYaml(config);
+  info.sample_rate_hz = config.audio.sample_rate_hz;
+  info.proprio_rate_hz = config.strike.proprio_rate_hz;
+  info.channels = config.mics.count();
+  info.audio_frames = config.audio.num_samples();
+  info.proprio_rows = config.strike.proprio_rows;
+  info.audio_int16 = config.dataset.audio_int16;
+  info.global_seed = config.seed;
+  info.shard = shard;
+  info.num_shards = num_shards;
+  DatasetWriter writer(out_path, info);
+
+  // simulate in parallel, write in index order from one thread
+  GenerateResult result;
+  result.path = out_path;
+  Progress progress("generate", static_cast<int64_t>(indices.size()), show_progress);
+  size_t next = 0;
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_pipeline(
+        static_cast<size_t>(4 * std::max(1, arena.max_concurrency())),
+        tbb::make_filter<void, uint64_t>(tbb::filter_mode::serial_in_order,
+                                         [&](tbb::flow_control& fc) -> uint64_t {
+                                           if (next >= indices.size()) {
+                                             fc.stop();
+                                             return 0;
+                                           }
+                                           return indices[next++];
+                                         }) &
+            tbb::make_filter<uint64_t, std::shared_ptr<StrikeSample>>(
+                tbb::filter_mode::parallel,
+                [&](uint64_t index) {
+                  return std::make_shared<StrikeSample>(pipeline.Simulate(index));
+                }) &
+            tbb::make_filter<std::shared_ptr<StrikeSample>, void>(
+                tbb::filter_mode::serial_in_order, [&](std::shared_ptr<StrikeSample> sample) {
+                  writer.Append(*sample);
+                  ++result.written;
+                  result.valid += sample->valid ? 1 : 0;
+                  result.clipped += sample->clipped ? 1 : 0;
+                  progress.Add();
+                }));
+  });
+  writer.Finish();
+  progress.Finish();
+  result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+namespace {
+
+// allocates a feature set of n rows with the extractor's shapes
+learning::FeatureSet AllocateFeatures(const acoustics::FeatureExtractor& fx, int64_t n,
+                                      int64_t proprio_rows) {
+  learning::FeatureSet set;
+  set.channels = fx.channels();
+  set.mels = 0;
+  set.frames = fx.mel_frames();
+  set.gcc_pairs = fx.channels() * (fx.channels() - 1) / 2;
+  set.gcc_lags = fx.gcc_lags();
+  set.proprio_rows = proprio_rows;
+  set.proprio_features = kProprioFeatures;
+  set.z_m.assign(n, std::nan(""));
+  set.theta_rad.assign(n, std::nan(""));
+  return set;
+}
+
+// stores one record's features in row `row` (arrays sized on the first call)
+void StoreFeatures(const acoustics::StrikeFeatures& f, const Eigen::MatrixXf& proprio, int64_t row,
+                   learning::FeatureSet* set) {
+  const int64_t mel_size = set->channels * set->mels * set->frames;
+  const int64_t gcc_size = set->gcc_pairs * set->gcc_lags;
+  const int64_t prop_size = set->proprio_rows * set->proprio_features;
+  float* mel = set->mel.data() + row * mel_size;
+  for (int64_t c = 0; c < set->channels; ++c) {
+    // (mels x frames) row-major per channel
+    const Eigen::MatrixXf& m = f.mel[c];
+    for (int64_t b = 0; b < set->mels; ++b) {
+      for (int64_t t = 0; t < set->frames; ++t) mel[(c * set->mels + b) * set->frames + t] = m(b, t);
+    }
+  }
+  float* gcc = set->gcc.data() + row * gcc_size;
+  for (int64_t p = 0; p < set->gcc_pairs; ++p) {
+    for (int64_t l = 0; l < set->gcc_lags; ++l) gcc[p * set->gcc_lags + l] = f.gcc(p, l);
+  }
+  // proprioception: the first proprio_rows rows, zeros where the record has fewer
+  float* prop = set->proprio.data() + row * prop_size;
+  std::fill(prop, prop + prop_size, 0.0f);
+  for (int64_t r = 0; r < std::min<int64_t>(set->proprio_rows, proprio.rows()); ++r) {
+    for (int64_t j = 0; j < set->proprio_features && j < proprio.cols(); ++j) {
+      prop[r * set->proprio_features + j] = proprio(r, j);
+    }
+  }
+}
+
+void ResizeArrays(int64_t n, learning::FeatureSet* set) {
+  set->mel.assign(n * set->channels * set->mels * set->frames, 0.0f);
+  set->gcc.assign(n * set->gcc_pairs * set->gcc_lags, 0.0f);
+  set->proprio.assign(n * set->proprio_rows * set->proprio_features, 0.0f);
+}
+
+}  // namespace
+
+learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
+                                            const SonicBoomConfig& config, int threads,
+                                            bool show_progress,
+                                            std::vector<uint64_t>* sample_indices) {
+  DatasetReader reader(dataset_path);
+  const DatasetInfo& info = reader.info();
+  acoustics::FeatureExtractor fx(config.features, info.sample_rate_hz, info.channels);
+
+  // valid rows only
+  std::vector<int64_t> rows;
+  std::vector<StrikeSample> metas;
+  for (int64_t i = 0; i < reader.size(); ++i) {
+    StrikeSample meta = reader.ReadMeta(i);
+    if (!meta.valid) continue;
+    rows.push_back(i);
+    metas.push_back(std::move(meta));
+  }
+  const int64_t n = static_cast<int64_t>(rows.size());
+  if (n == 0) throw SchemaError(fmt::format("{}: no valid samples", dataset_path));
+  if (info.proprio_rows < config.strike.proprio_rows) {
+    throw SchemaError(fmt::format("{}: proprio windows have {} rows, the model needs "
+                                  "strike.proprio_rows = {}",
+                                  dataset_path, info.proprio_rows, config.strike.proprio_rows));
+  }
+  learning::FeatureSet set = AllocateFeatures(fx, n, config.strike.proprio_rows);
+  set.mels = config.features.n_mels;
+  ResizeArrays(n, &set);
+  if (sample_indices) sample_indices->resize(n);
+  for (int64_t r = 0; r < n; ++r) {
+    set.z_m[r] = metas[r].label.z_m;
+    set.theta_rad[r] = metas[r].label.theta_rad;
+    if (sample_indices) (*sample_indices)[r] = metas[r].index;
+  }
+
+  // reading is serial (HDF5), feature extraction parallel
+  std::mutex read_mutex;
+  Progress progress("features", n, show_progress);
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(int64_t{0}, n, [&](int64_t r) {
+      StrikeSample sample;
+      {
+        std::lock_guard<std::mutex> lock(read_mutex);
+        sample = reader.Read(rows[r]);
+      }
+      const acoustics::StrikeFeatures f = fx.Compute(sample.audio);
+      StoreFeatures(f, sample.proprio, r, &set);
+      progress.Add();
+    });
+  });
+  progress.Finish();
+  return set;
+}
+
+learning::FeatureSet ComputeRecordFeatures(const Eigen::MatrixXf& audio, double sample_rate_hz,
+                                           const Eigen::MatrixXf& proprio,
+                                           const SonicBoomConfig& config) {
+  acoustics::FeatureExtractor fx(config.features, sample_rate_hz, static_cast<int>(audio.rows()));
+  learning::FeatureSet set = AllocateFeatures(fx, 1, config.strike.proprio_rows);
+  set.mels = config.features.n_mels;
+  ResizeArrays(1, &set);
+  StoreFeatures(fx.Compute(audio), proprio, 0, &set);
+  return set;
+}
+
+std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
+    const std::vector<uint64_t>& sample_indices, double val_fraction, uint64_t seed) {
+  std::pair<std::vector<int64_t>, std::vector<int64_t>> split;
+  for (size_t r = 0; r < sample_indices.size(); ++r) {
+    Rng rng(SampleSeed(seed, sample_indices[r]), Stream::kSplit);
+    (rng.Uniform() < val_fraction ? split.second : split.first).push_back(static_cast<int64_t>(r));
+  }
+  return split;
+}
+
+learning::FeatureSet SelectRows(const learning::FeatureSet& set, const std::vector<int64_t>& rows) {
+  // same shapes, chosen rows
+  learning::FeatureSet out;
+  out.channels = set.channels;
+  out.mels = set.mels;
+  out.frames = set.frames;
+  out.gcc_pairs = set.gcc_pairs;
+  out.gcc_lags = set.gcc_lags;
+  out.proprio_rows = set.proprio_rows;
+  out.proprio_features = set.proprio_features;
+  const int64_t n = static_cast<int64_t>(rows.size());
+  const int64_t mel_size = set.channels * set.mels * set.frames;
+  const int64_t gcc_size = set.gcc_pairs * set.gcc_lags;
+  const int64_t prop_size = set.proprio_rows * set.proprio_features;
+  out.mel.resize(n * mel_size);
+  out.gcc.resize(n * gcc_size);
+  out.proprio.resize(n * prop_size);
+  out.z_m.resize(n);
+  out.theta_rad.resize(n);
+  for (int64_t i = 0; i < n; ++i) {
+    const int64_t r = rows[i];
+    std::copy_n(set.mel.begin() + r * mel_size, mel_size, out.mel.begin() + i * mel_size);
+    std::copy_n(set.gcc.begin() + r * gcc_size, gcc_size, out.gcc.begin() + i * gcc_size);
+    std::copy_n(set.proprio.begin() + r * prop_size, prop_size, out.proprio.begin() + i * prop_size);
+    out.z_m[i] = set.z_m[r];
+    out.theta_rad[i] = set.theta_rad[r];
+  }
+  return out;
+}
+
+}  // namespace sonicboom::experiments

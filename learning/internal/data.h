@@ -1,0 +1,104 @@
+#pragma once
+/// Feature checks, per-mic statistics, batch assembly (with the training augmentation),
+/// batched prediction and the run-directory files shared by training and the Localizer.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <torch/nn.h>
+#include <torch/serialize.h>
+
+#include "internal/network.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning::internal {
+
+/// Sizes of the time bases: mel hop 128 samples at 44.1 kHz, proprioception at 100 Hz.
+inline constexpr double kMelHopSamples = 128.0;
+inline constexpr double kSampleRateHz = 44100.0;
+inline constexpr double kProprioRateHz = 100.0;
+/// Batch size of evaluation and prediction.
+inline constexpr int64_t kPredictBatch = 64;
+
+/// Checks that the shape fields are positive and the arrays of the selected modalities and the
+/// labels hold N records; `what` names the set in the SchemaError ("training features").
+void CheckFeatureSet(const FeatureSet& f, const ModalitySet& use, const std::string& what);
+
+/// Checks that `actual` has the shapes of `expected` for the selected modalities; the
+/// SchemaError names the first dimension that differs.
+void CheckSameShapes(const FeatureSet& expected, const FeatureSet& actual, const ModalitySet& use,
+                     const std::string& what);
+
+/// Per-mic mean and standard deviation over (N, mels, frames) of the listed records.
+struct MelStats {
+  std::vector<float> mean;
+  std::vector<float> std;
+};
+MelStats ComputeMelStats(const FeatureSet& f, const std::vector<int64_t>& records);
+
+/// Augmentation of one training record. A shift moves the mel crop (and the proprioception
+/// window) later by `shift_frames`; masks blank [start, start + width) of the crop.
+struct Augmentation {
+  int64_t shift_frames{0};
+  int64_t time_mask_start{0};
+  int64_t time_mask_width{0};
+  int64_t freq_mask_start{0};
+  int64_t freq_mask_width{0};
+};
+/// Draws the augmentation of record `record` in epoch `epoch` (deterministic in all three).
+Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, int64_t mels,
+                              uint64_t seed, int64_t epoch, int64_t record);
+
+/// Proprioception rows matching a shift of `shift_frames` mel frames.
+int64_t ProprioShiftRows(int64_t shift_frames);
+
+/// Inputs of `records` (centre crop; `augment` optional, one per record). Blanked or
+/// out-of-range mel values are filled with `mel_fill[c]` (the channel mean, 0 after
+/// normalization); out-of-range proprioception rows with 0.
+Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
+                    const ModalitySet& use, int64_t crop_frames,
+                    const std::vector<Augmentation>* augment, const std::vector<float>& mel_fill);
+
+/// (B, 3) targets (z_cm, cos theta, sin theta) of `records`.
+torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& records);
+
+/// Predictions for every record of `f` in eval mode without gradients, in batches of
+/// kPredictBatch. Leaves the network in eval mode.
+std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f,
+                                   int64_t crop_frames);
+
+/// Writes `text` to `path` through "<path>.partial" and a rename; IoError names the file.
+void WriteFileAtomically(const std::string& path, const std::string& text);
+/// Saves a module (parameters and buffers) to `path` through "<path>.partial" and a rename.
+void SaveModuleAtomically(torch::nn::Module& module, const std::string& path);
+/// Loads parameters and buffers of `module` from `archive`, then checks every tensor kept the
+/// shape the module was built with; SchemaError names `origin` and the tensor.
+void LoadModuleChecked(torch::nn::Module& module, torch::serialize::InputArchive& archive,
+                       const std::string& origin);
+/// Reads a JSON file; IoError when missing or unreadable, SchemaError when malformed.
+nlohmann::json ReadJsonFile(const std::string& path);
+
+/// A FeatureSet with the shape fields of `f` and no records.
+FeatureSet ShapesOnly(const FeatureSet& f);
+
+/// Shape fields of a FeatureSet as JSON and back (SchemaError names `origin`).
+nlohmann::json ShapesToJson(const FeatureSet& f);
+FeatureSet ShapesFromJson(const nlohmann::json& j, const std::string& origin);
+
+/// Metrics as JSON (NaN becomes null).
+nlohmann::json MetricsToJson(const Metrics& m);
+
+/// Contents of model.json.
+struct ModelFile {
+  ModelConfig model_config;
+  FeatureSet shapes;  // shape fields only
+  double surface_radius_m{0.0};
+  uint64_t seed{0};
+};
+nlohmann::json ModelFileToJson(const ModelFile& file, const TrainConfig& train_config,
+                               const Metrics& val_metrics, int64_t epochs_trained);
+ModelFile ModelFileFromJson(const nlohmann::json& j, const std::string& origin);
+
+}  // namespace sonicboom::learning::internal

@@ -1,0 +1,71 @@
+// Localizer: a trained network loaded from a run directory (model.json + model.pt).
+
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <torch/serialize.h>
+
+#include "internal/data.h"
+#include "internal/network.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning {
+
+namespace fs = std::filesystem;
+
+struct Localizer::Impl {
+  internal::ModelFile file;
+  internal::Network network{nullptr};
+};
+
+Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>()) {
+  if (!fs::is_directory(run_dir)) {
+    throw IoError(fmt::format("{}: run directory not found", run_dir));
+  }
+  // model.json: config and shapes the weights were trained with.
+  const std::string json_path = (fs::path(run_dir) / "model.json").string();
+  impl_->file = internal::ModelFileFromJson(internal::ReadJsonFile(json_path), json_path);
+  const ModelConfig& config = impl_->file.model_config;
+  const FeatureSet& shapes = impl_->file.shapes;
+  if (internal::SelectedModalities(config).audio && config.crop_frames > shapes.frames) {
+    throw SchemaError(fmt::format("{}: model.crop_frames = {} exceeds shapes.frames = {}",
+                                  json_path, config.crop_frames, shapes.frames));
+  }
+  // model.pt: weights and normalization buffers.
+  const std::string weights_path = (fs::path(run_dir) / "model.pt").string();
+  if (!fs::is_regular_file(weights_path)) {
+    throw IoError(fmt::format("{}: file not found", weights_path));
+  }
+  impl_->network = internal::Network(config, internal::ShapesOf(shapes, config));
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(weights_path);
+  } catch (const c10::Error& e) {
+    throw SchemaError(fmt::format("{}: unreadable: {}", weights_path, e.what_without_backtrace()));
+  }
+  internal::LoadModuleChecked(*impl_->network, archive,
+                              fmt::format("{} (with {})", weights_path, json_path));
+  impl_->network->eval();
+}
+
+Localizer::~Localizer() = default;
+Localizer::Localizer(Localizer&&) noexcept = default;
+Localizer& Localizer::operator=(Localizer&&) noexcept = default;
+
+std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
+  const internal::ModalitySet use = impl_->network->modalities();
+  internal::CheckFeatureSet(features, use, "features to localize");
+  internal::CheckSameShapes(impl_->file.shapes, features, use, "features to localize");
+  return internal::PredictAll(*impl_->network, features, impl_->file.model_config.crop_frames);
+}
+
+const ModelConfig& Localizer::model_config() const { return impl_->file.model_config; }
+
+double Localizer::surface_radius_m() const { return impl_->file.surface_radius_m; }
+
+std::map<std::string, int64_t> Localizer::ParameterCounts() const {
+  return internal::CountParametersOf(*impl_->network);
+}
+
+}  // namespace sonicboom::learning

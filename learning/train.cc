@@ -1,0 +1,330 @@
+// Training: deterministic batches and augmentation, Adam with a step schedule, per-epoch
+// validation, metrics.jsonl, resumable checkpoints and the final model files.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <numeric>
+#include <thread>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <torch/optim.h>
+#include <torch/serialize.h>
+
+#include "internal/data.h"
+#include "internal/json_archive.h"
+#include "internal/network.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// Files of a run directory.
+struct RunFiles {
+  std::string model_pt, model_json, checkpoint_pt, checkpoint_json, metrics;
+  explicit RunFiles(const fs::path& dir)
+      : model_pt((dir / "model.pt").string()),
+        model_json((dir / "model.json").string()),
+        checkpoint_pt((dir / "checkpoint.pt").string()),
+        checkpoint_json((dir / "checkpoint.json").string()),
+        metrics((dir / "metrics.jsonl").string()) {}
+};
+
+// Fisher-Yates shuffle of `order` driven by the epoch's own generator.
+void Shuffle(std::vector<int64_t>* order, uint64_t seed, int64_t epoch) {
+  Rng rng(SampleSeed(SplitMix64(seed ^ 0x53485546464C45ULL), static_cast<uint64_t>(epoch)),
+          Stream::kTrain);
+  for (size_t i = order->size(); i > 1; --i) {
+    const size_t j = static_cast<size_t>(rng.UniformInt(i));
+    std::swap((*order)[i - 1], (*order)[j]);
+  }
+}
+
+// Splits `order` into batches; a trailing batch of one record joins the previous batch
+// (BatchNorm cannot train on a single record).
+std::vector<std::vector<int64_t>> MakeBatches(const std::vector<int64_t>& order, int64_t size) {
+  std::vector<std::vector<int64_t>> batches;
+  for (size_t first = 0; first < order.size(); first += size) {
+    const size_t last = std::min(order.size(), first + static_cast<size_t>(size));
+    batches.emplace_back(order.begin() + first, order.begin() + last);
+  }
+  if (batches.size() > 1 && batches.back().size() == 1) {
+    batches[batches.size() - 2].push_back(batches.back().front());
+    batches.pop_back();
+  }
+  return batches;
+}
+
+// Weighted MSE of (B, 3) outputs against (B, 3) targets: z_cm, cos, sin.
+torch::Tensor Loss(const torch::Tensor& out, const torch::Tensor& target, const TrainConfig& c) {
+  auto mse = [&](int64_t k) { return torch::mse_loss(out.select(1, k), target.select(1, k)); };
+  return c.loss_weight_z * mse(0) + c.loss_weight_cos * mse(1) + c.loss_weight_sin * mse(2);
+}
+
+// The same loss in double precision from predictions (for validation).
+double PredictionLoss(const std::vector<Prediction>& predictions, const FeatureSet& truth,
+                      const TrainConfig& c) {
+  double sum = 0.0;
+  int64_t n = 0;
+  for (size_t i = 0; i < predictions.size(); ++i) {
+    if (!std::isfinite(truth.z_m[i]) || !std::isfinite(truth.theta_rad[i])) continue;
+    const double dz = 100.0 * (predictions[i].z_m - truth.z_m[i]);
+    const double dc = std::cos(predictions[i].theta_rad) - std::cos(truth.theta_rad[i]);
+    const double ds = std::sin(predictions[i].theta_rad) - std::sin(truth.theta_rad[i]);
+    sum += c.loss_weight_z * dz * dz + c.loss_weight_cos * dc * dc + c.loss_weight_sin * ds * ds;
+    ++n;
+  }
+  return n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN();
+}
+
+void SetLearningRate(torch::optim::Adam* optimizer, double lr) {
+  for (auto& group : optimizer->param_groups()) {
+    static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+  }
+}
+
+// Saves weights, optimizer state and the completed epoch count in one archive.
+void SaveCheckpoint(internal::NetworkImpl& network, torch::optim::Adam& optimizer,
+                    int64_t epochs_done, const std::string& path) {
+  const std::string partial = path + ".partial";
+  try {
+    torch::serialize::OutputArchive root, model, optim;
+    network.save(model);
+    optimizer.save(optim);
+    root.write("model", model);
+    root.write("optimizer", optim);
+    root.write("epochs_done", torch::tensor(epochs_done, torch::kInt64));
+    root.save_to(partial);
+  } catch (const c10::Error& e) {
+    throw IoError(fmt::format("{}: cannot write: {}", partial, e.what_without_backtrace()));
+  }
+  std::error_code ec;
+  fs::rename(partial, path, ec);
+  if (ec) throw IoError(fmt::format("{}: cannot rename: {}", partial, ec.message()));
+}
+
+// Loads a checkpoint; returns the number of completed epochs.
+int64_t LoadCheckpoint(internal::NetworkImpl* network, torch::optim::Adam* optimizer,
+                       const std::string& path) {
+  try {
+    torch::serialize::InputArchive root, model, optim;
+    root.load_from(path);
+    root.read("model", model);
+    root.read("optimizer", optim);
+    torch::Tensor epochs_done;
+    root.read("epochs_done", epochs_done);
+    internal::LoadModuleChecked(*network, model, path);
+    optimizer->load(optim);
+    return epochs_done.item<int64_t>();
+  } catch (const c10::Error& e) {
+    throw SchemaError(fmt::format("{}: unreadable or written for another model: {}", path,
+                                  e.what_without_backtrace()));
+  }
+}
+
+// Identity of a run, stored in checkpoint.json and compared on resume.
+json RunIdentity(const ModelConfig& model_config, const FeatureSet& shapes, uint64_t seed) {
+  return json{{"model", internal::ConfigToJson(model_config)},
+              {"shapes", internal::ShapesToJson(shapes)},
+              {"seed", seed}};
+}
+
+// Keeps the metrics lines of epochs 1..epochs_done (a crash may have left later ones).
+void TrimMetrics(const std::string& path, int64_t epochs_done) {
+  std::ifstream in(path);
+  if (!in) return;
+  std::string line, kept;
+  while (std::getline(in, line)) {
+    const json j = json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (j.is_object() && j.contains("epoch") && j["epoch"].is_number_integer() &&
+        j["epoch"].get<int64_t>() <= epochs_done) {
+      kept += line + "\n";
+    }
+  }
+  in.close();
+  internal::WriteFileAtomically(path, kept);
+}
+
+void AppendLine(const std::string& path, const std::string& line) {
+  std::ofstream out(path, std::ios::app);
+  out << line << "\n";
+  out.flush();
+  if (!out) throw IoError(fmt::format("{}: cannot append", path));
+}
+
+std::string FormatDuration(double seconds) {
+  const int64_t s = std::llround(std::max(0.0, seconds));
+  return s >= 3600 ? fmt::format("{}h{:02}m", s / 3600, (s % 3600) / 60)
+                   : fmt::format("{}m{:02}s", s / 60, s % 60);
+}
+
+}  // namespace
+
+Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
+              const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
+              const std::string& run_dir, bool resume, bool show_progress) {
+  // Configs and features.
+  model_config.Validate();
+  train_config.Validate();
+  if (!std::isfinite(surface_radius_m) || surface_radius_m <= 0.0) {
+    throw ConfigError(fmt::format("surface_radius_m = {}: must be positive", surface_radius_m));
+  }
+  const internal::ModalitySet use = internal::SelectedModalities(model_config);
+  internal::CheckFeatureSet(train, use, "training features");
+  internal::CheckFeatureSet(val, use, "validation features");
+  internal::CheckSameShapes(train, val, use, "validation features");
+  if (use.audio && model_config.crop_frames > train.frames) {
+    throw ConfigError(fmt::format(
+        "config key 'model.crop_frames' = {}: exceeds the {} mel frames of the features",
+        model_config.crop_frames, train.frames));
+  }
+  // Training records: those with both labels.
+  std::vector<int64_t> records;
+  for (int64_t i = 0; i < train.size(); ++i) {
+    if (std::isfinite(train.z_m[i]) && std::isfinite(train.theta_rad[i])) records.push_back(i);
+  }
+  if (records.empty()) throw SchemaError("training features: no record has a finite label");
+
+  const int64_t threads = train_config.threads > 0
+                              ? train_config.threads
+                              : std::max<int64_t>(1, std::thread::hardware_concurrency());
+  torch::set_num_threads(static_cast<int>(threads));
+  std::error_code ec;
+  fs::create_directories(run_dir, ec);
+  if (ec || !fs::is_directory(run_dir)) {
+    throw IoError(fmt::format("{}: cannot create run directory: {}", run_dir, ec.message()));
+  }
+  const RunFiles files{fs::path(run_dir)};
+
+  // Network (initialized from the seed) and per-mic normalization from the training split.
+  torch::manual_seed(seed);
+  internal::Network network(model_config, internal::ShapesOf(train, model_config));
+  if (use.audio && train_config.normalize) {
+    const internal::MelStats stats = internal::ComputeMelStats(train, records);
+    network->SetNormalization(stats.mean, stats.std);
+  }
+  torch::optim::Adam optimizer(network->parameters(),
+                               torch::optim::AdamOptions(train_config.learning_rate));
+
+  // Resume: weights, optimizer state and epoch count from the checkpoint of the same run.
+  const json identity = RunIdentity(model_config, train, seed);
+  int64_t epochs_done = 0;
+  if (resume && fs::exists(files.checkpoint_pt)) {
+    const json saved = internal::ReadJsonFile(files.checkpoint_json);
+    if (!saved.contains("run") || saved["run"] != identity) {
+      throw SchemaError(fmt::format(
+          "{}: the checkpoint was written for a different model config, feature shapes or "
+          "seed; train without resume or use another run directory",
+          files.checkpoint_json));
+    }
+    epochs_done = LoadCheckpoint(network.get(), &optimizer, files.checkpoint_pt);
+    TrimMetrics(files.metrics, epochs_done);
+    if (show_progress) spdlog::info("resuming {} after epoch {}", run_dir, epochs_done);
+  } else {
+    for (const std::string& stale : {files.checkpoint_pt, files.checkpoint_json, files.metrics}) {
+      fs::remove(stale, ec);
+    }
+  }
+
+  Metrics val_metrics;
+  bool have_val_metrics = false;
+  double seconds_sum = 0.0;
+  for (int64_t epoch = epochs_done; epoch < train_config.epochs; ++epoch) {
+    const auto start = std::chrono::steady_clock::now();
+    // Step schedule; dropout draws from a stream of this epoch, so a resume continues exactly.
+    const double lr = train_config.learning_rate *
+                      std::pow(train_config.lr_gamma, double(epoch / train_config.lr_step_epochs));
+    SetLearningRate(&optimizer, lr);
+    torch::manual_seed(SampleSeed(SplitMix64(seed ^ 0x44524F504F5554ULL), uint64_t(epoch)));
+    std::vector<int64_t> order = records;
+    Shuffle(&order, seed, epoch);
+
+    network->train();
+    const std::vector<float> fill = network->MelMean();
+    double loss_sum = 0.0;
+    for (const std::vector<int64_t>& batch_records : MakeBatches(order, train_config.batch_size)) {
+      std::vector<internal::Augmentation> augment;
+      if (train_config.augment) {
+        for (int64_t r : batch_records) {
+          augment.push_back(internal::DrawAugmentation(train_config, model_config.crop_frames,
+                                                       train.mels, seed, epoch, r));
+        }
+      }
+      const internal::Batch batch =
+          internal::AssembleBatch(train, batch_records, use, model_config.crop_frames,
+                                  train_config.augment ? &augment : nullptr, fill);
+      // (B, 3) outputs and targets
+      const torch::Tensor target = internal::AssembleTargets(train, batch_records);
+      const torch::Tensor loss = Loss(network->forward(batch), target, train_config);
+      optimizer.zero_grad();
+      loss.backward();
+      optimizer.step();
+      loss_sum += loss.item<double>() * static_cast<double>(batch_records.size());
+    }
+    const double train_loss = loss_sum / static_cast<double>(records.size());
+    if (!std::isfinite(train_loss)) {
+      throw NumericalError(fmt::format(
+          "training loss became {} in epoch {} (train.learning_rate = {}); lower the rate",
+          train_loss, epoch + 1, lr));
+    }
+
+    // Validation without augmentation, in eval mode.
+    const std::vector<Prediction> predictions =
+        internal::PredictAll(*network, val, model_config.crop_frames);
+    val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
+    have_val_metrics = true;
+    const double val_loss = PredictionLoss(predictions, val, train_config);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    seconds_sum += seconds;
+
+    // metrics.jsonl line, then the checkpoint of this epoch.
+    auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+    const json line{{"epoch", epoch + 1},
+                    {"lr", lr},
+                    {"train_loss", train_loss},
+                    {"val_loss", number(val_loss)},
+                    {"val", internal::MetricsToJson(val_metrics)},
+                    {"epoch_seconds", seconds}};
+    AppendLine(files.metrics, line.dump());
+    SaveCheckpoint(*network, optimizer, epoch + 1, files.checkpoint_pt);
+    internal::WriteFileAtomically(
+        files.checkpoint_json,
+        json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
+
+    if (show_progress) {
+      const double eta = seconds_sum / double(epoch + 1 - epochs_done) *
+                         double(train_config.epochs - epoch - 1);
+      spdlog::info(
+          "epoch {}/{}: train loss {:.4g}, val loss {:.4g}, val MED {:.3f} cm (height {:.3f} cm, "
+          "angle {:.2f} deg), lr {:.3g}, {:.1f} s, ETA {}",
+          epoch + 1, train_config.epochs, train_loss, val_loss, val_metrics.med_cm,
+          val_metrics.height_err_cm, val_metrics.angle_err_deg, lr, seconds, FormatDuration(eta));
+    }
+  }
+  // A resumed run that was already complete: evaluate the loaded weights.
+  if (!have_val_metrics) {
+    val_metrics = ComputeMetrics(internal::PredictAll(*network, val, model_config.crop_frames),
+                                 val, surface_radius_m);
+  }
+
+  // Final model files.
+  internal::SaveModuleAtomically(*network, files.model_pt);
+  const internal::ModelFile model_file{model_config, internal::ShapesOnly(train),
+                                       surface_radius_m, seed};
+  const json model_json = internal::ModelFileToJson(model_file, train_config, val_metrics,
+                                                    std::max(epochs_done, train_config.epochs));
+  internal::WriteFileAtomically(files.model_json, model_json.dump(2) + "\n");
+  return val_metrics;
+}
+
+}  // namespace sonicboom::learning

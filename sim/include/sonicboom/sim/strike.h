@@ -1,0 +1,70 @@
+#pragma once
+/// Kinematic strike generator (the reference motion of reference_impl.md §6.1): the arm sweeps
+/// joint 1 towards a fixed wooden rod; the tube meets the rod at a sampled height; the rod stops
+/// it. The contact is where the rod lies relative to the tube's direction of motion; joint 7 sets
+/// which side of the tube faces the motion, as in the paper's data collection.
+/// Proprioception (tube-frame pose and velocity in the robot base frame, 100 Hz) is sampled on
+/// the audio clock: row k is time k / proprio_rate_hz from the start of the record.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sonicboom/core/archive.h"
+#include "sonicboom/core/sample.h"
+#include "sonicboom/core/tube.h"
+
+namespace sonicboom::sim {
+
+/// The strike motion and the struck object.
+struct StrikeConfig {
+  std::vector<double> home_joints_rad{1.2614, -0.8973, -0.0474, -2.3464, -0.0790, 1.4341, -1.7109};
+  double sweep_min_deg{12.0};              // joint-1 goal beyond the rod, uniform in [min, max]
+  double sweep_max_deg{16.0};
+  double sweep_duration_s{1.0};            // minimum-jerk profile to the goal
+  double contact_fraction_min{0.35};       // contact at this fraction of the sweep (rod position)
+  double contact_fraction_max{0.65};
+  double contact_angle_spread_deg{40.0};   // rod offset from the motion direction, +- this
+  double tilt_max_deg{0.0};                // joint-2/4 tilt of the strike, uniform in [-max, 0]
+  // struck rod (wood, side grain at the contact)
+  double rod_diameter_m{0.022};
+  double rod_length_m{0.42};
+  double rod_density_kg_m3{650.0};
+  double rod_contact_youngs_modulus_pa{1.0e9};
+  double rod_contact_poisson_ratio{0.35};
+  // proprioception
+  double proprio_rate_hz{100.0};
+  int64_t proprio_rows{50};                // window length fed to the model (0.5 s)
+
+  void Serialize(Archive* a);
+  void Validate() const;
+};
+
+/// Everything the acoustics stage and the dataset need from one strike.
+struct StrikeEvents {
+  bool valid{true};
+  std::string invalid_reason;
+  ContactLabel label;                      // tube frame; impulse and duration filled by acoustics
+  ContactEvent contact;                    // what acoustics needs to play the contact
+  Eigen::Vector3d point_world_m{Eigen::Vector3d::Zero()};
+  Eigen::MatrixXf proprio;                 // (proprio_rows x 10): pos m, quat wxyz, vel m/s (base)
+  std::vector<double> joint_speed_rad_s;   // (record duration x proprio rate) |qdot|, for motor noise
+  double joint_speed_rate_hz{100.0};
+};
+
+/// Immutable strike model shared across threads.
+class StrikeModel {
+ public:
+  StrikeModel(const StrikeConfig& strike, const TubeConfig& tube, const AudioConfig& audio);
+  /// One strike from its sample seed (thread-safe, deterministic).
+  StrikeEvents Generate(uint64_t sample_seed) const;
+  const StrikeConfig& config() const { return strike_; }
+
+ private:
+  StrikeConfig strike_;
+  TubeConfig tube_;
+  AudioConfig audio_;
+};
+
+}  // namespace sonicboom::sim

@@ -1,0 +1,522 @@
+#include "sonicboom/acoustics/features.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr double kFs = 44100.0;
+
+// Goldens written by scripts/make_goldens.py: a JSON manifest plus raw float32 LE arrays.
+class Goldens {
+ public:
+  Goldens() {
+    std::ifstream in(Dir() + "/features.json");
+    if (!in) throw std::runtime_error("missing " + Dir() + "/features.json");
+    manifest_ = nlohmann::json::parse(in);
+  }
+  const nlohmann::json& manifest() const { return manifest_; }
+
+  // Shape of array `name`, e.g. {6, 50, 32}.
+  std::vector<int64_t> Shape(const std::string& name) const {
+    return manifest_.at("arrays").at(name).at("shape").get<std::vector<int64_t>>();
+  }
+
+  // Values of array `name` in C order.
+  std::vector<float> Load(const std::string& name) const {
+    static_assert(std::endian::native == std::endian::little, "goldens are little-endian");
+    const auto& entry = manifest_.at("arrays").at(name);
+    int64_t count = 1;
+    for (int64_t d : Shape(name)) count *= d;
+    std::ifstream in(Dir() + "/" + entry.at("file").get<std::string>(), std::ios::binary);
+    std::vector<float> values(static_cast<size_t>(count));
+    in.read(reinterpret_cast<char*>(values.data()), count * static_cast<int64_t>(sizeof(float)));
+    if (in.gcount() != count * static_cast<int64_t>(sizeof(float))) {
+      throw std::runtime_error("short golden file for " + name);
+    }
+    return values;
+  }
+
+ private:
+  static std::string Dir() { return std::string(SONICBOOM_SOURCE_DIR) + "/tests/data/goldens"; }
+  nlohmann::json manifest_;
+};
+
+// Largest |a - b| and largest |b| over a (rows x cols) matrix vs a C-order reference block.
+struct Deviation {
+  double max_abs{0.0};
+  double max_ref{0.0};
+  double rel() const { return max_ref > 0.0 ? max_abs / max_ref : max_abs; }
+};
+Deviation Compare(const Eigen::MatrixXf& actual, const float* reference) {
+  Deviation d;
+  for (int64_t r = 0; r < actual.rows(); ++r) {
+    for (int64_t c = 0; c < actual.cols(); ++c) {
+      const double ref = reference[r * actual.cols() + c];
+      d.max_abs = std::max(d.max_abs, std::abs(static_cast<double>(actual(r, c)) - ref));
+      d.max_ref = std::max(d.max_ref, std::abs(ref));
+    }
+  }
+  return d;
+}
+
+// Message of the E thrown by f, or a test failure.
+template <typename E, typename F>
+std::string ThrownMessage(F f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "expected an exception";
+  return "";
+}
+
+// Deterministic white noise (n samples, standard deviation sigma).
+std::vector<float> Noise(int64_t n, double sigma, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> normal(0.0, sigma);
+  std::vector<float> x(static_cast<size_t>(n));
+  for (float& v : x) v = static_cast<float>(normal(rng));
+  return x;
+}
+
+// Column of `gcc` row `pair` with the largest value.
+int64_t ArgMax(const Eigen::MatrixXf& gcc, int64_t pair) {
+  Eigen::Index col = 0;
+  gcc.row(pair).maxCoeff(&col);
+  return col;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Mel spectrogram against torchaudio
+
+TEST(MelSpectrogramTest, MultiChannelMatchesTorchaudio) {
+  Goldens goldens;
+  const auto in_shape = goldens.Shape("multi_input");  // (6, 4000)
+  const auto mel_shape = goldens.Shape("multi_mel");   // (6, 50, 32)
+  const std::vector<float> input = goldens.Load("multi_input");
+  const std::vector<float> reference = goldens.Load("multi_mel");
+  const auto& p = goldens.manifest().at("mel");
+  MelSpectrogram mel(p.at("n_fft"), p.at("hop"), p.at("n_mels"), p.at("f_min_hz"), p.at("f_max_hz"),
+                     kFs);
+  ASSERT_EQ(mel.Frames(in_shape[1]), mel_shape[2]);
+  double worst = 0.0;
+  for (int64_t c = 0; c < in_shape[0]; ++c) {
+    Eigen::MatrixXf out;
+    mel.Compute(input.data() + c * in_shape[1], in_shape[1], &out);
+    ASSERT_EQ(out.rows(), mel_shape[1]);
+    ASSERT_EQ(out.cols(), mel_shape[2]);
+    const Deviation d = Compare(out, reference.data() + c * mel_shape[1] * mel_shape[2]);
+    EXPECT_LE(d.max_abs, 1e-4 * d.max_ref + 1e-12) << "channel " << c;
+    worst = std::max(worst, d.rel());
+    std::cout << "multi_mel channel " << c << ": max abs " << d.max_abs << ", rel " << d.rel()
+              << "\n";
+  }
+  RecordProperty("max_rel_error", std::to_string(worst));
+}
+
+TEST(MelSpectrogramTest, FullWindowMatchesTorchaudio) {
+  Goldens goldens;
+  const std::vector<float> input = goldens.Load("long_input");    // (66150,)
+  const std::vector<float> reference = goldens.Load("long_mel");  // (50, 517)
+  MelSpectrogram mel(512, 128, 50, 0.0, kFs / 2, kFs);
+  Eigen::MatrixXf out;
+  mel.Compute(input.data(), static_cast<int64_t>(input.size()), &out);
+  ASSERT_EQ(out.rows(), 50);
+  ASSERT_EQ(out.cols(), 517);
+  const Deviation d = Compare(out, reference.data());
+  std::cout << "long_mel: max abs " << d.max_abs << ", rel " << d.rel() << "\n";
+  EXPECT_LE(d.max_abs, 1e-4 * d.max_ref + 1e-12);
+}
+
+TEST(MelSpectrogramTest, BandLimitedMatchesTorchaudio) {
+  Goldens goldens;
+  const auto& p = goldens.manifest().at("band_mel");
+  const std::vector<float> input = goldens.Load("multi_input");
+  const std::vector<float> reference = goldens.Load("band_mel");  // (40, 63)
+  const int64_t n = goldens.Shape("multi_input")[1];
+  MelSpectrogram mel(p.at("n_fft"), p.at("hop"), p.at("n_mels"), p.at("f_min_hz"), p.at("f_max_hz"),
+                     kFs);
+  Eigen::MatrixXf out;
+  mel.Compute(input.data() + 2 * n, n, &out);
+  ASSERT_EQ(out.rows(), goldens.Shape("band_mel")[0]);
+  ASSERT_EQ(out.cols(), goldens.Shape("band_mel")[1]);
+  const Deviation d = Compare(out, reference.data());
+  std::cout << "band_mel: max abs " << d.max_abs << ", rel " << d.rel() << "\n";
+  EXPECT_LE(d.max_abs, 1e-4 * d.max_ref + 1e-12);
+}
+
+TEST(MelSpectrogramTest, FilterbankShapeAndTriangles) {
+  MelSpectrogram mel(512, 128, 50, 0.0, kFs / 2, kFs);
+  EXPECT_EQ(mel.Frames(66150), 517);
+  EXPECT_EQ(mel.Frames(128), 2);
+  const Eigen::MatrixXf& fb = mel.filterbank();
+  ASSERT_EQ(fb.rows(), 50);
+  ASSERT_EQ(fb.cols(), 257);
+  EXPECT_GE(fb.minCoeff(), 0.0f);
+  EXPECT_LE(fb.maxCoeff(), 1.0f);
+  // Band centres rise with the band index.
+  Eigen::Index previous = -1;
+  for (int64_t j = 0; j < fb.rows(); ++j) {
+    Eigen::Index centre = 0;
+    fb.row(j).maxCoeff(&centre);
+    EXPECT_GE(centre, previous) << "band " << j;
+    previous = centre;
+  }
+}
+
+TEST(MelSpectrogramTest, RejectsBadArguments) {
+  EXPECT_THROW(MelSpectrogram(0, 128, 50, 0.0, kFs / 2, kFs), ConfigError);
+  EXPECT_THROW(MelSpectrogram(512, 0, 50, 0.0, kFs / 2, kFs), ConfigError);
+  EXPECT_THROW(MelSpectrogram(512, 128, 50, 0.0, kFs, kFs), ConfigError);
+  EXPECT_THROW(MelSpectrogram(512, 128, 50, 5000.0, 4000.0, kFs), ConfigError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// GCC-PHAT
+
+TEST(GccPhatTest, MatchesZeroPaddedNumpyReference) {
+  Goldens goldens;
+  const auto in_shape = goldens.Shape("multi_input");  // (6, 4000)
+  const auto gcc_shape = goldens.Shape("multi_gcc");   // (15, 883)
+  const std::vector<float> input = goldens.Load("multi_input");
+  const std::vector<float> reference = goldens.Load("multi_gcc");
+  const int64_t max_lag = goldens.manifest().at("gcc").at("max_lag");
+  // Row-major (C order) input into a (channels x n) matrix.
+  Eigen::MatrixXf window(in_shape[0], in_shape[1]);
+  for (int64_t c = 0; c < in_shape[0]; ++c) {
+    for (int64_t t = 0; t < in_shape[1]; ++t) window(c, t) = input[c * in_shape[1] + t];
+  }
+  GccPhat gcc(in_shape[1], max_lag, static_cast<int>(in_shape[0]));
+  Eigen::MatrixXf out;
+  gcc.Compute(window, &out);
+  ASSERT_EQ(out.rows(), gcc_shape[0]);
+  ASSERT_EQ(out.cols(), gcc_shape[1]);
+  const Deviation d = Compare(out, reference.data());
+  std::cout << "multi_gcc: max abs " << d.max_abs << ", rel " << d.rel() << "\n";
+  EXPECT_LE(d.max_abs, 1e-4 * d.max_ref + 1e-7);
+  // The golden input has channel 3 = channel 2 delayed by 37 samples and channel 4 = channel 2
+  // advanced by 120: pair (2,3) is row 9, pair (2,4) is row 10.
+  EXPECT_EQ(ArgMax(out, 9) - max_lag, -37);
+  EXPECT_EQ(ArgMax(out, 10) - max_lag, 120);
+}
+
+// Three channels of the same noise: ch1 lags ch0 by `delay` samples, ch2 = 0.5 * ch0.
+Eigen::MatrixXf DelayedNoise(int64_t n, int64_t delay) {
+  const int64_t margin = 1000;
+  const std::vector<float> base = Noise(n + 2 * margin, 0.1, 1234);
+  Eigen::MatrixXf x(3, n);
+  for (int64_t t = 0; t < n; ++t) {
+    x(0, t) = base[margin + t];
+    x(1, t) = base[margin + t - delay];
+    x(2, t) = 0.5f * base[margin + t];
+  }
+  return x;
+}
+
+class GccPhatDelayTest : public ::testing::TestWithParam<int64_t> {};
+
+TEST_P(GccPhatDelayTest, PeakAtSignedLag) {
+  const int64_t delay = GetParam();  // channel 1 receives `delay` samples after channel 0
+  const int64_t n = 8192, max_lag = 441;
+  GccPhat gcc(n, max_lag, 3);
+  Eigen::MatrixXf out;
+  gcc.Compute(DelayedNoise(n, delay), &out);
+  ASSERT_EQ(out.rows(), 3);
+  ASSERT_EQ(out.cols(), 2 * max_lag + 1);
+  // Pair (0,1): first mic earlier => lag -delay. Pair (0,2): simultaneous. Pair (1,2): +delay.
+  EXPECT_EQ(ArgMax(out, 0) - max_lag, -delay);
+  EXPECT_EQ(ArgMax(out, 1) - max_lag, 0);
+  EXPECT_EQ(ArgMax(out, 2) - max_lag, delay);
+}
+
+INSTANTIATE_TEST_SUITE_P(Delays, GccPhatDelayTest,
+                         ::testing::Values(-441, -300, -37, -1, 0, 1, 5, 120, 440, 441));
+
+TEST(GccPhatTest, NoCircularWrapAround) {
+  // A 700-sample window with max_lag 441: circularly, lag +300 and lag -400 are the same bin,
+  // so a wrapped correlation would show the same peak at -400 (found first by argmax).
+  const int64_t n = 700, max_lag = 441, delay = 300;
+  GccPhat gcc(n, max_lag, 3);
+  Eigen::MatrixXf out;
+  gcc.Compute(DelayedNoise(n, delay), &out);
+  const float peak = out(2, max_lag + delay);
+  EXPECT_EQ(ArgMax(out, 2) - max_lag, delay);
+  EXPECT_LT(out(2, max_lag - (n - delay)), 0.5f * peak);
+  EXPECT_EQ(ArgMax(out, 0) - max_lag, -delay);
+}
+
+TEST(GccPhatTest, FullWindowDelayAtMaxLag) {
+  // Paper window (66150 samples) with the delay at the edge of the lag range.
+  const int64_t n = 66150, max_lag = 441;
+  GccPhat gcc(n, max_lag, 3);
+  Eigen::MatrixXf out;
+  gcc.Compute(DelayedNoise(n, 441), &out);
+  EXPECT_EQ(ArgMax(out, 0), 0);            // lag -441
+  EXPECT_EQ(ArgMax(out, 2), 2 * max_lag);  // lag +441
+}
+
+TEST(GccPhatTest, RejectsBadArguments) {
+  EXPECT_THROW(GccPhat(0, 0, 2), ConfigError);
+  EXPECT_THROW(GccPhat(100, 100, 2), ConfigError);
+  EXPECT_THROW(GccPhat(100, -1, 2), ConfigError);
+  GccPhat gcc(100, 10, 2);
+  Eigen::MatrixXf out;
+  EXPECT_THROW(gcc.Compute(Eigen::MatrixXf::Zero(3, 100), &out), Error);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Onset
+
+TEST(DetectOnsetTest, ImpulseOnOneChannelFoundWithinOneFrame) {
+  const int64_t total = 44100;
+  const int64_t frame = std::llround(0.0029 * kFs);  // 128 samples
+  for (int64_t impulse : {int64_t{777}, int64_t{20000}, int64_t{43000}}) {
+    Eigen::MatrixXf audio(6, total);
+    for (int c = 0; c < 6; ++c) {
+      const std::vector<float> noise = Noise(total, 1e-3, 100 + c);
+      for (int64_t t = 0; t < total; ++t) audio(c, t) = noise[t];
+    }
+    audio(3, impulse) = 0.5f;
+    const int64_t onset = DetectOnset(audio, kFs, 0.0029, 0.1);
+    EXPECT_LE(onset, impulse) << "impulse at " << impulse;
+    EXPECT_GT(onset, impulse - frame) << "impulse at " << impulse;
+  }
+}
+
+TEST(DetectOnsetTest, FirstFrameAboveThresholdNotPeak) {
+  // A ramp of bursts: the first burst above 10 % of the peak marks the onset, not the peak.
+  Eigen::MatrixXf audio = Eigen::MatrixXf::Zero(2, 4096);
+  audio(0, 1000) = 0.05f;  // energy 0.0025 < 0.1 * 1
+  audio(1, 2000) = 0.4f;   // energy 0.16 >= 0.1
+  audio(0, 3000) = 1.0f;   // peak
+  const int64_t onset = DetectOnset(audio, kFs, 0.0029, 0.1);
+  EXPECT_EQ(onset, (2000 / 128) * 128);
+  EXPECT_THROW(DetectOnset(audio, kFs, 0.0, 0.1), ConfigError);
+  EXPECT_THROW(DetectOnset(audio, kFs, 0.0029, 0.0), ConfigError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// FeatureExtractor
+
+// Six channels of quiet noise with a decaying 2 kHz strike at `onset` (different gains).
+Eigen::MatrixXf StrikeRecord(int64_t total, int64_t onset) {
+  Eigen::MatrixXf audio(6, total);
+  for (int c = 0; c < 6; ++c) {
+    const std::vector<float> noise = Noise(total, 1e-4, 7 + c);
+    for (int64_t t = 0; t < total; ++t) {
+      const double s = t >= onset ? std::exp(-(t - onset) / 400.0) *
+                                        std::sin(2 * std::numbers::pi * 2000.0 * (t - onset) / kFs)
+                                  : 0.0;
+      audio(c, t) = noise[t] + static_cast<float>((0.2 + 0.1 * c) * s);
+    }
+  }
+  return audio;
+}
+
+TEST(FeatureExtractorTest, WindowCentredOnOnsetWithZeroPadding) {
+  FeatureConfig config;
+  const FeatureExtractor extractor(config, kFs, 6);
+  EXPECT_EQ(extractor.window_samples(), 66150);
+  EXPECT_EQ(extractor.mel_frames(), 517);
+  EXPECT_EQ(extractor.gcc_lags(), 883);
+  EXPECT_EQ(extractor.channels(), 6);
+
+  // Onset at 10000 in a 50000-sample record: the window starts before the record.
+  const Eigen::MatrixXf audio = StrikeRecord(50000, 10000);
+  const StrikeFeatures f = extractor.Compute(audio);
+  EXPECT_LE(f.onset_sample, 10000);
+  EXPECT_GT(f.onset_sample, 10000 - 128);
+  EXPECT_EQ(f.window_start, f.onset_sample - 66150 / 2);
+  ASSERT_EQ(f.mel.size(), 6u);
+  ASSERT_EQ(f.gcc.rows(), 15);
+  ASSERT_EQ(f.gcc.cols(), 883);
+
+  // Reference: build the zero-padded window by hand and run the blocks directly.
+  Eigen::MatrixXf window = Eigen::MatrixXf::Zero(6, 66150);
+  for (int64_t i = 0; i < 66150; ++i) {
+    const int64_t t = f.window_start + i;
+    if (t >= 0 && t < audio.cols()) window.col(i) = audio.col(t);
+  }
+  MelSpectrogram mel(512, 128, 50, 0.0, kFs / 2, kFs);
+  for (int c = 0; c < 6; ++c) {
+    ASSERT_EQ(f.mel[c].rows(), 50);
+    ASSERT_EQ(f.mel[c].cols(), 517);
+    const Eigen::VectorXf row = window.row(c).transpose();
+    Eigen::MatrixXf expected;
+    mel.Compute(row.data(), row.size(), &expected);
+    EXPECT_EQ((f.mel[c] - expected).cwiseAbs().maxCoeff(), 0.0f) << "channel " << c;
+  }
+  GccPhat gcc(66150, 441, 6);
+  Eigen::MatrixXf expected_gcc;
+  gcc.Compute(window, &expected_gcc);
+  EXPECT_EQ((f.gcc - expected_gcc).cwiseAbs().maxCoeff(), 0.0f);
+  // Every channel carries the strike simultaneously: all pairs peak at lag 0.
+  for (int64_t p = 0; p < 15; ++p) EXPECT_EQ(ArgMax(f.gcc, p), 441) << "pair " << p;
+}
+
+TEST(FeatureExtractorTest, LogMelIsLog10OfPowerPlusEpsilon) {
+  FeatureConfig config;
+  const FeatureExtractor power(config, kFs, 6);
+  config.log_mel = true;
+  const FeatureExtractor logged(config, kFs, 6);
+  const Eigen::MatrixXf audio = StrikeRecord(80000, 40000);
+  const StrikeFeatures a = power.Compute(audio);
+  const StrikeFeatures b = logged.Compute(audio);
+  for (int c = 0; c < 6; ++c) {
+    const Eigen::MatrixXf expected =
+        (a.mel[c].cast<double>().array() + 1e-10).log10().cast<float>().matrix();
+    EXPECT_LE((b.mel[c] - expected).cwiseAbs().maxCoeff(), 1e-6f) << "channel " << c;
+  }
+  EXPECT_EQ((a.gcc - b.gcc).cwiseAbs().maxCoeff(), 0.0f);
+}
+
+TEST(FeatureExtractorTest, ConcurrentComputeMatchesSerial) {
+  const FeatureExtractor extractor(FeatureConfig{}, kFs, 6);
+  std::vector<Eigen::MatrixXf> records;
+  std::vector<StrikeFeatures> serial;
+  for (int i = 0; i < 4; ++i) {
+    records.push_back(StrikeRecord(70000, 20000 + 5000 * i));
+    serial.push_back(extractor.Compute(records.back()));
+  }
+  std::vector<StrikeFeatures> parallel(8);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < 8; ++i) {
+    threads.emplace_back([&, i] { parallel[i] = extractor.Compute(records[i % 4]); });
+  }
+  for (auto& t : threads) t.join();
+  for (int i = 0; i < 8; ++i) {
+    const StrikeFeatures& s = serial[i % 4];
+    EXPECT_EQ(parallel[i].onset_sample, s.onset_sample);
+    EXPECT_TRUE(parallel[i].gcc == s.gcc) << "thread " << i;
+    for (int c = 0; c < 6; ++c) EXPECT_TRUE(parallel[i].mel[c] == s.mel[c]) << "thread " << i;
+  }
+}
+
+TEST(FeatureExtractorTest, RejectsWrongChannelCount) {
+  const FeatureExtractor extractor(FeatureConfig{}, kFs, 6);
+  EXPECT_THROW(extractor.Compute(Eigen::MatrixXf::Zero(2, 70000)), Error);
+}
+
+struct BadConfigCase {
+  std::string key;     // expected in the message
+  std::string detail;  // also expected in the message
+  void (*mutate)(FeatureConfig*);
+};
+
+class FeatureConfigErrorTest : public ::testing::TestWithParam<BadConfigCase> {};
+
+TEST_P(FeatureConfigErrorTest, ThrowsConfigErrorNamingKey) {
+  FeatureConfig config;
+  GetParam().mutate(&config);
+  const std::string message =
+      ThrownMessage<ConfigError>([&] { FeatureExtractor extractor(config, kFs, 6); });
+  EXPECT_THAT(message, HasSubstr(GetParam().key));
+  EXPECT_THAT(message, HasSubstr(GetParam().detail));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Keys, FeatureConfigErrorTest,
+    ::testing::Values(
+        BadConfigCase{"features.hop", "got -1", [](FeatureConfig* c) { c->hop = -1; }},
+        BadConfigCase{"features.n_fft", "got 0", [](FeatureConfig* c) { c->n_fft = 0; }},
+        BadConfigCase{"features.n_mels", "got 0", [](FeatureConfig* c) { c->n_mels = 0; }},
+        BadConfigCase{"features.window_s", "got 0", [](FeatureConfig* c) { c->window_s = 0.0; }},
+        BadConfigCase{"features.f_max_hz", "got 30000",
+                      [](FeatureConfig* c) { c->f_max_hz = 30000.0; }},
+        BadConfigCase{"features.f_min_hz", "got -5", [](FeatureConfig* c) { c->f_min_hz = -5.0; }},
+        BadConfigCase{"features.f_min_hz", "got 9000",
+                      [](FeatureConfig* c) {
+                        c->f_min_hz = 9000.0;
+                        c->f_max_hz = 8000.0;
+                      }},
+        BadConfigCase{"features.gcc_max_lag", "got 66150",
+                      [](FeatureConfig* c) { c->gcc_max_lag = 66150; }},
+        BadConfigCase{"features.gcc_max_lag", "got -2",
+                      [](FeatureConfig* c) { c->gcc_max_lag = -2; }},
+        BadConfigCase{"features.onset_frame_s", "got 0",
+                      [](FeatureConfig* c) { c->onset_frame_s = 0.0; }},
+        BadConfigCase{"features.onset_threshold", "got 1.5",
+                      [](FeatureConfig* c) { c->onset_threshold = 1.5; }},
+        BadConfigCase{"features.n_fft", "got 100000",
+                      [](FeatureConfig* c) { c->n_fft = 100000; }}));
+
+TEST(FeatureConfigTest, DefaultsAreValid) {
+  EXPECT_NO_THROW(FeatureExtractor(FeatureConfig{}, kFs, 6));
+}
+
+// Records the names, kinds and bounds an Archive is shown.
+class RecordingArchive : public Archive {
+ public:
+  struct Field {
+    std::string name;
+    std::string kind;
+    Bounds bounds;
+  };
+  std::vector<Field> fields;
+
+  void Visit(std::string_view name, double*, Bounds b) override { Add(name, "double", b); }
+  void Visit(std::string_view name, int64_t*, Bounds b) override { Add(name, "int", b); }
+  void Visit(std::string_view name, bool*) override { Add(name, "bool", {}); }
+  void Visit(std::string_view name, std::string*) override { Add(name, "string", {}); }
+  void Visit(std::string_view name, std::vector<double>*, Bounds b) override {
+    Add(name, "doubles", b);
+  }
+  void Visit(std::string_view name, std::vector<std::string>*) override {
+    Add(name, "strings", {});
+  }
+  void VisitChoice(std::string_view name, std::string*, const std::vector<std::string>&) override {
+    Add(name, "choice", {});
+  }
+
+ protected:
+  void BeginGroup(std::string_view) override {}
+  void EndGroup() override {}
+
+ private:
+  void Add(std::string_view name, const char* kind, Bounds b) {
+    fields.push_back({std::string(name), kind, b});
+  }
+};
+
+TEST(FeatureConfigTest, SerializeVisitsEveryMemberByName) {
+  FeatureConfig config;
+  RecordingArchive archive;
+  config.Serialize(&archive);
+  std::vector<std::string> names;
+  for (const auto& f : archive.fields) names.push_back(f.name);
+  EXPECT_THAT(names,
+              ::testing::ElementsAre("window_s", "n_fft", "hop", "n_mels", "f_min_hz", "f_max_hz",
+                                     "log_mel", "gcc_max_lag", "onset_frame_s", "onset_threshold"));
+  ASSERT_EQ(archive.fields.size(), 10u);
+  // window_s: (0, inf); hop: (0, inf); log_mel: bool; onset_threshold: (0, 1].
+  EXPECT_EQ(archive.fields[0].bounds.lo, 0.0);
+  EXPECT_TRUE(archive.fields[0].bounds.lo_open);
+  EXPECT_EQ(archive.fields[2].kind, "int");
+  EXPECT_TRUE(archive.fields[2].bounds.lo_open);
+  EXPECT_EQ(archive.fields[6].kind, "bool");
+  EXPECT_EQ(archive.fields[9].bounds.hi, 1.0);
+  EXPECT_FALSE(archive.fields[9].bounds.hi_open);
+}
+
+}  // namespace
+}  // namespace sonicboom::acoustics

@@ -1,0 +1,135 @@
+// Strike rendering: Hertz contact, arrival-time and level cues, DAQ chain, determinism, limits.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+ContactEvent DowelContact(double z_m, double theta_rad, double speed) {
+  ContactEvent c;
+  c.time_s = 0.5;
+  c.z_m = z_m;
+  c.theta_rad = theta_rad;
+  c.normal_speed_m_s = speed;
+  c.effective_mass_kg = 0.010;
+  c.striker_radius_m = 0.00635;
+  c.striker_youngs_modulus_pa = 1e9;
+  c.striker_poisson_ratio = 0.35;
+  return c;
+}
+
+StrikeSynthesizer MakeSynth(NoiseConfig noise = {}, DaqConfig daq = {}) {
+  return StrikeSynthesizer(TubeConfig{}, MaterialConfig{}, MicArrayConfig{}, AudioConfig{},
+                           SynthConfig{}, daq, noise);
+}
+
+// first sample whose |x| exceeds frac of the channel's peak
+int64_t Arrival(const Eigen::MatrixXf& audio, int ch, double frac) {
+  const float peak = audio.row(ch).cwiseAbs().maxCoeff();
+  for (int64_t k = 0; k < audio.cols(); ++k) {
+    if (std::abs(audio(ch, k)) >= frac * peak) return k;
+  }
+  return -1;
+}
+
+TEST(HertzTest, DowelCrossingPipeMatchesClosedForm) {
+  // physics.md §1.6: dowel side (d 12.7 mm, E_T 1 GPa) crossing a pipe of R 55 mm, 10 g, 0.5 m/s
+  TubeConfig tube;
+  tube.outer_radius_m = 0.055;
+  const HertzImpact h = SolveHertzImpact(DowelContact(0, 0, 0.5), tube, MaterialConfig{});
+  EXPECT_NEAR(h.max_compression_m, 52.5e-6, 0.01 * 52.5e-6);
+  EXPECT_NEAR(h.peak_force_n, 59.6, 0.01 * 59.6);
+  EXPECT_NEAR(h.duration_s, 309e-6, 0.01 * 309e-6);
+  // an elastic impact returns twice the momentum
+  EXPECT_NEAR(h.impulse_ns, 2 * 0.010 * 0.5, 0.01 * 0.010);
+  // t_c grows as v^(-1/5)
+  const HertzImpact slow = SolveHertzImpact(DowelContact(0, 0, 0.05), tube, MaterialConfig{});
+  EXPECT_NEAR(slow.duration_s / h.duration_s, std::pow(10.0, 0.2), 1e-9);
+}
+
+TEST(SynthTest, FiniteNonSilentAndDeterministic) {
+  NoiseConfig noise;
+  const StrikeSynthesizer synth = MakeSynth(noise);
+  const std::vector<double> speed(200, 0.2);
+  const RenderedStrike a = synth.Render(DowelContact(0.03, 1.0, 0.1), speed, 100.0, 77);
+  const RenderedStrike b = synth.Render(DowelContact(0.03, 1.0, 0.1), speed, 100.0, 77);
+  ASSERT_EQ(a.audio.rows(), 6);
+  ASSERT_EQ(a.audio.cols(), 88200);
+  EXPECT_TRUE(a.audio.allFinite());
+  EXPECT_FALSE(a.clipped);
+  EXPECT_GT(a.audio.cwiseAbs().maxCoeff(), 0.01);
+  EXPECT_TRUE(a.audio.isApprox(b.audio, 0.0f));
+  EXPECT_GT(a.modes_used, 50);
+  // 16-bit output: every value on the 1/32767 grid
+  for (int k = 0; k < 1000; ++k) {
+    const double q = a.audio(0, 44000 + k) * 32767.0;
+    EXPECT_NEAR(q, std::round(q), 1e-3);
+  }
+}
+
+TEST(SynthTest, NearRingHearsFirstAndLouder) {
+  // no noise: a contact near the +z ring reaches mics 3-5 before mics 0-2
+  NoiseConfig quiet;
+  quiet.ambient_rms_v = 0;
+  quiet.motor_rms_v_per_rad_s = 0;
+  DaqConfig daq;
+  daq.preamp_noise_v = 0;
+  daq.gain_mismatch_db = 0;
+  const StrikeSynthesizer synth = MakeSynth(quiet, daq);
+  const RenderedStrike r = synth.Render(DowelContact(0.09, 0.0, 0.1), {}, 100.0, 1);
+  const int64_t near = Arrival(r.audio, 3, 0.1), far = Arrival(r.audio, 0, 0.1);
+  EXPECT_LT(near, far);
+  EXPECT_GT(r.audio.row(3).cwiseAbs().maxCoeff(), r.audio.row(0).cwiseAbs().maxCoeff());
+  // nothing before the contact
+  EXPECT_EQ(r.audio.block(0, 0, 6, 22000).cwiseAbs().maxCoeff(), 0.0f);
+}
+
+TEST(SynthTest, HardHitClipsAndIsFlagged) {
+  const StrikeSynthesizer synth = MakeSynth();
+  const RenderedStrike r = synth.Render(DowelContact(0.1, 0.0, 10.0), {}, 100.0, 3);
+  EXPECT_TRUE(r.clipped);
+  EXPECT_TRUE(r.audio.allFinite());
+  EXPECT_LE(r.audio.cwiseAbs().maxCoeff(), 1.0f);
+}
+
+TEST(SynthTest, ExtremesStayFinite) {
+  // slowest and fastest strikes, both ends of the contact region, theta at +-pi
+  const StrikeSynthesizer synth = MakeSynth();
+  for (double v : {0.01, 10.0}) {
+    for (double z : {-0.1015, 0.1015}) {
+      for (double th : {std::numbers::pi, -std::numbers::pi + 1e-12}) {
+        const RenderedStrike r = synth.Render(DowelContact(z, th, v), {}, 100.0, 5);
+        EXPECT_TRUE(r.audio.allFinite());
+        EXPECT_GT(r.audio.cwiseAbs().maxCoeff(), 0.0f);
+      }
+    }
+  }
+}
+
+TEST(SynthTest, RefusesBandAboveNyquist) {
+  SynthConfig synth;
+  synth.max_frequency_hz = 30000;
+  try {
+    StrikeSynthesizer s(TubeConfig{}, MaterialConfig{}, MicArrayConfig{}, AudioConfig{}, synth,
+                        DaqConfig{}, NoiseConfig{});
+    FAIL();
+  } catch (const NumericalError& e) {
+    EXPECT_NE(std::string(e.what()).find("Nyquist"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("22050"), std::string::npos);
+  }
+}
+
+TEST(DaqTest, HighPassCornerFromDiscAndInput) {
+  DaqConfig daq;
+  EXPECT_NEAR(daq.highpass_hz(), 1.0 / (2 * std::numbers::pi * 1e6 * 16e-9), 1e-9);
+  daq.input_resistance_ohm = 50e3;  // line input: ~200 Hz
+  EXPECT_NEAR(daq.highpass_hz(), 199, 1);
+}
+
+}  // namespace
+}  // namespace sonicboom::acoustics

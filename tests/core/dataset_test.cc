@@ -1,0 +1,590 @@
+#include "sonicboom/core/dataset.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sonicboom/core/array_file.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A fresh directory under the system temp directory, removed at the end of the test.
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device device;
+    const uint64_t tag = (static_cast<uint64_t>(device()) << 32) ^ device();
+    path_ = fs::temp_directory_path() / ("sonicboom_test_" + std::to_string(tag));
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string File(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+DatasetInfo MakeInfo(bool audio_int16) {
+  DatasetInfo info;
+  info.source = "sim";
+  info.config_yaml = "seed: 42\nsim:\n  dt_s: 0.0001\n";
+  info.sample_rate_hz = 48000.0;
+  info.proprio_rate_hz = 200.0;
+  info.channels = 2;
+  info.audio_frames = 64;
+  info.proprio_rows = 3;
+  info.audio_int16 = audio_int16;
+  info.global_seed = 42;
+  return info;
+}
+
+// Deterministic content of sample `index`; an invalid sample carries no audio or proprio.
+StrikeSample MakeSample(uint64_t index, const DatasetInfo& info, bool valid = true,
+                        const std::string& reason = "no_contact") {
+  StrikeSample sample;
+  sample.index = index;
+  sample.seed = 1000 + 7 * index;
+  sample.valid = valid;
+  sample.label.z_m = 0.1 * static_cast<double>(index) - 0.05;
+  sample.label.theta_rad = 0.3 * static_cast<double>(index) - 1.0;
+  sample.label.point_m = Eigen::Vector3d(0.02, -0.01 * index, 0.1 * index);
+  sample.label.normal = Eigen::Vector3d(0.6, 0.8, 0.0);
+  sample.label.impulse_Ns = 0.01 * (index + 1);
+  sample.label.time_s = 0.002 + 1e-4 * index;
+  sample.label.normal_speed_m_s = 0.5 + 0.25 * index;
+  sample.label.duration_s = 1e-4 * (index + 1);
+  if (!valid) {
+    sample.invalid_reason = reason;
+    return sample;
+  }
+  sample.audio.resize(info.channels, info.audio_frames);
+  for (int c = 0; c < info.channels; ++c) {
+    for (int64_t t = 0; t < info.audio_frames; ++t) {
+      sample.audio(c, t) = 0.8f * std::sin(0.1f * t * (c + 1) + index) / (1.0f + index);
+    }
+  }
+  // Sample 0 exceeds full scale in one place (clamped to 1 in int16 files).
+  if (index == 0) {
+    sample.audio(0, 5) = 1.5f;
+    sample.clipped = true;
+  }
+  sample.proprio.resize(info.proprio_rows, kProprioFeatures);
+  for (int64_t r = 0; r < info.proprio_rows; ++r) {
+    for (int j = 0; j < kProprioFeatures; ++j) {
+      sample.proprio(r, j) = static_cast<float>(index) + 0.1f * r + 0.01f * j;
+    }
+  }
+  return sample;
+}
+
+// Writes samples with the given indices; those in `invalid` are invalid.
+void WriteDataset(const std::string& path, const DatasetInfo& info,
+                  const std::vector<uint64_t>& indices, const std::vector<uint64_t>& invalid = {}) {
+  DatasetWriter writer(path, info);
+  for (uint64_t index : indices) {
+    const bool valid = std::find(invalid.begin(), invalid.end(), index) == invalid.end();
+    writer.Append(MakeSample(index, info, valid));
+  }
+  writer.Finish();
+}
+
+void ExpectLabelsEqual(const ContactLabel& a, const ContactLabel& b) {
+  EXPECT_EQ(a.z_m, b.z_m);
+  EXPECT_EQ(a.theta_rad, b.theta_rad);
+  EXPECT_EQ(a.point_m, b.point_m);
+  EXPECT_EQ(a.normal, b.normal);
+  EXPECT_EQ(a.impulse_Ns, b.impulse_Ns);
+  EXPECT_EQ(a.time_s, b.time_s);
+  EXPECT_EQ(a.normal_speed_m_s, b.normal_speed_m_s);
+  EXPECT_EQ(a.duration_s, b.duration_s);
+}
+
+// Reads back samples written by MakeSample and compares everything.
+void ExpectRoundTrip(bool audio_int16) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  const DatasetInfo info = MakeInfo(audio_int16);
+  WriteDataset(path, info, {0, 1, 2}, {1});
+
+  DatasetReader reader(path);
+  EXPECT_EQ(reader.size(), 3);
+  EXPECT_TRUE(reader.info().complete);
+  EXPECT_EQ(reader.info().num_samples, 3);
+  EXPECT_EQ(reader.info().source, "sim");
+  EXPECT_EQ(reader.info().config_yaml, info.config_yaml);
+  EXPECT_FALSE(reader.info().software_version.empty());
+  EXPECT_EQ(reader.info().sample_rate_hz, 48000.0);
+  EXPECT_EQ(reader.info().proprio_rate_hz, 200.0);
+  EXPECT_EQ(reader.info().channels, 2);
+  EXPECT_EQ(reader.info().audio_frames, 64);
+  EXPECT_EQ(reader.info().proprio_rows, 3);
+  EXPECT_EQ(reader.info().audio_int16, audio_int16);
+  EXPECT_EQ(reader.info().global_seed, 42u);
+  EXPECT_EQ(reader.info().shard, 0);
+  EXPECT_EQ(reader.info().num_shards, 1);
+
+  const double tolerance = audio_int16 ? 1.0 / 32767.0 : 0.0;
+  for (int64_t i = 0; i < 3; ++i) {
+    const bool valid = i != 1;
+    const StrikeSample expected = MakeSample(i, info, valid);
+    const StrikeSample got = reader.Read(i);
+    SCOPED_TRACE("sample " + std::to_string(i));
+    EXPECT_EQ(got.index, static_cast<uint64_t>(i));
+    EXPECT_EQ(got.seed, 1000u + 7u * i);
+    EXPECT_EQ(got.valid, valid);
+    EXPECT_EQ(got.invalid_reason, valid ? "" : "no_contact");
+    EXPECT_EQ(got.clipped, i == 0);
+    ExpectLabelsEqual(got.label, expected.label);
+    ASSERT_EQ(got.audio.rows(), 2);
+    ASSERT_EQ(got.audio.cols(), 64);
+    ASSERT_EQ(got.proprio.rows(), 3);
+    ASSERT_EQ(got.proprio.cols(), kProprioFeatures);
+    if (!valid) {
+      // Audio and proprio of an invalid sample without them are stored as zeros.
+      EXPECT_EQ(got.audio.cwiseAbs().maxCoeff(), 0.0f);
+      EXPECT_EQ(got.proprio.cwiseAbs().maxCoeff(), 0.0f);
+      continue;
+    }
+    EXPECT_EQ(got.proprio, expected.proprio);
+    for (int c = 0; c < 2; ++c) {
+      for (int t = 0; t < 64; ++t) {
+        const float want = audio_int16 ? std::clamp(expected.audio(c, t), -1.0f, 1.0f)
+                                       : expected.audio(c, t);
+        ASSERT_NEAR(got.audio(c, t), want, tolerance) << "channel " << c << " frame " << t;
+      }
+    }
+    // ReadMeta gives the same labels without audio.
+    const StrikeSample meta = reader.ReadMeta(i);
+    EXPECT_EQ(meta.audio.size(), 0);
+    ExpectLabelsEqual(meta.label, expected.label);
+    EXPECT_EQ(meta.proprio, expected.proprio);
+  }
+  // The clipped value of sample 0 is full scale in an int16 file and kept in a float32 one.
+  EXPECT_NEAR(reader.Read(0).audio(0, 5), audio_int16 ? 1.0f : 1.5f, 1e-6);
+}
+
+TEST(DatasetTest, RoundTripInt16) { ExpectRoundTrip(true); }
+
+TEST(DatasetTest, RoundTripFloat32) { ExpectRoundTrip(false); }
+
+TEST(DatasetTest, FinalNameAppearsOnlyAtFinish) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  const DatasetInfo info = MakeInfo(true);
+  DatasetWriter writer(path, info);
+  EXPECT_FALSE(fs::exists(path));
+  EXPECT_TRUE(fs::exists(path + ".partial"));
+  writer.Append(MakeSample(0, info));
+  writer.Append(MakeSample(1, info));
+  EXPECT_EQ(writer.count(), 2);
+  EXPECT_FALSE(fs::exists(path));
+  writer.Finish();
+  EXPECT_TRUE(fs::exists(path));
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+  EXPECT_EQ(DatasetReader(path).size(), 2);
+}
+
+TEST(DatasetTest, UnfinishedWriterLeavesOnlyRejectedPartial) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  const DatasetInfo info = MakeInfo(true);
+  {
+    DatasetWriter writer(path, info);
+    writer.Append(MakeSample(0, info));
+    writer.Append(MakeSample(1, info, false, "penetration"));
+  }
+  const std::string partial = path + ".partial";
+  EXPECT_FALSE(fs::exists(path));
+  ASSERT_TRUE(fs::exists(partial));
+  try {
+    DatasetReader reader(partial);
+    FAIL() << "an incomplete dataset was opened";
+  } catch (const SchemaError& e) {
+    EXPECT_NE(std::string(e.what()).find("incomplete dataset (no `complete` attribute)"),
+              std::string::npos)
+        << e.what();
+  }
+  DatasetReader reader(partial, /*allow_incomplete=*/true);
+  EXPECT_FALSE(reader.info().complete);
+  ASSERT_EQ(reader.size(), 2);
+  EXPECT_EQ(reader.Read(1).invalid_reason, "penetration");
+  EXPECT_EQ(reader.Read(0).label.z_m, MakeSample(0, info).label.z_m);
+
+  // The summary works on the leftover too.
+  const nlohmann::json summary = nlohmann::json::parse(SummarizeDatasetJson(partial));
+  EXPECT_EQ(summary["complete"], false);
+  EXPECT_EQ(summary["num_samples"], 2);
+  EXPECT_EQ(summary["valid"], 1);
+  EXPECT_EQ(summary["invalid_reasons"]["penetration"], 1);
+}
+
+TEST(DatasetTest, CompleteFileSurvivesUntilFinish) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  const DatasetInfo info = MakeInfo(true);
+  WriteDataset(path, info, {0, 1, 2});
+  {
+    // A second run over the same path that fails leaves the first file untouched.
+    DatasetWriter writer(path, info);
+    writer.Append(MakeSample(7, info));
+  }
+  EXPECT_EQ(DatasetReader(path).size(), 3);
+  // A stale .partial is replaced by the next writer, which then replaces the file.
+  WriteDataset(path, info, {7});
+  DatasetReader reader(path);
+  ASSERT_EQ(reader.size(), 1);
+  EXPECT_EQ(reader.ReadMeta(0).index, 7u);
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+}
+
+TEST(DatasetTest, WriterRefusesMissingParentDirectory) {
+  TempDir dir;
+  const std::string path = dir.File("no_such_dir/strikes.h5");
+  EXPECT_THROW(DatasetWriter(path, MakeInfo(true)), IoError);
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+}
+
+TEST(DatasetTest, AppendRefusesWrongShapesAndRepeatedIndex) {
+  TempDir dir;
+  const DatasetInfo info = MakeInfo(true);
+  DatasetWriter writer(dir.File("strikes.h5"), info);
+  StrikeSample wrong_audio = MakeSample(0, info);
+  wrong_audio.audio.resize(2, 63);
+  EXPECT_THROW(writer.Append(wrong_audio), SchemaError);
+  StrikeSample wrong_proprio = MakeSample(0, info);
+  wrong_proprio.proprio.resize(4, kProprioFeatures);
+  EXPECT_THROW(writer.Append(wrong_proprio), SchemaError);
+  StrikeSample no_audio = MakeSample(0, info);
+  no_audio.audio.resize(0, 0);
+  EXPECT_THROW(writer.Append(no_audio), SchemaError);
+  writer.Append(MakeSample(0, info));
+  EXPECT_THROW(writer.Append(MakeSample(0, info)), SchemaError);
+  EXPECT_EQ(writer.count(), 1);
+}
+
+TEST(DatasetTest, ReaderErrors) {
+  TempDir dir;
+  // Missing file.
+  try {
+    DatasetReader reader(dir.File("missing.h5"));
+    FAIL() << "a missing file was opened";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.h5: no such file"), std::string::npos)
+        << e.what();
+  }
+  // A text file.
+  const std::string text = dir.File("notes.h5");
+  std::ofstream(text) << "these are not the strikes you are looking for\n";
+  EXPECT_THROW(DatasetReader reader(text), IoError);
+  // An HDF5 file of another kind.
+  const std::string other = dir.File("other.h5");
+  WriteArrayFile(other, "sonicboom.model", {{"w", {2}, {1.0f, 2.0f}}}, {});
+  EXPECT_THROW(DatasetReader reader(other), SchemaError);
+  // A dataset of another schema version.
+  const std::string future = dir.File("future.h5");
+  WriteArrayFile(future, kDatasetSchema, {{"w", {1}, {1.0f}}}, {{"schema_version", "9.0"}});
+  try {
+    DatasetReader reader(future);
+    FAIL() << "a dataset of another schema version was opened";
+  } catch (const SchemaError& e) {
+    EXPECT_NE(std::string(e.what()).find("schema_version 9.0"), std::string::npos) << e.what();
+  }
+}
+
+TEST(DatasetTest, ReadIsRangeChecked) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  WriteDataset(path, MakeInfo(true), {0, 1});
+  DatasetReader reader(path);
+  EXPECT_NO_THROW(reader.Read(1));
+  EXPECT_THROW(reader.Read(2), IoError);
+  EXPECT_THROW(reader.Read(-1), IoError);
+  EXPECT_THROW(reader.ReadMeta(2), IoError);
+}
+
+TEST(DatasetTest, EmptyDatasetRoundTrips) {
+  TempDir dir;
+  const std::string path = dir.File("empty.h5");
+  WriteDataset(path, MakeInfo(false), {});
+  DatasetReader reader(path);
+  EXPECT_EQ(reader.size(), 0);
+  EXPECT_TRUE(reader.info().complete);
+  const nlohmann::json summary = nlohmann::json::parse(SummarizeDatasetJson(path));
+  EXPECT_EQ(summary["num_samples"], 0);
+  EXPECT_TRUE(summary["z_m"]["min"].is_null());
+}
+
+TEST(DatasetTest, NoProprioRows) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  DatasetInfo info = MakeInfo(true);
+  info.proprio_rows = 0;
+  WriteDataset(path, info, {5, 6});
+  DatasetReader reader(path);
+  ASSERT_EQ(reader.size(), 2);
+  EXPECT_EQ(reader.info().proprio_rows, 0);
+  const StrikeSample sample = reader.Read(1);
+  EXPECT_EQ(sample.index, 6u);
+  EXPECT_EQ(sample.proprio.rows(), 0);
+  EXPECT_EQ(sample.proprio.cols(), kProprioFeatures);
+  EXPECT_NEAR(sample.audio(1, 3), MakeSample(6, info).audio(1, 3), 1.0 / 32767.0);
+}
+
+TEST(MergeTest, JoinsShardsInSampleIndexOrder) {
+  TempDir dir;
+  DatasetInfo info = MakeInfo(true);
+  info.num_shards = 2;
+  info.shard = 0;
+  WriteDataset(dir.File("shard0.h5"), info, {0, 2, 4}, {2});
+  info.shard = 1;
+  WriteDataset(dir.File("shard1.h5"), info, {1, 3});
+  const std::string out = dir.File("merged.h5");
+  // Shard order on the command line does not matter.
+  MergeDatasets({dir.File("shard1.h5"), dir.File("shard0.h5")}, out);
+
+  DatasetReader reader(out);
+  ASSERT_EQ(reader.size(), 5);
+  EXPECT_TRUE(reader.info().complete);
+  EXPECT_EQ(reader.info().shard, 0);
+  EXPECT_EQ(reader.info().num_shards, 1);
+  EXPECT_EQ(reader.info().global_seed, 42u);
+  EXPECT_EQ(reader.info().config_yaml, info.config_yaml);
+  DatasetReader shard0(dir.File("shard0.h5"));
+  DatasetReader shard1(dir.File("shard1.h5"));
+  for (int64_t i = 0; i < 5; ++i) {
+    SCOPED_TRACE("sample " + std::to_string(i));
+    const StrikeSample got = reader.Read(i);
+    // Audio is carried over bit for bit from the shard that holds the sample.
+    EXPECT_EQ(got.audio, (i % 2 == 0 ? shard0 : shard1).Read(i / 2).audio);
+    const StrikeSample expected = MakeSample(i, info, i != 2);
+    EXPECT_EQ(got.index, static_cast<uint64_t>(i));
+    EXPECT_EQ(got.seed, expected.seed);
+    EXPECT_EQ(got.valid, i != 2);
+    ExpectLabelsEqual(got.label, expected.label);
+    if (i != 2) {
+      EXPECT_EQ(got.proprio, expected.proprio);
+      EXPECT_NEAR(got.audio(1, 10), expected.audio(1, 10), 1.0 / 32767.0);
+    }
+  }
+}
+
+TEST(MergeTest, RefusesDuplicateIndices) {
+  TempDir dir;
+  const DatasetInfo info = MakeInfo(true);
+  WriteDataset(dir.File("a.h5"), info, {0, 1, 2});
+  WriteDataset(dir.File("b.h5"), info, {2, 3});
+  const std::string out = dir.File("merged.h5");
+  try {
+    MergeDatasets({dir.File("a.h5"), dir.File("b.h5")}, out);
+    FAIL() << "duplicate indices were merged";
+  } catch (const SchemaError& e) {
+    EXPECT_NE(std::string(e.what()).find("sample index 2"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(MergeTest, RefusesMismatchedConfigAndIncompleteShards) {
+  TempDir dir;
+  DatasetInfo info = MakeInfo(true);
+  WriteDataset(dir.File("a.h5"), info, {0});
+  info.config_yaml = "seed: 43\n";
+  WriteDataset(dir.File("b.h5"), info, {1});
+  EXPECT_THROW(MergeDatasets({dir.File("a.h5"), dir.File("b.h5")}, dir.File("m.h5")),
+               SchemaError);
+  EXPECT_FALSE(fs::exists(dir.File("m.h5")));
+
+  // A shard whose run did not finish.
+  info = MakeInfo(true);
+  {
+    DatasetWriter writer(dir.File("c.h5"), info);
+    writer.Append(MakeSample(2, info));
+  }
+  EXPECT_THROW(MergeDatasets({dir.File("a.h5"), dir.File("c.h5.partial")}, dir.File("m.h5")),
+               SchemaError);
+  // Another audio shape.
+  info.audio_frames = 32;
+  WriteDataset(dir.File("d.h5"), info, {3});
+  EXPECT_THROW(MergeDatasets({dir.File("a.h5"), dir.File("d.h5")}, dir.File("m.h5")),
+               SchemaError);
+}
+
+TEST(SummaryTest, CountsValidAndInvalidWithReasons) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  const DatasetInfo info = MakeInfo(true);
+  {
+    DatasetWriter writer(path, info);
+    writer.Append(MakeSample(0, info));
+    writer.Append(MakeSample(1, info, false, "no_contact"));
+    writer.Append(MakeSample(2, info));
+    writer.Append(MakeSample(3, info, false, "no_contact"));
+    writer.Append(MakeSample(4, info, false, "penetration"));
+    writer.Finish();
+  }
+  const nlohmann::json summary = nlohmann::json::parse(SummarizeDatasetJson(path));
+  EXPECT_EQ(summary["file"], path);
+  EXPECT_EQ(summary["kind"], "dataset");
+  EXPECT_EQ(summary["schema_version"], kDatasetSchemaVersion);
+  EXPECT_EQ(summary["complete"], true);
+  EXPECT_EQ(summary["source"], "sim");
+  EXPECT_EQ(summary["num_samples"], 5);
+  EXPECT_EQ(summary["valid"], 2);
+  EXPECT_EQ(summary["invalid"], 3);
+  EXPECT_EQ(summary["invalid_reasons"].size(), 2u);
+  EXPECT_EQ(summary["invalid_reasons"]["no_contact"], 2);
+  EXPECT_EQ(summary["invalid_reasons"]["penetration"], 1);
+  EXPECT_EQ(summary["clipped"], 1);
+  EXPECT_EQ(summary["channels"], 2);
+  EXPECT_EQ(summary["audio_frames"], 64);
+  EXPECT_EQ(summary["sample_rate_hz"], 48000.0);
+  EXPECT_EQ(summary["proprio_rows"], 3);
+  EXPECT_EQ(summary["shard"], 0);
+  EXPECT_EQ(summary["num_shards"], 1);
+  EXPECT_EQ(summary["global_seed"], 42);
+  // Label ranges over the valid samples 0 and 2 only.
+  const StrikeSample s0 = MakeSample(0, info);
+  const StrikeSample s2 = MakeSample(2, info);
+  EXPECT_DOUBLE_EQ(summary["z_m"]["min"].get<double>(), s0.label.z_m);
+  EXPECT_DOUBLE_EQ(summary["z_m"]["max"].get<double>(), s2.label.z_m);
+  EXPECT_DOUBLE_EQ(summary["z_m"]["mean"].get<double>(), 0.5 * (s0.label.z_m + s2.label.z_m));
+  EXPECT_DOUBLE_EQ(summary["theta_rad"]["max"].get<double>(), s2.label.theta_rad);
+  EXPECT_DOUBLE_EQ(summary["impulse_Ns"]["min"].get<double>(), s0.label.impulse_Ns);
+  EXPECT_DOUBLE_EQ(summary["normal_speed_m_s"]["max"].get<double>(),
+                   s2.label.normal_speed_m_s);
+  // Sample 0 peaks at full scale (clamped), sample 2 below 0.8 / 3.
+  EXPECT_NEAR(summary["audio_peak"]["max"].get<double>(), 1.0, 1e-6);
+  EXPECT_NEAR(summary["audio_peak"]["min"].get<double>(), s2.audio.cwiseAbs().maxCoeff(),
+              1.0 / 32767.0);
+}
+
+TEST(ArrayFileTest, RoundTripAndSummary) {
+  TempDir dir;
+  const std::string path = dir.File("model.h5");
+  const std::string long_text(300, 'x');
+  WriteArrayFile(path, "sonicboom.test",
+                 {{"encoder/weight", {2, 3}, {1, 2, 3, 4, 5, 6}},
+                  {"bias", {3}, {-1.5f, 0.0f, 2.25f}},
+                  {"scale", {}, {0.5f}}},
+                 {{"note", "hello"}, {"config_yaml", long_text}});
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+
+  const NamedArray weight = ReadArray(path, "encoder/weight");
+  EXPECT_EQ(weight.shape, (std::vector<int64_t>{2, 3}));
+  EXPECT_EQ(weight.data, (std::vector<float>{1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(ReadArray(path, "bias").data, (std::vector<float>{-1.5f, 0.0f, 2.25f}));
+  const NamedArray scale = ReadArray(path, "scale");
+  EXPECT_TRUE(scale.shape.empty());
+  EXPECT_EQ(scale.data, std::vector<float>{0.5f});
+  EXPECT_EQ(ReadStringAttr(path, "note"), "hello");
+  EXPECT_EQ(ReadStringAttr(path, "schema"), "sonicboom.test");
+  EXPECT_EQ(ReadStringAttr(path, "config_yaml"), long_text);
+  EXPECT_TRUE(IsHdf5File(path));
+  EXPECT_THROW(ReadArray(path, "encoder/missing"), IoError);
+  EXPECT_THROW(ReadArray(path, "decoder/weight"), IoError);
+  EXPECT_THROW(ReadStringAttr(path, "missing"), IoError);
+  EXPECT_THROW(ReadArray(dir.File("missing.h5"), "bias"), IoError);
+
+  const nlohmann::json summary = nlohmann::json::parse(SummarizeH5Json(path));
+  EXPECT_EQ(summary["kind"], "hdf5");
+  EXPECT_EQ(summary["schema"], "sonicboom.test");
+  EXPECT_EQ(summary["complete"], true);
+  EXPECT_EQ(summary["attrs"]["note"], "hello");
+  EXPECT_EQ(summary["attrs"]["config_yaml"]["length"], 300);
+  ASSERT_EQ(summary["arrays"].size(), 3u);
+  bool found_weight = false;
+  for (const nlohmann::json& array : summary["arrays"]) {
+    if (array["name"] == "/encoder/weight") {
+      found_weight = true;
+      EXPECT_EQ(array["shape"], nlohmann::json::array({2, 3}));
+      EXPECT_EQ(array["dtype"], "float32");
+    }
+  }
+  EXPECT_TRUE(found_weight);
+}
+
+TEST(ArrayFileTest, RefusesBadInputAndIncompleteFiles) {
+  TempDir dir;
+  EXPECT_THROW(WriteArrayFile(dir.File("a.h5"), "s", {{"w", {2, 2}, {1, 2, 3}}}, {}), IoError);
+  EXPECT_THROW(WriteArrayFile(dir.File("a.h5"), "s", {{"w", {1}, {1}}, {"w", {1}, {2}}}, {}),
+               IoError);
+  EXPECT_THROW(WriteArrayFile(dir.File("nodir/a.h5"), "s", {{"w", {1}, {1}}}, {}), IoError);
+  EXPECT_FALSE(fs::exists(dir.File("a.h5")));
+  // An unfinished dataset is an incomplete HDF5 file.
+  const DatasetInfo info = MakeInfo(true);
+  { DatasetWriter writer(dir.File("d.h5"), info); }
+  EXPECT_THROW(ReadArray(dir.File("d.h5.partial"), "audio"), SchemaError);
+  const nlohmann::json summary = nlohmann::json::parse(SummarizeH5Json(dir.File("d.h5.partial")));
+  EXPECT_EQ(summary["complete"], false);
+  EXPECT_EQ(summary["schema"], kDatasetSchema);
+}
+
+// Runs a shell command and returns its standard output and error.
+std::string RunCommand(const std::string& command, int* status) {
+  std::string output;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return output;
+  char buffer[4096];
+  size_t n = 0;
+  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) output.append(buffer, n);
+  *status = pclose(pipe);
+  return output;
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+TEST(H5pyTest, DocumentedExampleReadsDataset) {
+  const std::string script =
+      std::string(SONICBOOM_SOURCE_DIR) + "/scripts/examples/read_dataset.py";
+  const std::string docs = std::string(SONICBOOM_SOURCE_DIR) + "/docs/dataset.md";
+  // docs/dataset.md shows the script verbatim.
+  const std::string script_text = ReadText(script);
+  ASSERT_FALSE(script_text.empty()) << script;
+  EXPECT_NE(ReadText(docs).find(script_text), std::string::npos)
+      << docs << " does not contain " << script << " verbatim";
+
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  const DatasetInfo info = MakeInfo(true);
+  WriteDataset(path, info, {0, 1, 2}, {1});
+  int status = -1;
+  const std::string output = RunCommand("/usr/bin/python3 " + script + " " + path, &status);
+  ASSERT_EQ(status, 0) << output;
+  EXPECT_NE(output.find("samples: 3 valid: 2 channels: 2 frames: 64 sample_rate_hz: 48000 "
+                        "proprio_rows: 3"),
+            std::string::npos)
+      << output;
+  // First label z_m = -0.05, theta_rad = -1; sample 0 peaks at full scale.
+  EXPECT_NE(output.find("first: index=0 z_m=-0.050000 theta_rad=-1.000000"), std::string::npos)
+      << output;
+  EXPECT_NE(output.find("valid=True peak=1.0000"), std::string::npos) << output;
+  EXPECT_NE(output.find("invalid: index=1 reason=no_contact"), std::string::npos) << output;
+
+  // The script refuses an unfinished file.
+  { DatasetWriter writer(dir.File("partial.h5"), info); }
+  RunCommand("/usr/bin/python3 " + script + " " + dir.File("partial.h5.partial"), &status);
+  EXPECT_NE(status, 0);
+}
+
+}  // namespace
+}  // namespace sonicboom

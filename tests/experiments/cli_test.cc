@@ -1,0 +1,166 @@
+// End-to-end CLI: the acceptance checks of the foundation and its error paths.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "common/test_util.h"
+#include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/dataset.h"
+
+namespace sonicboom {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+using testing::RunCli;
+using testing::TempDir;
+
+// a short record keeps the end-to-end tests fast
+const std::string kShort =
+    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 ";
+
+TEST(CliTest, HelpListsEverySubcommand) {
+  TempDir dir;
+  const auto run = RunCli("--help", dir.path().string());
+  EXPECT_EQ(run.exit_code, 0);
+  for (const char* sub : {"demo", "generate", "synth", "modes", "features", "train", "eval",
+                          "localize", "fk", "inspect"}) {
+    EXPECT_NE(run.out.find(sub), std::string::npos) << sub;
+  }
+}
+
+TEST(CliTest, SynthWritesLabelledWav) {
+  TempDir dir;
+  const auto run = RunCli("synth --out s.wav --index 3 --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const AudioClip clip = ReadWav(dir / "s.wav", 6);
+  EXPECT_EQ(clip.sample_rate_hz, 44100.0);
+  EXPECT_TRUE(clip.samples.allFinite());
+  EXPECT_GT(clip.samples.cwiseAbs().maxCoeff(), 1e-3);
+  std::ifstream in(dir / "s.json");
+  const json label = json::parse(in);
+  const double z = label["z_m"], theta = label["theta_rad"];
+  EXPECT_GE(z, -0.1015);
+  EXPECT_LE(z, 0.1015);
+  EXPECT_GT(theta, -M_PI);
+  EXPECT_LE(theta, M_PI);
+  const double x = label["point_m"][0], y = label["point_m"][1];
+  EXPECT_NEAR(std::hypot(x, y), 0.05355, 1e-9);
+  EXPECT_TRUE(fs::exists(dir / "s.wav.config.yaml"));
+}
+
+TEST(CliTest, GenerateFiftyAndInspect) {
+  TempDir dir;
+  auto run = RunCli(kShort + "generate --count 50 --out D.h5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli("inspect D.h5 --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json summary = json::parse(run.out);
+  EXPECT_EQ(summary["num_samples"], 50);
+  EXPECT_EQ(summary["valid"], 50);
+  EXPECT_EQ(summary["complete"], true);
+  EXPECT_TRUE(fs::exists(dir / "D.h5.config.yaml"));
+}
+
+TEST(CliTest, ModesAndFkJson) {
+  TempDir dir;
+  auto run = RunCli("modes --json --boundary free --ideal --count 6", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json modes = json::parse(run.out);
+  ASSERT_EQ(modes["frequencies_hz"].size(), 6u);
+  EXPECT_NEAR(modes["frequencies_hz"][0].get<double>(), 220, 2);
+  // --set reaches the tube keys: a thicker wall raises the ring modes
+  run = RunCli("modes --json --boundary free --count 2 --set tube.wall_thickness_m=0.0061",
+               dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_GT(json::parse(run.out)["frequencies_hz"][0].get<double>(), 400);
+  run = RunCli("fk --joints 0,0,0,-0.1,0,0,0 --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json fk = json::parse(run.out);
+  EXPECT_EQ(fk["flange_pos_m"].size(), 3u);
+  EXPECT_EQ(fk["tube_quat_wxyz"].size(), 4u);
+}
+
+TEST(CliTest, FeaturesOfSynthWav) {
+  TempDir dir;
+  ASSERT_EQ(RunCli("synth --out s.wav -q", dir.path().string()).exit_code, 0);
+  const auto run = RunCli("features --in s.wav --out F.h5 --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json j = json::parse(run.out);
+  EXPECT_EQ(j["mel_shape"], json({6, 50, 517}));
+  EXPECT_EQ(j["gcc_shape"], json({15, 883}));
+  const auto inspect = RunCli("inspect F.h5 --json", dir.path().string());
+  ASSERT_EQ(inspect.exit_code, 0) << inspect.err;
+  EXPECT_EQ(json::parse(inspect.out)["complete"], true);
+}
+
+// bad input: non-zero exit, a message naming the culprit, no complete-looking output
+TEST(CliErrorTest, MissingFile) {
+  TempDir dir;
+  const auto run = RunCli("features --in nothere.wav --out F.h5", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("nothere.wav"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "F.h5"));
+}
+
+TEST(CliErrorTest, CorruptTruncatedAndWrongChannelWav) {
+  TempDir dir;
+  std::ofstream(dir / "corrupt.wav") << "RIFF this is not audio";
+  auto run = RunCli("features --in corrupt.wav --out F.h5", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("corrupt.wav"), std::string::npos) << run.err;
+  // truncated: a valid WAV cut in half
+  ASSERT_EQ(RunCli("synth --out t.wav -q", dir.path().string()).exit_code, 0);
+  fs::resize_file(dir / "t.wav", fs::file_size(dir / "t.wav") / 2);
+  run = RunCli("features --in t.wav --out F.h5", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("t.wav"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("truncated"), std::string::npos) << run.err;
+  // two channels where six are needed
+  AudioClip stereo{Eigen::MatrixXf::Constant(2, 1000, 0.1f), 44100.0};
+  WriteWav(dir / "stereo.wav", stereo);
+  run = RunCli("features --in stereo.wav --out F.h5", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("expected 6 channels, found 2"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "F.h5"));
+}
+
+TEST(CliErrorTest, UnknownKeyAndOutOfRangeValue) {
+  TempDir dir;
+  auto run = RunCli("generate --count 5 --out D.h5 --set tube.outer_radius=0.05", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("tube.outer_radius"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "D.h5"));
+  std::ofstream(dir / "bad.yaml") << "material:\n  density_kg_m3: -5\n";
+  run = RunCli("generate --count 5 --out D.h5 --config bad.yaml", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("material.density_kg_m3"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("bad.yaml"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "D.h5"));
+  run = RunCli("fk --joints 0,0,0,0.5,0,0,0", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("joint 4"), std::string::npos) << run.err;
+  run = RunCli("inspect missing.h5", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("missing.h5"), std::string::npos) << run.err;
+}
+
+TEST(CliErrorTest, FailedRunKeepsThePreviousFile) {
+  TempDir dir;
+  ASSERT_EQ(RunCli(kShort + "generate --count 3 --out D.h5 -q", dir.path().string()).exit_code, 0);
+  const auto size = fs::file_size(dir / "D.h5");
+  // an invalid shard request fails before touching the finished file
+  const auto run = RunCli(kShort + "generate --count 3 --out D.h5 --shard 4 --num-shards 2",
+                          dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("--shard"), std::string::npos) << run.err;
+  EXPECT_EQ(fs::file_size(dir / "D.h5"), size);
+  EXPECT_NO_THROW(DatasetReader(dir / "D.h5"));
+}
+
+}  // namespace
+}  // namespace sonicboom

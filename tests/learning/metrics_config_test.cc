@@ -1,0 +1,267 @@
+// ComputeMetrics on hand-computed cases; config serialization keys and validation errors;
+// parameter counts of the audio encoders.
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr double kPi = std::numbers::pi;
+
+// Truth labels only.
+FeatureSet Truth(const std::vector<double>& z_m, const std::vector<double>& theta_rad) {
+  FeatureSet f;
+  f.z_m = z_m;
+  f.theta_rad = theta_rad;
+  return f;
+}
+
+TEST(ComputeMetricsTest, OppositeSidesOfTheTubeAreOneDiameterApart) {
+  // Same height, angles differ by pi on r = 5 cm: chord = 10 cm.
+  const Metrics m = ComputeMetrics({{0.02, kPi}}, Truth({0.02}, {0.0}), 0.05);
+  EXPECT_EQ(m.n, 1);
+  EXPECT_NEAR(m.med_cm, 10.0, 1e-12);
+  EXPECT_NEAR(m.height_err_cm, 0.0, 1e-12);
+  EXPECT_NEAR(m.angle_err_deg, 180.0, 1e-9);
+  // Reference variant: radius 0.06 "cm" => 2 * 0.06.
+  EXPECT_NEAR(m.reference_med_cm, 0.12, 1e-12);
+}
+
+TEST(ComputeMetricsTest, AngleErrorWrapsAcrossPi) {
+  // 3.1 and -3.1 rad are 2 pi - 6.2 rad apart the short way.
+  const Metrics m = ComputeMetrics({{0.0, -3.1}}, Truth({0.0}, {3.1}), 0.05);
+  EXPECT_NEAR(m.angle_err_deg, (2.0 * kPi - 6.2) * 180.0 / kPi, 1e-9);
+  const double chord_cm = 100.0 * 2.0 * 0.05 * std::sin((2.0 * kPi - 6.2) / 2.0);
+  EXPECT_NEAR(m.med_cm, chord_cm, 1e-9);
+}
+
+TEST(ComputeMetricsTest, HeightAndAngleCombine) {
+  // dz = 3 cm, dtheta = pi/2 on r = 4 cm: chord = 4 sqrt(2) cm.
+  const Metrics m = ComputeMetrics({{0.03, kPi / 2.0}}, Truth({0.0}, {0.0}), 0.04);
+  EXPECT_NEAR(m.med_cm, std::sqrt(9.0 + 32.0), 1e-9);
+  EXPECT_NEAR(m.height_err_cm, 3.0, 1e-12);
+  EXPECT_NEAR(m.angle_err_deg, 90.0, 1e-9);
+  // Reference: sqrt(3^2 + (0.06 sqrt(2))^2) with the height in cm and the radius in m.
+  EXPECT_NEAR(m.reference_med_cm, std::sqrt(9.0 + 2.0 * 0.06 * 0.06), 1e-12);
+}
+
+TEST(ComputeMetricsTest, AveragesAndSkipsUnlabelledRecords) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Metrics m = ComputeMetrics({{0.01, 0.0}, {0.5, 1.0}, {-0.02, 0.0}},
+                                   Truth({0.0, nan, 0.0}, {0.0, 0.0, 0.0}), 0.05);
+  EXPECT_EQ(m.n, 2);
+  EXPECT_NEAR(m.height_err_cm, 1.5, 1e-12);
+  EXPECT_NEAR(m.med_cm, 1.5, 1e-12);
+  EXPECT_NEAR(m.angle_err_deg, 0.0, 1e-12);
+}
+
+TEST(ComputeMetricsTest, NoLabelledRecordsGiveNaN) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Metrics m = ComputeMetrics({{0.0, 0.0}}, Truth({nan}, {0.0}), 0.05);
+  EXPECT_EQ(m.n, 0);
+  EXPECT_TRUE(std::isnan(m.med_cm));
+}
+
+TEST(ComputeMetricsTest, CountMismatchThrows) {
+  EXPECT_THROW(ComputeMetrics({{0.0, 0.0}}, Truth({0.0, 0.1}, {0.0, 0.0}), 0.05), SchemaError);
+}
+
+// Records the names and kinds an Archive is asked to visit.
+class RecordingArchive : public Archive {
+ public:
+  void Visit(std::string_view name, double*, Bounds b) override { Add(name, "double", b); }
+  void Visit(std::string_view name, int64_t*, Bounds b) override { Add(name, "int", b); }
+  void Visit(std::string_view name, bool*) override { Add(name, "bool", {}); }
+  void Visit(std::string_view name, std::string*) override { Add(name, "string", {}); }
+  void Visit(std::string_view name, std::vector<double>*, Bounds b) override {
+    Add(name, "doubles", b);
+  }
+  void Visit(std::string_view name, std::vector<std::string>*) override {
+    Add(name, "strings", {});
+  }
+  void VisitChoice(std::string_view name, std::string*,
+                   const std::vector<std::string>& allowed) override {
+    Add(name, "choice", {});
+    choices = allowed;
+  }
+  using Archive::Visit;
+
+  std::vector<std::string> names, kinds;
+  std::vector<Bounds> bounds;
+  std::vector<std::string> choices;
+
+ protected:
+  void BeginGroup(std::string_view) override {}
+  void EndGroup() override {}
+
+ private:
+  void Add(std::string_view name, const char* kind, Bounds b) {
+    names.emplace_back(name);
+    kinds.emplace_back(kind);
+    bounds.push_back(b);
+  }
+};
+
+TEST(ConfigTest, ModelConfigKeysAreMemberNames) {
+  ModelConfig config;
+  RecordingArchive archive;
+  config.Serialize(&archive);
+  EXPECT_THAT(archive.names, ::testing::ElementsAre("audio_encoder", "width", "blocks", "heads",
+                                                    "dropout", "modalities", "crop_frames"));
+  EXPECT_EQ(archive.kinds[0], "choice");
+  EXPECT_THAT(archive.choices, ::testing::ElementsAre("compact", "resnet18", "resnet50"));
+  EXPECT_EQ(archive.kinds[5], "strings");
+  // width must be positive
+  EXPECT_FALSE(archive.bounds[1].Contains(0.0));
+  EXPECT_TRUE(archive.bounds[1].Contains(1.0));
+  // dropout in [0, 1)
+  EXPECT_FALSE(archive.bounds[4].Contains(1.0));
+  EXPECT_TRUE(archive.bounds[4].Contains(0.0));
+}
+
+TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
+  TrainConfig config;
+  RecordingArchive archive;
+  config.Serialize(&archive);
+  EXPECT_THAT(archive.names,
+              ::testing::ElementsAre("epochs", "batch_size", "learning_rate", "lr_step_epochs",
+                                     "lr_gamma", "val_fraction", "loss_weight_z",
+                                     "loss_weight_cos", "loss_weight_sin", "augment",
+                                     "time_shift_frames", "time_mask_frames", "freq_mask_bands",
+                                     "normalize", "threads"));
+  EXPECT_FALSE(archive.bounds[1].Contains(0.0));   // batch_size
+  EXPECT_FALSE(archive.bounds[2].Contains(0.0));   // learning_rate
+  EXPECT_TRUE(archive.bounds[14].Contains(0.0));   // threads
+}
+
+// Runs `f` and returns the ConfigError message ("" when nothing was thrown).
+template <typename F>
+std::string ConfigErrorOf(F f) {
+  try {
+    f();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ConfigTest, DefaultsAreValid) {
+  EXPECT_NO_THROW(ModelConfig().Validate());
+  EXPECT_NO_THROW(TrainConfig().Validate());
+}
+
+TEST(ConfigTest, ModalitiesMustBeAKnownNonEmptySet) {
+  ModelConfig config;
+  config.modalities = {};
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.modalities"));
+  config.modalities = {"audio", "video"};
+  const std::string message = ConfigErrorOf([&] { config.Validate(); });
+  EXPECT_THAT(message, HasSubstr("model.modalities"));
+  EXPECT_THAT(message, HasSubstr("video"));
+  config.modalities = {"gcc", "gcc"};
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.modalities"));
+  config.modalities = {"proprio"};
+  EXPECT_NO_THROW(config.Validate());
+}
+
+TEST(ConfigTest, HeadsMustDivideWidth) {
+  ModelConfig config;
+  config.width = 32;
+  config.heads = 3;
+  const std::string message = ConfigErrorOf([&] { config.Validate(); });
+  EXPECT_THAT(message, HasSubstr("model.heads"));
+  EXPECT_THAT(message, HasSubstr("32"));
+  config.heads = 4;
+  EXPECT_NO_THROW(config.Validate());
+}
+
+TEST(ConfigTest, OtherModelFieldsAreChecked) {
+  ModelConfig config;
+  config.audio_encoder = "vgg";
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.audio_encoder"));
+  config = ModelConfig();
+  config.dropout = 1.0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.dropout"));
+  config = ModelConfig();
+  config.blocks = 0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.blocks"));
+  config = ModelConfig();
+  config.crop_frames = 0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.crop_frames"));
+}
+
+TEST(ConfigTest, TrainFieldsAreChecked) {
+  TrainConfig config;
+  config.batch_size = 0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.batch_size"));
+  config = TrainConfig();
+  config.learning_rate = -1.0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.learning_rate"));
+  config = TrainConfig();
+  config.val_fraction = 1.0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.val_fraction"));
+  config = TrainConfig();
+  config.loss_weight_z = config.loss_weight_cos = config.loss_weight_sin = 0.0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.loss_weight"));
+  config = TrainConfig();
+  config.time_shift_frames = -1;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.time_shift_frames"));
+}
+
+TEST(CountParametersTest, EncodersHaveTheirTextbookSizes) {
+  FeatureSet shapes;  // default shapes: 6 x 50 x 517 mel, 15 x 883 GCC, 50 x 10 proprio
+  ModelConfig config;
+  config.width = 32;
+  config.heads = 2;
+  config.blocks = 1;
+  // Compact CNN: convs 6-16-32-64-128 (3x3, no bias) + BN, then Linear(128, 32).
+  const int64_t compact = 9 * (6 * 16 + 16 * 32 + 32 * 64 + 64 * 128) +
+                          2 * (16 + 32 + 64 + 128) + 128 * 32 + 32;
+  EXPECT_EQ(CountParameters(config, shapes).at("audio_encoder"), compact);
+  // ResNet-18 trunk with a 6-channel stem: 11 176 512 (3-channel, no fc) + 3 * 64 * 49.
+  const int64_t projection18 = 512 * 128 + 128 + 2 * 128 + 128 * 32 + 32;
+  config.audio_encoder = "resnet18";
+  EXPECT_EQ(CountParameters(config, shapes).at("audio_encoder"),
+            11176512 + 3 * 64 * 49 + projection18);
+  // ResNet-50 trunk: 23 508 032 (3-channel, no fc) + 3 * 64 * 49.
+  const int64_t projection50 = 2048 * 128 + 128 + 2 * 128 + 128 * 32 + 32;
+  config.audio_encoder = "resnet50";
+  EXPECT_EQ(CountParameters(config, shapes).at("audio_encoder"),
+            23508032 + 3 * 64 * 49 + projection50);
+}
+
+TEST(CountParametersTest, OnlySelectedEncodersAreBuilt) {
+  FeatureSet shapes;
+  ModelConfig config;
+  config.width = 32;
+  config.heads = 2;
+  config.blocks = 1;
+  const auto all = CountParameters(config, shapes);
+  EXPECT_EQ(all.size(), 4u);
+  // GCC MLP: LN(13245), 13245 -> 128 -> LN -> 64 -> LN -> 32.
+  const int64_t in = 15 * 883;
+  EXPECT_EQ(all.at("gcc_encoder"),
+            2 * in + in * 128 + 128 + 2 * 128 + 128 * 64 + 64 + 2 * 64 + 64 * 32 + 32);
+  config.modalities = {"proprio"};
+  const auto proprio = CountParameters(config, shapes);
+  EXPECT_EQ(proprio.size(), 2u);
+  EXPECT_TRUE(proprio.count("proprio_encoder"));
+  EXPECT_EQ(proprio.at("proprio_encoder"), all.at("proprio_encoder"));
+  // Fusion differs only by the two missing modality-embedding rows of width 32.
+  EXPECT_EQ(proprio.at("fusion"), all.at("fusion") - 2 * 32);
+}
+
+}  // namespace
+}  // namespace sonicboom::learning

@@ -1,0 +1,359 @@
+// Training on tiny synthetic features: overfitting, determinism of resume, the Localizer
+// round trip, run-directory errors and modality subsets.
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+constexpr double kRadius = 0.05;
+
+// Tiny features whose labels are a learnable function of every modality: the height picks
+// the bright mel band and a proprio feature, the angle sets the per-mic loudness, the GCC
+// peak lag and two proprio features.
+FeatureSet MakeFeatures(int64_t n, uint64_t seed) {
+  FeatureSet f;
+  f.channels = 6;
+  f.mels = 12;
+  f.frames = 40;
+  f.gcc_pairs = 3;
+  f.gcc_lags = 21;
+  f.proprio_rows = 12;
+  f.proprio_features = 4;
+  f.mel.resize(n * f.channels * f.mels * f.frames);
+  f.gcc.resize(n * f.gcc_pairs * f.gcc_lags);
+  f.proprio.resize(n * f.proprio_rows * f.proprio_features);
+  Rng rng(seed);
+  for (int64_t i = 0; i < n; ++i) {
+    const double z = rng.Uniform(-0.1, 0.1);
+    const double theta = rng.Uniform(-std::numbers::pi, std::numbers::pi);
+    f.z_m.push_back(z);
+    f.theta_rad.push_back(theta);
+    const int64_t band = std::lround((z + 0.1) / 0.2 * double(f.mels - 1));
+    for (int64_t c = 0; c < f.channels; ++c) {
+      const double gain = 1.5 + std::cos(theta - 2.0 * std::numbers::pi * double(c) / 6.0);
+      for (int64_t m = 0; m < f.mels; ++m) {
+        for (int64_t t = 0; t < f.frames; ++t) {
+          const double bright = (m == band) ? 4.0 * gain : 0.0;
+          f.mel[((i * f.channels + c) * f.mels + m) * f.frames + t] =
+              static_cast<float>(bright + 0.1 * rng.Uniform());
+        }
+      }
+    }
+    for (int64_t p = 0; p < f.gcc_pairs; ++p) {
+      const double phase = theta + 2.0 * std::numbers::pi * double(p) / 3.0;
+      const int64_t lag = std::lround((std::sin(phase) + 1.0) / 2.0 * double(f.gcc_lags - 1));
+      f.gcc[(i * f.gcc_pairs + p) * f.gcc_lags + lag] = 1.0f;
+    }
+    for (int64_t r = 0; r < f.proprio_rows; ++r) {
+      float* row = f.proprio.data() + (i * f.proprio_rows + r) * f.proprio_features;
+      row[0] = static_cast<float>(10.0 * z);
+      row[1] = static_cast<float>(std::cos(theta));
+      row[2] = static_cast<float>(std::sin(theta));
+      row[3] = static_cast<float>(0.1 * rng.Uniform());
+    }
+  }
+  return f;
+}
+
+ModelConfig TinyModel() {
+  ModelConfig config;
+  config.audio_encoder = "compact";
+  config.width = 32;
+  config.blocks = 1;
+  config.heads = 2;
+  config.dropout = 0.0;
+  config.crop_frames = 32;
+  return config;
+}
+
+TrainConfig TinyTraining(int64_t epochs) {
+  TrainConfig config;
+  config.epochs = epochs;
+  config.batch_size = 8;
+  config.learning_rate = 3e-3;
+  config.lr_step_epochs = 20;
+  config.lr_gamma = 0.5;
+  config.augment = true;
+  config.time_shift_frames = 3;
+  config.time_mask_frames = 4;
+  config.freq_mask_bands = 1;
+  config.threads = 1;
+  return config;
+}
+
+// A fresh directory under the system temp dir, removed at the end of the test.
+class RunDirTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    root_ = fs::temp_directory_path() /
+            ("sonicboom_learning_" + std::string(info->name()) + "_" +
+             std::to_string(static_cast<long>(::getpid())));
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  std::string Dir(const std::string& name) const { return (root_ / name).string(); }
+
+  fs::path root_;
+};
+
+std::vector<nlohmann::json> ReadMetricsLines(const std::string& run_dir) {
+  std::ifstream in(fs::path(run_dir) / "metrics.jsonl");
+  std::vector<nlohmann::json> lines;
+  std::string line;
+  while (std::getline(in, line)) lines.push_back(nlohmann::json::parse(line));
+  return lines;
+}
+
+using TrainingTest = RunDirTest;
+
+TEST_F(TrainingTest, OverfitsTinySetAndLocalizerReproducesFinalMetrics) {
+  const FeatureSet train = MakeFeatures(32, 1);
+  const FeatureSet val = MakeFeatures(8, 2);
+  const std::string run = Dir("overfit");
+  const Metrics metrics =
+      Train(train, val, TinyModel(), TinyTraining(40), kRadius, 7, run, false, false);
+
+  // The training loss falls by a large factor.
+  const auto lines = ReadMetricsLines(run);
+  ASSERT_EQ(lines.size(), 40u);
+  const double first = lines.front()["train_loss"].get<double>();
+  const double last = lines.back()["train_loss"].get<double>();
+  EXPECT_LT(last, first / 10.0) << "first " << first << " last " << last;
+  EXPECT_EQ(lines.back()["epoch"], 40);
+  EXPECT_DOUBLE_EQ(lines.back()["lr"].get<double>(), 3e-3 * 0.5);
+  EXPECT_EQ(metrics.n, 8);
+  EXPECT_TRUE(std::isfinite(metrics.med_cm));
+  EXPECT_TRUE(std::isfinite(metrics.angle_err_deg));
+  EXPECT_TRUE(std::isfinite(metrics.reference_med_cm));
+
+  // The run directory holds the final files and no partial ones.
+  for (const char* name : {"model.pt", "model.json", "checkpoint.pt", "checkpoint.json"}) {
+    EXPECT_TRUE(fs::exists(fs::path(run) / name)) << name;
+  }
+  for (const auto& entry : fs::directory_iterator(run)) {
+    EXPECT_NE(entry.path().extension(), ".partial") << entry.path();
+  }
+
+  // The loaded model predicts what the trained model predicted in its last validation.
+  const Localizer localizer(run);
+  EXPECT_EQ(localizer.model_config().width, 32);
+  EXPECT_EQ(localizer.model_config().crop_frames, 32);
+  EXPECT_DOUBLE_EQ(localizer.surface_radius_m(), kRadius);
+  const Metrics again = ComputeMetrics(localizer.Predict(val), val, kRadius);
+  EXPECT_EQ(again.n, metrics.n);
+  EXPECT_DOUBLE_EQ(again.med_cm, metrics.med_cm);
+  EXPECT_DOUBLE_EQ(again.angle_err_deg, metrics.angle_err_deg);
+  EXPECT_DOUBLE_EQ(again.height_err_cm, metrics.height_err_cm);
+  // On its own training data the fit is good.
+  const Metrics fit = ComputeMetrics(localizer.Predict(train), train, kRadius);
+  EXPECT_LT(fit.height_err_cm, 1.5);
+  EXPECT_LT(fit.angle_err_deg, 15.0);
+}
+
+TEST_F(TrainingTest, ResumeMatchesStraightRun) {
+  const FeatureSet train = MakeFeatures(20, 3);
+  const FeatureSet val = MakeFeatures(6, 4);
+  TrainConfig config = TinyTraining(4);
+  config.lr_step_epochs = 3;  // the schedule changes inside the resumed part
+  ModelConfig model = TinyModel();
+  model.dropout = 0.1;        // dropout draws must resume too
+
+  const std::string straight = Dir("straight");
+  const Metrics m_straight = Train(train, val, model, config, kRadius, 11, straight, false, false);
+
+  const std::string resumed = Dir("resumed");
+  TrainConfig first_half = config;
+  first_half.epochs = 2;
+  Train(train, val, model, first_half, kRadius, 11, resumed, false, false);
+  ASSERT_EQ(ReadMetricsLines(resumed).size(), 2u);
+  const Metrics m_resumed = Train(train, val, model, config, kRadius, 11, resumed, true, false);
+
+  EXPECT_NEAR(m_resumed.med_cm, m_straight.med_cm, 1e-6);
+  EXPECT_NEAR(m_resumed.angle_err_deg, m_straight.angle_err_deg, 1e-6);
+  const auto a = Localizer(straight).Predict(val);
+  const auto b = Localizer(resumed).Predict(val);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_NEAR(a[i].z_m, b[i].z_m, 1e-6);
+    EXPECT_NEAR(a[i].theta_rad, b[i].theta_rad, 1e-6);
+  }
+  const auto lines_a = ReadMetricsLines(straight);
+  const auto lines_b = ReadMetricsLines(resumed);
+  ASSERT_EQ(lines_b.size(), 4u);
+  for (size_t e = 0; e < 4; ++e) {
+    EXPECT_EQ(lines_b[e]["epoch"], e + 1);
+    EXPECT_NEAR(lines_a[e]["train_loss"].get<double>(), lines_b[e]["train_loss"].get<double>(),
+                1e-6);
+  }
+
+  // A different seed changes the result (the comparison above can fail).
+  const Metrics m_other = Train(train, val, model, config, kRadius, 12, Dir("other"), false, false);
+  EXPECT_NE(m_other.med_cm, m_straight.med_cm);
+}
+
+TEST_F(TrainingTest, ResumeRejectsADifferentModel) {
+  const FeatureSet train = MakeFeatures(8, 5);
+  const FeatureSet val = MakeFeatures(4, 6);
+  const std::string run = Dir("run");
+  Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, run, false, false);
+  ModelConfig wider = TinyModel();
+  wider.width = 64;
+  EXPECT_THROW(Train(train, val, wider, TinyTraining(2), kRadius, 1, run, true, false),
+               SchemaError);
+}
+
+TEST_F(TrainingTest, LocalizerReportsMissingAndCorruptFiles) {
+  EXPECT_THROW(Localizer(Dir("does_not_exist")), IoError);
+  // A directory without model.json.
+  fs::create_directories(Dir("empty"));
+  try {
+    Localizer localizer(Dir("empty"));
+    FAIL() << "expected IoError";
+  } catch (const IoError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("model.json"));
+  }
+
+  const FeatureSet train = MakeFeatures(8, 5);
+  const FeatureSet val = MakeFeatures(4, 6);
+  const std::string run = Dir("run");
+  Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, run, false, false);
+
+  // Features of another shape.
+  FeatureSet other = MakeFeatures(2, 9);
+  other.mels = 10;
+  other.mel.resize(2 * other.channels * other.mels * other.frames);
+  try {
+    Localizer(run).Predict(other);
+    FAIL() << "expected SchemaError";
+  } catch (const SchemaError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("mels"));
+  }
+
+  // Weights missing.
+  fs::rename(fs::path(run) / "model.pt", fs::path(run) / "moved.pt");
+  EXPECT_THROW(Localizer{run}, IoError);
+  fs::rename(fs::path(run) / "moved.pt", fs::path(run) / "model.pt");
+  EXPECT_NO_THROW(Localizer{run});
+
+  // model.json with shapes that disagree with the weights.
+  const fs::path json_path = fs::path(run) / "model.json";
+  nlohmann::json j;
+  std::ifstream(json_path) >> j;
+  nlohmann::json changed = j;
+  changed["shapes"]["gcc_lags"] = 30;
+  std::ofstream(json_path) << changed.dump();
+  EXPECT_THROW(Localizer{run}, SchemaError);
+  // An unknown model config key.
+  changed = j;
+  changed["model"]["colour"] = "red";
+  std::ofstream(json_path) << changed.dump();
+  EXPECT_THROW(Localizer{run}, SchemaError);
+  // Not JSON at all.
+  std::ofstream(json_path) << "{ this is not json";
+  try {
+    Localizer localizer(run);
+    FAIL() << "expected SchemaError";
+  } catch (const SchemaError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("model.json"));
+  }
+}
+
+TEST_F(TrainingTest, CropLongerThanFeaturesIsAConfigError) {
+  const FeatureSet train = MakeFeatures(4, 5);
+  ModelConfig model = TinyModel();
+  model.crop_frames = 41;
+  try {
+    Train(train, train, model, TinyTraining(1), kRadius, 1, Dir("run"), false, false);
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("model.crop_frames"));
+  }
+}
+
+TEST_F(TrainingTest, ModalitySubsetsTrainAndBuildOnlyTheirEncoders) {
+  FeatureSet train = MakeFeatures(8, 5);
+  FeatureSet val = MakeFeatures(4, 6);
+  // Audio only: GCC and proprio arrays may be absent.
+  {
+    FeatureSet t = train, v = val;
+    t.gcc.clear();
+    t.proprio.clear();
+    v.gcc.clear();
+    v.proprio.clear();
+    ModelConfig model = TinyModel();
+    model.modalities = {"audio"};
+    const Metrics m = Train(t, v, model, TinyTraining(1), kRadius, 1, Dir("audio"), false, false);
+    EXPECT_TRUE(std::isfinite(m.med_cm));
+    const auto counts = Localizer(Dir("audio")).ParameterCounts();
+    EXPECT_EQ(counts.size(), 2u);
+    EXPECT_TRUE(counts.count("audio_encoder"));
+    EXPECT_EQ(counts, CountParameters(model, t));
+  }
+  // Proprio only.
+  {
+    FeatureSet t = train, v = val;
+    t.mel.clear();
+    t.gcc.clear();
+    v.mel.clear();
+    v.gcc.clear();
+    ModelConfig model = TinyModel();
+    model.modalities = {"proprio"};
+    const Metrics m =
+        Train(t, v, model, TinyTraining(1), kRadius, 1, Dir("proprio"), false, false);
+    EXPECT_TRUE(std::isfinite(m.med_cm));
+    const auto counts = Localizer(Dir("proprio")).ParameterCounts();
+    EXPECT_EQ(counts.size(), 2u);
+    EXPECT_TRUE(counts.count("proprio_encoder"));
+    EXPECT_EQ(counts, CountParameters(model, t));
+  }
+  // Missing arrays of a selected modality are a SchemaError naming the array.
+  {
+    FeatureSet t = train;
+    t.gcc.clear();
+    try {
+      Train(t, val, TinyModel(), TinyTraining(1), kRadius, 1, Dir("bad"), false, false);
+      FAIL() << "expected SchemaError";
+    } catch (const SchemaError& e) {
+      EXPECT_THAT(e.what(), HasSubstr("gcc"));
+    }
+  }
+}
+
+TEST_F(TrainingTest, ResNetEncodersTrainOneEpoch) {
+  const FeatureSet train = MakeFeatures(4, 5);
+  const FeatureSet val = MakeFeatures(2, 6);
+  for (const char* encoder : {"resnet18", "resnet50"}) {
+    ModelConfig model = TinyModel();
+    model.audio_encoder = encoder;
+    model.modalities = {"audio"};
+    TrainConfig config = TinyTraining(1);
+    config.batch_size = 4;
+    config.threads = 0;
+    const Metrics m = Train(train, val, model, config, kRadius, 1, Dir(encoder), false, false);
+    EXPECT_TRUE(std::isfinite(m.med_cm)) << encoder;
+  }
+}
+
+}  // namespace
+}  // namespace sonicboom::learning
