@@ -16,6 +16,12 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
+// round to nearest (ties to even) without a libm call; |x| < 2^51
+inline double RoundFast(double x) {
+  constexpr double kMagic = 6755399441055744.0;  // 1.5 * 2^52
+  return (x + kMagic) - kMagic;
+}
+
 // one precomputed mode: recursion pole, drive and sensor factors
 struct ModeBank {
   double frequency_hz;
@@ -249,26 +255,31 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
   std::vector<double> phase(harmonics), channel_gain(num_mics);
   for (auto& p : phase) p = noise_rng.Uniform(0, 2 * kPi);
   for (auto& g : channel_gain) g = noise_rng.Uniform(0.5, 1.5);
-  const double tone_amp = harmonics > 0 ? std::sqrt(2.0 / harmonics) * m.noise.motor_rms_v_per_rad_s : 0.0;
+  const double tone_amp =
+      harmonics > 0 ? std::sqrt(2.0 / harmonics) * m.noise.motor_rms_v_per_rad_s : 0.0;
+  // each harmonic is a unit phasor advanced by one rotation per sample
+  std::vector<std::complex<double>> phasor(harmonics), step(harmonics);
+  for (int64_t hm = 0; hm < harmonics; ++hm) {
+    phasor[hm] = std::polar(1.0, phase[hm]);
+    step[hm] = std::polar(1.0, 2 * kPi * m.noise.motor_base_hz * (hm + 1) * T);
+  }
   for (int64_t k = 0; k < num_frames; ++k) {
-    const double t = k * T;
     double speed = 0.0;
     if (!joint_speed_rad_s.empty()) {
-      const double pos = t * joint_speed_rate_hz;
+      const double pos = k * T * joint_speed_rate_hz;
       const size_t idx = std::min(static_cast<size_t>(pos), joint_speed_rad_s.size() - 1);
       const size_t nxt = std::min(idx + 1, joint_speed_rad_s.size() - 1);
       const double frac = std::clamp(pos - static_cast<double>(idx), 0.0, 1.0);
       speed = (1 - frac) * joint_speed_rad_s[idx] + frac * joint_speed_rad_s[nxt];
     }
     double motor = 0.0;
-    if (speed > 0) {
-      for (int64_t hm = 0; hm < harmonics; ++hm) {
-        motor += std::sin(2 * kPi * m.noise.motor_base_hz * (hm + 1) * t + phase[hm]);
-      }
-      motor *= tone_amp * speed;
+    for (int64_t hm = 0; hm < harmonics; ++hm) {
+      motor += phasor[hm].imag();
+      phasor[hm] *= step[hm];
     }
+    motor *= tone_amp * speed;
     for (int i = 0; i < num_mics; ++i) {
-      volts(i, k) += channel_gain[i] * motor + m.noise.ambient_rms_v * noise_rng.Normal();
+      volts(i, k) += channel_gain[i] * motor + m.noise.ambient_rms_v * noise_rng.NoiseSample();
     }
   }
 
@@ -282,7 +293,7 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
       const double y = b0 * (x - x_prev) - a1 * y_prev;
       x_prev = x;
       y_prev = y;
-      volts(i, k) = y + m.daq.preamp_noise_v * noise_rng.Normal();
+      volts(i, k) = y + m.daq.preamp_noise_v * noise_rng.NoiseSample();
     }
   }
 
@@ -300,8 +311,8 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
         out.clipped = true;
         x = std::clamp(x, -1.0, 1.0);
       }
-      x = std::round(x / adc_step) * adc_step;
-      out.audio(i, k) = static_cast<float>(std::round(x / out_step) * out_step);
+      x = RoundFast(x / adc_step) * adc_step;
+      out.audio(i, k) = static_cast<float>(RoundFast(x / out_step) * out_step);
     }
   }
   return out;

@@ -1,6 +1,7 @@
 #include "sonicboom/core/rng.h"
 
-#include <numbers>
+#include <cmath>
+
 
 namespace sonicboom {
 namespace {
@@ -50,14 +51,17 @@ double Rng::Normal() {
     has_spare_ = false;
     return spare_;
   }
-  // Box-Muller on (0, 1] x [0, 1)
-  const double u1 = 1.0 - Uniform();
-  const double u2 = Uniform();
-  const double r = std::sqrt(-2.0 * std::log(u1));
-  const double phi = 2.0 * std::numbers::pi * u2;
-  spare_ = r * std::sin(phi);
+  // Marsaglia's polar method: two normals per accepted point, no trigonometry
+  double u, v, s;
+  do {
+    u = 2.0 * Uniform() - 1.0;
+    v = 2.0 * Uniform() - 1.0;
+    s = u * u + v * v;
+  } while (s >= 1.0 || s == 0.0);
+  const double f = std::sqrt(-2.0 * std::log(s) / s);
+  spare_ = v * f;
   has_spare_ = true;
-  return r * std::cos(phi);
+  return u * f;
 }
 
 }  // namespace sonicboom

@@ -73,7 +73,8 @@ void ModelConfig::Validate() const {
   for (const std::string& m : modalities) {
     if (std::find(kModalities.begin(), kModalities.end(), m) == kModalities.end()) {
       Reject("model.modalities", fmt::format("[{}]", fmt::join(modalities, ", ")),
-             fmt::format("unknown modality '{}' (choose from {})", m, fmt::join(kModalities, ", ")));
+             fmt::format("unknown modality '{}' (choose from {})", m,
+                         fmt::join(kModalities, ", ")));
     }
     if (!seen.insert(m).second) {
       Reject("model.modalities", fmt::format("[{}]", fmt::join(modalities, ", ")),

@@ -47,14 +47,16 @@ CompactCnnImpl::CompactCnnImpl(int64_t in_channels) {
   const int64_t widths[] = {16, 32, 64, kFeatures};
   int64_t in = in_channels;
   for (int i = 0; i < 4; ++i) {
-    convs_.push_back(register_module(fmt::format("conv{}", i), Conv(in, widths[i], 3, 1, 1)));
+    // the first convolution strides by 2: a quarter of the cost at full mel resolution
+    const int64_t stride = i == 0 ? 2 : 1;
+    convs_.push_back(register_module(fmt::format("conv{}", i), Conv(in, widths[i], 3, stride, 1)));
     norms_.push_back(register_module(fmt::format("bn{}", i), nn::BatchNorm2d(widths[i])));
     in = widths[i];
   }
 }
 
 torch::Tensor CompactCnnImpl::forward(torch::Tensor x) {
-  // (B, C, H, W) -> (B, 128, ~H/16, ~W/16); an axis already of size 1 is not pooled further.
+  // (B, C, H, W) -> (B, 128, ~H/32, ~W/32); an axis already of size 1 is not pooled further.
   for (size_t i = 0; i < convs_.size(); ++i) {
     x = torch::relu(norms_[i]->forward(convs_[i]->forward(x)));
     const int64_t kh = x.size(2) >= 2 ? 2 : 1, kw = x.size(3) >= 2 ? 2 : 1;
@@ -314,7 +316,8 @@ std::map<std::string, int64_t> CountParametersOf(const NetworkImpl& network) {
 
 namespace sonicboom::learning {
 
-std::map<std::string, int64_t> CountParameters(const ModelConfig& config, const FeatureSet& shapes) {
+std::map<std::string, int64_t> CountParameters(const ModelConfig& config,
+                                               const FeatureSet& shapes) {
   config.Validate();
   internal::Network network(config, internal::ShapesOf(shapes, config));
   return internal::CountParametersOf(*network);

@@ -287,7 +287,8 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     seconds_sum += seconds;
 
-    // metrics.jsonl line, then the checkpoint of this epoch.
+    // metrics.jsonl line, then the checkpoint of this epoch: checkpoint.json (run identity)
+    // before checkpoint.pt, whose own epoch count is the one a resume trusts.
     auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
     const json line{{"epoch", epoch + 1},
                     {"lr", lr},
@@ -296,10 +297,10 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
                     {"val", internal::MetricsToJson(val_metrics)},
                     {"epoch_seconds", seconds}};
     AppendLine(files.metrics, line.dump());
-    SaveCheckpoint(*network, optimizer, epoch + 1, files.checkpoint_pt);
     internal::WriteFileAtomically(
         files.checkpoint_json,
         json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
+    SaveCheckpoint(*network, optimizer, epoch + 1, files.checkpoint_pt);
 
     if (show_progress) {
       const double eta = seconds_sum / double(epoch + 1 - epochs_done) *

@@ -10,8 +10,8 @@ packages=(
   libmujoco-dev libqhull-dev libembree-dev
   # numerics
   libeigen3-dev libspectra-dev libfftw3-dev libtbb-dev libnanoflann-dev
-  # learning (CPU libtorch)
-  libtorch-dev
+  # learning (CPU libtorch); OpenBLAS replaces the reference BLAS libtorch would otherwise use
+  libtorch-dev libopenblas0-openmp
   # I/O and CLI
   libsndfile1-dev libhdf5-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
   libspdlog-dev libfmt-dev

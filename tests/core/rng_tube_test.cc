@@ -72,3 +72,27 @@ TEST(TubeTest, SurfacePointsLieOnTheOuterSurface) {
 
 }  // namespace
 }  // namespace sonicboom
+
+namespace sonicboom {
+namespace {
+
+TEST(RngTest, NoiseSampleHasUnitVarianceAndBoundedTails) {
+  Rng rng(7);
+  const int n = 400000;
+  double s = 0, s2 = 0, s4 = 0, peak = 0;
+  for (int i = 0; i < n; ++i) {
+    const double x = rng.NoiseSample();
+    s += x;
+    s2 += x * x;
+    s4 += x * x * x * x;
+    peak = std::max(peak, std::abs(x));
+  }
+  EXPECT_NEAR(s / n, 0.0, 0.01);
+  EXPECT_NEAR(s2 / n, 1.0, 0.01);
+  // Irwin-Hall(4) kurtosis is 3 - 1.2 / 4 = 2.7
+  EXPECT_NEAR(s4 / n, 2.7, 0.05);
+  EXPECT_LE(peak, std::sqrt(12.0) + 1e-9);
+}
+
+}  // namespace
+}  // namespace sonicboom

@@ -37,9 +37,18 @@ class Rng {
   double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
   /// Uniform integer in [0, n).
   uint64_t UniformInt(uint64_t n);
-  /// Standard normal (Box-Muller, both values used).
+  /// Standard normal (Marsaglia polar method, both values used).
   double Normal();
   double Normal(double mean, double stddev) { return mean + stddev * Normal(); }
+  /// Unit-variance approximately normal draw for noise signals: the sum of four 16-bit
+  /// uniforms from one 64-bit draw (Irwin-Hall, tails end at +-3.46). ~10x faster than Normal.
+  double NoiseSample() {
+    const uint64_t x = NextU64();
+    const double sum = static_cast<double>((x & 0xFFFF) + ((x >> 16) & 0xFFFF) +
+                                           ((x >> 32) & 0xFFFF) + (x >> 48));
+    // mean 4 * 32767.5, variance 4 * (65536^2 - 1) / 12
+    return (sum - 131070.0) * 2.6428997921303014e-05;
+  }
 
  private:
   uint64_t s_[4];
