@@ -227,6 +227,7 @@ CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
   RequireParentDir(out);
   MergeDatasets(shards, out);
   DatasetReader reader(out);
+  WriteTextAtomic(out + ".config.yaml", reader.info().config_yaml);
   json j = {{"path", out}, {"num_samples", reader.size()}, {"shards", shards.size()}};
   return {j.dump(), fmt::format("merged {} shards into {} ({} samples)\n", shards.size(), out,
                                 reader.size())};

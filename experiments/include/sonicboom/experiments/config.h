@@ -26,8 +26,8 @@ struct DatasetConfig {
 
 /// The demo's dataset sizes.
 struct DemoConfig {
-  int64_t train_count{640};                // training strikes (a fifth held for validation)
-  int64_t test_count{160};                 // held-out strikes, disjoint sample indices
+  int64_t train_count{1600};               // training strikes (a fifth held for validation)
+  int64_t test_count{400};                 // held-out strikes, disjoint sample indices
 
   void Serialize(Archive* a);
 };
