@@ -122,11 +122,13 @@ int RunCli(int argc, char** argv) {
     return 2;
   }
 
+  // --threads also bounds training's intra-op threads, visible in the resolved config
+  if (g.threads > 0) g.sources.overrides.push_back(fmt::format("train.threads={}", g.threads));
+
   // run; bad input exits 1 with a message naming the culprit
   SetUpLogging(g.quiet ? -1 : verbose);
   Progress::SetQuiet(g.quiet);
   try {
-    if (first_index < 0) first_index = -1;
     const CommandResult result = run();
     std::cout << (g.json ? result.json + "\n" : result.text);
     std::cout.flush();

@@ -86,7 +86,7 @@ learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::strin
                                   data, all.size(), config.train.val_fraction));
   }
   spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
-  return learning::Train(SelectRows(all, train_rows), SelectRows(all, val_rows), config.model,
+  return learning::Train(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,
                          config.train, config.tube.outer_radius_m, config.seed, run_dir, resume,
                          !quiet);
 }
@@ -456,6 +456,33 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
     const std::string sidecar =
         (fs::path(path).parent_path() / fs::path(path).stem()).string() + ".json";
     if (fs::exists(sidecar)) j["label"] = json::parse(ReadText(sidecar), nullptr, false);
+  } else if (fs::path(path).extension() == ".json") {
+    // a label sidecar, model card or metrics file
+    const json parsed = json::parse(ReadText(path), nullptr, false);
+    if (parsed.is_discarded()) throw IoError(fmt::format("{}: not valid JSON", path));
+    j = {{"kind", "json"}, {"path", path}, {"content", parsed}};
+  } else if (fs::path(path).extension() == ".jsonl") {
+    // per-epoch metrics: count and last line
+    std::stringstream ss(ReadText(path));
+    int64_t lines = 0;
+    json last;
+    for (std::string line; std::getline(ss, line);) {
+      if (line.empty()) continue;
+      ++lines;
+      last = json::parse(line, nullptr, false);
+      if (last.is_discarded()) throw IoError(fmt::format("{}:{}: not valid JSON", path, lines));
+    }
+    j = {{"kind", "jsonl"}, {"path", path}, {"lines", lines}, {"last", last}};
+  } else if (fs::path(path).extension() == ".csv") {
+    // a robot log
+    const Eigen::MatrixXf proprio = hardware::ReadProprioCsv(path);
+    j = {{"kind", "robot_log"}, {"path", path}, {"rows", proprio.rows()},
+         {"finite", proprio.allFinite()}};
+  } else if (fs::path(path).extension() == ".pt") {
+    // torch weights: the model card beside them describes them
+    j = {{"kind", "torch_weights"}, {"path", path}, {"bytes", fs::file_size(path)}};
+    const fs::path card = fs::path(path).parent_path() / "model.json";
+    if (fs::exists(card)) j["model"] = json::parse(ReadText(card.string()), nullptr, false);
   } else if (fs::path(path).extension() == ".yaml" || fs::path(path).extension() == ".yml") {
     // a config: resolve and validate it
     GlobalOptions with_file = g;

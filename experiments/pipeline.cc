@@ -276,34 +276,4 @@ std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
   return split;
 }
 
-learning::FeatureSet SelectRows(const learning::FeatureSet& set, const std::vector<int64_t>& rows) {
-  // same shapes, chosen rows
-  learning::FeatureSet out;
-  out.channels = set.channels;
-  out.mels = set.mels;
-  out.frames = set.frames;
-  out.gcc_pairs = set.gcc_pairs;
-  out.gcc_lags = set.gcc_lags;
-  out.proprio_rows = set.proprio_rows;
-  out.proprio_features = set.proprio_features;
-  const int64_t n = static_cast<int64_t>(rows.size());
-  const int64_t mel_size = set.channels * set.mels * set.frames;
-  const int64_t gcc_size = set.gcc_pairs * set.gcc_lags;
-  const int64_t prop_size = set.proprio_rows * set.proprio_features;
-  out.mel.resize(n * mel_size);
-  out.gcc.resize(n * gcc_size);
-  out.proprio.resize(n * prop_size);
-  out.z_m.resize(n);
-  out.theta_rad.resize(n);
-  for (int64_t i = 0; i < n; ++i) {
-    const int64_t r = rows[i];
-    std::copy_n(set.mel.begin() + r * mel_size, mel_size, out.mel.begin() + i * mel_size);
-    std::copy_n(set.gcc.begin() + r * gcc_size, gcc_size, out.gcc.begin() + i * gcc_size);
-    std::copy_n(set.proprio.begin() + r * prop_size, prop_size, out.proprio.begin() + i * prop_size);
-    out.z_m[i] = set.z_m[r];
-    out.theta_rad[i] = set.theta_rad[r];
-  }
-  return out;
-}
-
 }  // namespace sonicboom::experiments

@@ -164,4 +164,40 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
   return metrics;
 }
 
+FeatureSet FeatureSet::ShapesOnly() const {
+  FeatureSet shapes;
+  shapes.channels = channels;
+  shapes.mels = mels;
+  shapes.frames = frames;
+  shapes.gcc_pairs = gcc_pairs;
+  shapes.gcc_lags = gcc_lags;
+  shapes.proprio_rows = proprio_rows;
+  shapes.proprio_features = proprio_features;
+  return shapes;
+}
+
+FeatureSet FeatureSet::SelectRows(const std::vector<int64_t>& rows) const {
+  // copy each chosen row of every array
+  FeatureSet out = ShapesOnly();
+  const int64_t n = static_cast<int64_t>(rows.size());
+  const int64_t mel_size = channels * mels * frames;
+  const int64_t gcc_size = gcc_pairs * gcc_lags;
+  const int64_t prop_size = proprio_rows * proprio_features;
+  out.mel.resize(n * mel_size);
+  out.gcc.resize(n * gcc_size);
+  out.proprio.resize(n * prop_size);
+  out.z_m.resize(n);
+  out.theta_rad.resize(n);
+  for (int64_t i = 0; i < n; ++i) {
+    const int64_t r = rows[i];
+    SONICBOOM_DEMAND(r >= 0 && r < size());
+    std::copy_n(mel.begin() + r * mel_size, mel_size, out.mel.begin() + i * mel_size);
+    std::copy_n(gcc.begin() + r * gcc_size, gcc_size, out.gcc.begin() + i * gcc_size);
+    std::copy_n(proprio.begin() + r * prop_size, prop_size, out.proprio.begin() + i * prop_size);
+    out.z_m[i] = z_m[r];
+    out.theta_rad[i] = theta_rad[r];
+  }
+  return out;
+}
+
 }  // namespace sonicboom::learning

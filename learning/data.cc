@@ -311,18 +311,6 @@ json ReadJsonFile(const std::string& path) {
   }
 }
 
-FeatureSet ShapesOnly(const FeatureSet& f) {
-  FeatureSet shapes;
-  shapes.channels = f.channels;
-  shapes.mels = f.mels;
-  shapes.frames = f.frames;
-  shapes.gcc_pairs = f.gcc_pairs;
-  shapes.gcc_lags = f.gcc_lags;
-  shapes.proprio_rows = f.proprio_rows;
-  shapes.proprio_features = f.proprio_features;
-  return shapes;
-}
-
 json ShapesToJson(const FeatureSet& f) {
   return json{{"channels", f.channels},         {"mels", f.mels},
               {"frames", f.frames},             {"gcc_pairs", f.gcc_pairs},

@@ -320,7 +320,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
 
   // Final model files.
   internal::SaveModuleAtomically(*network, files.model_pt);
-  const internal::ModelFile model_file{model_config, internal::ShapesOnly(train),
+  const internal::ModelFile model_file{model_config, train.ShapesOnly(),
                                        surface_radius_m, seed};
   const json model_json = internal::ModelFileToJson(model_file, train_config, val_metrics,
                                                     std::max(epochs_done, train_config.epochs));

@@ -10,12 +10,7 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 
 // Craig (modified) DH rows: a_{i-1} (m), d_i (m), alpha_{i-1} (rad); joints 1-7, then flange
-struct DhRow {
-  double a_m;
-  double d_m;
-  double alpha_rad;
-};
-constexpr std::array<DhRow, 8> kPandaDh = {{
+constexpr std::array<DhRow, kPandaJoints + 1> kPandaDh = {{
     {0.0, 0.333, 0.0},
     {0.0, 0.0, -kPi / 2},
     {0.0, 0.316, kPi / 2},
@@ -37,6 +32,8 @@ Eigen::Isometry3d DhTransform(const DhRow& row, double theta) {
 }
 
 }  // namespace
+
+const std::array<DhRow, kPandaJoints + 1>& PandaDhRows() { return kPandaDh; }
 
 JointVector PandaLowerLimits() {
   JointVector q;

@@ -80,9 +80,6 @@ void LoadModuleChecked(torch::nn::Module& module, torch::serialize::InputArchive
 /// Reads a JSON file; IoError when missing or unreadable, SchemaError when malformed.
 nlohmann::json ReadJsonFile(const std::string& path);
 
-/// A FeatureSet with the shape fields of `f` and no records.
-FeatureSet ShapesOnly(const FeatureSet& f);
-
 /// Shape fields of a FeatureSet as JSON and back (SchemaError names `origin`).
 nlohmann::json ShapesToJson(const FeatureSet& f);
 FeatureSet ShapesFromJson(const nlohmann::json& j, const std::string& origin);

@@ -98,6 +98,50 @@ TEST(CliTest, FeaturesOfSynthWav) {
   EXPECT_EQ(json::parse(inspect.out)["complete"], true);
 }
 
+TEST(CliTest, TrainEvalLocalizeTinyModel) {
+  TempDir dir;
+  const std::string tiny = kShort +
+      "--set model.width=16 --set model.blocks=1 --set model.heads=2 --set train.epochs=2 "
+      "--set train.batch_size=8 ";
+  auto run = RunCli(tiny + "generate --count 30 --out D.h5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_TRUE(fs::exists(dir / "RUN/config.yaml"));
+  EXPECT_TRUE(fs::exists(dir / "RUN/model.pt"));
+  run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json metrics = json::parse(run.out);
+  for (const char* key : {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm"}) {
+    EXPECT_TRUE(metrics.contains(key)) << key;
+  }
+  EXPECT_EQ(metrics["n"], 30);
+  EXPECT_GT(metrics["med_cm"].get<double>(), 0.0);
+  // localize a strike synthesized with the run's own config
+  run = RunCli("--config RUN/config.yaml synth --out s.wav --index 100 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli("localize --model RUN --wav s.wav --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json where = json::parse(run.out);
+  const double x = where["point_m"][0], y = where["point_m"][1];
+  EXPECT_NEAR(std::hypot(x, y), 0.05355, 1e-9);
+  EXPECT_NEAR(where["point_m"][2].get<double>(), where["z_m"].get<double>(), 1e-12);
+  // the run directory and its files are inspectable
+  run = RunCli("inspect RUN --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json::parse(run.out)["epochs_logged"], 2);
+  for (const char* file : {"RUN/metrics.jsonl", "RUN/model.json", "RUN/model.pt", "s.json"}) {
+    run = RunCli(std::string("inspect ") + file + " --json", dir.path().string());
+    EXPECT_EQ(run.exit_code, 0) << file << ": " << run.err;
+  }
+  // a model cannot localize a WAV of another channel count
+  AudioClip stereo{Eigen::MatrixXf::Constant(2, 30000, 0.1f), 44100.0};
+  WriteWav(dir / "stereo.wav", stereo);
+  run = RunCli("localize --model RUN --wav stereo.wav", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("stereo.wav"), std::string::npos) << run.err;
+}
+
 // bad input: non-zero exit, a message naming the culprit, no complete-looking output
 TEST(CliErrorTest, MissingFile) {
   TempDir dir;

@@ -63,7 +63,4 @@ learning::FeatureSet ComputeRecordFeatures(const Eigen::MatrixXf& audio, double 
 std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
     const std::vector<uint64_t>& sample_indices, double val_fraction, uint64_t seed);
 
-/// Rows `rows` of a feature set.
-learning::FeatureSet SelectRows(const learning::FeatureSet& set, const std::vector<int64_t>& rows);
-
 }  // namespace sonicboom::experiments

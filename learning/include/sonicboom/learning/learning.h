@@ -67,6 +67,10 @@ struct FeatureSet {
   std::vector<double> z_m;                 // (N) labels (may be NaN when unknown)
   std::vector<double> theta_rad;           // (N)
   int64_t size() const { return static_cast<int64_t>(z_m.size()); }
+  /// The same shapes with no rows.
+  FeatureSet ShapesOnly() const;
+  /// Rows `rows` (indices into this set), in that order.
+  FeatureSet SelectRows(const std::vector<int64_t>& rows) const;
 };
 
 /// Localization errors over a set of strikes.

@@ -10,6 +10,15 @@ namespace sonicboom::sim {
 inline constexpr int kPandaJoints = 7;
 using JointVector = Eigen::Matrix<double, kPandaJoints, 1>;  // rad
 
+/// One Craig (modified) DH row: T = RotX(alpha_{i-1}) TransX(a_{i-1}) RotZ(q_i) TransZ(d_i).
+struct DhRow {
+  double a_m;        // a_{i-1}
+  double d_m;        // d_i
+  double alpha_rad;  // alpha_{i-1}
+};
+/// The Panda's published DH rows: joints 1-7, then the fixed flange row (q = 0).
+const std::array<DhRow, kPandaJoints + 1>& PandaDhRows();
+
 /// Published joint position limits, rad.
 JointVector PandaLowerLimits();
 JointVector PandaUpperLimits();

@@ -1,0 +1,209 @@
+#include "sonicboom/sim/franka_mjcf.h"
+
+#include <fmt/format.h>
+
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/sim/franka.h"
+
+namespace sonicboom::sim {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kGravityMS2 = 9.81;
+
+// Published joint torque limits, N m
+constexpr std::array<double, kPandaJoints> kTorqueLimitsNm = {87, 87, 87, 87, 12, 12, 12};
+
+// Small joint damping (N m s/rad) and armature (kg m^2): keep the free dynamics well conditioned
+// without pretending to model the real gearboxes
+constexpr double kJointDampingNmsPerRad = 0.1;
+constexpr double kJointArmatureKgM2 = 0.01;
+
+// One moving link's inertial (its DH row is PandaDhRows()[i]).
+// Inertials are the feasible parameter set of Gaz, Cognetti, Oliva, Robuffo Giordano, De Luca,
+// "Dynamic Identification of the Franka Emika Panda Robot With Retrieval of Feasible Parameters
+// Using Penalty-Based Optimization", IEEE RA-L 4(4), 2019: centre of mass in the link (DH) frame,
+// inertia about the centre of mass along the link axes. Link 7 is without the hand. The large
+// Ixx, Iyy of link 1 are as published: joint 1 only ever sees its Izz.
+struct PandaLink {
+  double mass_kg;
+  std::array<double, 3> com_m;              // link frame
+  std::array<double, 6> inertia_kg_m2;      // Ixx Iyy Izz Ixy Ixz Iyz (MJCF fullinertia order)
+};
+constexpr std::array<PandaLink, kPandaJoints> kPandaLinks = {{
+    {4.970684, {0.003875, 0.002081, -0.04762},
+     {0.70337, 0.70661, 0.009117, -0.000139, 0.006772, 0.019169}},
+    {0.646926, {-0.003141, -0.02872, 0.003495},
+     {0.007962, 0.02811, 0.025995, -0.003925, 0.010254, 0.000704}},
+    {3.228604, {0.027518, 0.039252, -0.066502},
+     {0.037242, 0.036155, 0.01083, -0.004761, -0.011396, -0.012805}},
+    {3.587895, {-0.05317, 0.104419, 0.027454},
+     {0.025853, 0.019552, 0.028323, 0.007796, -0.001332, 0.008641}},
+    {1.225946, {-0.011953, 0.041065, -0.038437},
+     {0.035549, 0.029474, 0.008627, -0.002117, -0.004037, 0.000229}},
+    {1.666555, {0.060149, -0.014117, -0.010517},
+     {0.001964, 0.004354, 0.005433, 0.000109, -0.001158, 0.000341}},
+    {0.735522, {0.010517, -0.004252, 0.061597},
+     {0.012516, 0.010027, 0.004815, -0.000428, -0.001196, -0.000741}},
+}};
+
+// Collision capsule in a link frame: segment end points (m) and radius (m). Sized by eye from the
+// arm's published outline (housings ~0.12 m across); they bound the links, they do not trace them.
+struct Capsule {
+  int link;                                 // 0 = base (world), 1..7 = panda_link1..7
+  std::array<double, 6> fromto_m;
+  double radius_m;
+};
+constexpr std::array<Capsule, 11> kCollisionCapsules = {{
+    {0, {0, 0, 0.0, 0, 0, 0.06}, 0.07},
+    {1, {0, 0, -0.14, 0, 0, 0.0}, 0.06},
+    {2, {0, 0, 0.0, 0, -0.2, 0.0}, 0.06},
+    {3, {0, 0, -0.16, 0, 0, -0.04}, 0.06},
+    {3, {0, 0, 0.0, 0.0825, 0, 0.0}, 0.05},
+    {4, {0, 0, -0.06, 0, 0, 0.06}, 0.06},
+    {4, {0, 0, 0.0, -0.0825, 0.12, 0.0}, 0.055},
+    {5, {0, 0, -0.26, 0, 0, -0.06}, 0.055},
+    {6, {0, 0, -0.05, 0, 0, 0.03}, 0.055},
+    {6, {0, 0, 0.0, 0.088, 0, 0.0}, 0.05},
+    {7, {0, 0, -0.02, 0, 0, 0.08}, 0.045},
+}};
+
+// Shortest round-trip text of a number; exact zeros for the cos(pi/2) residue of DH rotations
+std::string Num(double value) {
+  return fmt::format("{}", std::abs(value) < 1e-15 ? 0.0 : value);
+}
+
+std::string Indent(int depth) { return std::string(2 * static_cast<size_t>(depth), ' '); }
+
+// <geom> lines of every collision capsule of `link`
+std::string CapsuleGeoms(int link, int depth) {
+  std::string out;
+  int count = 0;
+  for (const Capsule& capsule : kCollisionCapsules) {
+    if (capsule.link != link) continue;
+    const auto& f = capsule.fromto_m;
+    out += fmt::format(
+        "{}<geom name=\"panda_link{}_collision{}\" type=\"capsule\" fromto=\"{} {} {} {} {} {}\" "
+        "size=\"{}\"/>\n",
+        Indent(depth), link, count++, Num(f[0]), Num(f[1]), Num(f[2]), Num(f[3]), Num(f[4]),
+        Num(f[5]), Num(capsule.radius_m));
+  }
+  return out;
+}
+
+void RequirePositive(double value, const char* key) {
+  if (!(std::isfinite(value) && value > 0.0)) {
+    throw ConfigError(fmt::format("{} = {} must be positive and finite", key, value));
+  }
+}
+
+}  // namespace
+
+double PandaLinkMassSumKg() {
+  double sum_kg = 0.0;
+  for (const PandaLink& link : kPandaLinks) sum_kg += link.mass_kg;
+  return sum_kg;
+}
+
+std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
+  RequirePositive(options.timestep_s, "timestep_s");
+  RequirePositive(options.tube_density_kg_m3, "tube_density_kg_m3");
+  RequirePositive(tube.outer_radius_m, "tube.outer_radius_m");
+  RequirePositive(tube.wall_thickness_m, "tube.wall_thickness_m");
+  RequirePositive(tube.length_m, "tube.length_m");
+  tube.Validate();
+  const JointVector lower_rad = PandaLowerLimits(), upper_rad = PandaUpperLimits();
+
+  std::string xml;
+  xml += "<mujoco model=\"sonicboom_panda\">\n";
+  // angles in radians; every body carries an explicit inertial, geoms add no mass
+  xml += "  <compiler angle=\"radian\" inertiafromgeom=\"false\"/>\n";
+  // Euler: MuJoCo's Euler already integrates joint damping implicitly, and the motors add no
+  // velocity-dependent force, so the "implicit" integrator would only cost more per step
+  xml += fmt::format(
+      "  <option timestep=\"{}\" gravity=\"0 0 {}\" integrator=\"Euler\"/>\n",
+      Num(options.timestep_s), Num(-kGravityMS2));
+  xml += "  <default>\n";
+  xml += fmt::format(
+      "    <joint type=\"hinge\" axis=\"0 0 1\" limited=\"true\" damping=\"{}\" "
+      "armature=\"{}\"/>\n",
+      Num(kJointDampingNmsPerRad), Num(kJointArmatureKgM2));
+  xml += "    <geom contype=\"1\" conaffinity=\"1\" rgba=\"0.9 0.9 0.9 1\"/>\n";
+  xml += "    <site size=\"0.01\" rgba=\"1 0 0 1\"/>\n";
+  xml += "  </default>\n";
+  xml += "  <worldbody>\n";
+  xml += CapsuleGeoms(0, 2);
+
+  // Body i sits at RotX(alpha) TransX(a) TransZ(d) of its parent and turns about its own z:
+  // T_i = RotX(alpha) TransX(a) RotZ(q) TransZ(d) = [RotX(alpha) Trans(a, 0, d)] RotZ(q), since
+  // TransZ(d) commutes with RotZ(q). So pos = RotX(alpha) (a, 0, d), quat = RotX(alpha).
+  for (int i = 0; i < kPandaJoints; ++i) {
+    const PandaLink& link = kPandaLinks[i];
+    const DhRow& dh = PandaDhRows()[i];
+    const int depth = 2 + i;
+    const double s = std::sin(dh.alpha_rad), c = std::cos(dh.alpha_rad);
+    xml += fmt::format("{}<body name=\"panda_link{}\" pos=\"{} {} {}\" quat=\"{} {} 0 0\">\n",
+                       Indent(depth), i + 1, Num(dh.a_m), Num(-dh.d_m * s), Num(dh.d_m * c),
+                       Num(std::cos(0.5 * dh.alpha_rad)), Num(std::sin(0.5 * dh.alpha_rad)));
+    const auto& com = link.com_m;
+    const auto& inertia = link.inertia_kg_m2;
+    xml += fmt::format(
+        "{}<inertial pos=\"{} {} {}\" mass=\"{}\" fullinertia=\"{} {} {} {} {} {}\"/>\n",
+        Indent(depth + 1), Num(com[0]), Num(com[1]), Num(com[2]), Num(link.mass_kg),
+        Num(inertia[0]), Num(inertia[1]), Num(inertia[2]), Num(inertia[3]), Num(inertia[4]),
+        Num(inertia[5]));
+    xml += fmt::format("{}<joint name=\"panda_joint{}\" range=\"{} {}\"/>\n", Indent(depth + 1),
+                       i + 1, Num(lower_rad[i]), Num(upper_rad[i]));
+    xml += CapsuleGeoms(i + 1, depth + 1);
+  }
+
+  // flange body on link 7 with the tube: a thin-walled PVC cylinder centred on flange z
+  const int flange_depth = 2 + kPandaJoints;
+  const double r_out_m = tube.outer_radius_m, r_in_m = tube.outer_radius_m - tube.wall_thickness_m;
+  const double tube_mass_kg =
+      options.tube_density_kg_m3 * kPi * (r_out_m * r_out_m - r_in_m * r_in_m) * tube.length_m;
+  const double radial_sq_m2 = r_out_m * r_out_m + r_in_m * r_in_m;
+  const double tube_izz_kg_m2 = 0.5 * tube_mass_kg * radial_sq_m2;
+  const double tube_ixx_kg_m2 =
+      tube_mass_kg * (3.0 * radial_sq_m2 + tube.length_m * tube.length_m) / 12.0;
+  const std::string tube_pos = fmt::format("0 0 {}", Num(tube.center_from_flange_m));
+  xml += fmt::format("{}<body name=\"panda_flange\" pos=\"0 0 {}\">\n", Indent(flange_depth),
+                     Num(PandaDhRows()[kPandaJoints].d_m));
+  xml += fmt::format("{}<inertial pos=\"{}\" mass=\"{}\" diaginertia=\"{} {} {}\"/>\n",
+                     Indent(flange_depth + 1), tube_pos, Num(tube_mass_kg), Num(tube_ixx_kg_m2),
+                     Num(tube_ixx_kg_m2), Num(tube_izz_kg_m2));
+  xml += fmt::format("{}<site name=\"flange\" pos=\"0 0 0\"/>\n", Indent(flange_depth + 1));
+  xml += fmt::format(
+      "{}<geom name=\"tube\" type=\"cylinder\" pos=\"{}\" size=\"{} {}\" "
+      "rgba=\"0.85 0.85 0.75 1\"/>\n",
+      Indent(flange_depth + 1), tube_pos, Num(tube.outer_radius_m), Num(0.5 * tube.length_m));
+  xml += fmt::format("{}<site name=\"tube_center\" pos=\"{}\"/>\n", Indent(flange_depth + 1),
+                     tube_pos);
+  xml += fmt::format("{}</body>\n", Indent(flange_depth));
+  for (int i = kPandaJoints - 1; i >= 0; --i) xml += fmt::format("{}</body>\n", Indent(2 + i));
+  xml += "  </worldbody>\n";
+
+  // links 5 and 7 nest around the wrist on the real arm; their capsules touch near q6 = 0
+  xml += "  <contact>\n";
+  xml += "    <exclude body1=\"panda_link5\" body2=\"panda_link7\"/>\n";
+  xml += "  </contact>\n";
+
+  // direct joint torque motors, limited to the published torques
+  xml += "  <actuator>\n";
+  for (int i = 0; i < kPandaJoints; ++i) {
+    xml += fmt::format(
+        "    <motor name=\"panda_motor{}\" joint=\"panda_joint{}\" gear=\"1\" "
+        "ctrllimited=\"true\" ctrlrange=\"{} {}\"/>\n",
+        i + 1, i + 1, Num(-kTorqueLimitsNm[i]), Num(kTorqueLimitsNm[i]));
+  }
+  xml += "  </actuator>\n";
+  xml += "</mujoco>\n";
+  return xml;
+}
+
+}  // namespace sonicboom::sim
