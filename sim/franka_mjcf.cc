@@ -116,6 +116,15 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   RequirePositive(tube.outer_radius_m, "tube.outer_radius_m");
   RequirePositive(tube.wall_thickness_m, "tube.wall_thickness_m");
   RequirePositive(tube.length_m, "tube.length_m");
+  for (const MjcfRod& rod : options.rods) {
+    RequirePositive(rod.diameter_m, "rod.diameter_m");
+    RequirePositive(rod.length_m, "rod.length_m");
+    RequirePositive(rod.contact_timeconst_s, "rod.contact_timeconst_s");
+    RequirePositive(rod.contact_dampratio, "rod.contact_dampratio");
+    if (!(std::isfinite(rod.friction) && rod.friction >= 0.0)) {
+      throw ConfigError(fmt::format("rod.friction = {} must be non-negative", rod.friction));
+    }
+  }
   tube.Validate();
   const JointVector lower_rad = PandaLowerLimits(), upper_rad = PandaUpperLimits();
 
@@ -126,8 +135,9 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   // Euler: MuJoCo's Euler already integrates joint damping implicitly, and the motors add no
   // velocity-dependent force, so the "implicit" integrator would only cost more per step
   xml += fmt::format(
-      "  <option timestep=\"{}\" gravity=\"0 0 {}\" integrator=\"Euler\"/>\n",
-      Num(options.timestep_s), Num(-kGravityMS2));
+      "  <option timestep=\"{}\" gravity=\"0 0 {}\" integrator=\"Euler\"{}/>\n",
+      Num(options.timestep_s), Num(-kGravityMS2),
+      options.elliptic_friction_cones ? " cone=\"elliptic\"" : "");
   xml += "  <default>\n";
   xml += fmt::format(
       "    <joint type=\"hinge\" axis=\"0 0 1\" limited=\"true\" damping=\"{}\" "
@@ -186,6 +196,18 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
                      tube_pos);
   xml += fmt::format("{}</body>\n", Indent(flange_depth));
   for (int i = kPandaJoints - 1; i >= 0; --i) xml += fmt::format("{}</body>\n", Indent(2 + i));
+
+  // struck rods: mocap bodies (fixed in space, placed per simulation), parked far below the base
+  for (size_t i = 0; i < options.rods.size(); ++i) {
+    const MjcfRod& rod = options.rods[i];
+    xml += fmt::format("    <body name=\"rod{}\" mocap=\"true\" pos=\"0 0 -10\">\n", i);
+    xml += fmt::format(
+        "      <geom name=\"rod{}\" type=\"cylinder\" size=\"{} {}\" priority=\"1\" "
+        "condim=\"3\" friction=\"{} 0.005 0.0001\" solref=\"{} {}\" rgba=\"0.6 0.4 0.2 1\"/>\n",
+        i, Num(0.5 * rod.diameter_m), Num(0.5 * rod.length_m), Num(rod.friction),
+        Num(rod.contact_timeconst_s), Num(rod.contact_dampratio));
+    xml += "    </body>\n";
+  }
   xml += "  </worldbody>\n";
 
   // links 5 and 7 nest around the wrist on the real arm; their capsules touch near q6 = 0

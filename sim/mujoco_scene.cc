@@ -178,6 +178,8 @@ JointVector PandaScene::GravityTorques(const JointVector& q) const {
   return tau_nm;
 }
 
+const mjModel* PandaScene::model() const { return impl_->model; }
+
 int PandaScene::ContactCount(const JointVector& q) const {
   DataPtr data = impl_->MakeData(q);
   mj_forward(impl_->model, data.get());

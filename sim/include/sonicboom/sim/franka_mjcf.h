@@ -4,25 +4,41 @@
 /// by Gaz et al. (IEEE RA-L 2019), the published joint torque limits, and capsule collision shapes.
 /// Body frames are the DH frames, so MuJoCo's kinematic chain reproduces PandaForwardKinematics.
 /// Names: bodies panda_link1..7 and panda_flange, hinges panda_joint1..7, motors panda_motor1..7,
-/// geom "tube", sites "flange" (flange frame) and "tube_center" (tube frame).
+/// geom "tube", sites "flange" (flange frame) and "tube_center" (tube frame); rods (options) are
+/// mocap bodies and geoms "rod0", "rod1", ...
 
 #include <string>
+#include <vector>
 
 #include "sonicboom/core/tube.h"
 
 namespace sonicboom::sim {
 
+/// A clamped (fixed) rod the arm can strike. Rod i is a mocap body and a cylinder geom, both named
+/// "rod<i>", with the cylinder axis along the body's z. It is parked 10 m below the base; a
+/// simulation places it through mjData's mocap_pos/mocap_quat. Its geom has contact priority, so
+/// every contact with it uses these parameters.
+struct MjcfRod {
+  double diameter_m{0.022};
+  double length_m{0.42};
+  double contact_timeconst_s{0.002};  // MuJoCo solref time constant, s
+  double contact_dampratio{1.0};      // MuJoCo solref damping ratio
+  double friction{0.4};               // sliding friction coefficient
+};
+
 /// Simulation settings written into the model.
 struct PandaMjcfOptions {
   double timestep_s{0.001};
   double tube_density_kg_m3{1400.0};  // PVC, as MaterialConfig's default; sets the tube's inertial
+  std::vector<MjcfRod> rods;          // struck objects; none in the default model
+  bool elliptic_friction_cones{false}; // MuJoCo's elliptic friction cones (default: pyramidal)
 };
 
 /// Sum of the seven link masses written into the model (Gaz et al. 2019), kg; excludes the tube.
 double PandaLinkMassSumKg();
 
 /// MJCF XML text of the Panda with `tube` on its flange. Throws ConfigError on a non-positive or
-/// non-finite timestep or density, or on a tube that fails TubeConfig::Validate.
+/// non-finite timestep, density or rod parameter, or on a tube that fails TubeConfig::Validate.
 std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options = {});
 
 }  // namespace sonicboom::sim

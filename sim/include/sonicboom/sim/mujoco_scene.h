@@ -13,6 +13,9 @@
 
 #include "sonicboom/sim/franka.h"
 
+// MuJoCo's model type, declared here so that this header needs no mujoco.h
+struct mjModel_;
+
 namespace sonicboom::sim {
 
 /// One joint of the compiled model.
@@ -58,6 +61,10 @@ class PandaScene {
   JointVector GravityTorques(const JointVector& q) const;
   /// Number of contacts MuJoCo's collision detection finds at q (rad), at rest.
   int ContactCount(const JointVector& q) const;
+
+  /// The compiled model, for sim .cc files that include mujoco.h and simulate on their own mjData.
+  /// Read-only: the model stays immutable and shared.
+  const mjModel_* model() const;
 
  private:
   struct Impl;

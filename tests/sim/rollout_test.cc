@@ -1,0 +1,226 @@
+// Dynamic strike rollouts in MuJoCo: placement, contact records, press, determinism, failures.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/sim/rollout.h"
+#include "sonicboom/sim/strike.h"
+
+namespace sonicboom::sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kSeeds = 30;
+
+// one default rollout model and its 30 seeded rollouts, shared by the tests of this file
+const StrikeRollout& DefaultRollout() {
+  static const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, RolloutConfig{});
+  return rollout;
+}
+const std::vector<RolloutResult>& DefaultResults() {
+  static const std::vector<RolloutResult> results = [] {
+    std::vector<RolloutResult> out;
+    for (uint64_t i = 0; i < kSeeds; ++i) out.push_back(DefaultRollout().Run(SampleSeed(21, i)));
+    return out;
+  }();
+  return results;
+}
+
+double AngleDistance(double a_rad, double b_rad) { return std::abs(WrapAngle(a_rad - b_rad)); }
+
+TEST(RolloutTest, ContactsLieOnTheTubeWhereTheRodWasPlaced) {
+  const TubeConfig tube;
+  const StrikeConfig strike;
+  int valid = 0;
+  std::map<std::string, int> reasons;
+  for (const RolloutResult& r : DefaultResults()) {
+    if (!r.valid) {
+      ++reasons[r.invalid_reason.substr(0, r.invalid_reason.find(" ("))];
+      continue;
+    }
+    ++valid;
+    ASSERT_FALSE(r.contacts.empty());
+    const ContactRecord& first = r.contacts.front();
+    EXPECT_EQ(first.kind, "impact");
+    EXPECT_GE(first.z_m, tube.contact_z_min_m);
+    EXPECT_LE(first.z_m, tube.contact_z_max_m);
+    // the placement: the first touch is where the rod was put
+    EXPECT_LT(std::abs(first.z_m - r.target_z_m), 0.01);
+    EXPECT_LT(AngleDistance(first.theta_rad, r.target_theta_rad), 10.0 * kPi / 180.0);
+    // and near the intended onset
+    EXPECT_LT(std::abs(first.time_s - r.target_time_s), 0.05);
+    for (const ContactRecord& c : r.contacts) {
+      const double radius_m = std::hypot(c.point_tube_m.x(), c.point_tube_m.y());
+      EXPECT_LT(std::abs(radius_m - tube.outer_radius_m), 1e-3);
+      EXPECT_GT(c.theta_rad, -kPi);
+      EXPECT_LE(c.theta_rad, kPi);
+      EXPECT_NEAR(c.normal_tube.norm(), 1.0, 1e-9);
+      // the outward normal points along the surface normal at theta
+      EXPECT_GT(c.normal_tube.dot(SurfaceNormal(c.theta_rad)), 0.95);
+      EXPECT_GT(c.impulse_ns, 0.0);
+      EXPECT_GT(c.peak_force_n, 0.0);
+      EXPECT_GT(c.effective_mass_kg, 0.0);
+      // in series with the rod's tip modal mass: never above it
+      EXPECT_LT(c.effective_mass_kg, 0.25 * strike.rod_density_kg_m3 * 0.25 * kPi *
+                                         strike.rod_diameter_m * strike.rod_diameter_m *
+                                         strike.rod_length_m);
+    }
+    EXPECT_GT(first.normal_speed_m_s, 0.01);
+    EXPECT_LT(first.normal_speed_m_s, 0.5);
+    // proprioception: finite, unit quaternions
+    ASSERT_EQ(r.proprio.rows(), strike.proprio_rows);
+    ASSERT_EQ(r.proprio.cols(), kProprioFeatures);
+    EXPECT_TRUE(r.proprio.allFinite());
+    for (int k = 0; k < r.proprio.rows(); ++k) {
+      EXPECT_NEAR(r.proprio.row(k).segment<4>(3).norm(), 1.0, 1e-5) << "row " << k;
+    }
+    EXPECT_EQ(r.joint_speed_rad_s.size(), 200u);
+  }
+  std::cout << "valid " << valid << " / " << kSeeds << "\n";
+  for (const auto& [reason, count] : reasons) std::cout << "  " << count << " x " << reason << "\n";
+  EXPECT_GE(valid, static_cast<int>(0.8 * kSeeds));
+}
+
+TEST(RolloutTest, TargetsMatchTheKinematicGenerator) {
+  // the same draws: a seed names the same intended contact in both generators
+  const StrikeModel kinematic(StrikeConfig{}, TubeConfig{}, AudioConfig{});
+  for (uint64_t i = 0; i < 5; ++i) {
+    const StrikeEvents ev = kinematic.Generate(SampleSeed(21, i));
+    const RolloutResult& r = DefaultResults()[i];
+    EXPECT_EQ(r.target_z_m, ev.label.z_m);
+    EXPECT_EQ(r.target_time_s, ev.label.time_s);
+    EXPECT_LT(AngleDistance(r.target_theta_rad, ev.label.theta_rad), 1e-3);
+  }
+}
+
+TEST(RolloutTest, TubeStaysPressedAgainstTheRod) {
+  // the goal lies beyond the rod: after the impact the tube stays on it
+  int pressed = 0, valid = 0;
+  std::map<std::string, int> kinds;
+  double min_duration_s = 1e9, max_duration_s = 0.0;
+  for (const RolloutResult& r : DefaultResults()) {
+    if (!r.valid) continue;
+    ++valid;
+    bool long_contact = false;
+    for (const ContactRecord& c : r.contacts) {
+      ++kinds[c.kind];
+      if (c.kind == "press" || (c.kind == "impact" && c.duration_s > 0.02)) long_contact = true;
+    }
+    const double first_s = r.contacts.front().duration_s;
+    min_duration_s = std::min(min_duration_s, first_s);
+    max_duration_s = std::max(max_duration_s, first_s);
+    pressed += long_contact ? 1 : 0;
+  }
+  std::cout << "pressed " << pressed << " / " << valid << "; first episode " << min_duration_s
+            << " .. " << max_duration_s << " s; kinds:";
+  for (const auto& [kind, count] : kinds) std::cout << " " << kind << " " << count;
+  std::cout << "\n";
+  EXPECT_EQ(pressed, valid);
+}
+
+void ExpectSameRecords(const RolloutResult& a, const RolloutResult& b) {
+  ASSERT_EQ(a.valid, b.valid);
+  EXPECT_EQ(a.invalid_reason, b.invalid_reason);
+  EXPECT_EQ(a.steps, b.steps);
+  ASSERT_EQ(a.contacts.size(), b.contacts.size());
+  for (size_t i = 0; i < a.contacts.size(); ++i) {
+    const ContactRecord &x = a.contacts[i], &y = b.contacts[i];
+    EXPECT_EQ(x.time_s, y.time_s);
+    EXPECT_EQ(x.duration_s, y.duration_s);
+    EXPECT_EQ(x.point_world_m, y.point_world_m);
+    EXPECT_EQ(x.point_tube_m, y.point_tube_m);
+    EXPECT_EQ(x.normal_tube, y.normal_tube);
+    EXPECT_EQ(x.normal_speed_m_s, y.normal_speed_m_s);
+    EXPECT_EQ(x.effective_mass_kg, y.effective_mass_kg);
+    EXPECT_EQ(x.impulse_ns, y.impulse_ns);
+    EXPECT_EQ(x.peak_force_n, y.peak_force_n);
+    EXPECT_EQ(x.kind, y.kind);
+  }
+  ASSERT_EQ(a.proprio.rows(), b.proprio.rows());
+  EXPECT_TRUE((a.proprio.array() == b.proprio.array()).all());
+  EXPECT_EQ(a.joint_speed_rad_s, b.joint_speed_rad_s);
+}
+
+TEST(RolloutTest, SameSeedSameRolloutOnAnyThread) {
+  const StrikeRollout& rollout = DefaultRollout();
+  ExpectSameRecords(rollout.Run(SampleSeed(21, 3)), DefaultResults()[3]);
+  // 8 seeds on one thread, then split over two threads
+  constexpr int kCount = 8;
+  std::vector<RolloutResult> serial(kCount), parallel(kCount);
+  for (int i = 0; i < kCount; ++i) serial[i] = rollout.Run(SampleSeed(77, i));
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 2; ++t) {
+    threads.emplace_back([&, t] {
+      for (int i = t; i < kCount; i += 2) parallel[i] = rollout.Run(SampleSeed(77, i));
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  for (int i = 0; i < kCount; ++i) ExpectSameRecords(serial[i], parallel[i]);
+  // and different seeds give different strikes
+  EXPECT_NE(serial[0].target_z_m, serial[1].target_z_m);
+}
+
+TEST(RolloutTest, TinyPenetrationLimitInvalidatesWithoutCrashing) {
+  RolloutConfig config;
+  config.penetration_limit_m = 1e-9;
+  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
+  const RolloutResult r = rollout.Run(SampleSeed(21, 0));
+  EXPECT_FALSE(r.valid);
+  EXPECT_NE(r.invalid_reason.find("rollout.penetration_limit_m"), std::string::npos)
+      << r.invalid_reason;
+  EXPECT_TRUE(r.proprio.allFinite());
+}
+
+TEST(RolloutTest, SoftContactSinksIntoTheRodAndIsInvalid) {
+  // a 0.2 s contact time constant lets the pressing arm sink far into the rod
+  RolloutConfig config;
+  config.contact_timeconst_s = 0.2;
+  config.timestep_s = 0.001;
+  config.settle_s = 0.3;
+  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
+  const RolloutResult r = rollout.Run(SampleSeed(21, 0));
+  EXPECT_FALSE(r.valid);
+  EXPECT_NE(r.invalid_reason.find("penetration"), std::string::npos) << r.invalid_reason;
+}
+
+TEST(RolloutTest, AbsurdStiffnessNeverCrashes) {
+  // torques saturate at the motor limits; whatever happens, Run returns
+  RolloutConfig config;
+  config.stiffness_nm_rad.assign(7, 1e9);
+  config.timestep_s = 0.005;
+  config.contact_timeconst_s = 0.01;
+  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
+  const RolloutResult r = rollout.Run(SampleSeed(21, 1));
+  if (!r.valid) std::cout << "absurd stiffness: " << r.invalid_reason << "\n";
+  EXPECT_TRUE(r.proprio.allFinite());
+}
+
+TEST(RolloutTest, ContactTimeConstantBelowTwoTimestepsIsAConfigError) {
+  RolloutConfig config;
+  config.timestep_s = 0.001;
+  config.contact_timeconst_s = 0.0015;
+  try {
+    StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("rollout.contact_timeconst_s"), std::string::npos) << message;
+    EXPECT_NE(message.find("0.002"), std::string::npos) << message;  // the limit, 2 x 0.001 s
+  }
+  // the derived timestep (timeconst / 4) always satisfies the rule
+  config.timestep_s = 0.0;
+  EXPECT_DOUBLE_EQ(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config).timestep_s(),
+                   0.0015 / 4);
+  config.stiffness_nm_rad.pop_back();
+  EXPECT_THROW(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config), ConfigError);
+}
+
+}  // namespace
+}  // namespace sonicboom::sim
