@@ -1,11 +1,14 @@
 #include "sonicboom/core/dataset.h"
 
 #include <nlohmann/json.hpp>
+#include <zlib.h>
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <ctime>
 #include <limits>
 #include <map>
@@ -156,6 +159,54 @@ int16_t ToPcm16(float x) {
   // Round half away from zero, as std::lround, without its cost per audio value.
   const double scaled = std::clamp(static_cast<double>(x), -1.0, 1.0) * kInt16FullScale;
   return static_cast<int16_t>(scaled >= 0.0 ? scaled + 0.5 : scaled - 0.5);
+}
+
+// HDF5's shuffle filter applied to `values` stored little endian: byte b of element i goes to
+// position b * n + i of the (n * sizeof(T)) output bytes.
+template <typename T>
+std::vector<unsigned char> ShuffleLittleEndian(const std::vector<T>& values) {
+  constexpr size_t kSize = sizeof(T);
+  static_assert(std::endian::native == std::endian::little ||
+                std::endian::native == std::endian::big);
+  const size_t n = values.size();
+  std::vector<unsigned char> shuffled(n * kSize);
+  for (size_t i = 0; i < n; ++i) {
+    unsigned char bytes[kSize];
+    std::memcpy(bytes, &values[i], kSize);
+    for (size_t b = 0; b < kSize; ++b) {
+      shuffled[b * n + i] = bytes[std::endian::native == std::endian::little ? b : kSize - 1 - b];
+    }
+  }
+  return shuffled;
+}
+
+// HDF5's deflate filter: one zlib stream made by compress2 at `level` into a compressBound buffer.
+std::vector<unsigned char> Deflate(const std::vector<unsigned char>& bytes, int level,
+                                   const std::string& where) {
+  uLongf size = compressBound(static_cast<uLong>(bytes.size()));
+  std::vector<unsigned char> compressed(size);
+  const int status = compress2(compressed.data(), &size, bytes.data(),
+                               static_cast<uLong>(bytes.size()), level);
+  if (status != Z_OK) {
+    throw IoError(where + ": cannot deflate the audio chunk (zlib status " +
+                  std::to_string(status) + ")");
+  }
+  compressed.resize(size);
+  return compressed;
+}
+
+// Grows the first dimension of a dataset with one row per chunk by one row and stores `size`
+// bytes at `bytes` as that row's chunk, already filtered (filters in `filter_mask` skipped).
+void AppendChunkRow(hid_t dataset, uint32_t filter_mask, const unsigned char* bytes, size_t size,
+                    const std::string& file, const char* object) {
+  h5::SilenceErrorPrinting();
+  std::vector<hsize_t> dims = h5::Dims(dataset, file, object);
+  std::vector<hsize_t> offset(dims.size(), 0);
+  offset[0] = dims[0];
+  dims[0] += 1;
+  h5::CheckStatus(H5Dset_extent(dataset, dims.data()), file, object, "extend dataset");
+  h5::CheckStatus(H5Dwrite_chunk(dataset, H5P_DEFAULT, filter_mask, offset.data(), size, bytes),
+                  file, object, "write raw chunk of");
 }
 
 // Reads one row of a column of fixed-size values.
@@ -386,10 +437,12 @@ struct DatasetWriter::Impl {
   std::chrono::steady_clock::time_point last_flush;
 
   // Throws SchemaError when the sample does not fit the file; `raw_audio`: audio comes as a
-  // stored chunk (merge), not in the sample.
+  // stored chunk, not in the sample. Reads only what the constructor set (thread-safe).
   void CheckSample(const StrikeSample& sample, bool raw_audio) const;
-  // Appends the sample's audio row.
-  void WriteAudio(const StrikeSample& sample);
+  // Throws SchemaError when the writer is finished or the index was written already.
+  void CheckNewIndex(uint64_t index) const;
+  // The stored chunk of the sample's audio row, (1, C, T) shuffled and deflated (thread-safe).
+  std::vector<unsigned char> EncodeAudio(const StrikeSample& sample) const;
   // Appends proprio, labels and index fields, counts the sample and flushes now and then.
   void WriteAllButAudio(const StrikeSample& sample);
 };
@@ -465,13 +518,39 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info)
 DatasetWriter::~DatasetWriter() = default;
 
 void DatasetWriter::Append(const StrikeSample& sample) {
+  impl_->CheckNewIndex(sample.index);
+  AppendEncoded(Encode(sample));
+}
+
+DatasetWriter::EncodedSample DatasetWriter::Encode(const StrikeSample& sample) const {
   impl_->CheckSample(sample, /*raw_audio=*/false);
-  impl_->WriteAudio(sample);
-  impl_->WriteAllButAudio(sample);
+  EncodedSample encoded;
+  encoded.audio_chunk = impl_->EncodeAudio(sample);
+  // Everything but the audio, which the chunk now carries.
+  encoded.meta.index = sample.index;
+  encoded.meta.seed = sample.seed;
+  encoded.meta.valid = sample.valid;
+  encoded.meta.invalid_reason = sample.invalid_reason;
+  encoded.meta.label = sample.label;
+  encoded.meta.proprio = sample.proprio;
+  encoded.meta.clipped = sample.clipped;
+  return encoded;
+}
+
+void DatasetWriter::AppendEncoded(const EncodedSample& sample) {
+  Impl& s = *impl_;
+  s.CheckSample(sample.meta, /*raw_audio=*/true);
+  s.CheckNewIndex(sample.meta.index);
+  if (sample.audio_chunk.empty()) {
+    throw SchemaError(s.partial + ": sample " + std::to_string(sample.meta.index) +
+                      ": empty encoded audio chunk");
+  }
+  AppendChunkRow(s.columns.audio.get(), sample.filter_mask, sample.audio_chunk.data(),
+                 sample.audio_chunk.size(), s.partial, kAudioPath);
+  s.WriteAllButAudio(sample.meta);
 }
 
 void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio) const {
-  SONICBOOM_DEMAND(!finished);
   const std::string where = partial + ": sample " + std::to_string(sample.index);
   const int64_t c = info.channels;
   const int64_t t = info.audio_frames;
@@ -494,16 +573,22 @@ void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio
   if (!raw_audio && sample.valid && !sample.audio.allFinite()) {
     throw SchemaError(where + ": valid sample has non-finite audio");
   }
-  if (indices.count(sample.index) > 0) {
-    throw SchemaError(where + ": sample index written twice");
+}
+
+void DatasetWriter::Impl::CheckNewIndex(uint64_t index) const {
+  SONICBOOM_DEMAND(!finished);
+  if (indices.count(index) > 0) {
+    throw SchemaError(partial + ": sample " + std::to_string(index) +
+                      ": sample index written twice");
   }
 }
 
-void DatasetWriter::Impl::WriteAudio(const StrikeSample& sample) {
+std::vector<unsigned char> DatasetWriter::Impl::EncodeAudio(const StrikeSample& sample) const {
   // One (C, T) row-major row as int16 PCM or float32; zeros when an invalid sample has none.
   const int64_t c = info.channels;
   const int64_t t = info.audio_frames;
   const bool audio_missing = sample.audio.size() == 0;
+  const std::string where = partial + ": sample " + std::to_string(sample.index);
   if (info.audio_int16) {
     std::vector<int16_t> pcm(static_cast<size_t>(c * t), 0);
     if (!audio_missing) {
@@ -511,8 +596,7 @@ void DatasetWriter::Impl::WriteAudio(const StrikeSample& sample) {
         for (int64_t j = 0; j < t; ++j) pcm[ch * t + j] = ToPcm16(sample.audio(ch, j));
       }
     }
-    h5::AppendRows(columns.audio.get(), H5T_NATIVE_INT16, pcm.data(), 1, partial, kAudioPath);
-    return;
+    return Deflate(ShuffleLittleEndian(pcm), kDeflateLevel, where);
   }
   std::vector<float> audio(static_cast<size_t>(c * t), 0.0f);
   if (!audio_missing) {
@@ -520,7 +604,7 @@ void DatasetWriter::Impl::WriteAudio(const StrikeSample& sample) {
       for (int64_t j = 0; j < t; ++j) audio[ch * t + j] = sample.audio(ch, j);
     }
   }
-  h5::AppendRows(columns.audio.get(), H5T_NATIVE_FLOAT, audio.data(), 1, partial, kAudioPath);
+  return Deflate(ShuffleLittleEndian(audio), kDeflateLevel, where);
 }
 
 void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
@@ -701,9 +785,11 @@ void MergeDatasets(const std::vector<std::string>& shard_paths, const std::strin
           h5::ReadRawChunk(shards[k].columns().audio.get(), {static_cast<hsize_t>(row), 0, 0},
                            shards[k].path(), kAudioPath);
       if (!chunk.bytes.empty()) {
-        out.CheckSample(sample, /*raw_audio=*/true);
-        h5::AppendRawChunkRow(out.columns.audio.get(), chunk, out.partial, kAudioPath);
-        out.WriteAllButAudio(sample);
+        DatasetWriter::EncodedSample encoded;
+        encoded.meta = std::move(sample);
+        encoded.audio_chunk.assign(chunk.bytes.begin(), chunk.bytes.end());
+        encoded.filter_mask = chunk.filter_mask;
+        writer.AppendEncoded(encoded);
         continue;
       }
     }

@@ -27,6 +27,7 @@ void SonicBoomConfig::Serialize(Archive* a) {
   a->Visit("mics", &mics);
   a->Visit("audio", &audio);
   a->Visit("strike", &strike);
+  a->Visit("rollout", &rollout);
   a->Visit("acoustics", &acoustics);
   a->Visit("daq", &daq);
   a->Visit("noise", &noise);
@@ -41,6 +42,7 @@ void SonicBoomConfig::Validate() const {
   tube.Validate();
   mics.Validate(tube);
   strike.Validate();
+  rollout.Validate();
   model.Validate();
   train.Validate();
   if (audio.onset_time_s >= audio.record_duration_s) {
@@ -71,6 +73,8 @@ SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
   SonicBoomConfig config;
   layers.ReadInto(&config);
   config.Validate();
+  // the resolved config states the integrator step that the contact time scale implies
+  if (config.strike.engine == "mujoco") config.rollout.timestep_s = config.rollout.ResolvedTimestep();
   return config;
 }
 

@@ -110,7 +110,7 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
   info.num_shards = num_shards;
   DatasetWriter writer(out_path, info);
 
-  // simulate in parallel, write in index order from one thread
+  // simulate and compress the audio in parallel, write in index order from one thread
   GenerateResult result;
   result.path = out_path;
   Progress progress("generate", static_cast<int64_t>(indices.size()), show_progress);
@@ -127,17 +127,19 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
                                            }
                                            return indices[next++];
                                          }) &
-            tbb::make_filter<uint64_t, std::shared_ptr<StrikeSample>>(
+            tbb::make_filter<uint64_t, std::shared_ptr<DatasetWriter::EncodedSample>>(
                 tbb::filter_mode::parallel,
                 [&](uint64_t index) {
-                  return std::make_shared<StrikeSample>(pipeline.Simulate(index));
+                  return std::make_shared<DatasetWriter::EncodedSample>(
+                      writer.Encode(pipeline.Simulate(index)));
                 }) &
-            tbb::make_filter<std::shared_ptr<StrikeSample>, void>(
-                tbb::filter_mode::serial_in_order, [&](std::shared_ptr<StrikeSample> sample) {
-                  writer.Append(*sample);
+            tbb::make_filter<std::shared_ptr<DatasetWriter::EncodedSample>, void>(
+                tbb::filter_mode::serial_in_order,
+                [&](std::shared_ptr<DatasetWriter::EncodedSample> sample) {
+                  writer.AppendEncoded(*sample);
                   ++result.written;
-                  result.valid += sample->valid ? 1 : 0;
-                  result.clipped += sample->clipped ? 1 : 0;
+                  result.valid += sample->meta.valid ? 1 : 0;
+                  result.clipped += sample->meta.clipped ? 1 : 0;
                   progress.Add();
                 }));
   });

@@ -28,6 +28,7 @@ double MinJerkRate(double s) {
 }  // namespace
 
 void StrikeConfig::Serialize(Archive* a) {
+  a->VisitChoice("engine", &engine, {"mujoco", "kinematic"});
   a->Visit("home_joints_rad", &home_joints_rad);
   a->Visit("sweep_min_deg", &sweep_min_deg, Bounds::Open(0.0, 90.0));
   a->Visit("sweep_max_deg", &sweep_max_deg, Bounds::Open(0.0, 90.0));

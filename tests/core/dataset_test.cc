@@ -4,13 +4,16 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "sonicboom/core/array_file.h"
@@ -274,6 +277,143 @@ TEST(DatasetTest, AppendRefusesWrongShapesAndRepeatedIndex) {
   no_audio.audio.resize(0, 0);
   EXPECT_THROW(writer.Append(no_audio), SchemaError);
   writer.Append(MakeSample(0, info));
+  EXPECT_THROW(writer.Append(MakeSample(0, info)), SchemaError);
+  EXPECT_EQ(writer.count(), 1);
+}
+
+// Encodes MakeSample(index) for every index; invalid indices carry no audio.
+std::vector<DatasetWriter::EncodedSample> EncodeAll(const DatasetWriter& writer,
+                                                    const DatasetInfo& info,
+                                                    const std::vector<uint64_t>& indices,
+                                                    const std::vector<uint64_t>& invalid = {}) {
+  std::vector<DatasetWriter::EncodedSample> encoded;
+  for (uint64_t index : indices) {
+    const bool valid = std::find(invalid.begin(), invalid.end(), index) == invalid.end();
+    encoded.push_back(writer.Encode(MakeSample(index, info, valid)));
+  }
+  return encoded;
+}
+
+TEST(DatasetTest, EncodedSamplesReadBackLikeAppendedOnes) {
+  for (const bool audio_int16 : {true, false}) {
+    SCOPED_TRACE(audio_int16 ? "int16" : "float32");
+    TempDir dir;
+    const DatasetInfo info = MakeInfo(audio_int16);
+    const std::vector<uint64_t> indices = {0, 1, 2, 3};
+    WriteDataset(dir.File("appended.h5"), info, indices, {2});
+    {
+      DatasetWriter writer(dir.File("encoded.h5"), info);
+      for (const DatasetWriter::EncodedSample& sample : EncodeAll(writer, info, indices, {2})) {
+        // The metadata travels without the audio, which the chunk now holds.
+        EXPECT_EQ(sample.meta.audio.size(), 0);
+        EXPECT_FALSE(sample.audio_chunk.empty());
+        EXPECT_EQ(sample.filter_mask, 0u);
+        writer.AppendEncoded(sample);
+      }
+      EXPECT_EQ(writer.count(), 4);
+      writer.Finish();
+    }
+    DatasetReader appended(dir.File("appended.h5"));
+    DatasetReader encoded(dir.File("encoded.h5"));
+    ASSERT_EQ(encoded.size(), 4);
+    for (int64_t i = 0; i < 4; ++i) {
+      SCOPED_TRACE("sample " + std::to_string(i));
+      const StrikeSample want = appended.Read(i);
+      const StrikeSample got = encoded.Read(i);
+      EXPECT_EQ(got.index, want.index);
+      EXPECT_EQ(got.seed, want.seed);
+      EXPECT_EQ(got.valid, want.valid);
+      EXPECT_EQ(got.invalid_reason, want.invalid_reason);
+      EXPECT_EQ(got.clipped, want.clipped);
+      ExpectLabelsEqual(got.label, want.label);
+      EXPECT_EQ(got.proprio, want.proprio);
+      EXPECT_EQ(got.audio, want.audio);
+    }
+    // And both hold what was written (up to int16 rounding).
+    const double tolerance = audio_int16 ? 0.5 / 32767.0 + 1e-7 : 0.0;
+    const Eigen::MatrixXf expected = MakeSample(3, info).audio;
+    EXPECT_LE((encoded.Read(3).audio - expected).cwiseAbs().maxCoeff(), tolerance);
+    EXPECT_EQ(encoded.Read(2).audio.cwiseAbs().maxCoeff(), 0.0f);
+  }
+}
+
+TEST(DatasetTest, EncodeFromManyThreadsGivesTheSerialBytes) {
+  for (const bool audio_int16 : {true, false}) {
+    SCOPED_TRACE(audio_int16 ? "int16" : "float32");
+    TempDir dir;
+    DatasetInfo info = MakeInfo(audio_int16);
+    info.channels = 3;
+    info.audio_frames = 4000;
+    DatasetWriter writer(dir.File("strikes.h5"), info);
+    std::vector<uint64_t> indices;
+    for (uint64_t i = 0; i < 24; ++i) indices.push_back(i);
+    const std::vector<DatasetWriter::EncodedSample> serial =
+        EncodeAll(writer, info, indices, {5, 17});
+
+    // Four threads each encode every sample, in different orders, while the writer appends.
+    constexpr int kThreads = 4;
+    std::vector<std::vector<DatasetWriter::EncodedSample>> parallel(
+        kThreads, std::vector<DatasetWriter::EncodedSample>(indices.size()));
+    std::vector<std::thread> threads;
+    // Steps coprime with 24 visit every sample once.
+    constexpr std::array<size_t, kThreads> kSteps = {1, 5, 7, 11};
+    for (int k = 0; k < kThreads; ++k) {
+      threads.emplace_back([&, k] {
+        for (size_t n = 0; n < indices.size(); ++n) {
+          const size_t i = (n * kSteps[k] + k) % indices.size();
+          const bool valid = i != 5 && i != 17;
+          parallel[k][i] = writer.Encode(MakeSample(indices[i], info, valid));
+        }
+      });
+    }
+    for (const DatasetWriter::EncodedSample& sample : serial) writer.AppendEncoded(sample);
+    for (std::thread& thread : threads) thread.join();
+
+    for (int k = 0; k < kThreads; ++k) {
+      for (size_t i = 0; i < indices.size(); ++i) {
+        SCOPED_TRACE("thread " + std::to_string(k) + " sample " + std::to_string(i));
+        EXPECT_EQ(parallel[k][i].audio_chunk, serial[i].audio_chunk);
+        EXPECT_EQ(parallel[k][i].filter_mask, serial[i].filter_mask);
+        EXPECT_EQ(parallel[k][i].meta.index, serial[i].meta.index);
+        EXPECT_EQ(parallel[k][i].meta.proprio, serial[i].meta.proprio);
+      }
+    }
+    // Different audio gives different chunks, and compressible audio a chunk below raw size.
+    EXPECT_NE(serial[0].audio_chunk, serial[1].audio_chunk);
+    const size_t raw_bytes = info.channels * info.audio_frames * (audio_int16 ? 2 : 4);
+    EXPECT_LT(serial[5].audio_chunk.size(), raw_bytes / 10);  // all zeros
+    writer.Finish();
+    EXPECT_EQ(DatasetReader(dir.File("strikes.h5")).size(), 24);
+  }
+}
+
+TEST(DatasetTest, EncodeAndAppendEncodedRefuseBadSamples) {
+  TempDir dir;
+  const DatasetInfo info = MakeInfo(true);
+  DatasetWriter writer(dir.File("strikes.h5"), info);
+  StrikeSample wrong_audio = MakeSample(0, info);
+  wrong_audio.audio.resize(3, 64);
+  EXPECT_THROW(writer.Encode(wrong_audio), SchemaError);
+  StrikeSample wrong_proprio = MakeSample(0, info);
+  wrong_proprio.proprio.resize(3, kProprioFeatures + 1);
+  EXPECT_THROW(writer.Encode(wrong_proprio), SchemaError);
+  StrikeSample not_finite = MakeSample(0, info);
+  not_finite.audio(1, 7) = std::nanf("");
+  EXPECT_THROW(writer.Encode(not_finite), SchemaError);
+  // Non-finite audio of an invalid sample is stored as zeros.
+  not_finite.valid = false;
+  EXPECT_NO_THROW(writer.Encode(not_finite));
+
+  DatasetWriter::EncodedSample empty_chunk = writer.Encode(MakeSample(0, info));
+  empty_chunk.audio_chunk.clear();
+  EXPECT_THROW(writer.AppendEncoded(empty_chunk), SchemaError);
+  DatasetWriter::EncodedSample bad_proprio = writer.Encode(MakeSample(0, info));
+  bad_proprio.meta.proprio.resize(1, kProprioFeatures);
+  EXPECT_THROW(writer.AppendEncoded(bad_proprio), SchemaError);
+  EXPECT_EQ(writer.count(), 0);
+  const DatasetWriter::EncodedSample sample = writer.Encode(MakeSample(0, info));
+  writer.AppendEncoded(sample);
+  EXPECT_THROW(writer.AppendEncoded(sample), SchemaError);
   EXPECT_THROW(writer.Append(MakeSample(0, info)), SchemaError);
   EXPECT_EQ(writer.count(), 1);
 }
@@ -551,6 +691,99 @@ std::string ReadText(const std::string& path) {
   std::stringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+// Checksum of every stored audio value of a dataset in (N, C, T) order: the sum of
+// value * (2 k + 1) modulo 2^64 over the k-th value, where an int16 value is taken as its
+// sign-extended 64-bit pattern and a float32 value as its 32-bit pattern.
+uint64_t StoredAudioChecksum(const DatasetReader& reader) {
+  uint64_t checksum = 0;
+  uint64_t k = 0;
+  for (int64_t i = 0; i < reader.size(); ++i) {
+    const Eigen::MatrixXf audio = reader.Read(i).audio;
+    for (int64_t c = 0; c < audio.rows(); ++c) {
+      for (int64_t t = 0; t < audio.cols(); ++t, ++k) {
+        uint64_t value = 0;
+        if (reader.info().audio_int16) {
+          // The reader returns stored * (1 / 32767); undo it exactly.
+          const int64_t pcm = std::lround(static_cast<double>(audio(c, t)) * 32767.0);
+          value = static_cast<uint64_t>(pcm);
+        } else {
+          uint32_t bits = 0;
+          const float x = audio(c, t);
+          std::memcpy(&bits, &x, sizeof(bits));
+          value = bits;
+        }
+        checksum += value * (2 * k + 1);
+      }
+    }
+  }
+  return checksum;
+}
+
+// Reads /audio of argv[1] with h5py, prints the checksum of StoredAudioChecksum, and stores the
+// same values through HDF5's own shuffle + deflate (level 1) filters in argv[2] to compare the
+// stored chunks byte for byte.
+constexpr const char* kCompareChunksPy = R"py(
+import sys
+import h5py
+import numpy as np
+
+with h5py.File(sys.argv[1], "r") as f:
+    audio = f["audio"]
+    data = audio[...]
+    if data.dtype == np.int16:
+        values = data.astype(np.int64).view(np.uint64).ravel()
+    else:
+        values = data.view(np.uint32).astype(np.uint64).ravel()
+    weights = np.arange(values.size, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
+    checksum = int((values * weights).sum(dtype=np.uint64))
+    with h5py.File(sys.argv[2], "w") as g:
+        ref = g.create_dataset("audio", data=data, chunks=(1,) + data.shape[1:],
+                               maxshape=(None,) + data.shape[1:], shuffle=True,
+                               compression="gzip", compression_opts=1)
+        equal = 0
+        for n in range(data.shape[0]):
+            mask_a, chunk_a = audio.id.read_direct_chunk((n, 0, 0))
+            mask_b, chunk_b = ref.id.read_direct_chunk((n, 0, 0))
+            equal += int(mask_a == mask_b and chunk_a == chunk_b)
+    print(f"dtype={data.dtype} rows={data.shape[0]} shuffle={audio.shuffle} "
+          f"compression={audio.compression} level={audio.compression_opts} "
+          f"equal_chunks={equal} checksum={checksum}")
+)py";
+
+TEST(H5pyTest, EncodedChunksMatchHdf5FilterPipeline) {
+  for (const bool audio_int16 : {true, false}) {
+    SCOPED_TRACE(audio_int16 ? "int16" : "float32");
+    TempDir dir;
+    // The shape `sonicboom generate` writes: 6 channels of 2 s at 44.1 kHz.
+    DatasetInfo info = MakeInfo(audio_int16);
+    info.channels = 6;
+    info.audio_frames = 88200;
+    const std::string path = dir.File("strikes.h5");
+    {
+      DatasetWriter writer(path, info);
+      for (const DatasetWriter::EncodedSample& sample : EncodeAll(writer, info, {0, 1, 2}, {1})) {
+        writer.AppendEncoded(sample);
+      }
+      writer.Finish();
+    }
+    const std::string script = dir.File("compare_chunks.py");
+    std::ofstream(script) << kCompareChunksPy;
+    int status = -1;
+    const std::string output =
+        RunCommand("/usr/bin/python3 " + script + " " + path + " " + dir.File("ref.h5"), &status);
+    ASSERT_EQ(status, 0) << output;
+    const std::string dtype = audio_int16 ? "int16" : "float32";
+    EXPECT_NE(output.find("dtype=" + dtype + " rows=3 shuffle=True compression=gzip level=1 "
+                          "equal_chunks=3 "),
+              std::string::npos)
+        << output;
+    // h5py decodes the same values as the C++ reader.
+    const uint64_t checksum = StoredAudioChecksum(DatasetReader(path));
+    EXPECT_NE(output.find("checksum=" + std::to_string(checksum) + "\n"), std::string::npos)
+        << output << "C++ checksum " << checksum;
+  }
 }
 
 TEST(H5pyTest, DocumentedExampleReadsDataset) {

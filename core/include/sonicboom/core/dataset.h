@@ -44,10 +44,21 @@ struct DatasetInfo {
   bool complete{false};              // reader: the `complete` attribute
 };
 
-/// Appends samples in order; single-threaded. Finish() sets `complete` and renames the file.
-/// Destroyed without Finish(), it leaves only "<path>.partial", plainly incomplete.
+/// Appends samples in order. Append, AppendEncoded and Finish run on one thread at a time;
+/// Encode may run on any number of threads concurrently (with each other and with the appends),
+/// so that the costly audio compression leaves the writing thread. Finish() sets `complete` and
+/// renames the file. Destroyed without Finish(), it leaves only "<path>.partial", plainly
+/// incomplete.
 class DatasetWriter {
  public:
+  /// A sample with its audio chunk already encoded exactly as the file's filter pipeline would
+  /// (shuffle, then deflate), made by Encode() on any thread.
+  struct EncodedSample {
+    StrikeSample meta;                       // labels, index fields, proprio; audio left empty
+    std::vector<unsigned char> audio_chunk;  // stored bytes of the (1, C, T) audio chunk
+    uint32_t filter_mask{0};                 // filters skipped, as HDF5 records it (0: none)
+  };
+
   /// Creates "<path>.partial" (overwriting a stale one). Throws IoError.
   DatasetWriter(const std::string& path, const DatasetInfo& info);
   ~DatasetWriter();
@@ -57,6 +68,13 @@ class DatasetWriter {
   /// Appends one sample; its audio must be (channels x audio_frames) and its proprio
   /// (proprio_rows x 10). Throws IoError / SchemaError.
   void Append(const StrikeSample& sample);
+  /// Checks the sample like Append (shapes, finite audio of a valid sample) and encodes its audio
+  /// chunk: (C, T) as int16 PCM or float32 little endian, shuffled, deflated. Thread-safe; the
+  /// sample index is checked for repeats only by AppendEncoded. Throws SchemaError / IoError.
+  EncodedSample Encode(const StrikeSample& sample) const;
+  /// Appends a sample encoded by Encode() of this writer (or of one with the same channels,
+  /// audio_frames and audio dtype): stores its chunk as is. Throws IoError / SchemaError.
+  void AppendEncoded(const EncodedSample& sample);
   /// Writes num_samples and `complete`, closes, renames to the final path.
   void Finish();
   int64_t count() const;

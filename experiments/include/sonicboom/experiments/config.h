@@ -11,6 +11,7 @@
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/tube.h"
 #include "sonicboom/learning/learning.h"
+#include "sonicboom/sim/rollout.h"
 #include "sonicboom/sim/strike.h"
 
 namespace sonicboom::experiments {
@@ -39,6 +40,7 @@ struct SonicBoomConfig {
   MicArrayConfig mics;
   AudioConfig audio;
   sim::StrikeConfig strike;
+  sim::RolloutConfig rollout;              // used when strike.engine = mujoco
   acoustics::SynthConfig acoustics;
   acoustics::DaqConfig daq;
   acoustics::NoiseConfig noise;

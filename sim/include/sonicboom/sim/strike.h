@@ -19,6 +19,7 @@ namespace sonicboom::sim {
 
 /// The strike motion and the struck object.
 struct StrikeConfig {
+  std::string engine{"mujoco"};            // mujoco: dynamic rollout (rollout.h); kinematic: DH only
   std::vector<double> home_joints_rad{1.2614, -0.8973, -0.0474, -2.3464, -0.0790, 1.4341, -1.7109};
   double sweep_min_deg{12.0};              // joint-1 goal beyond the rod, uniform in [min, max]
   double sweep_max_deg{16.0};
