@@ -693,25 +693,28 @@ std::string ReadText(const std::string& path) {
   return text.str();
 }
 
-// Checksum of every stored audio value of a dataset in (N, C, T) order: the sum of
-// value * (2 k + 1) modulo 2^64 over the k-th value, where an int16 value is taken as its
-// sign-extended 64-bit pattern and a float32 value as its 32-bit pattern.
-uint64_t StoredAudioChecksum(const DatasetReader& reader) {
+// Checksum of stored audio values in (N, C, T) order: the sum of value * (2 k + 1) modulo 2^64
+// over the k-th value, where an int16 value counts as its sign-extended 64-bit pattern and a
+// float32 value as its 32-bit pattern. `audio` holds (C x T) full-scale records; `int16_scaled`:
+// the values were read back from int16 storage (stored / 32767), else they are written values
+// that int16 storage clamps and rounds.
+uint64_t StoredAudioChecksum(const std::vector<Eigen::MatrixXf>& audio, bool audio_int16,
+                             bool int16_scaled) {
   uint64_t checksum = 0;
   uint64_t k = 0;
-  for (int64_t i = 0; i < reader.size(); ++i) {
-    const Eigen::MatrixXf audio = reader.Read(i).audio;
-    for (int64_t c = 0; c < audio.rows(); ++c) {
-      for (int64_t t = 0; t < audio.cols(); ++t, ++k) {
+  for (const Eigen::MatrixXf& record : audio) {
+    for (int64_t c = 0; c < record.rows(); ++c) {
+      for (int64_t t = 0; t < record.cols(); ++t, ++k) {
+        const double x = record(c, t);
         uint64_t value = 0;
-        if (reader.info().audio_int16) {
-          // The reader returns stored * (1 / 32767); undo it exactly.
-          const int64_t pcm = std::lround(static_cast<double>(audio(c, t)) * 32767.0);
+        if (audio_int16) {
+          const int64_t pcm = int16_scaled ? std::lround(x * 32767.0)
+                                           : std::lround(std::clamp(x, -1.0, 1.0) * 32767.0);
           value = static_cast<uint64_t>(pcm);
         } else {
           uint32_t bits = 0;
-          const float x = audio(c, t);
-          std::memcpy(&bits, &x, sizeof(bits));
+          const float f = record(c, t);
+          std::memcpy(&bits, &f, sizeof(bits));
           value = bits;
         }
         checksum += value * (2 * k + 1);
@@ -721,9 +724,10 @@ uint64_t StoredAudioChecksum(const DatasetReader& reader) {
   return checksum;
 }
 
-// Reads /audio of argv[1] with h5py, prints the checksum of StoredAudioChecksum, and stores the
-// same values through HDF5's own shuffle + deflate (level 1) filters in argv[2] to compare the
-// stored chunks byte for byte.
+// Reads /audio of argv[1] with h5py and prints the checksum of StoredAudioChecksum; stores the
+// expected values (argv[3]: raw little-endian values of the file's dtype, shape as /audio)
+// through HDF5's own shuffle + deflate (level 1) filters in argv[2] and compares the stored
+// chunks of both files byte for byte.
 constexpr const char* kCompareChunksPy = R"py(
 import sys
 import h5py
@@ -732,6 +736,7 @@ import numpy as np
 with h5py.File(sys.argv[1], "r") as f:
     audio = f["audio"]
     data = audio[...]
+    expected = np.fromfile(sys.argv[3], dtype=data.dtype.newbyteorder("<")).reshape(data.shape)
     if data.dtype == np.int16:
         values = data.astype(np.int64).view(np.uint64).ravel()
     else:
@@ -739,7 +744,7 @@ with h5py.File(sys.argv[1], "r") as f:
     weights = np.arange(values.size, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
     checksum = int((values * weights).sum(dtype=np.uint64))
     with h5py.File(sys.argv[2], "w") as g:
-        ref = g.create_dataset("audio", data=data, chunks=(1,) + data.shape[1:],
+        ref = g.create_dataset("audio", data=expected, chunks=(1,) + data.shape[1:],
                                maxshape=(None,) + data.shape[1:], shuffle=True,
                                compression="gzip", compression_opts=1)
         equal = 0
@@ -749,7 +754,8 @@ with h5py.File(sys.argv[1], "r") as f:
             equal += int(mask_a == mask_b and chunk_a == chunk_b)
     print(f"dtype={data.dtype} rows={data.shape[0]} shuffle={audio.shuffle} "
           f"compression={audio.compression} level={audio.compression_opts} "
-          f"equal_chunks={equal} checksum={checksum}")
+          f"equal_values={np.array_equal(data, expected)} equal_chunks={equal} "
+          f"checksum={checksum}")
 )py";
 
 TEST(H5pyTest, EncodedChunksMatchHdf5FilterPipeline) {
@@ -768,21 +774,53 @@ TEST(H5pyTest, EncodedChunksMatchHdf5FilterPipeline) {
       }
       writer.Finish();
     }
+    // What was written (sample 1 is invalid: zeros), and what the C++ reader reads back.
+    std::vector<Eigen::MatrixXf> written, read;
+    DatasetReader reader(path);
+    for (uint64_t i = 0; i < 3; ++i) {
+      written.push_back(i == 1 ? Eigen::MatrixXf::Zero(info.channels, info.audio_frames)
+                               : MakeSample(i, info).audio);
+      read.push_back(reader.Read(static_cast<int64_t>(i)).audio);
+    }
+    const uint64_t written_checksum = StoredAudioChecksum(written, audio_int16, false);
+    const uint64_t read_checksum = StoredAudioChecksum(read, audio_int16, true);
+    EXPECT_EQ(read_checksum, written_checksum);
+    // The written values as the file should store them, raw little endian (x86), for h5py.
+    const std::string expected_path = dir.File("expected.raw");
+    {
+      std::ofstream raw(expected_path, std::ios::binary);
+      for (const Eigen::MatrixXf& record : written) {
+        for (int64_t c = 0; c < record.rows(); ++c) {
+          for (int64_t t = 0; t < record.cols(); ++t) {
+            if (audio_int16) {
+              const auto pcm = static_cast<int16_t>(
+                  std::lround(std::clamp(static_cast<double>(record(c, t)), -1.0, 1.0) * 32767.0));
+              raw.write(reinterpret_cast<const char*>(&pcm), sizeof(pcm));
+            } else {
+              const float x = record(c, t);
+              raw.write(reinterpret_cast<const char*>(&x), sizeof(x));
+            }
+          }
+        }
+      }
+    }
     const std::string script = dir.File("compare_chunks.py");
     std::ofstream(script) << kCompareChunksPy;
     int status = -1;
     const std::string output =
-        RunCommand("/usr/bin/python3 " + script + " " + path + " " + dir.File("ref.h5"), &status);
+        RunCommand("/usr/bin/python3 " + script + " " + path + " " + dir.File("ref.h5") + " " +
+                       expected_path,
+                   &status);
     ASSERT_EQ(status, 0) << output;
     const std::string dtype = audio_int16 ? "int16" : "float32";
     EXPECT_NE(output.find("dtype=" + dtype + " rows=3 shuffle=True compression=gzip level=1 "
-                          "equal_chunks=3 "),
+                          "equal_values=True equal_chunks=3 "),
               std::string::npos)
         << output;
-    // h5py decodes the same values as the C++ reader.
-    const uint64_t checksum = StoredAudioChecksum(DatasetReader(path));
-    EXPECT_NE(output.find("checksum=" + std::to_string(checksum) + "\n"), std::string::npos)
-        << output << "C++ checksum " << checksum;
+    // h5py, through HDF5's filters, decodes the values that were written.
+    EXPECT_NE(output.find("checksum=" + std::to_string(written_checksum) + "\n"),
+              std::string::npos)
+        << output << "written checksum " << written_checksum;
   }
 }
 
