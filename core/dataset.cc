@@ -195,20 +195,6 @@ std::vector<unsigned char> Deflate(const std::vector<unsigned char>& bytes, int 
   return compressed;
 }
 
-// Grows the first dimension of a dataset with one row per chunk by one row and stores `size`
-// bytes at `bytes` as that row's chunk, already filtered (filters in `filter_mask` skipped).
-void AppendChunkRow(hid_t dataset, uint32_t filter_mask, const unsigned char* bytes, size_t size,
-                    const std::string& file, const char* object) {
-  h5::SilenceErrorPrinting();
-  std::vector<hsize_t> dims = h5::Dims(dataset, file, object);
-  std::vector<hsize_t> offset(dims.size(), 0);
-  offset[0] = dims[0];
-  dims[0] += 1;
-  h5::CheckStatus(H5Dset_extent(dataset, dims.data()), file, object, "extend dataset");
-  h5::CheckStatus(H5Dwrite_chunk(dataset, H5P_DEFAULT, filter_mask, offset.data(), size, bytes),
-                  file, object, "write raw chunk of");
-}
-
 // Reads one row of a column of fixed-size values.
 template <typename T>
 T ReadOne(hid_t dataset, hid_t mem_type, int64_t i, const std::string& file, const char* path) {
@@ -545,8 +531,8 @@ void DatasetWriter::AppendEncoded(const EncodedSample& sample) {
     throw SchemaError(s.partial + ": sample " + std::to_string(sample.meta.index) +
                       ": empty encoded audio chunk");
   }
-  AppendChunkRow(s.columns.audio.get(), sample.filter_mask, sample.audio_chunk.data(),
-                 sample.audio_chunk.size(), s.partial, kAudioPath);
+  h5::AppendRawChunkRow(s.columns.audio.get(), sample.filter_mask, sample.audio_chunk.data(),
+                        sample.audio_chunk.size(), s.partial, kAudioPath);
   s.WriteAllButAudio(sample.meta);
 }
 

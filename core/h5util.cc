@@ -576,16 +576,16 @@ RawChunk ReadRawChunk(hid_t dataset, const std::vector<hsize_t>& offset, std::st
   return chunk;
 }
 
-void AppendRawChunkRow(hid_t dataset, const RawChunk& chunk, std::string_view file,
-                       std::string_view object) {
+void AppendRawChunkRow(hid_t dataset, uint32_t filter_mask, const void* bytes, size_t size,
+                       std::string_view file, std::string_view object) {
+  SilenceErrorPrinting();
   std::vector<hsize_t> dims = Dims(dataset, file, object);
   std::vector<hsize_t> offset(dims.size(), 0);
   offset[0] = dims[0];
   dims[0] += 1;
   CheckStatus(H5Dset_extent(dataset, dims.data()), file, object, "extend dataset");
-  CheckStatus(H5Dwrite_chunk(dataset, H5P_DEFAULT, chunk.filter_mask, offset.data(),
-                             chunk.bytes.size(), chunk.bytes.data()),
-              file, object, "write raw chunk of");
+  CheckStatus(H5Dwrite_chunk(dataset, H5P_DEFAULT, filter_mask, offset.data(), size, bytes), file,
+              object, "write raw chunk of");
 }
 
 void WriteFixed(hid_t loc, const std::string& path, hid_t file_type, hid_t mem_type,

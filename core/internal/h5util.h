@@ -149,10 +149,11 @@ bool SameChunkStorage(hid_t a, hid_t b, std::string_view file, std::string_view 
 /// Reads the stored bytes of the chunk starting at `offset` (one entry per dimension).
 RawChunk ReadRawChunk(hid_t dataset, const std::vector<hsize_t>& offset, std::string_view file,
                       std::string_view object);
-/// Grows the first dimension by one row and stores `chunk` as that row's chunk; the dataset must
-/// have one row per chunk and each chunk must span the full row.
-void AppendRawChunkRow(hid_t dataset, const RawChunk& chunk, std::string_view file,
-                       std::string_view object);
+/// Grows the first dimension by one row and stores `size` already-filtered bytes as that row's
+/// chunk (filters in `filter_mask` skipped); the dataset must have one row per chunk and each
+/// chunk must span the full row.
+void AppendRawChunkRow(hid_t dataset, uint32_t filter_mask, const void* bytes, size_t size,
+                       std::string_view file, std::string_view object);
 
 /// Writes a whole fixed-size dataset at `path` below `loc` (intermediate groups created).
 /// An empty `dims` writes a scalar.

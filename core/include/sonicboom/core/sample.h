@@ -32,6 +32,24 @@ struct ContactEvent {
   double striker_poisson_ratio{0.0};
 };
 
+/// One tube contact episode of a strike, from touch to release (tube frame).
+struct ContactEpisode {
+  enum class Kind : uint8_t { kImpact = 0, kBounce = 1, kPress = 2 };
+  double time_s{0.0};                       // touch, from the start of the record
+  double duration_s{0.0};
+  double z_m{0.0};
+  double theta_rad{0.0};
+  Eigen::Vector3d point_m{Eigen::Vector3d::Zero()};   // (3) raw contact point, tube frame
+  Eigen::Vector3d normal{Eigen::Vector3d::Zero()};    // (3) outward tube normal, tube frame
+  double normal_speed_m_s{0.0};             // approach speed at touch
+  double effective_mass_kg{0.0};
+  double impulse_Ns{0.0};
+  double peak_force_N{0.0};
+  Kind kind{Kind::kImpact};
+  std::string object;                       // what the tube touched, e.g. "rod T22L42"
+  std::string material;                     // its material, e.g. "wood"
+};
+
 /// Number of proprioception features per row: position (3), quaternion w,x,y,z (4), velocity (3).
 inline constexpr int kProprioFeatures = 10;
 
@@ -45,6 +63,7 @@ struct StrikeSample {
   Eigen::MatrixXf audio;                    // (channels x T) in [-1, 1] full scale
   Eigen::MatrixXf proprio;                  // (K x kProprioFeatures) at the proprio rate
   bool clipped{false};                      // any audio sample hit full scale
+  std::vector<ContactEpisode> contacts;     // every tube contact, in time order (may be empty)
 };
 
 }  // namespace sonicboom
