@@ -195,6 +195,7 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
   }
   out.impulse_ns = impact.impulse_ns;
   out.duration_s = impact.duration_s;
+  out.peak_force_n = impact.peak_force_n;
   const int64_t k_first = static_cast<int64_t>(std::floor(contact.time_s * fs));
   const int64_t k_last = static_cast<int64_t>(std::ceil((contact.time_s + impact.duration_s) * fs));
   std::vector<double> force(std::max<int64_t>(k_last - k_first + 1, 1));  // N, per sample

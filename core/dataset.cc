@@ -12,6 +12,7 @@
 #include <ctime>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <string>
 #include <tuple>
 #include <unordered_set>
@@ -44,6 +45,23 @@ constexpr const char* kSeedPath = "index/seed";
 constexpr const char* kValidPath = "index/valid";
 constexpr const char* kInvalidReasonPath = "index/invalid_reason";
 constexpr const char* kClippedPath = "index/clipped";
+constexpr const char* kContactFirstPath = "index/contact_first";
+constexpr const char* kContactCountPath = "index/contact_count";
+constexpr const char* kContactSampleRowPath = "contacts/sample_row";
+constexpr const char* kContactKindPath = "contacts/kind";
+constexpr const char* kContactObjectPath = "contacts/object";
+constexpr const char* kContactMaterialPath = "contacts/material";
+
+// Names of the contact kind codes 0, 1, 2, as the `names` attribute of /contacts/kind lists them.
+constexpr std::array<const char*, 3> kContactKindNames = {"impact", "bounce", "press"};
+constexpr const char* kContactKindNamesAttr = "impact,bounce,press";
+
+// Coverage of first contacts in the summary: 5 bins of z over [-h, h] and 6 of theta. h in units
+// of 0.1 mm, so that the z edges are exact decimals (the nearest doubles to them).
+constexpr int kCoverageHalfLengthTenthMm = 1015;
+constexpr int kCoverageZBins = 5;
+constexpr int kCoverageThetaBins = 6;
+static_assert(kCoverageHalfLengthTenthMm % kCoverageZBins == 0);
 
 // Scalar float64 label columns, shape (N).
 struct ScalarLabelField {
@@ -69,6 +87,71 @@ constexpr std::array<VectorLabelField, 2> kVectorLabels{{
     {"label/normal", &ContactLabel::normal},
 }};
 
+// Scalar float64 contact columns, shape (M).
+struct ScalarContactField {
+  const char* path;
+  double ContactEpisode::*member;
+};
+constexpr std::array<ScalarContactField, 8> kScalarContacts{{
+    {"contacts/time_s", &ContactEpisode::time_s},
+    {"contacts/duration_s", &ContactEpisode::duration_s},
+    {"contacts/z_m", &ContactEpisode::z_m},
+    {"contacts/theta_rad", &ContactEpisode::theta_rad},
+    {"contacts/normal_speed_m_s", &ContactEpisode::normal_speed_m_s},
+    {"contacts/effective_mass_kg", &ContactEpisode::effective_mass_kg},
+    {"contacts/impulse_Ns", &ContactEpisode::impulse_Ns},
+    {"contacts/peak_force_N", &ContactEpisode::peak_force_N},
+}};
+
+// 3-vector float64 contact columns in the tube frame, shape (M, 3).
+struct VectorContactField {
+  const char* path;
+  Eigen::Vector3d ContactEpisode::*member;
+};
+constexpr std::array<VectorContactField, 2> kVectorContacts{{
+    {"contacts/point_m", &ContactEpisode::point_m},
+    {"contacts/normal", &ContactEpisode::normal},
+}};
+
+// Open handles of the contact table (M rows, schema 1.1).
+struct ContactColumns {
+  h5::Handle sample_row;
+  std::array<h5::Handle, kScalarContacts.size()> scalars;
+  std::array<h5::Handle, kVectorContacts.size()> vectors;
+  h5::Handle kind;
+  h5::Handle object;
+  h5::Handle material;
+
+  // (handle, path) of every contact column.
+  std::vector<std::pair<hid_t, std::string>> All() const {
+    std::vector<std::pair<hid_t, std::string>> all = {{sample_row.get(), kContactSampleRowPath},
+                                                      {kind.get(), kContactKindPath},
+                                                      {object.get(), kContactObjectPath},
+                                                      {material.get(), kContactMaterialPath}};
+    for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+      all.emplace_back(scalars[f].get(), kScalarContacts[f].path);
+    }
+    for (size_t f = 0; f < kVectorContacts.size(); ++f) {
+      all.emplace_back(vectors[f].get(), kVectorContacts[f].path);
+    }
+    return all;
+  }
+
+  // Closes every column (a no-op for columns never opened), reporting failures as IoError.
+  void CloseAll(const std::string& file) {
+    sample_row.Close(file, kContactSampleRowPath);
+    for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+      scalars[f].Close(file, kScalarContacts[f].path);
+    }
+    for (size_t f = 0; f < kVectorContacts.size(); ++f) {
+      vectors[f].Close(file, kVectorContacts[f].path);
+    }
+    kind.Close(file, kContactKindPath);
+    object.Close(file, kContactObjectPath);
+    material.Close(file, kContactMaterialPath);
+  }
+};
+
 // Open handles of every dataset of a dataset file.
 struct Columns {
   h5::Handle audio;
@@ -80,8 +163,12 @@ struct Columns {
   h5::Handle valid;
   h5::Handle invalid_reason;
   h5::Handle clipped;
+  // Schema 1.1 only (left empty for a 1.0 file): per-sample offsets (N) and the table (M).
+  h5::Handle contact_first;
+  h5::Handle contact_count;
+  ContactColumns contacts;
 
-  // (handle, path) of every column, for checks that apply to all of them.
+  // (handle, path) of every per-sample column (N rows), for checks that apply to all of them.
   std::vector<std::pair<hid_t, std::string>> All() const {
     std::vector<std::pair<hid_t, std::string>> all = {
         {audio.get(), kAudioPath},
@@ -97,6 +184,8 @@ struct Columns {
     for (size_t f = 0; f < kVectorLabels.size(); ++f) {
       all.emplace_back(vector_labels[f].get(), kVectorLabels[f].path);
     }
+    if (contact_first.valid()) all.emplace_back(contact_first.get(), kContactFirstPath);
+    if (contact_count.valid()) all.emplace_back(contact_count.get(), kContactCountPath);
     return all;
   }
 
@@ -115,6 +204,9 @@ struct Columns {
     valid.Close(file, kValidPath);
     invalid_reason.Close(file, kInvalidReasonPath);
     clipped.Close(file, kClippedPath);
+    contact_first.Close(file, kContactFirstPath);
+    contact_count.Close(file, kContactCountPath);
+    contacts.CloseAll(file);
   }
 };
 
@@ -235,10 +327,12 @@ class DatasetFile {
     const std::string version = h5::HasAttr(root, "schema_version", path)
                                     ? h5::ReadStringAttr(root, "schema_version", path)
                                     : std::string("(missing)");
-    if (version != kDatasetSchemaVersion) {
+    if (version != kDatasetSchemaVersion && version != kDatasetSchemaVersionWithoutContacts) {
       throw SchemaError(path + ": dataset schema_version " + version + ", this build reads " +
-                        kDatasetSchemaVersion);
+                        kDatasetSchemaVersion + " and " + kDatasetSchemaVersionWithoutContacts);
     }
+    info_.schema_version = version;
+    has_contacts_ = version == kDatasetSchemaVersion;
     info_.complete = h5::IsComplete(root, path);
     if (!info_.complete && !allow_incomplete) {
       throw SchemaError(path +
@@ -270,6 +364,7 @@ class DatasetFile {
     columns_.valid = h5::OpenDataset(root, kValidPath, path);
     columns_.invalid_reason = h5::OpenDataset(root, kInvalidReasonPath, path);
     columns_.clipped = h5::OpenDataset(root, kClippedPath, path);
+    if (has_contacts_) OpenContactColumns();
 
     // Shapes: audio (N, C, T) int16 or float32 with `scale`, proprio (N, K, 10).
     const std::vector<hsize_t> audio_dims = h5::Dims(columns_.audio.get(), path, kAudioPath);
@@ -312,6 +407,7 @@ class DatasetFile {
                           std::to_string(most_rows) + " rows");
       }
     }
+    if (has_contacts_) CheckContactTable();
   }
 
   const std::string& path() const { return path_; }
@@ -349,6 +445,94 @@ class DatasetFile {
     sample->proprio =
         Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
             proprio.data(), k, kProprioFeatures);
+    sample->contacts = ReadContacts(i);
+  }
+
+  // Contact episodes of sample i: rows [first, first + count) of the contact table; none in a
+  // 1.0 file. Throws SchemaError when the offsets or rows do not belong to sample i.
+  std::vector<ContactEpisode> ReadContacts(int64_t i) const {
+    std::vector<ContactEpisode> contacts;
+    if (!has_contacts_) return contacts;
+    const auto [first, count] = ContactRange(i);
+    if (count == 0) return contacts;
+    const hsize_t row0 = static_cast<hsize_t>(first);
+    const hsize_t rows = static_cast<hsize_t>(count);
+    const ContactColumns& table = columns_.contacts;
+    contacts.resize(rows);
+
+    // Every row must name sample i.
+    std::vector<int64_t> sample_rows(rows);
+    h5::ReadRows(table.sample_row.get(), H5T_NATIVE_INT64, sample_rows.data(), row0, rows, path_,
+                 kContactSampleRowPath);
+    for (hsize_t r = 0; r < rows; ++r) {
+      if (sample_rows[r] != i) {
+        throw SchemaError(path_ + ": contact row " + std::to_string(row0 + r) + " of sample " +
+                          std::to_string(i) + " belongs to sample row " +
+                          std::to_string(sample_rows[r]));
+      }
+    }
+    // Numbers: (M) and (M, 3) float64.
+    std::vector<double> values(3 * rows);
+    for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+      h5::ReadRows(table.scalars[f].get(), H5T_NATIVE_DOUBLE, values.data(), row0, rows, path_,
+                   kScalarContacts[f].path);
+      for (hsize_t r = 0; r < rows; ++r) contacts[r].*kScalarContacts[f].member = values[r];
+    }
+    for (size_t f = 0; f < kVectorContacts.size(); ++f) {
+      h5::ReadRows(table.vectors[f].get(), H5T_NATIVE_DOUBLE, values.data(), row0, rows, path_,
+                   kVectorContacts[f].path);
+      for (hsize_t r = 0; r < rows; ++r) {
+        contacts[r].*kVectorContacts[f].member =
+            Eigen::Vector3d(values[3 * r], values[3 * r + 1], values[3 * r + 2]);
+      }
+    }
+    // Kind codes (M) u8 and the strings.
+    std::vector<uint8_t> kinds(rows);
+    h5::ReadRows(table.kind.get(), H5T_NATIVE_UINT8, kinds.data(), row0, rows, path_,
+                 kContactKindPath);
+    const std::vector<std::string> objects =
+        h5::ReadStringRows(table.object.get(), row0, rows, path_, kContactObjectPath);
+    const std::vector<std::string> materials =
+        h5::ReadStringRows(table.material.get(), row0, rows, path_, kContactMaterialPath);
+    for (hsize_t r = 0; r < rows; ++r) {
+      contacts[r].kind = KindFromCode(kinds[r], row0 + r);
+      contacts[r].object = objects[r];
+      contacts[r].material = materials[r];
+    }
+    return contacts;
+  }
+
+  // (first, count) of sample i's contact rows, checked against the table. (0, 0) in a 1.0 file.
+  std::pair<int64_t, int64_t> ContactRange(int64_t i) const {
+    CheckRange(i);
+    if (!has_contacts_) return {0, 0};
+    const int64_t first =
+        ReadOne<int64_t>(columns_.contact_first.get(), H5T_NATIVE_INT64, i, path_,
+                         kContactFirstPath);
+    const int64_t count =
+        ReadOne<int64_t>(columns_.contact_count.get(), H5T_NATIVE_INT64, i, path_,
+                         kContactCountPath);
+    CheckContactRange(i, first, count);
+    return {first, count};
+  }
+
+  // Throws SchemaError unless [first, first + count) lies within the contact table.
+  void CheckContactRange(int64_t i, int64_t first, int64_t count) const {
+    if (first < 0 || count < 0 || first > contact_rows_ || count > contact_rows_ - first) {
+      throw SchemaError(path_ + ": sample row " + std::to_string(i) + " has contacts [" +
+                        std::to_string(first) + ", " + std::to_string(first + count) +
+                        ") outside the contact table of " + std::to_string(contact_rows_) +
+                        " rows");
+    }
+  }
+
+  // The episode kind of a stored code; SchemaError for an unknown code.
+  ContactEpisode::Kind KindFromCode(uint8_t code, hsize_t row) const {
+    if (code >= kContactKindNames.size()) {
+      throw SchemaError(path_ + ": " + kContactKindPath + " row " + std::to_string(row) +
+                        " holds unknown code " + std::to_string(code));
+    }
+    return static_cast<ContactEpisode::Kind>(code);
   }
 
   // Audio of sample i, (channels x T) in full-scale units.
@@ -373,8 +557,58 @@ class DatasetFile {
   }
 
   const Columns& columns() const { return columns_; }
+  bool has_contacts() const { return has_contacts_; }
+  int64_t contact_rows() const { return contact_rows_; }
 
  private:
+  // Opens the per-sample contact offsets and the contact table (schema 1.1).
+  void OpenContactColumns() {
+    const hid_t root = file_.get();
+    columns_.contact_first = h5::OpenDataset(root, kContactFirstPath, path_);
+    columns_.contact_count = h5::OpenDataset(root, kContactCountPath, path_);
+    ContactColumns& table = columns_.contacts;
+    table.sample_row = h5::OpenDataset(root, kContactSampleRowPath, path_);
+    for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+      table.scalars[f] = h5::OpenDataset(root, kScalarContacts[f].path, path_);
+    }
+    for (size_t f = 0; f < kVectorContacts.size(); ++f) {
+      table.vectors[f] = h5::OpenDataset(root, kVectorContacts[f].path, path_);
+    }
+    table.kind = h5::OpenDataset(root, kContactKindPath, path_);
+    table.object = h5::OpenDataset(root, kContactObjectPath, path_);
+    table.material = h5::OpenDataset(root, kContactMaterialPath, path_);
+  }
+
+  // Contact rows M: the rows every contact column holds (a crashed writer may leave them
+  // ragged). A complete file has equal columns ending with the last sample's contacts.
+  void CheckContactTable() {
+    hsize_t rows = std::numeric_limits<hsize_t>::max();
+    hsize_t most_rows = 0;
+    for (const auto& [dataset, name] : columns_.contacts.All()) {
+      const std::vector<hsize_t> dims = h5::Dims(dataset, path_, name);
+      const bool vector = name == kVectorContacts[0].path || name == kVectorContacts[1].path;
+      if (dims.size() != (vector ? 2u : 1u) || (vector && dims[1] != 3)) {
+        throw SchemaError(path_ + ": /" + name + " must have shape " +
+                          (vector ? "(M, 3)" : "(M)"));
+      }
+      rows = std::min(rows, dims[0]);
+      most_rows = std::max(most_rows, dims[0]);
+    }
+    contact_rows_ = static_cast<int64_t>(rows);
+    if (!info_.complete) return;
+    const int64_t n = info_.num_samples;
+    int64_t end = 0;
+    if (n > 0) {
+      const auto [first, count] = ContactRange(n - 1);
+      end = first + count;
+    }
+    if (most_rows != rows || end != contact_rows_) {
+      throw SchemaError(path_ + ": the contact table holds between " + std::to_string(rows) +
+                        " and " + std::to_string(most_rows) + " rows but the samples' contacts " +
+                        "end at row " + std::to_string(end));
+    }
+  }
+
   void CheckRange(int64_t i) const {
     if (i < 0 || i >= info_.num_samples) {
       throw IoError(path_ + ": sample " + std::to_string(i) + " out of range [0, " +
@@ -387,6 +621,8 @@ class DatasetFile {
   Columns columns_;
   DatasetInfo info_;
   double audio_scale_{1.0};
+  bool has_contacts_{false};   // schema 1.1: the file has a contact table
+  int64_t contact_rows_{0};    // M
 };
 
 // {"min": .., "max": .., "mean": ..} of values (nulls when empty).
@@ -405,6 +641,122 @@ nlohmann::ordered_json RangeJson(const std::vector<double>& values, bool with_me
   return range;
 }
 
+// Bin of `value` among ascending `edges` (bins [e_b, e_b+1), the last closed); -1 outside.
+int BinClosedBelow(const std::vector<double>& edges, double value) {
+  if (!std::isfinite(value) || value < edges.front() || value > edges.back()) return -1;
+  const auto above = std::upper_bound(edges.begin(), edges.end(), value);
+  return std::min(static_cast<int>(above - edges.begin()) - 1,
+                  static_cast<int>(edges.size()) - 2);
+}
+
+// Bin of an angle in degrees among ascending `edges` spanning (-180, 180] (bins (e_b, e_b+1]),
+// after wrapping it into that range; -1 when not finite.
+int AngleBin(const std::vector<double>& edges, double degrees) {
+  if (!std::isfinite(degrees)) return -1;
+  double wrapped = std::fmod(degrees, 360.0);
+  if (wrapped <= -180.0) wrapped += 360.0;
+  if (wrapped > 180.0) wrapped -= 360.0;
+  const auto at_or_above = std::lower_bound(edges.begin(), edges.end(), wrapped);
+  return std::clamp(static_cast<int>(at_or_above - edges.begin()) - 1, 0,
+                    static_cast<int>(edges.size()) - 2);
+}
+
+// The summary's "contacts" object over the valid samples of `dataset`: totals, contacts per
+// sample, counts by kind and object, and the (z, theta) coverage of each sample's first contact.
+nlohmann::ordered_json ContactsSummaryJson(const DatasetFile& dataset,
+                                           const std::vector<uint8_t>& valid) {
+  const std::string& path = dataset.path();
+  const Columns& columns = dataset.columns();
+  const int64_t n = dataset.size();
+  const int64_t m = dataset.contact_rows();
+
+  // Offsets (N) and the summarized contact columns (M); a 1.0 file has no contacts.
+  std::vector<int64_t> first(n, 0), count(n, 0);
+  std::vector<uint8_t> kinds;
+  std::vector<std::string> objects;
+  std::vector<double> z, theta;
+  if (dataset.has_contacts()) {
+    first = ReadColumn<int64_t>(columns.contact_first.get(), H5T_NATIVE_INT64, n, path,
+                                kContactFirstPath);
+    count = ReadColumn<int64_t>(columns.contact_count.get(), H5T_NATIVE_INT64, n, path,
+                                kContactCountPath);
+    const ContactColumns& table = columns.contacts;
+    kinds = ReadColumn<uint8_t>(table.kind.get(), H5T_NATIVE_UINT8, m, path, kContactKindPath);
+    objects = h5::ReadStringRows(table.object.get(), 0, static_cast<hsize_t>(m), path,
+                                 kContactObjectPath);
+    for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+      const std::string name = kScalarContacts[f].path;
+      if (name == "contacts/z_m" || name == "contacts/theta_rad") {
+        std::vector<double> column = ReadColumn<double>(table.scalars[f].get(),
+                                                        H5T_NATIVE_DOUBLE, m, path,
+                                                        kScalarContacts[f].path);
+        (name == "contacts/z_m" ? z : theta) = std::move(column);
+      }
+    }
+  }
+
+  // Coverage bin edges: z in m over [-h, h], theta in degrees over (-180, 180].
+  std::vector<double> z_edges(kCoverageZBins + 1), theta_edges(kCoverageThetaBins + 1);
+  for (int b = 0; b <= kCoverageZBins; ++b) {
+    const int tenth_mm = (2 * b - kCoverageZBins) * (kCoverageHalfLengthTenthMm / kCoverageZBins);
+    z_edges[b] = tenth_mm / 1e4;
+  }
+  for (int b = 0; b <= kCoverageThetaBins; ++b) {
+    theta_edges[b] = -180.0 + 360.0 * b / kCoverageThetaBins;
+  }
+
+  // Counts over the valid samples.
+  int64_t total = 0;
+  int64_t outside = 0;
+  std::vector<double> per_sample;
+  std::array<int64_t, kContactKindNames.size()> by_kind{};
+  std::map<std::string, int64_t> by_object;
+  std::vector<std::vector<int64_t>> coverage(kCoverageZBins,
+                                             std::vector<int64_t>(kCoverageThetaBins, 0));
+  for (int64_t i = 0; i < n; ++i) {
+    if (valid[i] == 0) continue;
+    per_sample.push_back(static_cast<double>(count[i]));
+    if (count[i] == 0) continue;
+    dataset.CheckContactRange(i, first[i], count[i]);
+    total += count[i];
+    for (int64_t r = first[i]; r < first[i] + count[i]; ++r) {
+      ++by_kind[static_cast<size_t>(dataset.KindFromCode(kinds[r], static_cast<hsize_t>(r)))];
+      ++by_object[objects[r].empty() ? std::string("(unnamed)") : objects[r]];
+    }
+    // The first contact in time order.
+    const int z_bin = BinClosedBelow(z_edges, z[first[i]]);
+    const int theta_bin = AngleBin(theta_edges, theta[first[i]] * 180.0 / std::numbers::pi);
+    if (z_bin < 0 || theta_bin < 0) {
+      ++outside;
+    } else {
+      ++coverage[z_bin][theta_bin];
+    }
+  }
+
+  nlohmann::ordered_json contacts;
+  contacts["recorded"] = dataset.has_contacts();
+  contacts["total"] = total;
+  nlohmann::ordered_json per_sample_json = {{"min", nullptr}, {"max", nullptr}, {"mean", nullptr}};
+  if (!per_sample.empty()) {
+    const auto [lo, hi] = std::minmax_element(per_sample.begin(), per_sample.end());
+    per_sample_json["min"] = static_cast<int64_t>(*lo);
+    per_sample_json["max"] = static_cast<int64_t>(*hi);
+    per_sample_json["mean"] = static_cast<double>(total) / static_cast<double>(per_sample.size());
+  }
+  contacts["per_sample"] = per_sample_json;
+  nlohmann::ordered_json kinds_json = nlohmann::ordered_json::object();
+  for (size_t k = 0; k < kContactKindNames.size(); ++k) {
+    kinds_json[kContactKindNames[k]] = by_kind[k];
+  }
+  contacts["kinds"] = kinds_json;
+  contacts["objects"] = nlohmann::ordered_json(by_object);
+  contacts["coverage"] = {{"z_bins_m", z_edges},
+                          {"theta_bins_deg", theta_edges},
+                          {"counts", coverage},
+                          {"outside", outside}};
+  return contacts;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -418,6 +770,8 @@ struct DatasetWriter::Impl {
   Columns columns;
   h5::Handle string_type;
   int64_t count{0};
+  bool with_contacts{true};  // schema 1.1; false only when merging 1.0 shards
+  int64_t contact_rows{0};   // M, rows of the contact table so far
   bool finished{false};
   std::unordered_set<uint64_t> indices;
   std::chrono::steady_clock::time_point last_flush;
@@ -429,14 +783,23 @@ struct DatasetWriter::Impl {
   void CheckNewIndex(uint64_t index) const;
   // The stored chunk of the sample's audio row, (1, C, T) shuffled and deflated (thread-safe).
   std::vector<unsigned char> EncodeAudio(const StrikeSample& sample) const;
-  // Appends proprio, labels and index fields, counts the sample and flushes now and then.
+  // Appends proprio, labels, contacts and index fields, counts the sample and flushes now and
+  // then.
   void WriteAllButAudio(const StrikeSample& sample);
+  // Appends the sample's contact episodes to the contact table (schema 1.1).
+  void WriteContacts(const StrikeSample& sample);
+  // Creates the per-sample contact offsets and the empty contact table.
+  void CreateContactColumns();
 };
 
 DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info)
+    : DatasetWriter(path, info, /*with_contacts=*/true) {}
+
+DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info, bool with_contacts)
     : impl_(std::make_unique<Impl>()) {
   CheckInfo(path, info);
   Impl& s = *impl_;
+  s.with_contacts = with_contacts;
   s.path = path;
   s.partial = h5::PartialPath(path);
   s.info = info;
@@ -449,7 +812,9 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info)
 
   // Root attributes; num_samples and `complete` follow in Finish().
   h5::WriteStringAttr(root, "schema", kDatasetSchema, file);
-  h5::WriteStringAttr(root, "schema_version", kDatasetSchemaVersion, file);
+  h5::WriteStringAttr(root, "schema_version",
+                      with_contacts ? kDatasetSchemaVersion : kDatasetSchemaVersionWithoutContacts,
+                      file);
   h5::WriteStringAttr(root, "software_version", s.info.software_version, file);
   h5::WriteStringAttr(root, "source", s.info.source, file);
   h5::WriteStringAttr(root, "config_yaml", s.info.config_yaml, file);
@@ -498,7 +863,38 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info)
                                                   {{}, kColumnChunkRows, -1}, file);
   s.columns.clipped =
       h5::CreateExtendable(root, kClippedPath, H5T_STD_U8LE, {{}, kColumnChunkRows, -1}, file);
+  if (s.with_contacts) s.CreateContactColumns();
   s.last_flush = std::chrono::steady_clock::now();
+}
+
+void DatasetWriter::Impl::CreateContactColumns() {
+  const hid_t root = file_handle.get();
+  const std::string& file = partial;
+  const h5::ExtendableLayout scalar_layout{{}, kColumnChunkRows, -1};
+  const h5::ExtendableLayout vector_layout{{3}, kColumnChunkRows, -1};
+  // Offsets (N) int64: sample n's contacts are rows [first, first + count).
+  columns.contact_first =
+      h5::CreateExtendable(root, kContactFirstPath, H5T_STD_I64LE, scalar_layout, file);
+  columns.contact_count =
+      h5::CreateExtendable(root, kContactCountPath, H5T_STD_I64LE, scalar_layout, file);
+  // The table (M) and (M, 3): owning sample row, numbers, kind codes, strings.
+  ContactColumns& table = columns.contacts;
+  table.sample_row =
+      h5::CreateExtendable(root, kContactSampleRowPath, H5T_STD_I64LE, scalar_layout, file);
+  for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+    table.scalars[f] =
+        h5::CreateExtendable(root, kScalarContacts[f].path, H5T_IEEE_F64LE, scalar_layout, file);
+  }
+  for (size_t f = 0; f < kVectorContacts.size(); ++f) {
+    table.vectors[f] =
+        h5::CreateExtendable(root, kVectorContacts[f].path, H5T_IEEE_F64LE, vector_layout, file);
+  }
+  table.kind = h5::CreateExtendable(root, kContactKindPath, H5T_STD_U8LE, scalar_layout, file);
+  h5::WriteStringAttr(table.kind.get(), "names", kContactKindNamesAttr, file);
+  table.object =
+      h5::CreateExtendable(root, kContactObjectPath, string_type.get(), scalar_layout, file);
+  table.material =
+      h5::CreateExtendable(root, kContactMaterialPath, string_type.get(), scalar_layout, file);
 }
 
 DatasetWriter::~DatasetWriter() = default;
@@ -520,6 +916,7 @@ DatasetWriter::EncodedSample DatasetWriter::Encode(const StrikeSample& sample) c
   encoded.meta.label = sample.label;
   encoded.meta.proprio = sample.proprio;
   encoded.meta.clipped = sample.clipped;
+  encoded.meta.contacts = sample.contacts;
   return encoded;
 }
 
@@ -558,6 +955,19 @@ void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio
   }
   if (!raw_audio && sample.valid && !sample.audio.allFinite()) {
     throw SchemaError(where + ": valid sample has non-finite audio");
+  }
+  // Contacts: only a 1.1 file stores them; kind codes must be known.
+  if (!with_contacts && !sample.contacts.empty()) {
+    throw SchemaError(where + ": has " + std::to_string(sample.contacts.size()) +
+                      " contacts, but a schema " + kDatasetSchemaVersionWithoutContacts +
+                      " file stores none");
+  }
+  for (size_t j = 0; j < sample.contacts.size(); ++j) {
+    const auto code = static_cast<size_t>(sample.contacts[j].kind);
+    if (code >= kContactKindNames.size()) {
+      throw SchemaError(where + ": contact " + std::to_string(j) + " has unknown kind code " +
+                        std::to_string(code));
+    }
   }
 }
 
@@ -619,6 +1029,9 @@ void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
                    kVectorLabels[f].path);
   }
 
+  // Contacts before the per-sample offsets that point at them.
+  if (with_contacts) WriteContacts(sample);
+
   // Index columns.
   const uint8_t valid = sample.valid ? 1 : 0;
   const uint8_t clipped = sample.clipped ? 1 : 0;
@@ -639,6 +1052,50 @@ void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
     h5::CheckStatus(H5Fflush(file_handle.get(), H5F_SCOPE_LOCAL), file, "", "flush");
     last_flush = now;
   }
+}
+
+void DatasetWriter::Impl::WriteContacts(const StrikeSample& sample) {
+  const std::string& file = partial;
+  const int64_t first = contact_rows;
+  const int64_t m = static_cast<int64_t>(sample.contacts.size());
+  const hsize_t rows = static_cast<hsize_t>(m);
+  ContactColumns& table = columns.contacts;
+  // Owning sample row (this sample's row n) and the numbers, (m) and (m, 3) row-major.
+  const std::vector<int64_t> sample_rows(rows, count);
+  h5::AppendRows(table.sample_row.get(), H5T_NATIVE_INT64, sample_rows.data(), rows, file,
+                 kContactSampleRowPath);
+  std::vector<double> values(3 * rows);
+  for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+    for (hsize_t r = 0; r < rows; ++r) values[r] = sample.contacts[r].*kScalarContacts[f].member;
+    h5::AppendRows(table.scalars[f].get(), H5T_NATIVE_DOUBLE, values.data(), rows, file,
+                   kScalarContacts[f].path);
+  }
+  for (size_t f = 0; f < kVectorContacts.size(); ++f) {
+    for (hsize_t r = 0; r < rows; ++r) {
+      const Eigen::Vector3d& v = sample.contacts[r].*kVectorContacts[f].member;
+      for (int d = 0; d < 3; ++d) values[3 * r + d] = v[d];
+    }
+    h5::AppendRows(table.vectors[f].get(), H5T_NATIVE_DOUBLE, values.data(), rows, file,
+                   kVectorContacts[f].path);
+  }
+  // Kind codes and strings.
+  std::vector<uint8_t> kinds(rows);
+  std::vector<const char*> objects(rows), materials(rows);
+  for (hsize_t r = 0; r < rows; ++r) {
+    kinds[r] = static_cast<uint8_t>(sample.contacts[r].kind);
+    objects[r] = sample.contacts[r].object.c_str();
+    materials[r] = sample.contacts[r].material.c_str();
+  }
+  h5::AppendRows(table.kind.get(), H5T_NATIVE_UINT8, kinds.data(), rows, file, kContactKindPath);
+  h5::AppendRows(table.object.get(), string_type.get(), objects.data(), rows, file,
+                 kContactObjectPath);
+  h5::AppendRows(table.material.get(), string_type.get(), materials.data(), rows, file,
+                 kContactMaterialPath);
+  // The sample's offsets.
+  h5::AppendRows(columns.contact_first.get(), H5T_NATIVE_INT64, &first, 1, file,
+                 kContactFirstPath);
+  h5::AppendRows(columns.contact_count.get(), H5T_NATIVE_INT64, &m, 1, file, kContactCountPath);
+  contact_rows += m;
 }
 
 void DatasetWriter::Finish() {
@@ -704,6 +1161,10 @@ void MergeDatasets(const std::vector<std::string>& shard_paths, const std::strin
       throw SchemaError("merge: " + shard.path() + " has " + what + " " + vb + " but " +
                         first.path() + " has " + va);
     };
+    // Mixed versions would leave the 1.0 samples looking as if they had no contacts.
+    if (b.schema_version != a.schema_version) {
+      refuse("schema_version", a.schema_version, b.schema_version);
+    }
     if (b.config_yaml != a.config_yaml) {
       throw SchemaError("merge: " + shard.path() + " was generated with a different config_yaml " +
                         "than " + first.path());
@@ -751,11 +1212,12 @@ void MergeDatasets(const std::vector<std::string>& shard_paths, const std::strin
     }
   }
 
-  // One unsharded output, written atomically by DatasetWriter.
+  // One unsharded output of the shards' version, written atomically by DatasetWriter; it gives
+  // each sample's contacts new offsets in the merged table.
   DatasetInfo out_info = first.info();
   out_info.shard = 0;
   out_info.num_shards = 1;
-  DatasetWriter writer(out_path, out_info);
+  DatasetWriter writer(out_path, out_info, /*with_contacts=*/first.has_contacts());
   DatasetWriter::Impl& out = *writer.impl_;
   std::vector<bool> copy_raw_audio(shards.size());
   for (size_t k = 0; k < shards.size(); ++k) {
@@ -834,7 +1296,7 @@ std::string SummarizeDatasetJson(const std::string& path) {
   nlohmann::ordered_json summary;
   summary["file"] = path;
   summary["kind"] = "dataset";
-  summary["schema_version"] = kDatasetSchemaVersion;
+  summary["schema_version"] = info.schema_version;
   summary["complete"] = info.complete;
   summary["source"] = info.source;
   summary["software_version"] = info.software_version;
@@ -857,6 +1319,7 @@ std::string SummarizeDatasetJson(const std::string& path) {
   summary["impulse_Ns"] = RangeJson(valid_impulse, false);
   summary["normal_speed_m_s"] = RangeJson(valid_speed, false);
   summary["audio_peak"] = RangeJson(audio_peak, false);
+  summary["contacts"] = ContactsSummaryJson(dataset, valid);
   return summary.dump(2);
 }
 

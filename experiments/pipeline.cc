@@ -31,6 +31,32 @@ struct StrikePipeline::Impl {
 
 namespace {
 
+// every tube contact of a rollout as dataset episodes
+std::vector<ContactEpisode> RolloutEpisodes(const sim::RolloutResult& r,
+                                            const sim::StrikeConfig& strike) {
+  std::vector<ContactEpisode> episodes;
+  for (const sim::ContactRecord& c : r.contacts) {
+    ContactEpisode e;
+    e.time_s = c.time_s;
+    e.duration_s = c.duration_s;
+    e.z_m = c.z_m;
+    e.theta_rad = c.theta_rad;
+    e.point_m = c.point_tube_m;
+    e.normal = c.normal_tube;
+    e.normal_speed_m_s = c.normal_speed_m_s;
+    e.effective_mass_kg = c.effective_mass_kg;
+    e.impulse_Ns = c.impulse_ns;
+    e.peak_force_N = c.peak_force_n;
+    e.kind = c.kind == "bounce"  ? ContactEpisode::Kind::kBounce
+             : c.kind == "press" ? ContactEpisode::Kind::kPress
+                                 : ContactEpisode::Kind::kImpact;
+    e.object = strike.RodName();
+    e.material = strike.rod_material;
+    episodes.push_back(std::move(e));
+  }
+  return episodes;
+}
+
 // the first tube contact of a dynamic rollout, in the form the acoustics stage plays
 sim::StrikeEvents RolloutEvents(const sim::RolloutResult& r, const sim::StrikeConfig& strike) {
   sim::StrikeEvents ev;
@@ -97,10 +123,15 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   sample.index = index;
   sample.seed = SampleSeed(c.seed, index);
 
-  // strike motion and its first tube contact
-  sim::StrikeEvents ev =
-      impl_->rollout ? RolloutEvents(impl_->rollout->Run(sample.seed), c.strike)
-                     : impl_->strikes->Generate(sample.seed);
+  // strike motion, its contacts, and the first tube contact that acoustics plays
+  sim::StrikeEvents ev;
+  if (impl_->rollout) {
+    const sim::RolloutResult rollout = impl_->rollout->Run(sample.seed);
+    ev = RolloutEvents(rollout, c.strike);
+    sample.contacts = RolloutEpisodes(rollout, c.strike);
+  } else {
+    ev = impl_->strikes->Generate(sample.seed);
+  }
   sample.label = ev.label;
   sample.proprio = ev.proprio;
   sample.valid = ev.valid;
@@ -116,6 +147,23 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
     sample.clipped = r.clipped;
     sample.label.impulse_Ns = r.impulse_ns;
     sample.label.duration_s = r.duration_s;
+    // the kinematic engine knows one contact: the impact acoustics played
+    if (!impl_->rollout) {
+      ContactEpisode e;
+      e.time_s = sample.label.time_s;
+      e.duration_s = r.duration_s;
+      e.z_m = sample.label.z_m;
+      e.theta_rad = sample.label.theta_rad;
+      e.point_m = sample.label.point_m;
+      e.normal = sample.label.normal;
+      e.normal_speed_m_s = sample.label.normal_speed_m_s;
+      e.effective_mass_kg = ev.contact.effective_mass_kg;
+      e.impulse_Ns = r.impulse_ns;
+      e.peak_force_N = r.peak_force_n;
+      e.object = c.strike.RodName();
+      e.material = c.strike.rod_material;
+      sample.contacts = {e};
+    }
   } catch (const NumericalError& e) {
     if (sample.valid) {
       sample.valid = false;

@@ -42,6 +42,7 @@ void StrikeConfig::Serialize(Archive* a) {
   a->Visit("rod_density_kg_m3", &rod_density_kg_m3, Bounds::Open(1.0, 1e5));
   a->Visit("rod_contact_youngs_modulus_pa", &rod_contact_youngs_modulus_pa, Bounds::Open(1e6, 1e13));
   a->Visit("rod_contact_poisson_ratio", &rod_contact_poisson_ratio, Bounds::Open(-1.0, 0.5));
+  a->VisitChoice("rod_material", &rod_material, {"wood", "aluminium", "pvc"});
   a->Visit("proprio_rate_hz", &proprio_rate_hz, Bounds::Open(1.0, 10000.0));
   a->Visit("proprio_rows", &proprio_rows, Bounds::Closed(1, 100000));
 }
@@ -68,6 +69,10 @@ void StrikeConfig::Validate() const {
         "strike.contact_fraction_min = {} exceeds strike.contact_fraction_max = {}",
         contact_fraction_min, contact_fraction_max));
   }
+}
+
+std::string StrikeConfig::RodName() const {
+  return fmt::format("rod T{:.0f}L{:.0f}", rod_diameter_m * 1e3, rod_length_m * 1e2);
 }
 
 StrikeModel::StrikeModel(const StrikeConfig& strike, const TubeConfig& tube,

@@ -14,8 +14,9 @@ def main(path):
         # Refuse files that are not datasets or whose writer did not finish.
         if f.attrs.get("schema") != "sonicboom.strikes":
             sys.exit(f"{path}: not a sonicboom dataset")
-        if f.attrs.get("schema_version") != "1.0":
-            sys.exit(f"{path}: unsupported schema_version {f.attrs.get('schema_version')}")
+        version = f.attrs.get("schema_version")
+        if version not in ("1.0", "1.1"):
+            sys.exit(f"{path}: unsupported schema_version {version}")
         if f.attrs.get("complete", 0) != 1:
             sys.exit(f"{path}: incomplete dataset (no `complete` attribute)")
 
@@ -45,6 +46,29 @@ def main(path):
               f"valid={bool(valid[0])} peak={np.abs(x0).max():.4f}")
         for i in np.flatnonzero(~valid):
             print(f"invalid: index={sample_index[i]} reason={reasons[i]}")
+
+        # Contact episodes (version 1.1; a 1.0 file has none): a flat table of M rows, sample n
+        # owns rows [contact_first[n], contact_first[n] + contact_count[n]), in time order.
+        if version == "1.0":
+            print("contacts: not recorded (schema_version 1.0)")
+            return
+        contacts = f["contacts"]
+        first = int(f["index/contact_first"][0])
+        count = int(f["index/contact_count"][0])
+        rows = slice(first, first + count)
+        kind_names = contacts["kind"].attrs["names"].split(",")  # code -> name
+        kinds = contacts["kind"][rows]
+        times = contacts["time_s"][rows]
+        zs = contacts["z_m"][rows]
+        thetas = contacts["theta_rad"][rows]
+        impulses = contacts["impulse_Ns"][rows]
+        objects = contacts["object"].asstr()[rows]
+        materials = contacts["material"].asstr()[rows]
+        print(f"contacts: total={contacts['kind'].shape[0]} first sample: {count}")
+        for k in range(count):
+            print(f"  contact: kind={kind_names[kinds[k]]} time_s={times[k]:.6f} "
+                  f"z_m={zs[k]:.6f} theta_rad={thetas[k]:.6f} impulse_Ns={impulses[k]:.6f} "
+                  f"object={objects[k]} material={materials[k]}")
 
 
 if __name__ == "__main__":

@@ -57,7 +57,36 @@ DatasetInfo MakeInfo(bool audio_int16) {
   return info;
 }
 
-// Deterministic content of sample `index`; an invalid sample carries no audio or proprio.
+// Contact episode j of sample `index`: distinct values in every field, UTF-8 names.
+ContactEpisode MakeContact(uint64_t index, int j) {
+  ContactEpisode contact;
+  contact.time_s = 0.002 + 1e-4 * static_cast<double>(index) + 0.01 * j;
+  contact.duration_s = 1.5e-4 * (j + 1);
+  contact.z_m = 0.07 * j - 0.09 + 1e-3 * static_cast<double>(index);
+  contact.theta_rad = -2.5 + 1.7 * j + 0.01 * static_cast<double>(index);
+  contact.point_m = Eigen::Vector3d(0.0254 * std::cos(contact.theta_rad),
+                                    0.0254 * std::sin(contact.theta_rad), contact.z_m);
+  contact.normal = Eigen::Vector3d(std::cos(contact.theta_rad), std::sin(contact.theta_rad), 0.0);
+  contact.normal_speed_m_s = 0.4 + 0.1 * j;
+  contact.effective_mass_kg = 0.35 + 0.01 * static_cast<double>(index);
+  contact.impulse_Ns = 0.02 / (j + 1);
+  contact.peak_force_N = 120.5 - 10.0 * j;
+  contact.kind = static_cast<ContactEpisode::Kind>(j % 3);
+  contact.object = j == 2 ? "rod T22L42 \u2014 \u00f822" : "rod T22L42";
+  contact.material = j == 1 ? "rubber" : "wood";
+  return contact;
+}
+
+// Contacts of sample `index`: 3, 0 or 1 episodes for index % 3 = 0, 1, 2.
+std::vector<ContactEpisode> MakeContacts(uint64_t index) {
+  constexpr std::array<int, 3> kCounts = {3, 0, 1};
+  std::vector<ContactEpisode> contacts;
+  for (int j = 0; j < kCounts[index % 3]; ++j) contacts.push_back(MakeContact(index, j));
+  return contacts;
+}
+
+// Deterministic content of sample `index` (contacts by MakeContacts, also when invalid); an
+// invalid sample carries no audio or proprio.
 StrikeSample MakeSample(uint64_t index, const DatasetInfo& info, bool valid = true,
                         const std::string& reason = "no_contact") {
   StrikeSample sample;
@@ -72,6 +101,7 @@ StrikeSample MakeSample(uint64_t index, const DatasetInfo& info, bool valid = tr
   sample.label.time_s = 0.002 + 1e-4 * index;
   sample.label.normal_speed_m_s = 0.5 + 0.25 * index;
   sample.label.duration_s = 1e-4 * (index + 1);
+  sample.contacts = MakeContacts(index);
   if (!valid) {
     sample.invalid_reason = reason;
     return sample;
@@ -118,6 +148,28 @@ void ExpectLabelsEqual(const ContactLabel& a, const ContactLabel& b) {
   EXPECT_EQ(a.duration_s, b.duration_s);
 }
 
+// Every field of every episode equal, strings included.
+void ExpectContactsEqual(const std::vector<ContactEpisode>& got,
+                         const std::vector<ContactEpisode>& want) {
+  ASSERT_EQ(got.size(), want.size());
+  for (size_t j = 0; j < got.size(); ++j) {
+    SCOPED_TRACE("contact " + std::to_string(j));
+    EXPECT_EQ(got[j].time_s, want[j].time_s);
+    EXPECT_EQ(got[j].duration_s, want[j].duration_s);
+    EXPECT_EQ(got[j].z_m, want[j].z_m);
+    EXPECT_EQ(got[j].theta_rad, want[j].theta_rad);
+    EXPECT_EQ(got[j].point_m, want[j].point_m);
+    EXPECT_EQ(got[j].normal, want[j].normal);
+    EXPECT_EQ(got[j].normal_speed_m_s, want[j].normal_speed_m_s);
+    EXPECT_EQ(got[j].effective_mass_kg, want[j].effective_mass_kg);
+    EXPECT_EQ(got[j].impulse_Ns, want[j].impulse_Ns);
+    EXPECT_EQ(got[j].peak_force_N, want[j].peak_force_N);
+    EXPECT_EQ(got[j].kind, want[j].kind);
+    EXPECT_EQ(got[j].object, want[j].object);
+    EXPECT_EQ(got[j].material, want[j].material);
+  }
+}
+
 // Reads back samples written by MakeSample and compares everything.
 void ExpectRoundTrip(bool audio_int16) {
   TempDir dir;
@@ -141,6 +193,7 @@ void ExpectRoundTrip(bool audio_int16) {
   EXPECT_EQ(reader.info().global_seed, 42u);
   EXPECT_EQ(reader.info().shard, 0);
   EXPECT_EQ(reader.info().num_shards, 1);
+  EXPECT_EQ(reader.info().schema_version, "1.1");
 
   const double tolerance = audio_int16 ? 1.0 / 32767.0 : 0.0;
   for (int64_t i = 0; i < 3; ++i) {
@@ -154,6 +207,10 @@ void ExpectRoundTrip(bool audio_int16) {
     EXPECT_EQ(got.invalid_reason, valid ? "" : "no_contact");
     EXPECT_EQ(got.clipped, i == 0);
     ExpectLabelsEqual(got.label, expected.label);
+    // Samples 0, 1, 2 have 3, 0 and 1 contacts (the invalid one keeps its contacts too).
+    EXPECT_EQ(got.contacts.size(), (std::array<size_t, 3>{3, 0, 1}[i]));
+    ExpectContactsEqual(got.contacts, expected.contacts);
+    ExpectContactsEqual(reader.ReadMeta(i).contacts, expected.contacts);
     ASSERT_EQ(got.audio.rows(), 2);
     ASSERT_EQ(got.audio.cols(), 64);
     ASSERT_EQ(got.proprio.rows(), 3);
@@ -306,6 +363,7 @@ TEST(DatasetTest, EncodedSamplesReadBackLikeAppendedOnes) {
       for (const DatasetWriter::EncodedSample& sample : EncodeAll(writer, info, indices, {2})) {
         // The metadata travels without the audio, which the chunk now holds.
         EXPECT_EQ(sample.meta.audio.size(), 0);
+        ExpectContactsEqual(sample.meta.contacts, MakeContacts(sample.meta.index));
         EXPECT_FALSE(sample.audio_chunk.empty());
         EXPECT_EQ(sample.filter_mask, 0u);
         writer.AppendEncoded(sample);
@@ -328,6 +386,9 @@ TEST(DatasetTest, EncodedSamplesReadBackLikeAppendedOnes) {
       ExpectLabelsEqual(got.label, want.label);
       EXPECT_EQ(got.proprio, want.proprio);
       EXPECT_EQ(got.audio, want.audio);
+      // Samples 0..3 have 3, 0, 1 and 3 contacts.
+      ExpectContactsEqual(got.contacts, MakeContacts(i));
+      ExpectContactsEqual(want.contacts, MakeContacts(i));
     }
     // And both hold what was written (up to int16 rounding).
     const double tolerance = audio_int16 ? 0.5 / 32767.0 + 1e-7 : 0.0;
@@ -517,11 +578,20 @@ TEST(MergeTest, JoinsShardsInSampleIndexOrder) {
     EXPECT_EQ(got.seed, expected.seed);
     EXPECT_EQ(got.valid, i != 2);
     ExpectLabelsEqual(got.label, expected.label);
+    ExpectContactsEqual(got.contacts, expected.contacts);
     if (i != 2) {
       EXPECT_EQ(got.proprio, expected.proprio);
       EXPECT_NEAR(got.audio(1, 10), expected.audio(1, 10), 1.0 / 32767.0);
     }
   }
+  // Offsets re-based onto the merged table: samples 0..4 have 3, 0, 1, 3, 0 contacts, while
+  // shard 0 (0, 2, 4) stored them at rows 0, 3, 4 and shard 1 (1, 3) at rows 0, 0.
+  EXPECT_EQ(ReadArray(dir.File("shard1.h5"), "index/contact_first").data,
+            (std::vector<float>{0, 0}));
+  EXPECT_EQ(ReadArray(out, "index/contact_first").data, (std::vector<float>{0, 3, 3, 4, 7}));
+  EXPECT_EQ(ReadArray(out, "index/contact_count").data, (std::vector<float>{3, 0, 1, 3, 0}));
+  EXPECT_EQ(ReadArray(out, "contacts/sample_row").data,
+            (std::vector<float>{0, 0, 0, 2, 3, 3, 3}));
 }
 
 TEST(MergeTest, RefusesDuplicateIndices) {
@@ -611,6 +681,81 @@ TEST(SummaryTest, CountsValidAndInvalidWithReasons) {
   EXPECT_NEAR(summary["audio_peak"]["max"].get<double>(), 1.0, 1e-6);
   EXPECT_NEAR(summary["audio_peak"]["min"].get<double>(), s2.audio.cwiseAbs().maxCoeff(),
               1.0 / 32767.0);
+}
+
+// One contact with the fields the summary looks at.
+ContactEpisode SummaryContact(double z_m, double theta_rad, ContactEpisode::Kind kind,
+                              const std::string& object) {
+  ContactEpisode contact;
+  contact.z_m = z_m;
+  contact.theta_rad = theta_rad;
+  contact.kind = kind;
+  contact.object = object;
+  return contact;
+}
+
+TEST(SummaryTest, CountsContactsByKindAndObjectAndFirstContactCoverage) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  const DatasetInfo info = MakeInfo(true);
+  using Kind = ContactEpisode::Kind;
+  constexpr double kPi = 3.14159265358979323846;
+  std::vector<StrikeSample> samples;
+  for (uint64_t i = 0; i < 6; ++i) samples.push_back(MakeSample(i, info, i != 1, "penetration"));
+  // Valid 0: first contact in z bin 0, theta 0.5 rad = 28.6 deg in bin (0, 60].
+  samples[0].contacts = {SummaryContact(-0.09, 0.5, Kind::kImpact, "rod A"),
+                         SummaryContact(0.0, 0.0, Kind::kBounce, "rod A"),
+                         SummaryContact(0.1, -1.0, Kind::kPress, "rod B")};
+  // Invalid 1: not counted.
+  samples[1].contacts = {SummaryContact(0.0, 0.0, Kind::kPress, "ignored"),
+                         SummaryContact(0.0, 0.0, Kind::kPress, "ignored")};
+  // Valid 2: no contacts.
+  samples[2].contacts.clear();
+  // Valid 3: z at the upper edge (last bin is closed), theta = pi (180 deg, last bin).
+  samples[3].contacts = {SummaryContact(0.1015, kPi, Kind::kImpact, "rod A")};
+  // Valid 4: z beyond the tube: outside the coverage grid.
+  samples[4].contacts = {SummaryContact(0.2, 0.0, Kind::kBounce, "rod B")};
+  // Valid 5: z = 0 (middle bin), theta = -pi wraps to 180 deg; no object name.
+  samples[5].contacts = {SummaryContact(0.0, -kPi, Kind::kImpact, "")};
+  {
+    DatasetWriter writer(path, info);
+    for (const StrikeSample& sample : samples) writer.Append(sample);
+    writer.Finish();
+  }
+
+  const nlohmann::json summary = nlohmann::json::parse(SummarizeDatasetJson(path));
+  const nlohmann::json& contacts = summary["contacts"];
+  EXPECT_EQ(contacts["recorded"], true);
+  EXPECT_EQ(contacts["total"], 6);
+  EXPECT_EQ(contacts["per_sample"]["min"], 0);
+  EXPECT_EQ(contacts["per_sample"]["max"], 3);
+  EXPECT_DOUBLE_EQ(contacts["per_sample"]["mean"].get<double>(), 6.0 / 5.0);
+  EXPECT_EQ(contacts["kinds"], nlohmann::json({{"impact", 3}, {"bounce", 2}, {"press", 1}}));
+  EXPECT_EQ(contacts["objects"],
+            nlohmann::json({{"rod A", 3}, {"rod B", 2}, {"(unnamed)", 1}}));
+  const nlohmann::json& coverage = contacts["coverage"];
+  EXPECT_EQ(coverage["z_bins_m"],
+            nlohmann::json({-0.1015, -0.0609, -0.0203, 0.0203, 0.0609, 0.1015}));
+  EXPECT_EQ(coverage["theta_bins_deg"],
+            nlohmann::json({-180.0, -120.0, -60.0, 0.0, 60.0, 120.0, 180.0}));
+  // Rows are z bins, columns theta bins.
+  std::vector<std::vector<int>> want(5, std::vector<int>(6, 0));
+  want[0][3] = 1;  // sample 0
+  want[4][5] = 1;  // sample 3
+  want[2][5] = 1;  // sample 5
+  EXPECT_EQ(coverage["counts"], nlohmann::json(want));
+  EXPECT_EQ(coverage["outside"], 1);
+}
+
+TEST(DatasetTest, RefusesUnknownContactKind) {
+  TempDir dir;
+  const DatasetInfo info = MakeInfo(true);
+  DatasetWriter writer(dir.File("strikes.h5"), info);
+  StrikeSample sample = MakeSample(0, info);
+  sample.contacts[1].kind = static_cast<ContactEpisode::Kind>(3);
+  EXPECT_THROW(writer.Append(sample), SchemaError);
+  EXPECT_THROW(writer.Encode(sample), SchemaError);
+  EXPECT_EQ(writer.count(), 0);
 }
 
 TEST(ArrayFileTest, RoundTripAndSummary) {
@@ -824,6 +969,181 @@ TEST(H5pyTest, EncodedChunksMatchHdf5FilterPipeline) {
   }
 }
 
+// Edits a dataset file in place with h5py: argv[1] "downgrade" turns a 1.1 file into a 1.0 one
+// (no contact table, schema_version "1.0"); "wrong_owner" points sample row 2 at sample 0's
+// first contact; "past_end" gives sample row 0 more contacts than the table holds.
+constexpr const char* kEditDatasetPy = R"py(
+import sys
+import h5py
+
+mode, path = sys.argv[1], sys.argv[2]
+with h5py.File(path, "r+") as f:
+    if mode == "downgrade":
+        del f["contacts"]
+        del f["index/contact_first"]
+        del f["index/contact_count"]
+        f.attrs["schema_version"] = "1.0"
+    elif mode == "wrong_owner":
+        f["index/contact_first"][2] = 0
+    elif mode == "past_end":
+        f["index/contact_count"][0] = 99
+    else:
+        sys.exit("unknown mode " + mode)
+print("edited", mode)
+)py";
+
+// Runs kEditDatasetPy on `path`.
+void EditDataset(const TempDir& dir, const std::string& mode, const std::string& path) {
+  const std::string script = dir.File("edit_dataset.py");
+  std::ofstream(script) << kEditDatasetPy;
+  int status = -1;
+  const std::string output =
+      RunCommand("/usr/bin/python3 " + script + " " + mode + " " + path, &status);
+  ASSERT_EQ(status, 0) << output;
+  ASSERT_NE(output.find("edited " + mode), std::string::npos) << output;
+}
+
+TEST(H5pyTest, Version10FilesReadWithoutContacts) {
+  TempDir dir;
+  const DatasetInfo info = MakeInfo(true);
+  const std::string old_a = dir.File("old_a.h5");
+  const std::string old_b = dir.File("old_b.h5");
+  WriteDataset(old_a, info, {0, 2}, {2});
+  WriteDataset(old_b, info, {1, 3});
+  EditDataset(dir, "downgrade", old_a);
+  EditDataset(dir, "downgrade", old_b);
+
+  // The reader accepts 1.0 and reports no contacts; everything else is there.
+  DatasetReader reader(old_a);
+  EXPECT_EQ(reader.info().schema_version, "1.0");
+  ASSERT_EQ(reader.size(), 2);
+  const StrikeSample sample = reader.Read(0);
+  EXPECT_TRUE(sample.contacts.empty());
+  EXPECT_TRUE(reader.ReadMeta(1).contacts.empty());
+  ExpectLabelsEqual(sample.label, MakeSample(0, info).label);
+  EXPECT_EQ(sample.proprio, MakeSample(0, info).proprio);
+
+  // The summary says contacts were not recorded.
+  const nlohmann::json summary = nlohmann::json::parse(SummarizeDatasetJson(old_a));
+  EXPECT_EQ(summary["schema_version"], "1.0");
+  EXPECT_EQ(summary["contacts"]["recorded"], false);
+  EXPECT_EQ(summary["contacts"]["total"], 0);
+  EXPECT_EQ(summary["contacts"]["per_sample"]["max"], 0);
+  EXPECT_EQ(summary["contacts"]["coverage"]["outside"], 0);
+
+  // Merging 1.0 shards gives a 1.0 file without a contact table.
+  const std::string merged = dir.File("merged_old.h5");
+  MergeDatasets({old_b, old_a}, merged);
+  DatasetReader merged_reader(merged);
+  EXPECT_EQ(merged_reader.info().schema_version, "1.0");
+  ASSERT_EQ(merged_reader.size(), 4);
+  for (int64_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(merged_reader.ReadMeta(i).index, static_cast<uint64_t>(i));
+    EXPECT_TRUE(merged_reader.Read(i).contacts.empty());
+  }
+  EXPECT_THROW(ReadArray(merged, "index/contact_first"), IoError);
+
+  // Mixing 1.0 and 1.1 shards is refused, naming both versions.
+  const std::string current = dir.File("current.h5");
+  WriteDataset(current, info, {4});
+  const std::string mixed = dir.File("mixed.h5");
+  try {
+    MergeDatasets({current, old_a}, mixed);
+    FAIL() << "shards of schema 1.0 and 1.1 were merged";
+  } catch (const SchemaError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("schema_version 1.0"), std::string::npos) << message;
+    EXPECT_NE(message.find("has 1.1"), std::string::npos) << message;
+  }
+  EXPECT_FALSE(fs::exists(mixed));
+}
+
+TEST(H5pyTest, ReaderRefusesBrokenContactOffsets) {
+  TempDir dir;
+  const DatasetInfo info = MakeInfo(true);
+  // Samples 0, 1, 2, 3 own contact rows [0, 3), [3, 3), [3, 4), [4, 7); sample 2 is pointed at
+  // row 0 (the table still ends with sample 3's contacts, so the file opens).
+  const std::string wrong_owner = dir.File("wrong_owner.h5");
+  WriteDataset(wrong_owner, info, {0, 1, 2, 3});
+  EditDataset(dir, "wrong_owner", wrong_owner);
+  DatasetReader reader(wrong_owner);
+  EXPECT_EQ(reader.Read(0).contacts.size(), 3u);
+  EXPECT_EQ(reader.Read(3).contacts.size(), 3u);
+  try {
+    reader.Read(2);
+    FAIL() << "contacts of another sample were read";
+  } catch (const SchemaError& e) {
+    EXPECT_NE(std::string(e.what()).find("belongs to sample row 0"), std::string::npos)
+        << e.what();
+  }
+  const std::string past_end = dir.File("past_end.h5");
+  WriteDataset(past_end, info, {0, 1, 2});
+  EditDataset(dir, "past_end", past_end);
+  EXPECT_THROW(DatasetReader(past_end).ReadMeta(0), SchemaError);
+  EXPECT_THROW(SummarizeDatasetJson(past_end), SchemaError);
+}
+
+// Prints dtype, shape, chunks and maxshape of every contact dataset and the stored values of a
+// small file, as h5py sees them.
+constexpr const char* kContactLayoutPy = R"py(
+import sys
+import h5py
+
+with h5py.File(sys.argv[1], "r") as f:
+    print("version", f.attrs["schema_version"])
+    names = ["index/contact_first", "index/contact_count", "contacts/sample_row",
+             "contacts/time_s", "contacts/duration_s", "contacts/z_m", "contacts/theta_rad",
+             "contacts/normal_speed_m_s", "contacts/effective_mass_kg", "contacts/impulse_Ns",
+             "contacts/peak_force_N", "contacts/point_m", "contacts/normal", "contacts/kind",
+             "contacts/object", "contacts/material"]
+    for name in names:
+        d = f[name]
+        kind = "string" if h5py.check_string_dtype(d.dtype) else str(d.dtype)
+        print(name, kind, d.shape, d.chunks, d.maxshape)
+    print("first", f["index/contact_first"][:].tolist())
+    print("count", f["index/contact_count"][:].tolist())
+    print("sample_row", f["contacts/sample_row"][:].tolist())
+    print("kind", f["contacts/kind"][:].tolist(), f["contacts/kind"].attrs["names"])
+    print("object", f["contacts/object"].asstr()[:].tolist())
+    print("material", f["contacts/material"].asstr()[:].tolist())
+    print("utf8", h5py.check_string_dtype(f["contacts/object"].dtype).encoding)
+)py";
+
+TEST(H5pyTest, ContactTableLayout) {
+  TempDir dir;
+  const std::string path = dir.File("strikes.h5");
+  // Samples 0, 1, 2, 3 have 3, 0, 1, 3 contacts.
+  WriteDataset(path, MakeInfo(true), {0, 1, 2, 3});
+  const std::string script = dir.File("layout.py");
+  std::ofstream(script) << kContactLayoutPy;
+  int status = -1;
+  const std::string output = RunCommand("/usr/bin/python3 " + script + " " + path, &status);
+  ASSERT_EQ(status, 0) << output;
+  const std::vector<std::string> want = {
+      "version 1.1\n",
+      "index/contact_first int64 (4,) (1024,) (None,)\n",
+      "index/contact_count int64 (4,) (1024,) (None,)\n",
+      "contacts/sample_row int64 (7,) (1024,) (None,)\n",
+      "contacts/time_s float64 (7,) (1024,) (None,)\n",
+      "contacts/peak_force_N float64 (7,) (1024,) (None,)\n",
+      "contacts/point_m float64 (7, 3) (1024, 3) (None, 3)\n",
+      "contacts/normal float64 (7, 3) (1024, 3) (None, 3)\n",
+      "contacts/kind uint8 (7,) (1024,) (None,)\n",
+      "contacts/object string (7,) (1024,) (None,)\n",
+      "contacts/material string (7,) (1024,) (None,)\n",
+      "first [0, 3, 3, 4]\n",
+      "count [3, 0, 1, 3]\n",
+      "sample_row [0, 0, 0, 2, 3, 3, 3]\n",
+      "kind [0, 1, 2, 0, 0, 1, 2] impact,bounce,press\n",
+      "object ['rod T22L42', 'rod T22L42', 'rod T22L42 \u2014 \u00f822', 'rod T22L42', "
+      "'rod T22L42', 'rod T22L42', 'rod T22L42 \u2014 \u00f822']\n",
+      "material ['wood', 'rubber', 'wood', 'wood', 'wood', 'rubber', 'wood']\n",
+      "utf8 utf-8\n"};
+  for (const std::string& line : want) {
+    EXPECT_NE(output.find(line), std::string::npos) << "missing: " << line << output;
+  }
+}
+
 TEST(H5pyTest, DocumentedExampleReadsDataset) {
   const std::string script =
       std::string(SONICBOOM_SOURCE_DIR) + "/scripts/examples/read_dataset.py";
@@ -850,6 +1170,26 @@ TEST(H5pyTest, DocumentedExampleReadsDataset) {
       << output;
   EXPECT_NE(output.find("valid=True peak=1.0000"), std::string::npos) << output;
   EXPECT_NE(output.find("invalid: index=1 reason=no_contact"), std::string::npos) << output;
+  // Samples 0, 1, 2 have 3, 0, 1 contacts; the first sample's are printed in time order.
+  EXPECT_NE(output.find("contacts: total=4 first sample: 3\n"), std::string::npos) << output;
+  EXPECT_NE(output.find("  contact: kind=impact time_s=0.002000 z_m=-0.090000 "
+                        "theta_rad=-2.500000 impulse_Ns=0.020000 object=rod T22L42 "
+                        "material=wood\n  contact: kind=bounce time_s=0.012000 z_m=-0.020000 "
+                        "theta_rad=-0.800000 impulse_Ns=0.010000 object=rod T22L42 "
+                        "material=rubber\n  contact: kind=press time_s=0.022000 z_m=0.050000 "
+                        "theta_rad=0.900000 impulse_Ns=0.006667 "
+                        "object=rod T22L42 \u2014 \u00f822 material=wood\n"),
+            std::string::npos)
+      << output;
+
+  // A 1.0 file has no contacts to print.
+  EditDataset(dir, "downgrade", path);
+  const std::string old_output =
+      RunCommand("/usr/bin/python3 " + script + " " + path, &status);
+  ASSERT_EQ(status, 0) << old_output;
+  EXPECT_NE(old_output.find("first: index=0 z_m=-0.050000"), std::string::npos) << old_output;
+  EXPECT_NE(old_output.find("contacts: not recorded (schema_version 1.0)"), std::string::npos)
+      << old_output;
 
   // The script refuses an unfinished file.
   { DatasetWriter writer(dir.File("partial.h5"), info); }

@@ -26,6 +26,14 @@ void ExpectSameSamples(const std::string& a_path, const std::string& b_path) {
     EXPECT_EQ(sa.label.theta_rad, sb.label.theta_rad);
     EXPECT_TRUE(sa.audio.isApprox(sb.audio, 0.0f)) << "sample " << i;
     EXPECT_TRUE(sa.proprio.isApprox(sb.proprio, 0.0f));
+    // every contact episode, bit for bit
+    ASSERT_EQ(sa.contacts.size(), sb.contacts.size());
+    for (size_t k = 0; k < sa.contacts.size(); ++k) {
+      EXPECT_EQ(sa.contacts[k].time_s, sb.contacts[k].time_s);
+      EXPECT_EQ(sa.contacts[k].impulse_Ns, sb.contacts[k].impulse_Ns);
+      EXPECT_EQ(sa.contacts[k].point_m, sb.contacts[k].point_m);
+      EXPECT_EQ(sa.contacts[k].kind, sb.contacts[k].kind);
+    }
   }
 }
 
@@ -61,6 +69,12 @@ TEST(PipelineTest, MujocoEngineHitsWhereTheKinematicStrikeAims) {
     EXPECT_NE(sa.label.z_m, sb.label.z_m);  // a real contact, not the kinematic label
     EXPECT_GT(sa.label.impulse_Ns, 0.0);
     EXPECT_TRUE(sa.audio.allFinite());
+    // the rollout keeps every contact; the first is the impact that acoustics played
+    ASSERT_FALSE(sa.contacts.empty());
+    EXPECT_EQ(sa.contacts.front().kind, ContactEpisode::Kind::kImpact);
+    EXPECT_EQ(sa.contacts.front().z_m, sa.label.z_m);
+    EXPECT_EQ(sa.contacts.front().object, "rod T22L42");
+    ASSERT_EQ(sb.contacts.size(), 1u);
   }
 }
 

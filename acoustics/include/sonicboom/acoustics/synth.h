@@ -72,6 +72,7 @@ struct RenderedStrike {
   bool clipped{false};
   double impulse_ns{0.0};
   double duration_s{0.0};
+  double peak_force_n{0.0};
   double band_hz{0.0};                     // mode band used
   int64_t modes_used{0};
 };

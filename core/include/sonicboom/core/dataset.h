@@ -8,7 +8,14 @@
 ///   /label/normal_speed_m_s (N) f64, /label/duration_s (N) f64
 ///   /proprio                (N, K, 10) f32: position m (3), quaternion wxyz (4), velocity m/s (3)
 ///   /index/sample_index (N) u64, /index/seed (N) u64, /index/valid (N) u8,
-///   /index/invalid_reason (N) variable-length string, /index/clipped (N) u8
+///   /index/invalid_reason (N) variable-length string, /index/clipped (N) u8,
+///   /index/contact_first (N) i64, /index/contact_count (N) i64: sample n's contacts are the
+///   rows [first, first + count) of the contact table (schema 1.1)
+///   /contacts/sample_row (M) i64: the row n of the sample a contact belongs to
+///   /contacts/time_s, duration_s, z_m, theta_rad, normal_speed_m_s, effective_mass_kg,
+///   impulse_Ns, peak_force_N (M) f64; /contacts/point_m (M,3) f64, /contacts/normal (M,3) f64,
+///   tube frame; /contacts/kind (M) u8 (attr `names` = "impact,bounce,press");
+///   /contacts/object, /contacts/material (M) variable-length UTF-8 strings
 ///   root attrs: schema, schema_version, software_version, source, config_yaml, sample_rate_hz,
 ///               proprio_rate_hz, global_seed, shard, num_shards, num_samples, created_utc,
 ///               and `complete` = 1, written last.
@@ -24,7 +31,10 @@
 namespace sonicboom {
 
 inline constexpr const char* kDatasetSchema = "sonicboom.strikes";
-inline constexpr const char* kDatasetSchemaVersion = "1.0";
+/// The version this build writes: 1.1 stores every contact episode of each sample.
+inline constexpr const char* kDatasetSchemaVersion = "1.1";
+/// The previous version, still read: no contact table (samples read with no contacts).
+inline constexpr const char* kDatasetSchemaVersionWithoutContacts = "1.0";
 
 /// File-level metadata of a dataset.
 struct DatasetInfo {
@@ -42,6 +52,7 @@ struct DatasetInfo {
   int64_t num_shards{1};
   int64_t num_samples{0};            // reader: samples in the file
   bool complete{false};              // reader: the `complete` attribute
+  std::string schema_version;        // reader: the file's version; the writer writes the current
 };
 
 /// Appends samples in order. Append, AppendEncoded and Finish run on one thread at a time;
@@ -54,7 +65,7 @@ class DatasetWriter {
   /// A sample with its audio chunk already encoded exactly as the file's filter pipeline would
   /// (shuffle, then deflate), made by Encode() on any thread.
   struct EncodedSample {
-    StrikeSample meta;                       // labels, index fields, proprio; audio left empty
+    StrikeSample meta;                       // labels, index fields, proprio, contacts; no audio
     std::vector<unsigned char> audio_chunk;  // stored bytes of the (1, C, T) audio chunk
     uint32_t filter_mask{0};                 // filters skipped, as HDF5 records it (0: none)
   };
@@ -65,8 +76,8 @@ class DatasetWriter {
   DatasetWriter(const DatasetWriter&) = delete;
   DatasetWriter& operator=(const DatasetWriter&) = delete;
 
-  /// Appends one sample; its audio must be (channels x audio_frames) and its proprio
-  /// (proprio_rows x 10). Throws IoError / SchemaError.
+  /// Appends one sample with its contact episodes; its audio must be (channels x audio_frames)
+  /// and its proprio (proprio_rows x 10). Throws IoError / SchemaError.
   void Append(const StrikeSample& sample);
   /// Checks the sample like Append (shapes, finite audio of a valid sample) and encodes its audio
   /// chunk: (C, T) as int16 PCM or float32 little endian, shuffled, deflated. Thread-safe; the
@@ -80,9 +91,11 @@ class DatasetWriter {
   int64_t count() const;
 
  private:
-  // Merging copies compressed audio chunks straight into the writer's file.
+  // Merging copies compressed audio chunks straight into the writer's file, and writes shards of
+  // version 1.0 as a 1.0 file (`with_contacts` false: no contact table).
   friend void MergeDatasets(const std::vector<std::string>& shard_paths,
                             const std::string& out_path);
+  DatasetWriter(const std::string& path, const DatasetInfo& info, bool with_contacts);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
@@ -91,7 +104,8 @@ class DatasetWriter {
 class DatasetReader {
  public:
   /// Opens `path`. Throws IoError when missing or not HDF5, SchemaError when it is not a
-  /// sonicboom dataset, has another schema version, or lacks `complete` (unless allow_incomplete).
+  /// sonicboom dataset, has a schema version other than 1.1 or 1.0, or lacks `complete` (unless
+  /// allow_incomplete).
   explicit DatasetReader(const std::string& path, bool allow_incomplete = false);
   ~DatasetReader();
   DatasetReader(DatasetReader&&) noexcept;
@@ -99,9 +113,10 @@ class DatasetReader {
 
   const DatasetInfo& info() const;
   int64_t size() const;
-  /// Labels, index fields and proprio of sample i (no audio).
+  /// Labels, index fields, proprio and contacts of sample i (no audio); a 1.0 file has no
+  /// contacts.
   StrikeSample ReadMeta(int64_t i) const;
-  /// Everything of sample i, audio scaled to full scale 1.
+  /// Everything of sample i, audio scaled to full scale 1, contacts included.
   StrikeSample Read(int64_t i) const;
 
  private:
@@ -109,12 +124,15 @@ class DatasetReader {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Joins shard files (same schema and config, any order) into one file ordered by sample index.
-/// Refuses incomplete shards, mismatched configs and duplicate indices (SchemaError).
+/// Joins shard files (same schema version and config, any order) into one file ordered by sample
+/// index, contacts carried over with re-based offsets. Shards of version 1.0 give a 1.0 file.
+/// Refuses incomplete shards, mixed versions, mismatched configs and duplicate indices
+/// (SchemaError).
 void MergeDatasets(const std::vector<std::string>& shard_paths, const std::string& out_path);
 
 /// A human-readable (and JSON) summary of a dataset file: counts, valid/invalid with reasons,
-/// label ranges, audio peak statistics, completeness.
+/// label ranges, audio peak statistics, completeness, and contact counts by kind and object with
+/// the (z, theta) coverage of first contacts.
 std::string SummarizeDatasetJson(const std::string& path);
 
 }  // namespace sonicboom

@@ -34,12 +34,15 @@ struct StrikeConfig {
   double rod_density_kg_m3{650.0};
   double rod_contact_youngs_modulus_pa{1.0e9};
   double rod_contact_poisson_ratio{0.35};
+  std::string rod_material{"wood"};        // recorded with every contact
   // proprioception
   double proprio_rate_hz{100.0};
   int64_t proprio_rows{50};                // window length fed to the model (0.5 s)
 
   void Serialize(Archive* a);
   void Validate() const;
+  /// The rod's name in the paper's notation, e.g. "rod T22L42" (diameter mm, length cm).
+  std::string RodName() const;
 };
 
 /// Everything the acoustics stage and the dataset need from one strike.
