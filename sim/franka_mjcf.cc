@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <string>
 #include <vector>
 
 #include "sonicboom/core/errors.h"
@@ -23,6 +24,16 @@ constexpr std::array<double, kPandaJoints> kTorqueLimitsNm = {87, 87, 87, 87, 12
 // without pretending to model the real gearboxes
 constexpr double kJointDampingNmsPerRad = 0.1;
 constexpr double kJointArmatureKgM2 = 0.01;
+
+// Torsional and rolling friction of rod contacts, and their solimp (MuJoCo's default)
+constexpr double kRodTorsionalFriction = 0.005;
+constexpr double kRodRollingFriction = 0.0001;
+constexpr const char* kRodSolimp = "0.9 0.95 0.001 0.5 2";
+
+// Contact and constraint buffers of object-only detection: far above the pairs' one contact each
+// (3 rows each with elliptic cones) plus 7 joint limits; a fuller buffer raises a MuJoCo warning
+constexpr int kObjectOnlyMaxContacts = 50;
+constexpr int kObjectOnlyMaxConstraints = 150;
 
 // One moving link's inertial (its DH row is PandaDhRows()[i]).
 // Inertials are the feasible parameter set of Gaz, Cognetti, Oliva, Robuffo Giordano, De Luca,
@@ -80,17 +91,24 @@ std::string Num(double value) {
 
 std::string Indent(int depth) { return std::string(2 * static_cast<size_t>(depth), ' '); }
 
+// Geom name of kCollisionCapsules[index]: panda_link<link>_collision<k>, k counting in its link
+std::string CapsuleName(size_t index) {
+  const int link = kCollisionCapsules[index].link;
+  int count = 0;
+  for (size_t i = 0; i < index; ++i) count += kCollisionCapsules[i].link == link ? 1 : 0;
+  return fmt::format("panda_link{}_collision{}", link, count);
+}
+
 // <geom> lines of every collision capsule of `link`
 std::string CapsuleGeoms(int link, int depth) {
   std::string out;
-  int count = 0;
-  for (const Capsule& capsule : kCollisionCapsules) {
+  for (size_t i = 0; i < kCollisionCapsules.size(); ++i) {
+    const Capsule& capsule = kCollisionCapsules[i];
     if (capsule.link != link) continue;
     const auto& f = capsule.fromto_m;
     out += fmt::format(
-        "{}<geom name=\"panda_link{}_collision{}\" type=\"capsule\" fromto=\"{} {} {} {} {} {}\" "
-        "size=\"{}\"/>\n",
-        Indent(depth), link, count++, Num(f[0]), Num(f[1]), Num(f[2]), Num(f[3]), Num(f[4]),
+        "{}<geom name=\"{}\" type=\"capsule\" fromto=\"{} {} {} {} {} {}\" size=\"{}\"/>\n",
+        Indent(depth), CapsuleName(i), Num(f[0]), Num(f[1]), Num(f[2]), Num(f[3]), Num(f[4]),
         Num(f[5]), Num(capsule.radius_m));
   }
   return out;
@@ -134,10 +152,19 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   xml += "  <compiler angle=\"radian\" inertiafromgeom=\"false\"/>\n";
   // Euler: MuJoCo's Euler already integrates joint damping implicitly, and the motors add no
   // velocity-dependent force, so the "implicit" integrator would only cost more per step
+  // "predefined": only the <pair>s below are tested, without the broad phase
   xml += fmt::format(
-      "  <option timestep=\"{}\" gravity=\"0 0 {}\" integrator=\"Euler\"{}/>\n",
+      "  <option timestep=\"{}\" gravity=\"0 0 {}\" integrator=\"Euler\"{}{}/>\n",
       Num(options.timestep_s), Num(-kGravityMS2),
-      options.elliptic_friction_cones ? " cone=\"elliptic\"" : "");
+      options.elliptic_friction_cones ? " cone=\"elliptic\"" : "",
+      options.object_contacts_only ? " collision=\"predefined\"" : "");
+  // object-only detection bounds the contacts by the pairs (one each for capsules and cylinders),
+  // so small constraint buffers do; the solver stack MuJoCo derives from them shrinks from ~10 MB
+  // (njmax 500) to well under 1 MB, which mj_makeData no longer has to clear
+  if (options.object_contacts_only) {
+    xml += fmt::format("  <size nconmax=\"{}\" njmax=\"{}\"/>\n", kObjectOnlyMaxContacts,
+                       kObjectOnlyMaxConstraints);
+  }
   xml += "  <default>\n";
   xml += fmt::format(
       "    <joint type=\"hinge\" axis=\"0 0 1\" limited=\"true\" damping=\"{}\" "
@@ -203,9 +230,11 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
     xml += fmt::format("    <body name=\"rod{}\" mocap=\"true\" pos=\"0 0 -10\">\n", i);
     xml += fmt::format(
         "      <geom name=\"rod{}\" type=\"cylinder\" size=\"{} {}\" priority=\"1\" "
-        "condim=\"3\" friction=\"{} 0.005 0.0001\" solref=\"{} {}\" rgba=\"0.6 0.4 0.2 1\"/>\n",
+        "condim=\"3\" friction=\"{} {} {}\" solref=\"{} {}\" solimp=\"{}\" "
+        "rgba=\"0.6 0.4 0.2 1\"/>\n",
         i, Num(0.5 * rod.diameter_m), Num(0.5 * rod.length_m), Num(rod.friction),
-        Num(rod.contact_timeconst_s), Num(rod.contact_dampratio));
+        Num(kRodTorsionalFriction), Num(kRodRollingFriction), Num(rod.contact_timeconst_s),
+        Num(rod.contact_dampratio), kRodSolimp);
     xml += "    </body>\n";
   }
   xml += "  </worldbody>\n";
@@ -213,6 +242,23 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   // links 5 and 7 nest around the wrist on the real arm; their capsules touch near q6 = 0
   xml += "  <contact>\n";
   xml += "    <exclude body1=\"panda_link5\" body2=\"panda_link7\"/>\n";
+  // object-only detection: each rod against the tube and every arm capsule, with the parameters
+  // the rod's priority gives these contacts (condim 3, friction slide slide spin roll roll)
+  if (options.object_contacts_only) {
+    std::vector<std::string> arm_geoms = {"tube"};
+    for (size_t k = 0; k < kCollisionCapsules.size(); ++k) arm_geoms.push_back(CapsuleName(k));
+    for (size_t i = 0; i < options.rods.size(); ++i) {
+      const MjcfRod& rod = options.rods[i];
+      for (const std::string& geom : arm_geoms) {
+        xml += fmt::format(
+            "    <pair geom1=\"{}\" geom2=\"rod{}\" condim=\"3\" friction=\"{} {} {} {} {}\" "
+            "solref=\"{} {}\" solimp=\"{}\" margin=\"0\" gap=\"0\"/>\n",
+            geom, i, Num(rod.friction), Num(rod.friction), Num(kRodTorsionalFriction),
+            Num(kRodRollingFriction), Num(kRodRollingFriction), Num(rod.contact_timeconst_s),
+            Num(rod.contact_dampratio), kRodSolimp);
+      }
+    }
+  }
   xml += "  </contact>\n";
 
   // direct joint torque motors, limited to the published torques

@@ -7,8 +7,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <utility>
+#include <vector>
 
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
@@ -52,10 +54,66 @@ double MinJerkInverse(double fraction) {
   return 0.5 * (lo + hi);
 }
 
+// a step skips collision detection when every object pair is this much farther apart than it
+// can close in one step, m
+constexpr double kCollisionSkipSlackM = 0.001;
+
 struct DataDeleter {
   void operator()(mjData* data) const { mj_deleteData(data); }
 };
 using DataPtr = std::unique_ptr<mjData, DataDeleter>;
+
+struct ModelDeleter {
+  void operator()(mjModel* model) const { mj_deleteModel(model); }
+};
+using ModelPtr = std::unique_ptr<mjModel, ModelDeleter>;
+
+// Shortest distance between segments [p0, p1] and [q0, q1] (Ericson, Real-Time Collision
+// Detection, 5.1.9), m
+double SegmentDistance(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
+                       const Eigen::Vector3d& q0, const Eigen::Vector3d& q1) {
+  constexpr double kTiny = 1e-18;
+  const Eigen::Vector3d d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+  double s = 0.0, t = 0.0;
+  if (a <= kTiny && e <= kTiny) return r.norm();
+  if (a <= kTiny) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = d1.dot(r);
+    if (e <= kTiny) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = d1.dot(d2), denom = a * e - b * b;
+      s = denom > kTiny ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1.0) {
+        t = 1.0;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  return (p0 + s * d1 - (q0 + t * d2)).norm();
+}
+
+// Surface distance lower bound of two capsule or cylinder geoms at their poses in d: their axis
+// segments' distance less both radii (a cylinder lies inside the capsule of its radius), m
+double GeomGapLowerBound(const mjModel* m, const mjData* d, int g1, int g2) {
+  auto axis = [&](int g, Eigen::Vector3d* a, Eigen::Vector3d* b) {
+    const Eigen::Vector3d center(d->geom_xpos + 3 * g);
+    const mjtNum* mat = d->geom_xmat + 9 * g;  // row-major: local z is column 2
+    const Eigen::Vector3d half = m->geom_size[3 * g + 1] * Eigen::Vector3d(mat[2], mat[5], mat[8]);
+    *a = center - half;
+    *b = center + half;
+  };
+  Eigen::Vector3d a1, b1, a2, b2;
+  axis(g1, &a1, &b1);
+  axis(g2, &a2, &b2);
+  return SegmentDistance(a1, b1, a2, b2) - m->geom_size[3 * g1] - m->geom_size[3 * g2];
+}
 
 // The strike drawn from a seed, and where the rod goes.
 struct SampledStrike {
@@ -227,6 +285,11 @@ struct StrikeRollout::Ids {
   int flange_body{-1};                       // body carrying the tube
   int tube_site{-1};
   double rod_modal_mass_kg{0.0};             // clamped rod, tip modal mass m / 4
+  // The scene with contacts disabled, stepped instead where no object pair can touch: its steps
+  // equal the full model's whenever collision detection would find no contact.
+  ModelPtr contact_free;
+  std::vector<std::array<int, 2>> pairs;     // geoms of every predefined (object) pair
+  double reach_m{0.0};                       // bound on any geom point's distance to any joint axis
 };
 
 StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
@@ -253,6 +316,8 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
   rod.friction = config_.contact_friction;
   options.rods.push_back(rod);
   options.elliptic_friction_cones = true;
+  // only rod contacts matter here (tube strikes, arm hits): no broad phase, no self-collision
+  options.object_contacts_only = true;
   scene_ = std::make_unique<PandaScene>(PandaMjcf(tube_, options));
 
   const mjModel* m = scene_->model();
@@ -272,6 +337,32 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
   const double rod_mass_kg = strike_.rod_density_kg_m3 * 0.25 * kPi * strike_.rod_diameter_m *
                              strike_.rod_diameter_m * strike_.rod_length_m;
   ids_->rod_modal_mass_kg = 0.25 * rod_mass_kg;
+
+  // contact-free twin and the pairs it may skip (capsules and cylinders only)
+  ids_->contact_free.reset(mj_copyModel(nullptr, m));
+  SONICBOOM_DEMAND(ids_->contact_free != nullptr);
+  ids_->contact_free->opt.disableflags |= mjDSBL_CONTACT;
+  SONICBOOM_DEMAND(m->opt.collision == mjCOL_PAIR);
+  for (int p = 0; p < m->npair; ++p) {
+    const int g1 = m->pair_geom1[p], g2 = m->pair_geom2[p];
+    for (int g : {g1, g2}) {
+      SONICBOOM_DEMAND(m->geom_type[g] == mjGEOM_CAPSULE || m->geom_type[g] == mjGEOM_CYLINDER);
+    }
+    ids_->pairs.push_back({g1, g2});
+  }
+  // chain length from any joint to any arm geom point: the arm's body and joint offsets, plus the
+  // farthest geom point from its body origin (mocap rods do not move with the joints)
+  double reach_m = 0.0;
+  for (int b = 1; b < m->nbody; ++b) {
+    if (m->body_mocapid[b] < 0) reach_m += mju_norm3(m->body_pos + 3 * b);
+  }
+  for (int j = 0; j < m->njnt; ++j) reach_m += mju_norm3(m->jnt_pos + 3 * j);
+  double geom_extent_m = 0.0;
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (m->body_mocapid[m->geom_bodyid[g]] >= 0) continue;
+    geom_extent_m = std::max(geom_extent_m, mju_norm3(m->geom_pos + 3 * g) + m->geom_rbound[g]);
+  }
+  ids_->reach_m = reach_m + geom_extent_m;
 }
 
 StrikeRollout::~StrikeRollout() = default;
@@ -326,8 +417,10 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
   const double lag_s = damping[0] / stiffness[0];
   const double sweep_s = strike_.sweep_duration_s;
   const double t_sweep_s = strike.onset_s - s_contact * sweep_s - lag_s;
-  // step grid: multiples of dt on the audio clock, from the record start or the sweep start
-  const int64_t first_step = static_cast<int64_t>(std::floor(std::min(0.0, t_sweep_s) / dt_s));
+  // step grid: multiples of dt on the audio clock from the sweep start. Before it the arm holds
+  // q0 at rest (the impedance torque is the bias force at q0), so rows due earlier are the held
+  // pose at zero velocity, written at the first step
+  const int64_t first_step = static_cast<int64_t>(std::floor(t_sweep_s / dt_s));
 
   // rows on the audio clock: proprio (proprio_rows) and joint speed (the whole record)
   const int64_t proprio_rows = strike_.proprio_rows;
@@ -381,12 +474,38 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
   double t_end_s = audio_.record_duration_s;
   std::vector<mjtNum> jacp(static_cast<size_t>(3 * m->nv)), jt_n(m->nv), minv_jt_n(m->nv);
   int64_t step = 0;
+  // joint angles of the last step's kinematics; lower bound of the object pairs' gaps (m) at
+  // gap_qpos
+  std::array<double, kPandaJoints> last_qpos{}, gap_qpos{};
+  double gap_m = -1.0;
   double t_s = first_step * dt_s;
   while (result.valid) {
     t_s = static_cast<double>(first_step + step) * dt_s;
     if (t_s >= t_end_s - 0.5 * dt_s) break;
+    // Contact-free step where no pair can touch: each arm point has moved at most
+    // reach * |q - gap_qpos|_1 since the pair gaps were bounded (at gap_qpos); re-bound them from
+    // the last step's geom poses (at last_qpos) once that budget is spent
+    auto budget_left = [&] {
+      double travel_rad = 0.0;
+      for (int i = 0; i < kPandaJoints; ++i) {
+        travel_rad += std::abs(d->qpos[ids.qpos[i]] - gap_qpos[i]);
+      }
+      return gap_m - ids.reach_m * travel_rad - kCollisionSkipSlackM > 0.0;
+    };
+    bool may_touch = step == 0;
+    if (!may_touch && !budget_left()) {
+      gap_m = std::numeric_limits<double>::infinity();
+      for (const auto& [g1, g2] : ids.pairs) {
+        gap_m = std::min(gap_m, GeomGapLowerBound(m, d, g1, g2));
+      }
+      gap_qpos = last_qpos;
+      may_touch = !budget_left();
+    }
+    const mjModel* step_model = may_touch ? m : ids.contact_free.get();
+    for (int i = 0; i < kPandaJoints; ++i) last_qpos[i] = d->qpos[ids.qpos[i]];
+
     // positions and velocities at t: kinematics, collisions, mass matrix, bias forces
-    mj_step1(m, d);
+    mj_step1(step_model, d);
     if (const char* warning = RaisedWarning(d)) {
       fail(fmt::format("MuJoCo warning {} at t = {:.4f} s", warning, t_s));
       break;
@@ -499,7 +618,7 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
     }
 
     // actuation, constraint forces, integration to t + dt
-    mj_step2(m, d);
+    mj_step2(step_model, d);
     ++step;
     if (const char* warning = RaisedWarning(d)) {
       fail(fmt::format("MuJoCo warning {} at t = {:.4f} s", warning, t_s));

@@ -185,6 +185,28 @@ TEST(MujocoFkTest, GravityCompensationAtHome) {
   for (int i = 0; i < kPandaJoints; ++i) EXPECT_LT(std::abs(tau_nm[i]), limits_nm[i]) << i;
 }
 
+TEST(MujocoFkTest, ObjectContactsOnlyPairsEachRodWithTheTubeAndEveryCapsule) {
+  PandaMjcfOptions options;
+  options.rods.resize(2);
+  options.object_contacts_only = true;
+  const std::string xml = PandaMjcf(TubeConfig{}, options);
+  EXPECT_NE(xml.find("collision=\"predefined\""), std::string::npos);
+  // 2 rods x (tube + 11 capsules)
+  size_t pairs = 0;
+  for (size_t at = xml.find("<pair "); at != std::string::npos; at = xml.find("<pair ", at + 1)) {
+    ++pairs;
+  }
+  EXPECT_EQ(pairs, 24u);
+  EXPECT_NE(xml.find("<pair geom1=\"tube\" geom2=\"rod1\""), std::string::npos);
+  EXPECT_NE(xml.find("<pair geom1=\"panda_link7_collision0\" geom2=\"rod0\""),
+            std::string::npos);
+  // it compiles, and the parked rods touch nothing
+  const PandaScene scene(xml);
+  EXPECT_EQ(scene.ContactCount(HomeJoints()), 0);
+  // the default model detects all contacts dynamically
+  EXPECT_EQ(PandaMjcf(TubeConfig{}).find("<pair "), std::string::npos);
+}
+
 TEST(MujocoFkTest, NoContactsAtHome) {
   EXPECT_EQ(DefaultScene().ContactCount(HomeJoints()), 0);
 }

@@ -5,7 +5,8 @@
 /// Body frames are the DH frames, so MuJoCo's kinematic chain reproduces PandaForwardKinematics.
 /// Names: bodies panda_link1..7 and panda_flange, hinges panda_joint1..7, motors panda_motor1..7,
 /// geom "tube", sites "flange" (flange frame) and "tube_center" (tube frame); rods (options) are
-/// mocap bodies and geoms "rod0", "rod1", ...
+/// mocap bodies and geoms "rod0", "rod1", ...; with object_contacts_only, collision detection
+/// tests only the <pair>s of each rod with the tube and every arm capsule.
 
 #include <string>
 #include <vector>
@@ -32,6 +33,10 @@ struct PandaMjcfOptions {
   double tube_density_kg_m3{1400.0};  // PVC, as MaterialConfig's default; sets the tube's inertial
   std::vector<MjcfRod> rods;          // struck objects; none in the default model
   bool elliptic_friction_cones{false}; // MuJoCo's elliptic friction cones (default: pyramidal)
+  // Only object contacts: collision detection tests predefined pairs alone, each rod against the
+  // tube and against every arm capsule (no broad phase, no arm self-collision). The pairs carry
+  // the rod's contact parameters, as its priority gives them in the default (dynamic) detection.
+  bool object_contacts_only{false};
 };
 
 /// Sum of the seven link masses written into the model (Gaz et al. 2019), kg; excludes the tube.

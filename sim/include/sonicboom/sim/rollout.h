@@ -29,6 +29,11 @@
 /// (audio.onset_time_s + jitter), started earlier by the impedance's low-frequency lag
 /// D_11 / K_1 so that the arm itself, not only its set point, arrives near the onset.
 ///
+/// Cost. Collision detection tests only rod pairs (tube and every arm capsule; no self-collision),
+/// and a step skips it where a conservative bound (axis-segment distances, minus the most the
+/// arm can have moved since they were taken) shows no pair can touch; the simulation starts at
+/// the sweep start, the arm holding q0 at rest before it. None of these changes a result.
+///
 /// Contact durations follow MuJoCo's soft contact (contact_timeconst_s, milliseconds), longer than
 /// the Hertz contact of wood on PVC (0.2-0.6 ms, physics.md §1.6): use the impulse, approach speed
 /// and effective mass of a ContactRecord with a Hertz model for the sound, not its duration.
