@@ -58,12 +58,15 @@ void Progress::Finish() {
   if (!enabled_ || finished_) return;
   std::lock_guard<std::mutex> lock(mutex_);
   finished_ = true;
+  // a log line already showing the final count is not repeated
+  if (!tty_ && last_drawn_ == done_) return;
   Draw(true);
 }
 
 void Progress::Draw(bool final_line) {
   // rate and ETA from the mean rate so far
   const int64_t done = done_;
+  last_drawn_ = done;
   const double elapsed =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   const double rate = elapsed > 0 ? done / elapsed : 0.0;

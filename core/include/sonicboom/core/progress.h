@@ -41,6 +41,7 @@ class Progress {
   std::chrono::steady_clock::time_point start_;
   std::chrono::steady_clock::time_point last_draw_;
   int last_decile_{-1};
+  int64_t last_drawn_{-1};  // `done` at the last drawn line
 };
 
 }  // namespace sonicboom
