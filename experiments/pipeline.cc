@@ -31,28 +31,13 @@ struct StrikePipeline::Impl {
 
 namespace {
 
-// every tube contact of a rollout as dataset episodes
+// every tube contact of a rollout as dataset episodes, named after the struck rod
 std::vector<ContactEpisode> RolloutEpisodes(const sim::RolloutResult& r,
                                             const sim::StrikeConfig& strike) {
-  std::vector<ContactEpisode> episodes;
-  for (const sim::ContactRecord& c : r.contacts) {
-    ContactEpisode e;
-    e.time_s = c.time_s;
-    e.duration_s = c.duration_s;
-    e.z_m = c.z_m;
-    e.theta_rad = c.theta_rad;
-    e.point_m = c.point_tube_m;
-    e.normal = c.normal_tube;
-    e.normal_speed_m_s = c.normal_speed_m_s;
-    e.effective_mass_kg = c.effective_mass_kg;
-    e.impulse_Ns = c.impulse_ns;
-    e.peak_force_N = c.peak_force_n;
-    e.kind = c.kind == "bounce"  ? ContactEpisode::Kind::kBounce
-             : c.kind == "press" ? ContactEpisode::Kind::kPress
-                                 : ContactEpisode::Kind::kImpact;
+  std::vector<ContactEpisode> episodes(r.contacts.begin(), r.contacts.end());
+  for (ContactEpisode& e : episodes) {
     e.object = strike.RodName();
     e.material = strike.rod_material;
-    episodes.push_back(std::move(e));
   }
   return episodes;
 }
@@ -76,8 +61,8 @@ sim::StrikeEvents RolloutEvents(const sim::RolloutResult& r, const sim::StrikeCo
   ContactLabel& label = ev.label;
   label.z_m = first.z_m;
   label.theta_rad = first.theta_rad;
-  label.point_m = first.point_tube_m;  // raw contact point, within 1 mm of the surface
-  label.normal = first.normal_tube;
+  label.point_m = first.point_m;  // raw contact point, within 1 mm of the surface
+  label.normal = first.normal;
   label.time_s = first.time_s;
   label.normal_speed_m_s = first.normal_speed_m_s;
   ev.point_world_m = first.point_world_m;

@@ -458,13 +458,13 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
     const bool first = result.contacts.size() == 1;
     const double since_release_s = any_release ? rec.time_s - last_release_s : 1e9;
     if (first) {
-      rec.kind = "impact";
+      rec.kind = ContactEpisode::Kind::kImpact;
     } else if (rec.duration_s > kPressDurationS) {
-      rec.kind = "press";
+      rec.kind = ContactEpisode::Kind::kPress;
     } else if (since_release_s <= kBounceWindowS) {
-      rec.kind = "bounce";
+      rec.kind = ContactEpisode::Kind::kBounce;
     } else {
-      rec.kind = "impact";
+      rec.kind = ContactEpisode::Kind::kImpact;
     }
     episode_active = false;
     any_release = true;
@@ -567,10 +567,10 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
       ContactRecord rec;
       rec.time_s = t_s;
       rec.point_world_m = point_world;
-      rec.point_tube_m = tube_rot.transpose() * (point_world - tube_origin);
-      rec.normal_tube = tube_rot.transpose() * normal_world;
-      rec.z_m = rec.point_tube_m.z();
-      rec.theta_rad = WrapAngle(std::atan2(rec.point_tube_m.y(), rec.point_tube_m.x()));
+      rec.point_m = tube_rot.transpose() * (point_world - tube_origin);
+      rec.normal = tube_rot.transpose() * normal_world;
+      rec.z_m = rec.point_m.z();
+      rec.theta_rad = WrapAngle(std::atan2(rec.point_m.y(), rec.point_m.x()));
       rec.object_index = 0;
 
       // approach speed: tube-point velocity (J qdot) along the outward normal; the rod is fixed
@@ -587,7 +587,7 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
       for (int k = 0; k < m->nv; ++k) inverse_mass += jt_n[k] * minv_jt_n[k];
       rec.effective_mass_kg = 1.0 / (inverse_mass + 1.0 / ids.rod_modal_mass_kg);
 
-      const double radius_m = std::hypot(rec.point_tube_m.x(), rec.point_tube_m.y());
+      const double radius_m = std::hypot(rec.point_m.x(), rec.point_m.y());
       const double off_surface_m = std::abs(radius_m - tube_.outer_radius_m);
       const bool first = result.contacts.empty();
       result.contacts.push_back(rec);
@@ -637,8 +637,8 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
         normal_force_n += force[0];
       }
       ContactRecord& rec = result.contacts.back();
-      rec.impulse_ns += normal_force_n * dt_s;
-      rec.peak_force_n = std::max(rec.peak_force_n, normal_force_n);
+      rec.impulse_Ns += normal_force_n * dt_s;
+      rec.peak_force_N = std::max(rec.peak_force_N, normal_force_n);
     }
   }
   const double t_final_s = static_cast<double>(first_step + step) * dt_s;

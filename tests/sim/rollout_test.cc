@@ -48,7 +48,7 @@ TEST(RolloutTest, ContactsLieOnTheTubeWhereTheRodWasPlaced) {
     ++valid;
     ASSERT_FALSE(r.contacts.empty());
     const ContactRecord& first = r.contacts.front();
-    EXPECT_EQ(first.kind, "impact");
+    EXPECT_EQ(first.kind, ContactEpisode::Kind::kImpact);
     EXPECT_GE(first.z_m, tube.contact_z_min_m);
     EXPECT_LE(first.z_m, tube.contact_z_max_m);
     // the placement: the first touch is where the rod was put
@@ -57,15 +57,15 @@ TEST(RolloutTest, ContactsLieOnTheTubeWhereTheRodWasPlaced) {
     // and near the intended onset
     EXPECT_LT(std::abs(first.time_s - r.target_time_s), 0.05);
     for (const ContactRecord& c : r.contacts) {
-      const double radius_m = std::hypot(c.point_tube_m.x(), c.point_tube_m.y());
+      const double radius_m = std::hypot(c.point_m.x(), c.point_m.y());
       EXPECT_LT(std::abs(radius_m - tube.outer_radius_m), 1e-3);
       EXPECT_GT(c.theta_rad, -kPi);
       EXPECT_LE(c.theta_rad, kPi);
-      EXPECT_NEAR(c.normal_tube.norm(), 1.0, 1e-9);
+      EXPECT_NEAR(c.normal.norm(), 1.0, 1e-9);
       // the outward normal points along the surface normal at theta
-      EXPECT_GT(c.normal_tube.dot(SurfaceNormal(c.theta_rad)), 0.95);
-      EXPECT_GT(c.impulse_ns, 0.0);
-      EXPECT_GT(c.peak_force_n, 0.0);
+      EXPECT_GT(c.normal.dot(SurfaceNormal(c.theta_rad)), 0.95);
+      EXPECT_GT(c.impulse_Ns, 0.0);
+      EXPECT_GT(c.peak_force_N, 0.0);
       EXPECT_GT(c.effective_mass_kg, 0.0);
       // in series with the rod's tip modal mass: never above it
       EXPECT_LT(c.effective_mass_kg, 0.25 * strike.rod_density_kg_m3 * 0.25 * kPi *
@@ -103,7 +103,7 @@ TEST(RolloutTest, TargetsMatchTheKinematicGenerator) {
 TEST(RolloutTest, TubeStaysPressedAgainstTheRod) {
   // the goal lies beyond the rod: after the impact the tube stays on it
   int pressed = 0, valid = 0;
-  std::map<std::string, int> kinds;
+  std::map<ContactEpisode::Kind, int> kinds;
   double min_duration_s = 1e9, max_duration_s = 0.0;
   for (const RolloutResult& r : DefaultResults()) {
     if (!r.valid) continue;
@@ -111,7 +111,10 @@ TEST(RolloutTest, TubeStaysPressedAgainstTheRod) {
     bool long_contact = false;
     for (const ContactRecord& c : r.contacts) {
       ++kinds[c.kind];
-      if (c.kind == "press" || (c.kind == "impact" && c.duration_s > 0.02)) long_contact = true;
+      if (c.kind == ContactEpisode::Kind::kPress ||
+          (c.kind == ContactEpisode::Kind::kImpact && c.duration_s > 0.02)) {
+        long_contact = true;
+      }
     }
     const double first_s = r.contacts.front().duration_s;
     min_duration_s = std::min(min_duration_s, first_s);
@@ -120,7 +123,7 @@ TEST(RolloutTest, TubeStaysPressedAgainstTheRod) {
   }
   std::cout << "pressed " << pressed << " / " << valid << "; first episode " << min_duration_s
             << " .. " << max_duration_s << " s; kinds:";
-  for (const auto& [kind, count] : kinds) std::cout << " " << kind << " " << count;
+  for (const auto& [kind, count] : kinds) std::cout << " " << static_cast<int>(kind) << " " << count;
   std::cout << "\n";
   EXPECT_EQ(pressed, valid);
 }
@@ -135,12 +138,12 @@ void ExpectSameRecords(const RolloutResult& a, const RolloutResult& b) {
     EXPECT_EQ(x.time_s, y.time_s);
     EXPECT_EQ(x.duration_s, y.duration_s);
     EXPECT_EQ(x.point_world_m, y.point_world_m);
-    EXPECT_EQ(x.point_tube_m, y.point_tube_m);
-    EXPECT_EQ(x.normal_tube, y.normal_tube);
+    EXPECT_EQ(x.point_m, y.point_m);
+    EXPECT_EQ(x.normal, y.normal);
     EXPECT_EQ(x.normal_speed_m_s, y.normal_speed_m_s);
     EXPECT_EQ(x.effective_mass_kg, y.effective_mass_kg);
-    EXPECT_EQ(x.impulse_ns, y.impulse_ns);
-    EXPECT_EQ(x.peak_force_n, y.peak_force_n);
+    EXPECT_EQ(x.impulse_Ns, y.impulse_Ns);
+    EXPECT_EQ(x.peak_force_N, y.peak_force_N);
     EXPECT_EQ(x.kind, y.kind);
   }
   ASSERT_EQ(a.proprio.rows(), b.proprio.rows());

@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "sonicboom/core/archive.h"
+#include "sonicboom/core/sample.h"
 #include "sonicboom/core/tube.h"
 #include "sonicboom/sim/strike.h"
 
@@ -72,19 +73,12 @@ struct RolloutConfig {
 };
 
 /// One tube contact episode with one object, from touch to release.
-struct ContactRecord {
-  double time_s{0.0};                       // touch, on the audio clock (record start = 0)
-  double duration_s{0.0};                   // touch to release (or to the end of the rollout)
-  double z_m{0.0};                          // tube frame, from the raw point
-  double theta_rad{0.0};                    // (-pi, pi], from the raw point
-  Eigen::Vector3d point_tube_m{Eigen::Vector3d::Zero()};   // (3) raw MuJoCo point, tube frame
+struct ContactRecord : ContactEpisode {
+  // ContactEpisode: time and duration on the audio clock, raw MuJoCo point and outward
+  // (tube to object) unit normal in the tube frame, z and theta from the raw point, approach
+  // speed at touch, effective mass (robot side in series with the object side), impulse, peak
+  // force and kind; object and material are named by the caller
   Eigen::Vector3d point_world_m{Eigen::Vector3d::Zero()};  // (3) raw MuJoCo point, base frame
-  Eigen::Vector3d normal_tube{Eigen::Vector3d::Zero()};    // (3) outward (tube to object), unit
-  double normal_speed_m_s{0.0};             // approach speed along the normal at touch
-  double effective_mass_kg{0.0};            // robot side in series with the object side
-  double impulse_ns{0.0};                   // normal force integrated over the episode
-  double peak_force_n{0.0};
-  std::string kind;                         // "impact", "bounce" or "press"
   int object_index{0};
 };
 
