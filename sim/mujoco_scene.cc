@@ -143,11 +143,8 @@ std::vector<MujocoJointInfo> PandaScene::Joints() const {
 }
 
 std::vector<std::pair<double, double>> PandaScene::JointRanges() const {
-  const mjModel* m = impl_->model;
   std::vector<std::pair<double, double>> ranges;
-  for (int j = 0; j < m->njnt; ++j) {
-    ranges.emplace_back(m->jnt_range[2 * j], m->jnt_range[2 * j + 1]);
-  }
+  for (const auto& joint : Joints()) ranges.emplace_back(joint.lower_rad, joint.upper_rad);
   return ranges;
 }
 

@@ -13,7 +13,6 @@
 #include <vector>
 
 #include "sonicboom/core/errors.h"
-#include "sonicboom/core/rng.h"
 #include "sonicboom/core/sample.h"
 #include "sonicboom/sim/franka.h"
 #include "sonicboom/sim/franka_mjcf.h"
@@ -37,12 +36,6 @@ constexpr double kPressDurationS = 0.02;
 constexpr double kTipMarginM = 0.05;
 // joint-1 step (rad) of the finite difference that gives the direction of motion
 constexpr double kDirectionStepRad = 1e-6;
-
-// minimum-jerk position fraction of normalised time s
-double MinJerk(double s) {
-  s = std::clamp(s, 0.0, 1.0);
-  return s * s * s * (10 - 15 * s + 6 * s * s);
-}
 
 // normalised time s in [0, 1] with MinJerk(s) = fraction (bisection; MinJerk is increasing)
 double MinJerkInverse(double fraction) {
@@ -128,26 +121,17 @@ struct SampledStrike {
   std::string invalid_reason;
 };
 
-// Draws the strike exactly as StrikeModel::Generate does (same draws, same order) and places
-// the rod (see rollout.h).
+// The strike drawn as for the kinematic engine (DrawStrike), and the rod placed (see rollout.h).
 SampledStrike SampleStrike(uint64_t sample_seed, const StrikeConfig& c, const TubeConfig& tube,
                            const AudioConfig& audio, double overshoot_rad) {
-  Rng rng(sample_seed, Stream::kStrike);
+  const StrikeDraw draw = DrawStrike(sample_seed, c, tube, audio);
   SampledStrike s;
   const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
-  for (int i = 0; i < kPandaJoints; ++i) s.q0[i] = c.home_joints_rad[i];
-  s.q0[6] = rng.Uniform(lo[6], hi[6]);
-  s.side = rng.Uniform() < 0.5 ? -1.0 : 1.0;
-  const double tilt_rad = rng.Uniform(-c.tilt_max_deg, 0.0) * kDeg;
-  s.q0[1] += 0.5 * tilt_rad;
-  s.q0[3] += 0.5 * tilt_rad;
-  const double sweep_rad = rng.Uniform(c.sweep_min_deg, c.sweep_max_deg) * kDeg;
-  const double contact_fraction = rng.Uniform(c.contact_fraction_min, c.contact_fraction_max);
-  s.z_m = rng.Uniform(tube.contact_z_min_m, tube.contact_z_max_m);
-  const double angle_offset_rad =
-      rng.Uniform(-c.contact_angle_spread_deg, c.contact_angle_spread_deg) * kDeg;
-  s.onset_s = audio.onset_time_s + rng.Uniform(-0.05, 0.05);
-  s.travel_rad = sweep_rad * MinJerk(contact_fraction);
+  s.q0 = draw.q0;
+  s.side = draw.side;
+  s.z_m = draw.z_m;
+  s.onset_s = draw.onset_s;
+  s.travel_rad = draw.sweep_rad * MinJerk(draw.contact_fraction);
 
   // the start pose and the commanded goal must lie within the joint limits
   for (int i = 0; i < kPandaJoints; ++i) {
@@ -171,7 +155,7 @@ SampledStrike SampleStrike(uint64_t sample_seed, const StrikeConfig& c, const Tu
     s.invalid_reason = "no approach direction at contact";
   }
   const double motion_theta_rad = std::atan2(motion_tube.y(), motion_tube.x());
-  s.theta_rad = WrapAngle(motion_theta_rad + angle_offset_rad);
+  s.theta_rad = WrapAngle(motion_theta_rad + draw.angle_offset_rad);
 
   // rod crossing the tube at 90 degrees, tangent to it at (z, theta), 1 mm beyond the surface;
   // its free tip kTipMarginM past that point, its clamped end away from the joint-1 (base z) axis

@@ -15,17 +15,37 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
 
-// minimum-jerk position fraction and its time derivative (per unit duration)
+}  // namespace
+
 double MinJerk(double s) {
   s = std::clamp(s, 0.0, 1.0);
   return s * s * s * (10 - 15 * s + 6 * s * s);
 }
+
 double MinJerkRate(double s) {
   if (s <= 0.0 || s >= 1.0) return 0.0;
   return 30 * s * s * (1 - s) * (1 - s);
 }
 
-}  // namespace
+StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& c, const TubeConfig& tube,
+                      const AudioConfig& audio) {
+  // joint 7 turns the tube about its axis (within its limits), joint 1 sweeps towards the rod
+  // on either side (the paper's opposite-side strikes), so every theta can face the rod
+  Rng rng(sample_seed, Stream::kStrike);
+  StrikeDraw d;
+  for (int i = 0; i < kPandaJoints; ++i) d.q0[i] = c.home_joints_rad[i];
+  d.q0[6] = rng.Uniform(PandaLowerLimits()[6], PandaUpperLimits()[6]);
+  d.side = rng.Uniform() < 0.5 ? -1.0 : 1.0;
+  const double tilt = rng.Uniform(-c.tilt_max_deg, 0.0) * kDeg;
+  d.q0[1] += 0.5 * tilt;
+  d.q0[3] += 0.5 * tilt;
+  d.sweep_rad = rng.Uniform(c.sweep_min_deg, c.sweep_max_deg) * kDeg;
+  d.contact_fraction = rng.Uniform(c.contact_fraction_min, c.contact_fraction_max);
+  d.z_m = rng.Uniform(tube.contact_z_min_m, tube.contact_z_max_m);
+  d.angle_offset_rad = rng.Uniform(-c.contact_angle_spread_deg, c.contact_angle_spread_deg) * kDeg;
+  d.onset_s = audio.onset_time_s + rng.Uniform(-0.05, 0.05);
+  return d;
+}
 
 void StrikeConfig::Serialize(Archive* a) {
   a->VisitChoice("engine", &engine, {"mujoco", "kinematic"});
@@ -83,25 +103,15 @@ StrikeModel::StrikeModel(const StrikeConfig& strike, const TubeConfig& tube,
 }
 
 StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
-  Rng rng(sample_seed, Stream::kStrike);
   StrikeEvents ev;
   const StrikeConfig& c = strike_;
-
-  // motion: joint 7 turns the tube about its axis (within its limits), joint 1 sweeps towards
-  // the rod on either side (the paper's opposite-side strikes), so every theta can face the rod
+  const StrikeDraw draw = DrawStrike(sample_seed, c, tube_, audio_);
   const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
-  JointVector q0;
-  for (int i = 0; i < kPandaJoints; ++i) q0[i] = c.home_joints_rad[i];
-  q0[6] = rng.Uniform(lo[6], hi[6]);
-  const double side = rng.Uniform() < 0.5 ? -1.0 : 1.0;
-  const double tilt = rng.Uniform(-c.tilt_max_deg, 0.0) * kDeg;
-  q0[1] += 0.5 * tilt;
-  q0[3] += 0.5 * tilt;
-  const double sweep = side * rng.Uniform(c.sweep_min_deg, c.sweep_max_deg) * kDeg;
-  const double contact_fraction = rng.Uniform(c.contact_fraction_min, c.contact_fraction_max);
-  const double z_contact = rng.Uniform(tube_.contact_z_min_m, tube_.contact_z_max_m);
-  const double angle_offset = rng.Uniform(-c.contact_angle_spread_deg, c.contact_angle_spread_deg) * kDeg;
-  const double onset_jitter_s = rng.Uniform(-0.05, 0.05);
+  const JointVector q0 = draw.q0;
+  const double sweep = draw.side * draw.sweep_rad;
+  const double contact_fraction = draw.contact_fraction;
+  const double z_contact = draw.z_m;
+  const double angle_offset = draw.angle_offset_rad;
 
   // a tilt or sweep that leaves the joint limits cannot be executed
   for (int i = 0; i < kPandaJoints; ++i) {
@@ -113,7 +123,7 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
   }
 
   // timing on the audio clock: contact at the nominal onset (+ jitter)
-  const double t_contact = audio_.onset_time_s + onset_jitter_s;
+  const double t_contact = draw.onset_s;
   const double s_contact = contact_fraction;  // fraction of the sweep time at contact
   const double t_start = t_contact - s_contact * c.sweep_duration_s;
   auto joints_at = [&](double t) {

@@ -45,6 +45,24 @@ struct StrikeConfig {
   std::string RodName() const;
 };
 
+/// The random part of one strike, drawn from its sample seed; both strike engines start here.
+struct StrikeDraw {
+  Eigen::Matrix<double, 7, 1> q0;          // rad: home pose with the drawn joint 7 and tilt
+  double side{1.0};                        // joint-1 sweep direction (+-1)
+  double sweep_rad{0.0};                   // joint-1 goal magnitude
+  double contact_fraction{0.5};            // contact at this fraction of the sweep time
+  double z_m{0.0};                         // contact height, tube frame
+  double angle_offset_rad{0.0};            // rod offset from the motion direction
+  double onset_s{0.0};                     // contact time on the audio clock
+};
+/// Draws a strike (deterministic in sample_seed; stream Stream::kStrike).
+StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& strike, const TubeConfig& tube,
+                      const AudioConfig& audio);
+
+/// Minimum-jerk position fraction at normalised time s (clamped to [0, 1]), and its rate.
+double MinJerk(double s);
+double MinJerkRate(double s);
+
 /// Everything the acoustics stage and the dataset need from one strike.
 struct StrikeEvents {
   bool valid{true};
