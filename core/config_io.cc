@@ -7,6 +7,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -202,6 +203,30 @@ class YamlReadArchive : public Archive {
     CheckUnknown(frames_.back());
     frames_.pop_back();
   }
+  std::optional<size_t> BeginList(std::string_view name) override {
+    YAML::Node node = Child(name);
+    if (node) {
+      if (!node.IsSequence()) Fail(name, "expected a list of mappings", node);
+      for (const auto& item : node) {
+        if (!item.IsMap()) Fail(name, "expected a list of mappings", item);
+      }
+    }
+    // the list frame holds the sequence; its items get frames "name.0", "name.1", ...
+    frames_.push_back({node ? node : YAML::Node(), Path(name), {}});
+    if (!node) return std::nullopt;
+    return node.size();
+  }
+  void BeginItem(size_t index) override {
+    const Frame& list = frames_.back();
+    Frame item{list.node ? list.node[index] : YAML::Node(), list.path + "." + std::to_string(index),
+               {}};
+    frames_.push_back(std::move(item));
+  }
+  void EndItem() override {
+    CheckUnknown(frames_.back());
+    frames_.pop_back();
+  }
+  void EndList() override { frames_.pop_back(); }
 
  private:
   struct Frame {
@@ -305,6 +330,21 @@ class YamlWriteArchive : public Archive {
     stack_.pop_back();
     stack_.back().second[group.first] = group.second;
   }
+  std::optional<size_t> BeginList(std::string_view name) override {
+    stack_.push_back({std::string(name), YAML::Node(YAML::NodeType::Sequence)});
+    return std::nullopt;  // write the existing items
+  }
+  void BeginItem(size_t) override { stack_.push_back({"", YAML::Node(YAML::NodeType::Map)}); }
+  void EndItem() override {
+    auto item = stack_.back();
+    stack_.pop_back();
+    stack_.back().second.push_back(item.second);
+  }
+  void EndList() override {
+    auto list = stack_.back();
+    stack_.pop_back();
+    stack_.back().second[list.first] = list.second;
+  }
 
  private:
   static std::string FormatDouble(double v) { return fmt::format("{}", v); }
@@ -312,7 +352,7 @@ class YamlWriteArchive : public Archive {
     stack_.back().second[std::string(name)] = node;
   }
 
-  std::vector<std::pair<std::string, YAML::Node>> stack_;  // (group name, mapping)
+  std::vector<std::pair<std::string, YAML::Node>> stack_;  // (group or list name, node)
 };
 
 }  // namespace

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <optional>
+#include <string>
 #include <utility>
 
 #include <fmt/format.h>
@@ -14,41 +16,46 @@ namespace sonicboom::learning::internal {
 
 using nlohmann::json;
 
-JsonWriteArchive::JsonWriteArchive() : root_(json::object()) {}
-
-json& JsonWriteArchive::Current() {
-  json* node = &root_;
-  for (const std::string& key : path_) node = &(*node)[key];
-  return *node;
-}
+JsonWriteArchive::JsonWriteArchive() : root_(json::object()), stack_{&root_} {}
 
 void JsonWriteArchive::Visit(std::string_view name, double* value, Bounds) {
-  Current()[std::string(name)] = *value;
+  (*stack_.back())[std::string(name)] = *value;
 }
 void JsonWriteArchive::Visit(std::string_view name, int64_t* value, Bounds) {
-  Current()[std::string(name)] = *value;
+  (*stack_.back())[std::string(name)] = *value;
 }
 void JsonWriteArchive::Visit(std::string_view name, bool* value) {
-  Current()[std::string(name)] = *value;
+  (*stack_.back())[std::string(name)] = *value;
 }
 void JsonWriteArchive::Visit(std::string_view name, std::string* value) {
-  Current()[std::string(name)] = *value;
+  (*stack_.back())[std::string(name)] = *value;
 }
 void JsonWriteArchive::Visit(std::string_view name, std::vector<double>* value, Bounds) {
-  Current()[std::string(name)] = *value;
+  (*stack_.back())[std::string(name)] = *value;
 }
 void JsonWriteArchive::Visit(std::string_view name, std::vector<std::string>* value) {
-  Current()[std::string(name)] = *value;
+  (*stack_.back())[std::string(name)] = *value;
 }
 void JsonWriteArchive::VisitChoice(std::string_view name, std::string* value,
                                    const std::vector<std::string>&) {
-  Current()[std::string(name)] = *value;
+  (*stack_.back())[std::string(name)] = *value;
 }
 void JsonWriteArchive::BeginGroup(std::string_view name) {
-  Current()[std::string(name)] = json::object();
-  path_.emplace_back(name);
+  json& group = (*stack_.back())[std::string(name)] = json::object();
+  stack_.push_back(&group);
 }
-void JsonWriteArchive::EndGroup() { path_.pop_back(); }
+void JsonWriteArchive::EndGroup() { stack_.pop_back(); }
+std::optional<size_t> JsonWriteArchive::BeginList(std::string_view name) {
+  json& list = (*stack_.back())[std::string(name)] = json::array();
+  stack_.push_back(&list);
+  return std::nullopt;  // write the existing items
+}
+void JsonWriteArchive::BeginItem(size_t) {
+  stack_.back()->push_back(json::object());
+  stack_.push_back(&stack_.back()->back());
+}
+void JsonWriteArchive::EndItem() { stack_.pop_back(); }
+void JsonWriteArchive::EndList() { stack_.pop_back(); }
 
 JsonReadArchive::JsonReadArchive(const json& object, std::string origin)
     : origin_(std::move(origin)) {
@@ -150,8 +157,35 @@ void JsonReadArchive::EndGroup() {
   path_.pop_back();
 }
 
+std::optional<size_t> JsonReadArchive::BeginList(std::string_view name) {
+  const json& v = Get(name);
+  if (!v.is_array()) Fail(name, "must be a list of objects");
+  for (const json& item : v) {
+    if (!item.is_object()) Fail(name, "must be a list of objects");
+  }
+  stack_.push_back(&v);
+  path_.emplace_back(name);
+  return v.size();
+}
+
+void JsonReadArchive::BeginItem(size_t index) {
+  stack_.push_back(&stack_.back()->at(index));
+  path_.push_back(std::to_string(index));
+}
+
+void JsonReadArchive::EndItem() {
+  stack_.pop_back();
+  path_.pop_back();
+}
+
+void JsonReadArchive::EndList() {
+  stack_.pop_back();
+  path_.pop_back();
+}
+
 void JsonReadArchive::CheckNoUnknownKeys() const {
-  // Walk the object; every key must have been read (groups recurse into their members).
+  // Walk the object; every key must have been read (groups and list items recurse into their
+  // members, an item's keys being "list.index.key").
   std::function<void(const json&, const std::string&)> walk = [&](const json& node,
                                                                   const std::string& prefix) {
     for (auto it = node.begin(); it != node.end(); ++it) {
@@ -160,6 +194,11 @@ void JsonReadArchive::CheckNoUnknownKeys() const {
         throw SchemaError(fmt::format("{}: unknown key '{}'", origin_, key));
       }
       if (it->is_object()) walk(*it, key + ".");
+      if (it->is_array()) {
+        for (size_t i = 0; i < it->size(); ++i) {
+          if ((*it)[i].is_object()) walk((*it)[i], key + "." + std::to_string(i) + ".");
+        }
+      }
     }
   };
   walk(*stack_.front(), "");

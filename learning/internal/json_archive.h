@@ -3,6 +3,7 @@
 /// files (model.json, checkpoint.json). Reading is strict: a missing, mistyped, out-of-range
 /// or unknown key throws SchemaError naming the file and the dotted key.
 
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,12 +34,16 @@ class JsonWriteArchive final : public Archive {
  protected:
   void BeginGroup(std::string_view name) override;
   void EndGroup() override;
+  std::optional<size_t> BeginList(std::string_view name) override;
+  void BeginItem(size_t index) override;
+  void EndItem() override;
+  void EndList() override;
 
  private:
-  nlohmann::json& Current();
-
   nlohmann::json root_;
-  std::vector<std::string> path_;  // keys of the open groups
+  // open groups, lists and items, innermost last; object members and the open (last) array
+  // item keep their addresses while open
+  std::vector<nlohmann::json*> stack_;
 };
 
 /// Reads every visited field from a JSON object; `origin` (a file name) prefixes errors.
@@ -62,6 +67,10 @@ class JsonReadArchive final : public Archive {
  protected:
   void BeginGroup(std::string_view name) override;
   void EndGroup() override;
+  std::optional<size_t> BeginList(std::string_view name) override;
+  void BeginItem(size_t index) override;
+  void EndItem() override;
+  void EndList() override;
 
  private:
   // The JSON value of `name` in the current group; throws when absent.
@@ -71,7 +80,7 @@ class JsonReadArchive final : public Archive {
   void CheckBounds(std::string_view name, double value, const Bounds& bounds) const;
 
   std::vector<const nlohmann::json*> stack_;
-  std::vector<std::string> path_;
+  std::vector<std::string> path_;  // keys of the open groups and lists, indices of open items
   std::vector<std::string> visited_;  // dotted keys read so far
   std::string origin_;
 };

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -491,6 +492,11 @@ class RecordingArchive : public Archive {
  protected:
   void BeginGroup(std::string_view) override {}
   void EndGroup() override {}
+  // lists: record the fields of the existing items
+  std::optional<size_t> BeginList(std::string_view) override { return std::nullopt; }
+  void BeginItem(size_t) override {}
+  void EndItem() override {}
+  void EndList() override {}
 
  private:
   void Add(std::string_view name, const char* kind, Bounds b) {

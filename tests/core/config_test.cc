@@ -22,10 +22,51 @@ struct Root {
   }
 };
 
+// A list of nested structs, as scene objects use: each item has a nested group too.
+struct Item {
+  struct Pose {
+    double z_m{0.0};
+    void Serialize(Archive* a) { a->Visit("z_m", &z_m); }
+    bool operator==(const Pose&) const = default;
+  };
+  std::string kind{"sphere"};
+  double diameter_m{0.01};
+  Pose pose;
+  void Serialize(Archive* a) {
+    a->Visit("kind", &kind);
+    a->Visit("diameter_m", &diameter_m, Bounds::Positive());
+    a->Visit("pose", &pose);
+  }
+  bool operator==(const Item&) const = default;
+};
+
+struct ListRoot {
+  struct Scene {
+    std::vector<Item> objects{{"cube", 0.05, {0.1}}, {"rod", 0.02, {-0.1}}};  // not Item{}
+    void Serialize(Archive* a) { a->VisitList("objects", &objects); }
+  } scene;
+  void Serialize(Archive* a) { a->Visit("scene", &scene); }
+};
+
+const std::vector<Item> kDefaultItems = ListRoot().scene.objects;
+
+ListRoot ReadList(const ConfigLayers& layers) {
+  ListRoot root;
+  layers.ReadInto(&root);
+  return root;
+}
+
+ConfigLayers TextLayer(const std::string& yaml) {
+  ConfigLayers layers;
+  layers.AddText(yaml, "list.yaml");
+  return layers;
+}
+
 void WriteFile(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
+template <typename T = Root>
 std::string ErrorOf(const ConfigLayers& layers) {
-  Root root;
+  T root;
   try {
     layers.ReadInto(&root);
   } catch (const ConfigError& e) {
@@ -120,6 +161,101 @@ TEST(ConfigTest, WrittenYamlReadsBackIdentically) {
   EXPECT_EQ(back.tube.length_m, root.tube.length_m);
   EXPECT_EQ(back.material.loss_factor, root.material.loss_factor);
   EXPECT_EQ(ToYaml(const_cast<Root&>(back)), yaml);
+}
+
+TEST(ConfigListTest, WrittenYamlReadsBackIdentically) {
+  ListRoot root;
+  root.scene.objects = {{"rod", 0.123456789012345, {0.25}}, {"sphere", 0.03, {}}, {"cube", 1, {}}};
+  const std::string yaml = ToYaml(root);
+  EXPECT_NE(yaml.find("objects:\n    - kind: rod\n"), std::string::npos) << yaml;  // block style
+  ListRoot back = FromYaml<ListRoot>(yaml, "round trip");
+  EXPECT_EQ(back.scene.objects, root.scene.objects);
+  EXPECT_EQ(ToYaml(back), yaml);
+  // an empty list reads back empty, not as the defaults
+  root.scene.objects.clear();
+  EXPECT_TRUE(FromYaml<ListRoot>(ToYaml(root), "round trip").scene.objects.empty());
+}
+
+TEST(ConfigListTest, AbsentListKeepsDefaults) {
+  EXPECT_EQ(ReadList(ConfigLayers()).scene.objects, kDefaultItems);
+  EXPECT_EQ(ReadList(TextLayer("scene: {}\n")).scene.objects, kDefaultItems);
+  EXPECT_EQ(ReadList(TextLayer("scene:\n  objects:\n")).scene.objects, kDefaultItems);  // null
+}
+
+TEST(ConfigListTest, PresentListReplacesDefaultsWithDefaultItems) {
+  const auto objects =
+      ReadList(TextLayer("scene:\n  objects:\n    - diameter_m: 0.03\n    - kind: rod\n"))
+          .scene.objects;
+  ASSERT_EQ(objects.size(), 2u);
+  // unset fields come from Item{}, not from the default list's items
+  EXPECT_EQ(objects[0], (Item{"sphere", 0.03, {}}));
+  EXPECT_EQ(objects[1], (Item{"rod", 0.01, {}}));
+  EXPECT_TRUE(ReadList(TextLayer("scene:\n  objects: []\n")).scene.objects.empty());
+}
+
+TEST(ConfigListTest, ErrorsInsideAnItemNameIndexAndFile) {
+  testing::TempDir dir;
+  WriteFile(dir / "x.yaml",
+            "scene:\n  objects:\n    - kind: rod\n    - kind: cube\n      diamter_m: 0.5\n");
+  ConfigLayers unknown;
+  unknown.AddFile(dir / "x.yaml");
+  std::string err = ErrorOf<ListRoot>(unknown);
+  EXPECT_NE(err.find("unknown config key 'scene.objects.1.diamter_m'"), std::string::npos) << err;
+  EXPECT_NE(err.find("x.yaml"), std::string::npos) << err;
+  WriteFile(dir / "y.yaml", "scene:\n  objects:\n    - pose: {z_m: abc}\n");
+  ConfigLayers wrong_type;
+  wrong_type.AddFile(dir / "y.yaml");
+  err = ErrorOf<ListRoot>(wrong_type);
+  EXPECT_NE(err.find("'scene.objects.0.pose.z_m'"), std::string::npos) << err;
+  EXPECT_NE(err.find("y.yaml"), std::string::npos) << err;
+  EXPECT_NE(err.find("abc"), std::string::npos) << err;
+  err = ErrorOf<ListRoot>(TextLayer("scene:\n  objects:\n    - {}\n    - diameter_m: -1\n"));
+  EXPECT_NE(err.find("'scene.objects.1.diameter_m' = -1 (from list.yaml)"), std::string::npos)
+      << err;
+}
+
+TEST(ConfigListTest, ListMustHoldMappings) {
+  for (const char* value : {"3", "[1, 2]", "{kind: rod}", "[{kind: rod}, 2]", "[[]]"}) {
+    const std::string err =
+        ErrorOf<ListRoot>(TextLayer(std::string("scene:\n  objects: ") + value + "\n"));
+    EXPECT_NE(err.find("config key 'scene.objects' (from list.yaml): expected a list of mappings"),
+              std::string::npos)
+        << value << ": " << err;
+  }
+}
+
+TEST(ConfigListTest, LaterLayerReplacesTheList) {
+  testing::TempDir dir;
+  WriteFile(dir / "a.yaml",
+            "scene:\n  objects:\n    - {kind: rod, diameter_m: 0.5}\n    - {kind: cube}\n");
+  WriteFile(dir / "b.yaml", "scene:\n  objects:\n    - {pose: {z_m: 0.2}}\n");
+  ConfigLayers layers;
+  layers.AddFile(dir / "a.yaml");
+  layers.AddFile(dir / "b.yaml");
+  const auto objects = ReadList(layers).scene.objects;
+  ASSERT_EQ(objects.size(), 1u);
+  EXPECT_EQ(objects[0], (Item{"sphere", 0.01, {0.2}}));  // nothing merged from a.yaml's item 0
+  // the origin of an item's key is the layer that set the list
+  WriteFile(dir / "c.yaml", "scene:\n  objects:\n    - {bogus: 1}\n");
+  layers.AddFile(dir / "c.yaml");
+  const std::string err = ErrorOf<ListRoot>(layers);
+  EXPECT_NE(err.find("'scene.objects.0.bogus' (from " + (dir / "c.yaml") + ")"),
+            std::string::npos)
+      << err;
+}
+
+TEST(ConfigListTest, SetTakesAFlowList) {
+  ConfigLayers layers;
+  layers.AddText("scene:\n  objects:\n    - {kind: cube}\n    - {kind: cube}\n", "list.yaml");
+  layers.AddOverride("scene.objects=[{kind: rod, diameter_m: 0.03}]");
+  const auto objects = ReadList(layers).scene.objects;
+  ASSERT_EQ(objects.size(), 1u);
+  EXPECT_EQ(objects[0], (Item{"rod", 0.03, {}}));
+  layers.AddOverride("scene.objects=[{kind: rod, diameter: 0.03}]");
+  const std::string err = ErrorOf<ListRoot>(layers);
+  EXPECT_NE(err.find("'scene.objects.0.diameter' (from --set scene.objects=[{kind: rod"),
+            std::string::npos)
+      << err;
 }
 
 TEST(ConfigTest, CrossFieldChecks) {

@@ -1,15 +1,17 @@
 // ComputeMetrics on hand-computed cases; config serialization keys and validation errors;
-// parameter counts of the audio encoders.
+// lists of structs in the JSON archive; parameter counts of the audio encoders.
 
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "internal/json_archive.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/learning/learning.h"
 
@@ -105,6 +107,11 @@ class RecordingArchive : public Archive {
  protected:
   void BeginGroup(std::string_view) override {}
   void EndGroup() override {}
+  // lists: record the fields of the existing items
+  std::optional<size_t> BeginList(std::string_view) override { return std::nullopt; }
+  void BeginItem(size_t) override {}
+  void EndItem() override {}
+  void EndList() override {}
 
  private:
   void Add(std::string_view name, const char* kind, Bounds b) {
@@ -218,6 +225,90 @@ TEST(ConfigTest, TrainFieldsAreChecked) {
   config = TrainConfig();
   config.time_shift_frames = -1;
   EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.time_shift_frames"));
+}
+
+// A config with a list of nested structs, each with a nested group.
+struct Item {
+  struct Pose {
+    double z_m{0.0};
+    void Serialize(Archive* a) { a->Visit("z_m", &z_m); }
+    bool operator==(const Pose&) const = default;
+  };
+  std::string kind{"sphere"};
+  double diameter_m{0.01};
+  Pose pose;
+  void Serialize(Archive* a) {
+    a->Visit("kind", &kind);
+    a->Visit("diameter_m", &diameter_m, Bounds::Positive());
+    a->Visit("pose", &pose);
+  }
+  bool operator==(const Item&) const = default;
+};
+
+struct ListConfig {
+  int64_t count{1};
+  std::vector<Item> objects{{"cube", 0.05, {0.1}}};  // not Item{}
+  void Serialize(Archive* a) {
+    a->Visit("count", &count);
+    a->VisitList("objects", &objects);
+  }
+};
+
+// Runs `f` and returns the SchemaError message ("" when nothing was thrown).
+template <typename F>
+std::string SchemaErrorOf(F f) {
+  try {
+    f();
+  } catch (const SchemaError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(JsonArchiveTest, ListsRoundTripAsArraysOfObjects) {
+  ListConfig config;
+  config.objects = {{"rod", 0.123456789012345, {0.25}}, {"sphere", 0.03, {}}};
+  const nlohmann::json j = internal::ConfigToJson(config);
+  ASSERT_TRUE(j["objects"].is_array());
+  ASSERT_EQ(j["objects"].size(), 2u);
+  EXPECT_EQ(j["objects"][0]["kind"], "rod");
+  EXPECT_EQ(j["objects"][0]["pose"]["z_m"], 0.25);
+  EXPECT_EQ(internal::ConfigFromJson<ListConfig>(j, "model.json").objects, config.objects);
+  EXPECT_EQ(internal::ConfigToJson(internal::ConfigFromJson<ListConfig>(j, "model.json")), j);
+  // the read list replaces the defaults, also when empty
+  config.objects.clear();
+  EXPECT_TRUE(
+      internal::ConfigFromJson<ListConfig>(internal::ConfigToJson(config), "model.json")
+          .objects.empty());
+}
+
+TEST(JsonArchiveTest, ListErrorsNameFileAndIndexedKey) {
+  const nlohmann::json good = internal::ConfigToJson(ListConfig());
+  const auto error_of = [](const nlohmann::json& j) {
+    return SchemaErrorOf([&] { internal::ConfigFromJson<ListConfig>(j, "model.json"); });
+  };
+  nlohmann::json j = good;
+  j["objects"][0]["extra"] = 1;
+  EXPECT_THAT(error_of(j), HasSubstr("model.json: unknown key 'objects.0.extra'"));
+  j = good;
+  j["objects"][0]["pose"]["extra"] = 1;
+  EXPECT_THAT(error_of(j), HasSubstr("unknown key 'objects.0.pose.extra'"));
+  j = good;
+  j["objects"][0].erase("diameter_m");
+  EXPECT_THAT(error_of(j), HasSubstr("key 'objects.0.diameter_m' is missing"));
+  j = good;
+  j["objects"][0]["diameter_m"] = -1.0;
+  EXPECT_THAT(error_of(j), HasSubstr("key 'objects.0.diameter_m' = -1"));
+  for (const nlohmann::json& bad : {nlohmann::json(3), nlohmann::json::object(),
+                                    nlohmann::json::array({1, 2})}) {
+    j = good;
+    j["objects"] = bad;
+    EXPECT_THAT(error_of(j), HasSubstr("model.json: key 'objects' must be a list of objects"))
+        << bad;
+  }
+  j = good;
+  j.erase("objects");
+  EXPECT_THAT(error_of(j), HasSubstr("key 'objects' is missing"));
 }
 
 TEST(CountParametersTest, EncodersHaveTheirTextbookSizes) {

@@ -4,8 +4,10 @@
 /// and the same function drives YAML reading (strict: unknown keys are errors), YAML writing
 /// (resolved configs beside every output) and docs. Archive implementations live in .cc files.
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -28,7 +30,8 @@ struct Bounds {
   std::string Describe() const;  // e.g. "(0, inf)"
 };
 
-/// Visitor over named config fields. Nested structs are visited through their Serialize.
+/// Visitor over named config fields. Nested structs (and lists of them) are visited through their
+/// Serialize.
 class Archive {
  public:
   virtual ~Archive() = default;
@@ -51,9 +54,29 @@ class Archive {
     EndGroup();
   }
 
+  /// A list of nested config structs (each with its own Serialize). Reading: when the key is
+  /// present, the list is replaced by that many default-constructed items, each then read; when
+  /// absent, the existing items (defaults) are kept. Writing: every existing item is written.
+  template <typename T>
+  void VisitList(std::string_view name, std::vector<T>* values) {
+    if (const std::optional<size_t> n = BeginList(name)) *values = std::vector<T>(*n);
+    for (size_t i = 0; i < values->size(); ++i) {
+      BeginItem(i);
+      (*values)[i].Serialize(this);
+      EndItem();
+    }
+    EndList();
+  }
+
  protected:
   virtual void BeginGroup(std::string_view name) = 0;
   virtual void EndGroup() = 0;
+  /// Opens a list: nullopt keeps the existing items, n replaces them with n default items.
+  virtual std::optional<size_t> BeginList(std::string_view name) = 0;
+  /// Item `index` of the open list; its fields are visited between BeginItem and EndItem.
+  virtual void BeginItem(size_t index) = 0;
+  virtual void EndItem() = 0;
+  virtual void EndList() = 0;
 };
 
 }  // namespace sonicboom
