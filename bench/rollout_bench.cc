@@ -12,13 +12,15 @@ namespace sonicboom::sim {
 namespace {
 
 void BM_ReferenceStrikeRollout(benchmark::State& state) {
-  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, RolloutConfig{});
+  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{},
+                              RolloutConfig{});
   uint64_t index = 0;
   double simulated_s = 0.0, wall_s = 0.0;
   int64_t steps = 0, valid = 0, rollouts = 0;
   for (auto _ : state) {
     const auto start = std::chrono::steady_clock::now();
-    const RolloutResult result = rollout.Run(SampleSeed(1, index++));
+    const RolloutResult result = rollout.Run(index, SampleSeed(1, index));
+    ++index;
     wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     benchmark::DoNotOptimize(result.contacts.data());
     simulated_s += result.simulated_s;

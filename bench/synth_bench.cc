@@ -10,7 +10,7 @@ namespace {
 
 // strike kinematics + proprioception window
 void BM_StrikeKinematics(benchmark::State& state) {
-  const sim::StrikeModel model(sim::StrikeConfig{}, TubeConfig{}, AudioConfig{});
+  const sim::StrikeModel model(sim::StrikeConfig{}, sim::SceneConfig{}, TubeConfig{}, AudioConfig{});
   uint64_t i = 0;
   for (auto _ : state) benchmark::DoNotOptimize(model.Generate(SampleSeed(1, i++)));
 }
@@ -23,7 +23,7 @@ void BM_RenderStrike(benchmark::State& state) {
   const acoustics::StrikeSynthesizer synthesizer(TubeConfig{}, MaterialConfig{}, MicArrayConfig{},
                                                  AudioConfig{}, synth, acoustics::DaqConfig{},
                                                  acoustics::NoiseConfig{});
-  const sim::StrikeModel model(sim::StrikeConfig{}, TubeConfig{}, AudioConfig{});
+  const sim::StrikeModel model(sim::StrikeConfig{}, sim::SceneConfig{}, TubeConfig{}, AudioConfig{});
   uint64_t i = 0;
   int64_t modes = 0;
   for (auto _ : state) {

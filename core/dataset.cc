@@ -4,6 +4,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <cctype>
 #include <array>
 #include <bit>
 #include <chrono>
@@ -53,8 +54,8 @@ constexpr const char* kContactObjectPath = "contacts/object";
 constexpr const char* kContactMaterialPath = "contacts/material";
 
 // Names of the contact kind codes 0, 1, 2, as the `names` attribute of /contacts/kind lists them.
-constexpr std::array<const char*, 3> kContactKindNames = {"impact", "bounce", "press"};
-constexpr const char* kContactKindNamesAttr = "impact,bounce,press";
+constexpr std::array<const char*, 4> kContactKindNames = {"impact", "bounce", "press", "brush"};
+constexpr const char* kContactKindNamesAttr = "impact,bounce,press,brush";
 
 // Coverage of first contacts in the summary: 5 bins of z over [-h, h] and 6 of theta. h in units
 // of 0.1 mm, so that the z edges are exact decimals (the nearest doubles to them).
@@ -1247,6 +1248,30 @@ void MergeDatasets(const std::vector<std::string>& shard_paths, const std::strin
   writer.Finish();
 }
 
+// An invalid reason with its numbers replaced by '#', so that reasons differing only in a time
+// or a depth count together ("penetration # mm ... at t = # s").
+static std::string ReasonCategory(const std::string& reason) {
+  std::string out;
+  for (size_t i = 0; i < reason.size();) {
+    const bool sign = (reason[i] == '-' || reason[i] == '+') && i + 1 < reason.size() &&
+                      std::isdigit(static_cast<unsigned char>(reason[i + 1])) &&
+                      (i == 0 || reason[i - 1] == ' ' || reason[i - 1] == '(' || reason[i - 1] == '[');
+    if (!sign && !std::isdigit(static_cast<unsigned char>(reason[i]))) {
+      out += reason[i++];
+      continue;
+    }
+    // a number: sign, digits, fraction, exponent
+    i += sign ? 1 : 0;
+    while (i < reason.size() && (std::isdigit(static_cast<unsigned char>(reason[i])) ||
+                                 reason[i] == '.' || reason[i] == 'e' ||
+                                 ((reason[i] == '-' || reason[i] == '+') && reason[i - 1] == 'e'))) {
+      ++i;
+    }
+    out += '#';
+  }
+  return out;
+}
+
 std::string SummarizeDatasetJson(const std::string& path) {
   const DatasetFile dataset(path, /*allow_incomplete=*/true);
   const DatasetInfo& info = dataset.info();
@@ -1282,7 +1307,7 @@ std::string SummarizeDatasetJson(const std::string& path) {
   for (int64_t i = 0; i < n; ++i) {
     if (clipped[i] != 0) ++clipped_count;
     if (valid[i] == 0) {
-      ++invalid_reasons[reasons[i].empty() ? std::string("(no reason)") : reasons[i]];
+      ++invalid_reasons[reasons[i].empty() ? std::string("(no reason)") : ReasonCategory(reasons[i])];
       continue;
     }
     ++valid_count;

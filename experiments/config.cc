@@ -27,6 +27,7 @@ void SonicBoomConfig::Serialize(Archive* a) {
   a->Visit("mics", &mics);
   a->Visit("audio", &audio);
   a->Visit("strike", &strike);
+  a->Visit("scene", &scene);
   a->Visit("rollout", &rollout);
   a->Visit("acoustics", &acoustics);
   a->Visit("daq", &daq);
@@ -42,7 +43,13 @@ void SonicBoomConfig::Validate() const {
   tube.Validate();
   mics.Validate(tube);
   strike.Validate();
+  scene.Validate();
   rollout.Validate();
+  if (strike.engine == "kinematic" && scene.mode != "strike") {
+    throw ConfigError(fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; set "
+                                  "strike.engine = mujoco",
+                                  scene.mode));
+  }
   model.Validate();
   train.Validate();
   if (audio.onset_time_s >= audio.record_duration_s) {
@@ -74,7 +81,9 @@ SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
   layers.ReadInto(&config);
   config.Validate();
   // the resolved config states the integrator step that the contact time scale implies
-  if (config.strike.engine == "mujoco") config.rollout.timestep_s = config.rollout.ResolvedTimestep();
+  if (config.strike.engine == "mujoco" || config.scene.mode != "strike") {
+    config.rollout.timestep_s = config.rollout.ResolvedTimestep();
+  }
   return config;
 }
 

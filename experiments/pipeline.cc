@@ -18,64 +18,37 @@
 #include "sonicboom/core/progress.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/sim/rollout.h"
+#include "sonicboom/sim/stationary.h"
 #include "sonicboom/sim/strike.h"
 
 namespace sonicboom::experiments {
 
 struct StrikePipeline::Impl {
   SonicBoomConfig config;
-  std::unique_ptr<sim::StrikeModel> strikes;       // kinematic engine
-  std::unique_ptr<sim::StrikeRollout> rollout;     // mujoco engine
+  std::unique_ptr<sim::StrikeModel> strikes;         // kinematic engine
+  std::unique_ptr<sim::StrikeRollout> rollout;       // mujoco engine: the arm strikes
+  std::unique_ptr<sim::HandStrikeRollout> hand;      // stationary robot, hand-held striker
   std::unique_ptr<acoustics::StrikeSynthesizer> synth;
 };
 
 namespace {
 
-// every tube contact of a rollout as dataset episodes, named after the struck rod
-std::vector<ContactEpisode> RolloutEpisodes(const sim::RolloutResult& r,
-                                            const sim::StrikeConfig& strike) {
-  std::vector<ContactEpisode> episodes(r.contacts.begin(), r.contacts.end());
-  for (ContactEpisode& e : episodes) {
-    e.object = strike.RodName();
-    e.material = strike.rod_material;
-  }
-  return episodes;
-}
-
-// the first tube contact of a dynamic rollout, in the form the acoustics stage plays
-sim::StrikeEvents RolloutEvents(const sim::RolloutResult& r, const sim::StrikeConfig& strike) {
+// a dynamic rollout in the form the acoustics stage plays: its first hard tube contact
+sim::StrikeEvents RolloutEvents(const sim::RolloutResult& r, const sim::SceneConfig& scene) {
   sim::StrikeEvents ev;
   ev.valid = r.valid;
   ev.invalid_reason = r.invalid_reason;
   ev.proprio = r.proprio;
   ev.joint_speed_rad_s = r.joint_speed_rad_s;
   ev.joint_speed_rate_hz = r.joint_speed_rate_hz;
-  if (r.contacts.empty()) {
+  if (!sim::FirstHardContact(r, scene, &ev.contact, &ev.label)) {
     if (ev.valid) {
       ev.valid = false;
       ev.invalid_reason = "the tube never touched the object";
     }
     return ev;
   }
-  const sim::ContactRecord& first = r.contacts.front();
-  ContactLabel& label = ev.label;
-  label.z_m = first.z_m;
-  label.theta_rad = first.theta_rad;
-  label.point_m = first.point_m;  // raw contact point, within 1 mm of the surface
-  label.normal = first.normal;
-  label.time_s = first.time_s;
-  label.normal_speed_m_s = first.normal_speed_m_s;
-  ev.point_world_m = first.point_world_m;
-  ContactEvent& contact = ev.contact;
-  contact.time_s = first.time_s;
-  contact.z_m = first.z_m;
-  contact.theta_rad = first.theta_rad;
-  contact.normal_speed_m_s = first.normal_speed_m_s;
-  contact.effective_mass_kg = first.effective_mass_kg;
-  contact.striker_radius_m = 0.5 * strike.rod_diameter_m;
-  contact.striker_youngs_modulus_pa = strike.rod_contact_youngs_modulus_pa;
-  contact.striker_poisson_ratio = strike.rod_contact_poisson_ratio;
-  if (ev.valid && !(first.normal_speed_m_s > 1e-4)) {
+  if (ev.valid && !(ev.label.normal_speed_m_s > 1e-4)) {
     ev.valid = false;
     ev.invalid_reason = "no approach speed at the first contact";
   }
@@ -86,12 +59,16 @@ sim::StrikeEvents RolloutEvents(const sim::RolloutResult& r, const sim::StrikeCo
 
 StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_unique<Impl>()) {
   impl_->config = config;
-  // build only the engine the config asks for
-  if (config.strike.engine == "mujoco") {
+  // build only the engine the scene asks for
+  if (config.scene.mode == "stationary") {
+    impl_->hand = std::make_unique<sim::HandStrikeRollout>(config.tube, config.audio, config.strike,
+                                                           config.scene, config.rollout);
+  } else if (config.strike.engine == "mujoco") {
     impl_->rollout = std::make_unique<sim::StrikeRollout>(config.tube, config.audio, config.strike,
-                                                          config.rollout);
+                                                          config.scene, config.rollout);
   } else {
-    impl_->strikes = std::make_unique<sim::StrikeModel>(config.strike, config.tube, config.audio);
+    impl_->strikes = std::make_unique<sim::StrikeModel>(config.strike, config.scene, config.tube,
+                                                        config.audio);
   }
   impl_->synth = std::make_unique<acoustics::StrikeSynthesizer>(
       config.tube, config.material, config.mics, config.audio, config.acoustics, config.daq,
@@ -110,10 +87,12 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
 
   // strike motion, its contacts, and the first tube contact that acoustics plays
   sim::StrikeEvents ev;
-  if (impl_->rollout) {
-    const sim::RolloutResult rollout = impl_->rollout->Run(sample.seed);
-    ev = RolloutEvents(rollout, c.strike);
-    sample.contacts = RolloutEpisodes(rollout, c.strike);
+  const bool dynamic = impl_->rollout || impl_->hand;
+  if (dynamic) {
+    const sim::RolloutResult rollout = impl_->rollout ? impl_->rollout->Run(index, sample.seed)
+                                                      : impl_->hand->Run(index, sample.seed);
+    ev = RolloutEvents(rollout, c.scene);
+    sample.contacts.assign(rollout.contacts.begin(), rollout.contacts.end());
   } else {
     ev = impl_->strikes->Generate(sample.seed);
   }
@@ -132,8 +111,18 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
     sample.clipped = r.clipped;
     sample.label.impulse_Ns = r.impulse_ns;
     sample.label.duration_s = r.duration_s;
+    // guided sampling keeps only taps whose sound exceeds the threshold
+    if (c.scene.mode == "guided") {
+      const float peak = sample.audio.cwiseAbs().maxCoeff();
+      if (peak < c.scene.guided.amplitude_threshold) {
+        sample.valid = false;
+        sample.invalid_reason = fmt::format(
+            "audio peak {:.4f} below scene.guided.amplitude_threshold = {}", peak,
+            c.scene.guided.amplitude_threshold);
+      }
+    }
     // the kinematic engine knows one contact: the impact acoustics played
-    if (!impl_->rollout) {
+    if (!dynamic) {
       ContactEpisode e;
       e.time_s = sample.label.time_s;
       e.duration_s = r.duration_s;
@@ -145,8 +134,8 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
       e.effective_mass_kg = ev.contact.effective_mass_kg;
       e.impulse_Ns = r.impulse_ns;
       e.peak_force_N = r.peak_force_n;
-      e.object = c.strike.RodName();
-      e.material = c.strike.rod_material;
+      e.object = ev.object;
+      e.material = ev.material;
       sample.contacts = {e};
     }
   } catch (const NumericalError& e) {

@@ -25,10 +25,10 @@ constexpr std::array<double, kPandaJoints> kTorqueLimitsNm = {87, 87, 87, 87, 12
 constexpr double kJointDampingNmsPerRad = 0.1;
 constexpr double kJointArmatureKgM2 = 0.01;
 
-// Torsional and rolling friction of rod contacts, and their solimp (MuJoCo's default)
-constexpr double kRodTorsionalFriction = 0.005;
-constexpr double kRodRollingFriction = 0.0001;
-constexpr const char* kRodSolimp = "0.9 0.95 0.001 0.5 2";
+// Torsional and rolling friction of object contacts, and their solimp (MuJoCo's default)
+constexpr double kObjectTorsionalFriction = 0.005;
+constexpr double kObjectRollingFriction = 0.0001;
+constexpr const char* kObjectSolimp = "0.9 0.95 0.001 0.5 2";
 
 // Contact and constraint buffers of object-only detection: far above the pairs' one contact each
 // (3 rows each with elliptic cones) plus 7 joint limits; a fuller buffer raises a MuJoCo warning
@@ -134,13 +134,16 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   RequirePositive(tube.outer_radius_m, "tube.outer_radius_m");
   RequirePositive(tube.wall_thickness_m, "tube.wall_thickness_m");
   RequirePositive(tube.length_m, "tube.length_m");
-  for (const MjcfRod& rod : options.rods) {
-    RequirePositive(rod.diameter_m, "rod.diameter_m");
-    RequirePositive(rod.length_m, "rod.length_m");
-    RequirePositive(rod.contact_timeconst_s, "rod.contact_timeconst_s");
-    RequirePositive(rod.contact_dampratio, "rod.contact_dampratio");
-    if (!(std::isfinite(rod.friction) && rod.friction >= 0.0)) {
-      throw ConfigError(fmt::format("rod.friction = {} must be non-negative", rod.friction));
+  for (const MjcfObject& object : options.objects) {
+    if (object.segments.empty()) throw ConfigError("an MJCF object needs at least one segment");
+    for (const ObjectSegment& segment : object.segments) {
+      RequirePositive(segment.radius_m, "object segment radius_m");
+      RequirePositive((segment.p1 - segment.p0).norm(), "object segment length");
+    }
+    RequirePositive(object.contact_timeconst_s, "object.contact_timeconst_s");
+    RequirePositive(object.contact_dampratio, "object.contact_dampratio");
+    if (!(std::isfinite(object.friction) && object.friction >= 0.0)) {
+      throw ConfigError(fmt::format("object.friction = {} must be non-negative", object.friction));
     }
   }
   tube.Validate();
@@ -224,17 +227,22 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   xml += fmt::format("{}</body>\n", Indent(flange_depth));
   for (int i = kPandaJoints - 1; i >= 0; --i) xml += fmt::format("{}</body>\n", Indent(2 + i));
 
-  // struck rods: mocap bodies (fixed in space, placed per simulation), parked far below the base
-  for (size_t i = 0; i < options.rods.size(); ++i) {
-    const MjcfRod& rod = options.rods[i];
-    xml += fmt::format("    <body name=\"rod{}\" mocap=\"true\" pos=\"0 0 -10\">\n", i);
-    xml += fmt::format(
-        "      <geom name=\"rod{}\" type=\"cylinder\" size=\"{} {}\" priority=\"1\" "
-        "condim=\"3\" friction=\"{} {} {}\" solref=\"{} {}\" solimp=\"{}\" "
-        "rgba=\"0.6 0.4 0.2 1\"/>\n",
-        i, Num(0.5 * rod.diameter_m), Num(0.5 * rod.length_m), Num(rod.friction),
-        Num(kRodTorsionalFriction), Num(kRodRollingFriction), Num(rod.contact_timeconst_s),
-        Num(rod.contact_dampratio), kRodSolimp);
+  // struck objects: mocap bodies (fixed in space, placed per simulation), parked far below the
+  // base; one cylinder per segment
+  for (size_t i = 0; i < options.objects.size(); ++i) {
+    const MjcfObject& object = options.objects[i];
+    xml += fmt::format("    <body name=\"object{}\" mocap=\"true\" pos=\"0 0 -10\">\n", i);
+    for (size_t k = 0; k < object.segments.size(); ++k) {
+      const ObjectSegment& seg = object.segments[k];
+      xml += fmt::format(
+          "      <geom name=\"object{}_{}\" type=\"cylinder\" fromto=\"{} {} {} {} {} {}\" "
+          "size=\"{}\" priority=\"1\" condim=\"3\" friction=\"{} {} {}\" solref=\"{} {}\" "
+          "solimp=\"{}\" rgba=\"0.6 0.4 0.2 1\"/>\n",
+          i, k, Num(seg.p0.x()), Num(seg.p0.y()), Num(seg.p0.z()), Num(seg.p1.x()),
+          Num(seg.p1.y()), Num(seg.p1.z()), Num(seg.radius_m), Num(object.friction),
+          Num(kObjectTorsionalFriction), Num(kObjectRollingFriction), Num(object.contact_timeconst_s),
+          Num(object.contact_dampratio), kObjectSolimp);
+    }
     xml += "    </body>\n";
   }
   xml += "  </worldbody>\n";
@@ -242,20 +250,23 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   // links 5 and 7 nest around the wrist on the real arm; their capsules touch near q6 = 0
   xml += "  <contact>\n";
   xml += "    <exclude body1=\"panda_link5\" body2=\"panda_link7\"/>\n";
-  // object-only detection: each rod against the tube and every arm capsule, with the parameters
-  // the rod's priority gives these contacts (condim 3, friction slide slide spin roll roll)
+  // object-only detection: each object geom against the tube and every arm capsule, with the
+  // parameters the object's priority gives these contacts (condim 3, friction slide slide spin roll roll)
   if (options.object_contacts_only) {
     std::vector<std::string> arm_geoms = {"tube"};
     for (size_t k = 0; k < kCollisionCapsules.size(); ++k) arm_geoms.push_back(CapsuleName(k));
-    for (size_t i = 0; i < options.rods.size(); ++i) {
-      const MjcfRod& rod = options.rods[i];
-      for (const std::string& geom : arm_geoms) {
-        xml += fmt::format(
-            "    <pair geom1=\"{}\" geom2=\"rod{}\" condim=\"3\" friction=\"{} {} {} {} {}\" "
-            "solref=\"{} {}\" solimp=\"{}\" margin=\"0\" gap=\"0\"/>\n",
-            geom, i, Num(rod.friction), Num(rod.friction), Num(kRodTorsionalFriction),
-            Num(kRodRollingFriction), Num(kRodRollingFriction), Num(rod.contact_timeconst_s),
-            Num(rod.contact_dampratio), kRodSolimp);
+    for (size_t i = 0; i < options.objects.size(); ++i) {
+      const MjcfObject& object = options.objects[i];
+      for (size_t k = 0; k < object.segments.size(); ++k) {
+        for (const std::string& geom : arm_geoms) {
+          xml += fmt::format(
+              "    <pair geom1=\"{}\" geom2=\"object{}_{}\" condim=\"3\" "
+              "friction=\"{} {} {} {} {}\" solref=\"{} {}\" solimp=\"{}\" margin=\"0\" "
+              "gap=\"0\"/>\n",
+              geom, i, k, Num(object.friction), Num(object.friction),
+              Num(kObjectTorsionalFriction), Num(kObjectRollingFriction), Num(kObjectRollingFriction),
+              Num(object.contact_timeconst_s), Num(object.contact_dampratio), kObjectSolimp);
+        }
       }
     }
   }

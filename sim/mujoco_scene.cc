@@ -4,52 +4,19 @@
 #include <mujoco/mujoco.h>
 #include <spdlog/spdlog.h>
 
-#include <cstdlib>
 #include <array>
-#include <cstring>
-#include <mutex>
+#include <vector>
 
+#include "internal/mujoco_util.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::sim {
 namespace {
 
-constexpr const char* kVfsFileName = "sonicboom_panda.xml";
 constexpr const char* kFlangeSite = "flange";
 constexpr const char* kTubeSite = "tube_center";
 
-// MuJoCo's contract: mju_user_error must not return. We log and abort rather than throw, since an
-// exception must not unwind through MuJoCo's C frames. Load errors never get here: mj_loadXML
-// reports them through its error buffer, which PandaScene turns into ConfigError.
-[[noreturn]] void MujocoErrorHandler(const char* message) {
-  spdlog::critical("MuJoCo error: {}", message);
-  std::abort();
-}
-
-void MujocoWarningHandler(const char* message) { spdlog::warn("MuJoCo warning: {}", message); }
-
-// Process-global MuJoCo hooks, installed once; handlers someone else installed are kept
-void InstallMujocoHandlers() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    if (mju_user_error == nullptr) mju_user_error = MujocoErrorHandler;
-    if (mju_user_warning == nullptr) mju_user_warning = MujocoWarningHandler;
-  });
-}
-
-// Owns one mjData for the duration of a query
-struct DataDeleter {
-  void operator()(mjData* data) const { mj_deleteData(data); }
-};
-using DataPtr = std::unique_ptr<mjData, DataDeleter>;
-
-// Owns a heap mjVFS (it is ~2 MB) and the file buffers MuJoCo allocated in it
-struct VfsDeleter {
-  void operator()(mjVFS* vfs) const {
-    mj_deleteVFS(vfs);
-    delete vfs;
-  }
-};
+using internal::DataPtr;
 
 Eigen::Isometry3d SitePose(const mjData* data, int site) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
@@ -82,24 +49,7 @@ struct PandaScene::Impl {
 };
 
 PandaScene::PandaScene(const std::string& mjcf_xml) : impl_(std::make_unique<Impl>()) {
-  InstallMujocoHandlers();
-  // hand the text to MuJoCo as an in-memory file
-  std::unique_ptr<mjVFS, VfsDeleter> vfs(new mjVFS);
-  mj_defaultVFS(vfs.get());
-  const int size = static_cast<int>(mjcf_xml.size());
-  if (mj_makeEmptyFileVFS(vfs.get(), kVfsFileName, size) != 0) {
-    throw ConfigError("MuJoCo model: cannot create the in-memory MJCF file");
-  }
-  const int file = mj_findFileVFS(vfs.get(), kVfsFileName);
-  SONICBOOM_DEMAND(file >= 0);
-  std::memcpy(vfs->filedata[file], mjcf_xml.data(), mjcf_xml.size());
-
-  char error[1024] = "";
-  impl_->model = mj_loadXML(kVfsFileName, vfs.get(), error, sizeof(error));
-  if (impl_->model == nullptr) {
-    throw ConfigError(fmt::format("MuJoCo could not load the Panda MJCF: {}", error));
-  }
-  if (error[0] != '\0') spdlog::warn("MuJoCo loaded the Panda MJCF with: {}", error);
+  impl_->model = internal::CompileMjcf(mjcf_xml, "the Panda MJCF").release();
 
   // the joints and sites every query needs
   const mjModel* m = impl_->model;
@@ -176,6 +126,17 @@ JointVector PandaScene::GravityTorques(const JointVector& q) const {
 }
 
 const mjModel* PandaScene::model() const { return impl_->model; }
+
+double PandaScene::FlangeEffectiveMassKg(const JointVector& q, const Eigen::Vector3d& point_m,
+                                         const Eigen::Vector3d& normal) const {
+  DataPtr data = impl_->MakeData(q);
+  mj_forward(impl_->model, data.get());
+  const int body = impl_->model->site_bodyid[impl_->flange_site];
+  std::vector<mjtNum> scratch(static_cast<size_t>(5 * impl_->model->nv));
+  const mjtNum point[3] = {point_m.x(), point_m.y(), point_m.z()};
+  return 1.0 / internal::InverseEffectiveMass(impl_->model, data.get(), body, point, normal,
+                                              scratch.data());
+}
 
 int PandaScene::ContactCount(const JointVector& q) const {
   DataPtr data = impl_->MakeData(q);

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "internal/mujoco_util.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/sample.h"
 #include "sonicboom/sim/franka.h"
@@ -21,21 +22,39 @@
 namespace sonicboom::sim {
 namespace {
 
+using internal::AllFinite;
+using internal::DataPtr;
+using internal::GeomName;
+using internal::ModelPtr;
+using internal::RaisedWarning;
+using internal::RequireId;
+using internal::SegmentDistance;
+
 constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
-// rod surface this far beyond the intended contact point at the kinematic contact pose, m
-constexpr double kRodGapM = 0.001;
+// object surface this far beyond the intended contact point at the kinematic contact pose, m
+constexpr double kObjectGapM = 0.001;
 // largest |r - R_outer| of a raw contact point on the tube, m
 constexpr double kSurfaceToleranceM = 0.001;
-// a re-contact this soon after a release is a bounce, s
-constexpr double kBounceWindowS = 0.05;
-// a later contact lasting longer than this is a press, s
-constexpr double kPressDurationS = 0.02;
-// intended contact this far from the rod's free tip, m (the rod extends from there away from the
-// joint-1 axis; the margin leaves room for the tube to slide along the rod while pressed)
+// a one-end-clamped rod is struck this far from its free tip, m (room to slide while pressed)
 constexpr double kTipMarginM = 0.05;
-// joint-1 step (rad) of the finite difference that gives the direction of motion
+// other targets are struck in this middle fraction of their length
+constexpr double kMiddleLo = 0.2, kMiddleHi = 0.8;
+// joint step (rad) of the finite difference that gives the direction of motion
 constexpr double kDirectionStepRad = 1e-6;
+// An episode ends after this many steps without contact: under friction MuJoCo's soft contact
+// between the pressed tube and an object flickers off for single steps (with friction 0 it does
+// not), which would otherwise count as bounces
+constexpr int64_t kReleaseSteps = 2;
+// a step skips collision detection when every object pair is this much farther apart than it
+// can close in one step, m
+constexpr double kCollisionSkipSlackM = 0.001;
+// guided mode: the motion starts this long into the record, s
+constexpr double kGuidedStartS = 0.1;
+// guided taps: joint (0-based) and direction of taps 0..3 (j1 +, j1 -, j6 +, j6 -)
+constexpr std::array<std::pair<int, double>, 4> kGuidedTaps = {
+    {{0, 1.0}, {0, -1.0}, {5, 1.0}, {5, -1.0}}};
+constexpr std::array<const char*, 4> kGuidedTapNames = {"tap j1+", "tap j1-", "tap j6+", "tap j6-"};
 
 // normalised time s in [0, 1] with MinJerk(s) = fraction (bisection; MinJerk is increasing)
 double MinJerkInverse(double fraction) {
@@ -45,51 +64,6 @@ double MinJerkInverse(double fraction) {
     (MinJerk(mid) < fraction ? lo : hi) = mid;
   }
   return 0.5 * (lo + hi);
-}
-
-// a step skips collision detection when every object pair is this much farther apart than it
-// can close in one step, m
-constexpr double kCollisionSkipSlackM = 0.001;
-
-struct DataDeleter {
-  void operator()(mjData* data) const { mj_deleteData(data); }
-};
-using DataPtr = std::unique_ptr<mjData, DataDeleter>;
-
-struct ModelDeleter {
-  void operator()(mjModel* model) const { mj_deleteModel(model); }
-};
-using ModelPtr = std::unique_ptr<mjModel, ModelDeleter>;
-
-// Shortest distance between segments [p0, p1] and [q0, q1] (Ericson, Real-Time Collision
-// Detection, 5.1.9), m
-double SegmentDistance(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
-                       const Eigen::Vector3d& q0, const Eigen::Vector3d& q1) {
-  constexpr double kTiny = 1e-18;
-  const Eigen::Vector3d d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
-  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
-  double s = 0.0, t = 0.0;
-  if (a <= kTiny && e <= kTiny) return r.norm();
-  if (a <= kTiny) {
-    t = std::clamp(f / e, 0.0, 1.0);
-  } else {
-    const double c = d1.dot(r);
-    if (e <= kTiny) {
-      s = std::clamp(-c / a, 0.0, 1.0);
-    } else {
-      const double b = d1.dot(d2), denom = a * e - b * b;
-      s = denom > kTiny ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
-      t = (b * s + f) / e;
-      if (t < 0.0) {
-        t = 0.0;
-        s = std::clamp(-c / a, 0.0, 1.0);
-      } else if (t > 1.0) {
-        t = 1.0;
-        s = std::clamp((b - c) / a, 0.0, 1.0);
-      }
-    }
-  }
-  return (p0 + s * d1 - (q0 + t * d2)).norm();
 }
 
 // Surface distance lower bound of two capsule or cylinder geoms at their poses in d: their axis
@@ -108,108 +82,23 @@ double GeomGapLowerBound(const mjModel* m, const mjData* d, int g1, int g2) {
   return SegmentDistance(a1, b1, a2, b2) - m->geom_size[3 * g1] - m->geom_size[3 * g2];
 }
 
-// The strike drawn from a seed, and where the rod goes.
-struct SampledStrike {
-  JointVector q0{JointVector::Zero()};       // rad, start (home with sampled j7 and tilt)
-  double side{1.0};                          // joint-1 sweep direction
-  double travel_rad{0.0};                    // joint-1 travel from q0 to the kinematic contact
-  double z_m{0.0};                           // intended contact, tube frame
-  double theta_rad{0.0};
-  double onset_s{0.0};                       // intended contact time, audio clock
-  Eigen::Vector3d rod_center_m{Eigen::Vector3d::Zero()};  // (3) base frame
-  Eigen::Vector3d rod_axis{Eigen::Vector3d::UnitZ()};     // (3) base frame, unit
-  std::string invalid_reason;
-};
-
-// The strike drawn as for the kinematic engine (DrawStrike), and the rod placed (see rollout.h).
-SampledStrike SampleStrike(uint64_t sample_seed, const StrikeConfig& c, const TubeConfig& tube,
-                           const AudioConfig& audio, double overshoot_rad) {
-  const StrikeDraw draw = DrawStrike(sample_seed, c, tube, audio);
-  SampledStrike s;
-  const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
-  s.q0 = draw.q0;
-  s.side = draw.side;
-  s.z_m = draw.z_m;
-  s.onset_s = draw.onset_s;
-  s.travel_rad = draw.sweep_rad * MinJerk(draw.contact_fraction);
-
-  // the start pose and the commanded goal must lie within the joint limits
-  for (int i = 0; i < kPandaJoints; ++i) {
-    const double q_goal = s.q0[i] + (i == 0 ? s.side * (s.travel_rad + overshoot_rad) : 0.0);
-    if (s.q0[i] < lo[i] || s.q0[i] > hi[i] || q_goal < lo[i] || q_goal > hi[i]) {
-      s.invalid_reason = fmt::format("joint {} leaves its limits", i + 1);
-    }
-  }
-
-  // kinematic contact pose and the direction of motion of the axis point at z (tube frame)
-  JointVector q_contact = s.q0;
-  q_contact[0] += s.side * s.travel_rad;
-  JointVector q_next = q_contact;
-  q_next[0] += s.side * kDirectionStepRad;
-  const Eigen::Isometry3d pose = PandaForwardKinematics(q_contact, tube.center_from_flange_m).tube;
-  const Eigen::Isometry3d next = PandaForwardKinematics(q_next, tube.center_from_flange_m).tube;
-  const Eigen::Vector3d axis_point = Eigen::Vector3d(0, 0, s.z_m);
-  const Eigen::Vector3d motion_tube =
-      pose.linear().transpose() * (next * axis_point - pose * axis_point);
-  if (!(std::hypot(motion_tube.x(), motion_tube.y()) > 1e-12)) {
-    s.invalid_reason = "no approach direction at contact";
-  }
-  const double motion_theta_rad = std::atan2(motion_tube.y(), motion_tube.x());
-  s.theta_rad = WrapAngle(motion_theta_rad + draw.angle_offset_rad);
-
-  // rod crossing the tube at 90 degrees, tangent to it at (z, theta), 1 mm beyond the surface;
-  // its free tip kTipMarginM past that point, its clamped end away from the joint-1 (base z) axis
-  const Eigen::Vector3d normal_world = pose.linear() * SurfaceNormal(s.theta_rad);
-  const Eigen::Vector3d axis_world = pose.linear().col(2);
-  const Eigen::Vector3d touch_m = pose * SurfacePoint(tube, s.z_m, s.theta_rad) +
-                                  (0.5 * c.rod_diameter_m + kRodGapM) * normal_world;
-  s.rod_axis = axis_world.cross(normal_world).normalized();
-  const Eigen::Vector3d radial(touch_m.x(), touch_m.y(), 0.0);
-  if (s.rod_axis.dot(radial) < 0.0) s.rod_axis = -s.rod_axis;
-  const double tip_to_center_m = std::max(0.5 * c.rod_length_m - kTipMarginM, 0.0);
-  s.rod_center_m = touch_m + tip_to_center_m * s.rod_axis;
-  return s;
-}
-
-// Name of the first MuJoCo warning raised on `d` that makes a rollout untrustworthy, or nullptr.
-const char* RaisedWarning(const mjData* d) {
-  static constexpr std::array<std::pair<int, const char*>, 6> kWarnings = {{
-      {mjWARN_BADQACC, "mjWARN_BADQACC (bad acceleration)"},
-      {mjWARN_BADQPOS, "mjWARN_BADQPOS (bad position)"},
-      {mjWARN_BADQVEL, "mjWARN_BADQVEL (bad velocity)"},
-      {mjWARN_CONTACTFULL, "mjWARN_CONTACTFULL (contact buffer full)"},
-      {mjWARN_CNSTRFULL, "mjWARN_CNSTRFULL (constraint buffer full)"},
-      {mjWARN_INERTIA, "mjWARN_INERTIA (singular inertia)"},
-  }};
-  for (const auto& [index, name] : kWarnings) {
-    if (d->warning[index].number > 0) return name;
-  }
-  return nullptr;
-}
-
-bool AllFinite(const mjtNum* values, int n) {
-  for (int i = 0; i < n; ++i) {
-    if (!std::isfinite(values[i])) return false;
-  }
-  return true;
-}
-
-std::string GeomName(const mjModel* m, int geom) {
-  const char* name = mj_id2name(m, mjOBJ_GEOM, geom);
-  return name != nullptr ? name : fmt::format("geom {}", geom);
-}
-
-int RequireId(const mjModel* m, mjtObj type, const std::string& name) {
-  const int id = mj_name2id(m, type, name.c_str());
-  if (id < 0) throw ConfigError(fmt::format("rollout: the MuJoCo scene has no {}", name));
-  return id;
-}
-
 // bounds of a config value that code (not only YAML) may set
 void RequireInRange(double value, double lo, double hi, const char* key) {
   if (!(value >= lo && value <= hi)) {
     throw ConfigError(fmt::format("{} = {} must lie in [{}, {}]", key, value, lo, hi));
   }
+}
+
+// Modal mass (kg) of an object segment's fundamental mode seen at object-frame point p: the
+// segment as a beam clamped at its base end (both ends for a both-ends-clamped rod or cross)
+double SegmentModalMassKg(const ObjectConfig& object, const ObjectSegment& seg,
+                          const Eigen::Vector3d& p_object) {
+  const Eigen::Vector3d axis = seg.p1 - seg.p0;
+  const double length_m = axis.norm();
+  const double x_m = std::clamp((p_object - seg.p0).dot(axis) / length_m, 0.0, length_m);
+  const double area_scale = (seg.radius_m * seg.radius_m) / (0.25 * object.diameter_m * object.diameter_m);
+  const double mass_kg = object.LinearDensityKgM() * area_scale * length_m;
+  return BeamModalMassKg(mass_kg, length_m, x_m, object.clamp == "both_ends");
 }
 
 }  // namespace
@@ -220,6 +109,7 @@ void RolloutConfig::Serialize(Archive* a) {
   a->Visit("contact_dampratio", &contact_dampratio, Bounds::Open(0.0, 10.0));
   a->Visit("contact_friction", &contact_friction, Bounds::Closed(0.0, 5.0));
   a->Visit("stiffness_nm_rad", &stiffness_nm_rad, Bounds::Open(0.0, 1e12));
+  a->Visit("lateral_stiffness_nm_rad", &lateral_stiffness_nm_rad, Bounds::Open(0.0, 1e12));
   a->Visit("damping_ratio", &damping_ratio, Bounds::Closed(0.0, 10.0));
   a->Visit("sweep_overshoot_deg", &sweep_overshoot_deg, Bounds::Closed(0.0, 30.0));
   a->Visit("penetration_limit_m", &penetration_limit_m, Bounds::Open(0.0, 0.1));
@@ -239,14 +129,16 @@ void RolloutConfig::Validate() const {
   RequireInRange(sweep_overshoot_deg, 0.0, 30.0, "rollout.sweep_overshoot_deg");
   RequireInRange(penetration_limit_m, 1e-12, 0.1, "rollout.penetration_limit_m");
   RequireInRange(settle_s, 0.0, 10.0, "rollout.settle_s");
-  if (stiffness_nm_rad.size() != kPandaJoints) {
-    throw ConfigError(fmt::format("rollout.stiffness_nm_rad needs {} entries, got {}",
-                                  kPandaJoints, stiffness_nm_rad.size()));
-  }
-  for (size_t i = 0; i < stiffness_nm_rad.size(); ++i) {
-    if (!(std::isfinite(stiffness_nm_rad[i]) && stiffness_nm_rad[i] > 0.0)) {
-      throw ConfigError(fmt::format("rollout.stiffness_nm_rad[{}] = {} must be positive", i,
-                                    stiffness_nm_rad[i]));
+  for (const auto& [key, gains] : {std::pair{"stiffness_nm_rad", &stiffness_nm_rad},
+                                    std::pair{"lateral_stiffness_nm_rad", &lateral_stiffness_nm_rad}}) {
+    if (gains->size() != kPandaJoints) {
+      throw ConfigError(fmt::format("rollout.{} needs {} entries, got {}", key, kPandaJoints,
+                                    gains->size()));
+    }
+    for (size_t i = 0; i < gains->size(); ++i) {
+      if (!(std::isfinite((*gains)[i]) && (*gains)[i] > 0.0)) {
+        throw ConfigError(fmt::format("rollout.{}[{}] = {} must be positive", key, i, (*gains)[i]));
+      }
     }
   }
   // MuJoCo silently stiffens a contact time constant below two timesteps (its "refsafe" rule)
@@ -258,17 +150,21 @@ void RolloutConfig::Validate() const {
   }
 }
 
-// Indices into the compiled model.
-struct StrikeRollout::Ids {
+// One compiled scene: the Panda, the tube and one object geometry, with indices into it.
+struct StrikeRollout::Variant {
+  int object{0};
+  int64_t variant{0};
+  std::string name;                          // recorded with every contact
+  ObjectGeometry geometry;                   // object frame
+  std::unique_ptr<PandaScene> scene;
   std::array<int, kPandaJoints> qpos{};      // qpos index of panda_joint1..7
   std::array<int, kPandaJoints> dof{};       // dof index of panda_joint1..7
   std::array<int, kPandaJoints> actuator{};  // panda_motor1..7
   int tube_geom{-1};
-  int rod_geom{-1};
-  int rod_mocap{-1};                         // index into mjData's mocap arrays
+  int object_mocap{-1};                      // index into mjData's mocap arrays
   int flange_body{-1};                       // body carrying the tube
   int tube_site{-1};
-  double rod_modal_mass_kg{0.0};             // clamped rod, tip modal mass m / 4
+  std::vector<int> segment_of_geom;          // (ngeom) object segment of a geom, -1 otherwise
   // The scene with contacts disabled, stepped instead where no object pair can touch: its steps
   // equal the full model's whenever collision detection would find no contact.
   ModelPtr contact_free;
@@ -276,12 +172,44 @@ struct StrikeRollout::Ids {
   double reach_m{0.0};                       // bound on any geom point's distance to any joint axis
 };
 
+// Guided sampling: the fixed object pose and the candidate start configurations.
+struct StrikeRollout::Guided {
+  Eigen::Isometry3d object_pose{Eigen::Isometry3d::Identity()};
+  std::vector<Eigen::Vector3d> points;       // tube centre, base frame, m
+  std::vector<JointVector> joints;           // start configuration of each point, rad
+};
+
+// What one rollout does: start, goal and timing of the joint path, gains, object pose, target.
+struct StrikeRollout::Plan {
+  JointVector q_start{JointVector::Zero()};  // rad
+  JointVector q_goal{JointVector::Zero()};   // rad
+  double t_start_s{0.0};                     // path start, audio clock
+  double duration_s{1.0};                    // path duration
+  std::array<double, kPandaJoints> stiffness{};   // N m / rad
+  Eigen::Isometry3d object_pose{Eigen::Isometry3d::Identity()};
+  std::string motion;
+  double target_z_m{0.0};
+  double target_theta_rad{0.0};
+  double target_time_s{0.0};
+  bool timed{false};                         // start earlier by the swept joint's lag D/K
+  int swept_joint{0};
+  double s_contact{0.0};                     // path fraction (normalised time) at the target
+  std::string invalid_reason;
+};
+
 StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
-                             const StrikeConfig& strike, const RolloutConfig& rollout)
-    : tube_(tube), audio_(audio), strike_(strike), config_(rollout) {
+                             const StrikeConfig& strike, const SceneConfig& scene,
+                             const RolloutConfig& rollout)
+    : tube_(tube), audio_(audio), strike_(strike), scene_(scene), config_(rollout) {
   tube_.Validate();
   strike_.Validate();
+  scene_.Validate();
   config_.Validate();
+  if (scene_.mode != "strike" && scene_.mode != "guided") {
+    throw ConfigError(fmt::format("scene.mode {} has no arm rollout (StrikeRollout runs modes "
+                                  "strike and guided)",
+                                  scene_.mode));
+  }
   if (!(audio_.record_duration_s > 0.0 && audio_.onset_time_s >= 0.0)) {
     throw ConfigError(fmt::format("audio.record_duration_s = {} and audio.onset_time_s = {} must "
                                   "be positive",
@@ -289,122 +217,334 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
   }
   timestep_s_ = config_.ResolvedTimestep();
 
-  // the Panda, the tube and one clamped rod
-  PandaMjcfOptions options;
-  options.timestep_s = timestep_s_;
-  MjcfRod rod;
-  rod.diameter_m = strike_.rod_diameter_m;
-  rod.length_m = strike_.rod_length_m;
-  rod.contact_timeconst_s = config_.contact_timeconst_s;
-  rod.contact_dampratio = config_.contact_dampratio;
-  rod.friction = config_.contact_friction;
-  options.rods.push_back(rod);
-  options.elliptic_friction_cones = true;
-  // only rod contacts matter here (tube strikes, arm hits): no broad phase, no self-collision
-  options.object_contacts_only = true;
-  scene_ = std::make_unique<PandaScene>(PandaMjcf(tube_, options));
+  // one compiled scene per object geometry; guided mode uses the first object only
+  const size_t objects = scene_.mode == "guided" ? 1 : scene_.objects.size();
+  variants_.resize(objects);
+  for (size_t o = 0; o < objects; ++o) {
+    const ObjectConfig& object = scene_.objects[o];
+    if (object.weight <= 0.0 && scene_.mode == "strike") continue;  // never drawn: not built
+    const int64_t count = ObjectVariants(object);
+    for (int64_t v = 0; v < count; ++v) {
+      auto var = std::make_unique<Variant>();
+      var->object = static_cast<int>(o);
+      var->variant = v;
+      var->name = count > 1 ? fmt::format("{} #{}", object.DisplayName(), v) : object.DisplayName();
+      var->geometry = BuildObjectGeometry(object, v);
+      if (var->geometry.targets.empty()) {
+        throw ConfigError(fmt::format("scene.objects.{}: variant {} has no segment to aim at "
+                                      "(see branch.min_target_diameter_m)",
+                                      o, v));
+      }
+      PandaMjcfOptions options;
+      options.timestep_s = timestep_s_;
+      MjcfObject mjcf_object;
+      mjcf_object.segments = var->geometry.segments;
+      mjcf_object.contact_timeconst_s = config_.contact_timeconst_s;
+      mjcf_object.contact_dampratio = config_.contact_dampratio;
+      mjcf_object.friction = config_.contact_friction;
+      options.objects.push_back(mjcf_object);
+      options.elliptic_friction_cones = true;
+      // only object contacts matter here (tube strikes, arm hits): no broad phase, no
+      // self-collision
+      options.object_contacts_only = true;
+      var->scene = std::make_unique<PandaScene>(PandaMjcf(tube_, options));
 
-  const mjModel* m = scene_->model();
-  ids_ = std::make_unique<Ids>();
-  for (int i = 0; i < kPandaJoints; ++i) {
-    const int joint = RequireId(m, mjOBJ_JOINT, fmt::format("panda_joint{}", i + 1));
-    ids_->qpos[i] = m->jnt_qposadr[joint];
-    ids_->dof[i] = m->jnt_dofadr[joint];
-    ids_->actuator[i] = RequireId(m, mjOBJ_ACTUATOR, fmt::format("panda_motor{}", i + 1));
-  }
-  ids_->tube_geom = RequireId(m, mjOBJ_GEOM, "tube");
-  ids_->rod_geom = RequireId(m, mjOBJ_GEOM, "rod0");
-  ids_->rod_mocap = m->body_mocapid[RequireId(m, mjOBJ_BODY, "rod0")];
-  SONICBOOM_DEMAND(ids_->rod_mocap >= 0);
-  ids_->flange_body = m->geom_bodyid[ids_->tube_geom];
-  ids_->tube_site = RequireId(m, mjOBJ_SITE, "tube_center");
-  const double rod_mass_kg = strike_.rod_density_kg_m3 * 0.25 * kPi * strike_.rod_diameter_m *
-                             strike_.rod_diameter_m * strike_.rod_length_m;
-  ids_->rod_modal_mass_kg = 0.25 * rod_mass_kg;
+      const mjModel* m = var->scene->model();
+      for (int i = 0; i < kPandaJoints; ++i) {
+        const int joint = RequireId(m, mjOBJ_JOINT, fmt::format("panda_joint{}", i + 1));
+        var->qpos[i] = m->jnt_qposadr[joint];
+        var->dof[i] = m->jnt_dofadr[joint];
+        var->actuator[i] = RequireId(m, mjOBJ_ACTUATOR, fmt::format("panda_motor{}", i + 1));
+      }
+      var->tube_geom = RequireId(m, mjOBJ_GEOM, "tube");
+      var->object_mocap = m->body_mocapid[RequireId(m, mjOBJ_BODY, "object0")];
+      SONICBOOM_DEMAND(var->object_mocap >= 0);
+      var->flange_body = m->geom_bodyid[var->tube_geom];
+      var->tube_site = RequireId(m, mjOBJ_SITE, "tube_center");
+      var->segment_of_geom.assign(static_cast<size_t>(m->ngeom), -1);
+      for (size_t k = 0; k < var->geometry.segments.size(); ++k) {
+        var->segment_of_geom[RequireId(m, mjOBJ_GEOM, fmt::format("object0_{}", k))] =
+            static_cast<int>(k);
+      }
 
-  // contact-free twin and the pairs it may skip (capsules and cylinders only)
-  ids_->contact_free.reset(mj_copyModel(nullptr, m));
-  SONICBOOM_DEMAND(ids_->contact_free != nullptr);
-  ids_->contact_free->opt.disableflags |= mjDSBL_CONTACT;
-  SONICBOOM_DEMAND(m->opt.collision == mjCOL_PAIR);
-  for (int p = 0; p < m->npair; ++p) {
-    const int g1 = m->pair_geom1[p], g2 = m->pair_geom2[p];
-    for (int g : {g1, g2}) {
-      SONICBOOM_DEMAND(m->geom_type[g] == mjGEOM_CAPSULE || m->geom_type[g] == mjGEOM_CYLINDER);
+      // contact-free twin and the pairs it may skip (capsules and cylinders only)
+      var->contact_free.reset(mj_copyModel(nullptr, m));
+      SONICBOOM_DEMAND(var->contact_free != nullptr);
+      var->contact_free->opt.disableflags |= mjDSBL_CONTACT;
+      SONICBOOM_DEMAND(m->opt.collision == mjCOL_PAIR);
+      for (int p = 0; p < m->npair; ++p) {
+        const int g1 = m->pair_geom1[p], g2 = m->pair_geom2[p];
+        for (int g : {g1, g2}) {
+          SONICBOOM_DEMAND(m->geom_type[g] == mjGEOM_CAPSULE || m->geom_type[g] == mjGEOM_CYLINDER);
+        }
+        var->pairs.push_back({g1, g2});
+      }
+      // chain length from any joint to any arm geom point: the arm's body and joint offsets,
+      // plus the farthest geom point from its body origin (mocap objects do not move)
+      double reach_m = 0.0;
+      for (int b = 1; b < m->nbody; ++b) {
+        if (m->body_mocapid[b] < 0) reach_m += mju_norm3(m->body_pos + 3 * b);
+      }
+      for (int j = 0; j < m->njnt; ++j) reach_m += mju_norm3(m->jnt_pos + 3 * j);
+      double geom_extent_m = 0.0;
+      for (int g = 0; g < m->ngeom; ++g) {
+        if (m->body_mocapid[m->geom_bodyid[g]] >= 0) continue;
+        geom_extent_m = std::max(geom_extent_m, mju_norm3(m->geom_pos + 3 * g) + m->geom_rbound[g]);
+      }
+      var->reach_m = reach_m + geom_extent_m;
+      variants_[o].push_back(std::move(var));
     }
-    ids_->pairs.push_back({g1, g2});
   }
-  // chain length from any joint to any arm geom point: the arm's body and joint offsets, plus the
-  // farthest geom point from its body origin (mocap rods do not move with the joints)
-  double reach_m = 0.0;
-  for (int b = 1; b < m->nbody; ++b) {
-    if (m->body_mocapid[b] < 0) reach_m += mju_norm3(m->body_pos + 3 * b);
-  }
-  for (int j = 0; j < m->njnt; ++j) reach_m += mju_norm3(m->jnt_pos + 3 * j);
-  double geom_extent_m = 0.0;
-  for (int g = 0; g < m->ngeom; ++g) {
-    if (m->body_mocapid[m->geom_bodyid[g]] >= 0) continue;
-    geom_extent_m = std::max(geom_extent_m, mju_norm3(m->geom_pos + 3 * g) + m->geom_rbound[g]);
-  }
-  ids_->reach_m = reach_m + geom_extent_m;
+
+  if (scene_.mode == "guided") BuildGuided();
 }
 
 StrikeRollout::~StrikeRollout() = default;
 
-RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
-  const mjModel* m = scene_->model();
-  const Ids& ids = *ids_;
-  const double dt_s = timestep_s_;
+void StrikeRollout::BuildGuided() {
+  // the object's fixed pose, and its segments in the base frame
+  const GuidedConfig& g = scene_.guided;
+  guided_ = std::make_unique<Guided>();
+  guided_->object_pose.translation() =
+      Eigen::Vector3d(g.object_position_m[0], g.object_position_m[1], g.object_position_m[2]);
+  guided_->object_pose.linear() =
+      Eigen::AngleAxisd(g.object_yaw_deg * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const ObjectGeometry& geometry = variants_[0][0]->geometry;
+
+  // the tube's mapping orientation: the home pose with joint 7 at guided.joint7_rad
+  JointVector q_home;
+  for (int i = 0; i < kPandaJoints; ++i) q_home[i] = strike_.home_joints_rad[i];
+  q_home[6] = g.joint7_rad;
+  const Eigen::Isometry3d home = PandaForwardKinematics(q_home, tube_.center_from_flange_m).tube;
+  const Eigen::Vector3d axis = home.linear().col(2);
+
+  // grid on the plane, kept where the tube clears the object by clearance .. clearance + layer
+  const int64_t side = std::max<int64_t>(1, static_cast<int64_t>(std::floor(std::sqrt(
+                                                static_cast<double>(g.grid_points)))));
+  const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
+  for (int64_t ix = 0; ix < side; ++ix) {
+    for (int64_t iy = 0; iy < side; ++iy) {
+      const double fx = side > 1 ? static_cast<double>(ix) / (side - 1) : 0.5;
+      const double fy = side > 1 ? static_cast<double>(iy) / (side - 1) : 0.5;
+      const Eigen::Vector3d c(g.x_range_m[0] + fx * (g.x_range_m[1] - g.x_range_m[0]),
+                              g.y_range_m[0] + fy * (g.y_range_m[1] - g.y_range_m[0]), g.plane_z_m);
+      const Eigen::Vector3d a0 = c - 0.5 * tube_.length_m * axis, a1 = c + 0.5 * tube_.length_m * axis;
+      double gap_m = std::numeric_limits<double>::infinity();
+      for (const ObjectSegment& s : geometry.segments) {
+        gap_m = std::min(gap_m, SegmentDistance(a0, a1, guided_->object_pose * s.p0,
+                                                guided_->object_pose * s.p1) -
+                                    s.radius_m);
+      }
+      if (gap_m < g.clearance_m || gap_m > g.clearance_m + g.layer_m) continue;
+      // reachable at the mapping orientation, taps within the joint limits
+      Eigen::Isometry3d target = home;
+      target.translation() = c;
+      const IkResult ik = PandaInverseKinematics(target, q_home, tube_.center_from_flange_m);
+      if (!ik.converged) continue;
+      bool taps_fit = true;
+      for (const auto& [joint, sign] : kGuidedTaps) {
+        const double q_end = ik.q[joint] + sign * g.tap_deg * kDeg;
+        taps_fit = taps_fit && q_end >= lo[joint] && q_end <= hi[joint];
+      }
+      if (!taps_fit) continue;
+      guided_->points.push_back(c);
+      guided_->joints.push_back(ik.q);
+    }
+  }
+  if (guided_->points.empty()) {
+    throw ConfigError(
+        "scene.guided: no grid point clears the object, lies in its closest layer and is "
+        "reachable (check object_position_m, plane_z_m, x_range_m, y_range_m, clearance_m, "
+        "layer_m)");
+  }
+}
+
+std::vector<Eigen::Vector3d> StrikeRollout::GuidedPoints() const {
+  return guided_ ? guided_->points : std::vector<Eigen::Vector3d>{};
+}
+
+RolloutResult StrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed) const {
+  Plan plan;
+  const Variant* variant = nullptr;
+  if (scene_.mode == "guided") {
+    // point index / 4 (cyclically), tap index % 4, from that point's start configuration
+    const Guided& g = *guided_;
+    const size_t point = static_cast<size_t>(sample_index / kGuidedTaps.size()) % g.points.size();
+    const size_t tap = static_cast<size_t>(sample_index % kGuidedTaps.size());
+    const auto [joint, sign] = kGuidedTaps[tap];
+    variant = variants_[0][0].get();
+    plan.q_start = g.joints[point];
+    plan.q_goal = plan.q_start;
+    plan.q_goal[joint] += sign * scene_.guided.tap_deg * kDeg;
+    plan.t_start_s = kGuidedStartS;
+    plan.duration_s = strike_.sweep_duration_s;
+    const auto& gains = joint == 5 ? config_.lateral_stiffness_nm_rad : config_.stiffness_nm_rad;
+    for (int i = 0; i < kPandaJoints; ++i) plan.stiffness[i] = gains[i];
+    plan.object_pose = g.object_pose;
+    plan.motion = kGuidedTapNames[tap];
+    plan.swept_joint = joint;
+  } else {
+    const StrikeDraw draw = DrawStrike(sample_seed, strike_, scene_, tube_, audio_);
+    variant = variants_[draw.object][static_cast<size_t>(draw.variant)].get();
+    plan = PlanStrike(draw, *variant);
+  }
+  RolloutResult result = Simulate(*variant, plan);
+  return result;
+}
+
+StrikeRollout::Plan StrikeRollout::PlanStrike(const StrikeDraw& draw, const Variant& var) const {
+  const ObjectConfig& object = scene_.objects[draw.object];
   const double overshoot_rad = config_.sweep_overshoot_deg * kDeg;
-  const SampledStrike strike = SampleStrike(sample_seed, strike_, tube_, audio_, overshoot_rad);
+  const int j = draw.joint;
+  Plan plan;
+  plan.motion = draw.motion;
+  plan.swept_joint = j;
+  plan.timed = true;
+  plan.q_start = draw.q0;
+  plan.duration_s = strike_.sweep_duration_s;
+  const auto& gains = j == 5 ? config_.lateral_stiffness_nm_rad : config_.stiffness_nm_rad;
+  for (int i = 0; i < kPandaJoints; ++i) plan.stiffness[i] = gains[i];
+  const double travel_rad = draw.sweep_rad * MinJerk(draw.contact_fraction);
+  const double goal_rad = travel_rad + overshoot_rad;
+  plan.q_goal = draw.q0;
+  plan.q_goal[j] += draw.side * goal_rad;
+  plan.s_contact = goal_rad > 0.0 ? MinJerkInverse(travel_rad / goal_rad) : 0.0;
+  plan.target_z_m = draw.z_m;
+  plan.target_time_s = draw.onset_s;
+
+  // the start pose and the commanded goal must lie within the joint limits
+  const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
+  for (int i = 0; i < kPandaJoints; ++i) {
+    if (plan.q_start[i] < lo[i] || plan.q_start[i] > hi[i] || plan.q_goal[i] < lo[i] ||
+        plan.q_goal[i] > hi[i]) {
+      plan.invalid_reason = fmt::format("joint {} leaves its limits", i + 1);
+    }
+  }
+
+  // kinematic contact pose and the direction of motion of the axis point at z (tube frame)
+  JointVector q_contact = draw.q0;
+  q_contact[j] += draw.side * travel_rad;
+  JointVector q_next = q_contact;
+  q_next[j] += draw.side * kDirectionStepRad;
+  const Eigen::Isometry3d pose = PandaForwardKinematics(q_contact, tube_.center_from_flange_m).tube;
+  const Eigen::Isometry3d next = PandaForwardKinematics(q_next, tube_.center_from_flange_m).tube;
+  const Eigen::Vector3d axis_point(0, 0, draw.z_m);
+  const Eigen::Vector3d motion_tube =
+      pose.linear().transpose() * (next * axis_point - pose * axis_point);
+  if (!(std::hypot(motion_tube.x(), motion_tube.y()) > 1e-12)) {
+    plan.invalid_reason = "no approach direction at contact";
+  }
+  const double motion_theta_rad = std::atan2(motion_tube.y(), motion_tube.x());
+  plan.target_theta_rad = WrapAngle(motion_theta_rad + draw.angle_offset_rad);
+
+  // the target segment (by length among the targets) and the aim along it
+  const ObjectGeometry& geometry = var.geometry;
+  double total_m = 0.0;
+  for (int t : geometry.targets) {
+    total_m += (geometry.segments[t].p1 - geometry.segments[t].p0).norm();
+  }
+  int target = geometry.targets.back();
+  double acc_m = 0.0;
+  for (int t : geometry.targets) {
+    acc_m += (geometry.segments[t].p1 - geometry.segments[t].p0).norm();
+    if (draw.target_u * total_m < acc_m) {
+      target = t;
+      break;
+    }
+  }
+  const ObjectSegment& seg = geometry.segments[target];
+  const double seg_length_m = (seg.p1 - seg.p0).norm();
+  const bool tip_strike = (object.kind == "rod" && object.clamp == "one_end");
+  const double along =
+      tip_strike ? std::max(0.5, 1.0 - kTipMarginM / seg_length_m)
+                 : kMiddleLo + (kMiddleHi - kMiddleLo) * draw.target_v;
+  const Eigen::Vector3d aim_object = seg.p0 + along * (seg.p1 - seg.p0);
+
+  // object frame: the segment axis a_o and the direction b_o to the rest of the object (a cross's
+  // second rod sits at +y; a branch's centroid), perpendicular to the axis
+  const Eigen::Vector3d a_o = (seg.p1 - seg.p0).normalized();
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const ObjectSegment& s : geometry.segments) centroid += 0.5 * (s.p0 + s.p1);
+  centroid /= static_cast<double>(geometry.segments.size());
+  Eigen::Vector3d b_o = Eigen::Vector3d::UnitY();
+  if (object.kind == "branch") {
+    const Eigen::Vector3d to_rest = centroid - aim_object;
+    const Eigen::Vector3d perp = to_rest - to_rest.dot(a_o) * a_o;
+    b_o = perp.norm() > 1e-9 ? perp.normalized() : a_o.unitOrthogonal();
+  }
+  b_o = (b_o - b_o.dot(a_o) * a_o).normalized();
+
+  // world: the segment crosses the tube at 90 degrees, tangent at (z, theta), 1 mm beyond the
+  // surface; the rest of the object behind (along n); the base end away from the joint-1 axis
+  const Eigen::Vector3d normal_world = pose.linear() * SurfaceNormal(plan.target_theta_rad);
+  const Eigen::Vector3d axis_world = pose.linear().col(2);
+  const Eigen::Vector3d touch_m = pose * SurfacePoint(tube_, draw.z_m, plan.target_theta_rad) +
+                                  (seg.radius_m + kObjectGapM) * normal_world;
+  Eigen::Vector3d a_w = axis_world.cross(normal_world).normalized();
+  const Eigen::Vector3d radial(touch_m.x(), touch_m.y(), 0.0);
+  if (a_w.dot(radial) > 0.0) a_w = -a_w;  // base end (towards -a) points outwards
+  Eigen::Matrix3d frame_o, frame_w;
+  frame_o << a_o, b_o, a_o.cross(b_o);
+  frame_w << a_w, normal_world, a_w.cross(normal_world);
+  plan.object_pose.linear() = frame_w * frame_o.transpose();
+  plan.object_pose.translation() = touch_m - plan.object_pose.linear() * aim_object;
+  return plan;
+}
+
+RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) const {
+  const mjModel* m = var.scene->model();
+  const double dt_s = timestep_s_;
+  const ObjectConfig& object = scene_.objects[var.object];
+  const ObjectGeometry& geometry = var.geometry;
 
   RolloutResult result;
   result.timestep_s = dt_s;
   result.joint_speed_rate_hz = strike_.proprio_rate_hz;
-  result.target_z_m = strike.z_m;
-  result.target_theta_rad = strike.theta_rad;
-  result.target_time_s = strike.onset_s;
-  result.rod_center_world_m = strike.rod_center_m;
-  result.rod_axis_world = strike.rod_axis;
+  result.target_z_m = plan.target_z_m;
+  result.target_theta_rad = plan.target_theta_rad;
+  result.target_time_s = plan.target_time_s;
+  result.object = var.object;
+  result.variant = var.variant;
+  result.object_pose = plan.object_pose;
+  result.motion = plan.motion;
   auto fail = [&result](std::string reason) {
     if (!result.valid) return;  // keep the first reason
     result.valid = false;
     result.invalid_reason = std::move(reason);
   };
-  if (!strike.invalid_reason.empty()) fail(strike.invalid_reason);
+  if (!plan.invalid_reason.empty()) fail(plan.invalid_reason);
 
-  // fresh state: arm at q0 at rest, rod placed (mocap quat turns body z onto the rod axis)
+  // fresh state: arm at q_start at rest, object placed (mocap pose = object pose)
   DataPtr data(mj_makeData(m));
   SONICBOOM_DEMAND(data != nullptr);
   mjData* d = data.get();
-  for (int i = 0; i < kPandaJoints; ++i) d->qpos[ids.qpos[i]] = strike.q0[i];
-  const Eigen::Quaterniond rod_quat =
-      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), strike.rod_axis);
-  for (int k = 0; k < 3; ++k) d->mocap_pos[3 * ids.rod_mocap + k] = strike.rod_center_m[k];
-  d->mocap_quat[4 * ids.rod_mocap + 0] = rod_quat.w();
-  d->mocap_quat[4 * ids.rod_mocap + 1] = rod_quat.x();
-  d->mocap_quat[4 * ids.rod_mocap + 2] = rod_quat.y();
-  d->mocap_quat[4 * ids.rod_mocap + 3] = rod_quat.z();
+  for (int i = 0; i < kPandaJoints; ++i) d->qpos[var.qpos[i]] = plan.q_start[i];
+  const Eigen::Quaterniond object_quat(plan.object_pose.linear());
+  for (int k = 0; k < 3; ++k) d->mocap_pos[3 * var.object_mocap + k] = plan.object_pose.translation()[k];
+  d->mocap_quat[4 * var.object_mocap + 0] = object_quat.w();
+  d->mocap_quat[4 * var.object_mocap + 1] = object_quat.x();
+  d->mocap_quat[4 * var.object_mocap + 2] = object_quat.y();
+  d->mocap_quat[4 * var.object_mocap + 3] = object_quat.z();
   mj_forward(m, d);
 
-  // impedance gains: K from the config, D from the mass matrix diagonal at the start
-  std::array<double, kPandaJoints> stiffness{}, damping{};
+  // impedance gains: K from the plan, D from the mass matrix diagonal at the start
+  std::array<double, kPandaJoints> stiffness = plan.stiffness, damping{};
   for (int i = 0; i < kPandaJoints; ++i) {
-    stiffness[i] = config_.stiffness_nm_rad[i];
-    const double m_ii = d->qM[m->dof_Madr[ids.dof[i]]];
+    const double m_ii = d->qM[m->dof_Madr[var.dof[i]]];
     damping[i] = 2.0 * config_.damping_ratio * std::sqrt(stiffness[i] * m_ii);
   }
 
-  // joint-1 profile: reaches the rod at the onset, started earlier by the impedance lag D/K
-  const double goal_rad = strike.travel_rad + overshoot_rad;
-  const double s_contact = goal_rad > 0.0 ? MinJerkInverse(strike.travel_rad / goal_rad) : 0.0;
-  const double lag_s = damping[0] / stiffness[0];
-  const double sweep_s = strike_.sweep_duration_s;
-  const double t_sweep_s = strike.onset_s - s_contact * sweep_s - lag_s;
-  // step grid: multiples of dt on the audio clock from the sweep start. Before it the arm holds
-  // q0 at rest (the impedance torque is the bias force at q0), so rows due earlier are the held
-  // pose at zero velocity, written at the first step
-  const int64_t first_step = static_cast<int64_t>(std::floor(t_sweep_s / dt_s));
+  // path timing: a timed strike reaches the object at the onset, started earlier by the lag D/K
+  const double duration_s = plan.duration_s;
+  double t_path_s = plan.t_start_s;
+  if (plan.timed) {
+    const int j = plan.swept_joint;
+    t_path_s = plan.target_time_s - plan.s_contact * duration_s - damping[j] / stiffness[j];
+  }
+  // step grid: multiples of dt on the audio clock from the path start. Before it the arm holds
+  // q_start at rest (the impedance torque is the bias force there), so rows due earlier are the
+  // held pose at zero velocity, written at the first step
+  const int64_t first_step = static_cast<int64_t>(std::floor(t_path_s / dt_s));
 
   // rows on the audio clock: proprio (proprio_rows) and joint speed (the whole record)
   const int64_t proprio_rows = strike_.proprio_rows;
@@ -413,50 +553,61 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
   const int64_t rows = std::max(proprio_rows, speed_rows);
   result.proprio.setZero(proprio_rows, kProprioFeatures);
   result.joint_speed_rad_s.assign(static_cast<size_t>(speed_rows), 0.0);
-  Eigen::Matrix<float, 1, kProprioFeatures> last_row;
   // tube-frame pose (from the kinematics in d) and velocity (from its com velocities)
   auto tube_row = [&](bool with_velocity) {
-    const mjtNum* pos = d->site_xpos + 3 * ids.tube_site;
+    const mjtNum* pos = d->site_xpos + 3 * var.tube_site;
     const Eigen::Matrix3d rot =
         Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(d->site_xmat +
-                                                                       9 * ids.tube_site);
+                                                                       9 * var.tube_site);
     const Eigen::Quaterniond quat(rot);
     mjtNum velocity[6] = {0, 0, 0, 0, 0, 0};  // angular (3), linear (3), world axes
-    if (with_velocity) mj_objectVelocity(m, d, mjOBJ_SITE, ids.tube_site, velocity, 0);
+    if (with_velocity) mj_objectVelocity(m, d, mjOBJ_SITE, var.tube_site, velocity, 0);
     Eigen::Matrix<float, 1, kProprioFeatures> row;
     row << pos[0], pos[1], pos[2], quat.w(), quat.x(), quat.y(), quat.z(), velocity[3],
         velocity[4], velocity[5];
     return row;
   };
-  last_row = tube_row(false);
+  Eigen::Matrix<float, 1, kProprioFeatures> last_row = tube_row(false);
   int64_t next_row = 0;
-
-  // contact episode bookkeeping (one rod: object 0)
-  bool episode_active = false;
-  bool any_release = false;
-  double last_release_s = 0.0;
-  std::vector<int> tube_contacts;  // indices into d->contact of tube-rod contacts, this step
-  auto close_episode = [&](double t_s) {
-    ContactRecord& rec = result.contacts.back();
-    rec.duration_s = t_s - rec.time_s;
-    const bool first = result.contacts.size() == 1;
-    const double since_release_s = any_release ? rec.time_s - last_release_s : 1e9;
-    if (first) {
-      rec.kind = ContactEpisode::Kind::kImpact;
-    } else if (rec.duration_s > kPressDurationS) {
-      rec.kind = ContactEpisode::Kind::kPress;
-    } else if (since_release_s <= kBounceWindowS) {
-      rec.kind = ContactEpisode::Kind::kBounce;
-    } else {
-      rec.kind = ContactEpisode::Kind::kImpact;
-    }
-    episode_active = false;
-    any_release = true;
-    last_release_s = t_s;
+  auto tube_pose = [&] {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = Eigen::Map<const Eigen::Vector3d>(d->site_xpos + 3 * var.tube_site);
+    pose.linear() = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
+        d->site_xmat + 9 * var.tube_site);
+    return pose;
   };
 
-  double t_end_s = audio_.record_duration_s;
-  std::vector<mjtNum> jacp(static_cast<size_t>(3 * m->nv)), jt_n(m->nv), minv_jt_n(m->nv);
+  // leaf clusters in the base frame: (centre, radius)
+  std::vector<std::pair<Eigen::Vector3d, double>> leaves;
+  for (const Eigen::Vector4d& leaf : geometry.leaves) {
+    leaves.emplace_back(plan.object_pose * Eigen::Vector3d(leaf.head<3>()), leaf[3]);
+  }
+
+  // contact episode bookkeeping: one open episode per segment and per leaf cluster at most
+  const int segments = static_cast<int>(geometry.segments.size());
+  std::vector<int> open_segment(static_cast<size_t>(segments), -1);   // index into contacts
+  std::vector<int> open_leaf(leaves.size(), -1);
+  std::vector<int64_t> missing_steps(static_cast<size_t>(segments), 0);  // steps without contact
+  std::vector<std::vector<int>> segment_contacts(static_cast<size_t>(segments));  // this step
+  std::vector<double> since_release_s;  // per contact: time since the last release at touch
+  int first_hard = -1;                  // index of the first hard contact
+  internal::EpisodeClassifier kinds;
+  auto close_episode = [&](int index, double t_s) {
+    ContactRecord& rec = result.contacts[static_cast<size_t>(index)];
+    rec.duration_s = t_s - rec.time_s;
+    if (rec.kind == ContactEpisode::Kind::kBrush) return;
+    rec.kind = kinds.Release(since_release_s[static_cast<size_t>(index)], rec.duration_s,
+                             index == first_hard, t_s);
+  };
+  auto push_record = [&](ContactRecord rec) {
+    since_release_s.push_back(kinds.SinceRelease(rec.time_s));
+    result.contacts.push_back(std::move(rec));
+    return static_cast<int>(result.contacts.size()) - 1;
+  };
+
+  // the path ends; without a contact, the simulation ends settle_s later
+  double t_end_s = std::min(audio_.record_duration_s, t_path_s + duration_s + config_.settle_s);
+  std::vector<mjtNum> scratch(static_cast<size_t>(5 * m->nv));
   int64_t step = 0;
   // joint angles of the last step's kinematics; lower bound of the object pairs' gaps (m) at
   // gap_qpos
@@ -472,21 +623,21 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
     auto budget_left = [&] {
       double travel_rad = 0.0;
       for (int i = 0; i < kPandaJoints; ++i) {
-        travel_rad += std::abs(d->qpos[ids.qpos[i]] - gap_qpos[i]);
+        travel_rad += std::abs(d->qpos[var.qpos[i]] - gap_qpos[i]);
       }
-      return gap_m - ids.reach_m * travel_rad - kCollisionSkipSlackM > 0.0;
+      return gap_m - var.reach_m * travel_rad - kCollisionSkipSlackM > 0.0;
     };
     bool may_touch = step == 0;
     if (!may_touch && !budget_left()) {
       gap_m = std::numeric_limits<double>::infinity();
-      for (const auto& [g1, g2] : ids.pairs) {
+      for (const auto& [g1, g2] : var.pairs) {
         gap_m = std::min(gap_m, GeomGapLowerBound(m, d, g1, g2));
       }
       gap_qpos = last_qpos;
       may_touch = !budget_left();
     }
-    const mjModel* step_model = may_touch ? m : ids.contact_free.get();
-    for (int i = 0; i < kPandaJoints; ++i) last_qpos[i] = d->qpos[ids.qpos[i]];
+    const mjModel* step_model = may_touch ? m : var.contact_free.get();
+    for (int i = 0; i < kPandaJoints; ++i) last_qpos[i] = d->qpos[var.qpos[i]];
 
     // positions and velocities at t: kinematics, collisions, mass matrix, bias forces
     mj_step1(step_model, d);
@@ -501,81 +652,102 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
       if (next_row < proprio_rows) result.proprio.row(next_row) = last_row;
       if (next_row < speed_rows) {
         double sum_sq = 0.0;
-        for (int i = 0; i < kPandaJoints; ++i) sum_sq += d->qvel[ids.dof[i]] * d->qvel[ids.dof[i]];
+        for (int i = 0; i < kPandaJoints; ++i) sum_sq += d->qvel[var.dof[i]] * d->qvel[var.dof[i]];
         result.joint_speed_rad_s[next_row] = std::sqrt(sum_sq);
       }
       ++next_row;
     }
 
-    // contacts with the rod at t
-    tube_contacts.clear();
+    // contacts with the object at t, grouped by segment
+    for (auto& list : segment_contacts) list.clear();
     for (int i = 0; i < d->ncon && result.valid; ++i) {
       const mjContact& c = d->contact[i];
       if (c.exclude != 0) continue;
-      const bool rod_first = c.geom1 == ids.rod_geom;
-      if (!rod_first && c.geom2 != ids.rod_geom) continue;
-      const int other = rod_first ? c.geom2 : c.geom1;
+      const int seg1 = var.segment_of_geom[c.geom1], seg2 = var.segment_of_geom[c.geom2];
+      if (seg1 < 0 && seg2 < 0) continue;
+      const int segment = seg1 >= 0 ? seg1 : seg2;
+      const int other = seg1 >= 0 ? c.geom2 : c.geom1;
       if (step == 0) {
-        fail(fmt::format("the rod overlaps {} at the start pose", GeomName(m, other)));
+        fail(fmt::format("the object overlaps {} at the start pose", GeomName(m, other)));
       } else if (c.dist < -config_.penetration_limit_m) {
-        fail(fmt::format("penetration {:.4f} mm of {} into the rod at t = {:.4f} s exceeds "
+        fail(fmt::format("penetration {:.4f} mm of {} into the object at t = {:.4f} s exceeds "
                          "rollout.penetration_limit_m = {} mm",
                          -1e3 * c.dist, GeomName(m, other), t_s,
                          1e3 * config_.penetration_limit_m));
-      } else if (other == ids.tube_geom) {
-        tube_contacts.push_back(i);
-      } else if (result.contacts.empty()) {
+      } else if (other == var.tube_geom) {
+        segment_contacts[static_cast<size_t>(segment)].push_back(i);
+      } else if (first_hard < 0) {
         fail(fmt::format("arm hit the object before the tube ({} at t = {:.4f} s)",
                          GeomName(m, other), t_s));
       }
     }
     if (!result.valid) break;
 
-    // episodes: touch when the first tube contact appears, release when none remains
-    if (!tube_contacts.empty() && !episode_active) {
-      int deepest = tube_contacts.front();
-      for (int i : tube_contacts) {
+    // tube pose at t (kinematics of this step)
+    const Eigen::Isometry3d tube = tube_pose();
+    const Eigen::Matrix3d tube_rot = tube.linear();
+
+    // episodes: touch when a segment's first tube contact appears, release when none remains
+    for (int segment = 0; segment < segments && result.valid; ++segment) {
+      const std::vector<int>& list = segment_contacts[static_cast<size_t>(segment)];
+      int& open = open_segment[static_cast<size_t>(segment)];
+      int64_t& missing = missing_steps[static_cast<size_t>(segment)];
+      if (list.empty()) {
+        // released once the contact has stayed away for kReleaseSteps steps, at its first
+        // missing step
+        if (open >= 0 && ++missing >= kReleaseSteps) {
+          close_episode(open, t_s - static_cast<double>(missing - 1) * dt_s);
+          open = -1;
+        }
+        continue;
+      }
+      missing = 0;
+      if (open >= 0) continue;
+      int deepest = list.front();
+      for (int i : list) {
         if (d->contact[i].dist < d->contact[deepest].dist) deepest = i;
       }
       const mjContact& c = d->contact[deepest];
       // outward normal: MuJoCo's normal points from geom1 to geom2
       Eigen::Vector3d normal_world(c.frame[0], c.frame[1], c.frame[2]);
-      if (c.geom1 != ids.tube_geom) normal_world = -normal_world;
+      if (c.geom1 != var.tube_geom) normal_world = -normal_world;
       const Eigen::Vector3d point_world(c.pos[0], c.pos[1], c.pos[2]);
-      const Eigen::Vector3d tube_origin =
-          Eigen::Map<const Eigen::Vector3d>(d->site_xpos + 3 * ids.tube_site);
-      const Eigen::Matrix3d tube_rot =
-          Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(d->site_xmat +
-                                                                         9 * ids.tube_site);
 
       ContactRecord rec;
       rec.time_s = t_s;
       rec.point_world_m = point_world;
-      rec.point_m = tube_rot.transpose() * (point_world - tube_origin);
+      rec.point_m = tube.inverse() * point_world;
       rec.normal = tube_rot.transpose() * normal_world;
       rec.z_m = rec.point_m.z();
       rec.theta_rad = WrapAngle(std::atan2(rec.point_m.y(), rec.point_m.x()));
-      rec.object_index = 0;
+      rec.segment = segment;
+      rec.segment_radius_m = geometry.segments[static_cast<size_t>(segment)].radius_m;
+      rec.object = var.name;
+      rec.material = object.material;
 
-      // approach speed: tube-point velocity (J qdot) along the outward normal; the rod is fixed
-      mj_jac(m, d, jacp.data(), nullptr, c.pos, ids.flange_body);
-      const Eigen::Map<const Eigen::Matrix<mjtNum, Eigen::Dynamic, Eigen::Dynamic,
-                                           Eigen::RowMajor>>
-          jac(jacp.data(), 3, m->nv);
-      const Eigen::Map<const Eigen::VectorXd> qvel(d->qvel, m->nv);
-      rec.normal_speed_m_s = normal_world.dot(jac * qvel);
-      // effective mass: robot side 1 / (n^T J M^-1 J^T n), in series with the rod's modal mass
-      Eigen::Map<Eigen::VectorXd>(jt_n.data(), m->nv) = jac.transpose() * normal_world;
-      mj_solveM(m, d, minv_jt_n.data(), jt_n.data(), 1);
-      double inverse_mass = 0.0;
-      for (int k = 0; k < m->nv; ++k) inverse_mass += jt_n[k] * minv_jt_n[k];
-      rec.effective_mass_kg = 1.0 / (inverse_mass + 1.0 / ids.rod_modal_mass_kg);
+      // approach speed: tube-point velocity (J qdot) along the outward normal; the object is
+      // fixed. Effective mass: robot side 1 / (n^T J M^-1 J^T n) in series with the segment's
+      // modal mass at the contact
+      mj_jac(m, d, scratch.data(), nullptr, c.pos, var.flange_body);
+      double speed = 0.0;
+      for (int k = 0; k < m->nv; ++k) {
+        const double row = normal_world.x() * scratch[k] + normal_world.y() * scratch[m->nv + k] +
+                           normal_world.z() * scratch[2 * m->nv + k];
+        speed += row * d->qvel[k];
+      }
+      rec.normal_speed_m_s = speed;
+      const double robot_inverse_kg =
+          internal::InverseEffectiveMass(m, d, var.flange_body, c.pos, normal_world, scratch.data());
+      const double object_mass_kg = SegmentModalMassKg(
+          object, geometry.segments[static_cast<size_t>(segment)],
+          plan.object_pose.inverse() * point_world);
+      rec.effective_mass_kg = 1.0 / (robot_inverse_kg + 1.0 / object_mass_kg);
 
       const double radius_m = std::hypot(rec.point_m.x(), rec.point_m.y());
       const double off_surface_m = std::abs(radius_m - tube_.outer_radius_m);
-      const bool first = result.contacts.empty();
-      result.contacts.push_back(rec);
-      episode_active = true;
+      const bool first = first_hard < 0;
+      open = push_record(rec);
+      if (first) first_hard = open;
       if (off_surface_m >= kSurfaceToleranceM) {
         fail(fmt::format("contact point off the tube surface by {:.3f} mm at t = {:.4f} s",
                          1e3 * off_surface_m, t_s));
@@ -583,19 +755,57 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
         fail(fmt::format("first contact at z = {:.4f} m outside the contact region [{}, {}] m",
                          rec.z_m, tube_.contact_z_min_m, tube_.contact_z_max_m));
       }
-      if (first) t_end_s = std::min(t_end_s, t_s + config_.settle_s);
-    } else if (tube_contacts.empty() && episode_active) {
-      close_episode(t_s);
+      if (first) t_end_s = std::min(audio_.record_duration_s, t_s + config_.settle_s);
     }
     if (!result.valid) break;
 
+    // foliage: a leaf cluster brushes the tube while it overlaps the tube's cylinder
+    for (size_t l = 0; l < leaves.size(); ++l) {
+      const Eigen::Vector3d local = tube.inverse() * leaves[l].first;
+      const double half_length_m = 0.5 * tube_.length_m;
+      const double z_m = std::clamp(local.z(), -half_length_m, half_length_m);
+      const double radial_m = std::hypot(local.x(), local.y());
+      const double gap_to_leaf_m =
+          std::hypot(std::max(radial_m - tube_.outer_radius_m, 0.0), local.z() - z_m);
+      const bool touching = gap_to_leaf_m < leaves[l].second;
+      int& open = open_leaf[l];
+      if (!touching) {
+        if (open >= 0) close_episode(open, t_s);
+        open = -1;
+        continue;
+      }
+      if (open >= 0) continue;
+      ContactRecord rec;
+      rec.kind = ContactEpisode::Kind::kBrush;
+      rec.time_s = t_s;
+      rec.theta_rad = WrapAngle(std::atan2(local.y(), local.x()));
+      rec.z_m = z_m;
+      rec.point_m = SurfacePoint(tube_, rec.z_m, rec.theta_rad);
+      rec.normal = SurfaceNormal(rec.theta_rad);
+      rec.point_world_m = tube * rec.point_m;
+      rec.segment = -1;
+      rec.object = "leaves";
+      rec.material = "foliage";
+      // speed of the tube surface towards the cluster
+      mjtNum point[3] = {rec.point_world_m.x(), rec.point_world_m.y(), rec.point_world_m.z()};
+      mj_jac(m, d, scratch.data(), nullptr, point, var.flange_body);
+      const Eigen::Vector3d normal_world = tube_rot * rec.normal;
+      double speed = 0.0;
+      for (int k = 0; k < m->nv; ++k) {
+        const double row = normal_world.x() * scratch[k] + normal_world.y() * scratch[m->nv + k] +
+                           normal_world.z() * scratch[2 * m->nv + k];
+        speed += row * d->qvel[k];
+      }
+      rec.normal_speed_m_s = speed;
+      open = push_record(rec);
+    }
+
     // joint-space impedance with gravity and Coriolis compensation, clamped to the motors
-    const double q1_des =
-        strike.q0[0] + strike.side * goal_rad * MinJerk((t_s - t_sweep_s) / sweep_s);
+    const double s = MinJerk((t_s - t_path_s) / duration_s);
     for (int i = 0; i < kPandaJoints; ++i) {
-      const double q_des = i == 0 ? q1_des : strike.q0[i];
-      const int dof = ids.dof[i], act = ids.actuator[i];
-      const double tau_nm = stiffness[i] * (q_des - d->qpos[ids.qpos[i]]) -
+      const double q_des = plan.q_start[i] + (plan.q_goal[i] - plan.q_start[i]) * s;
+      const int dof = var.dof[i], act = var.actuator[i];
+      const double tau_nm = stiffness[i] * (q_des - d->qpos[var.qpos[i]]) -
                             damping[i] * d->qvel[dof] + d->qfrc_bias[dof];
       d->ctrl[act] = std::clamp(tau_nm, m->actuator_ctrlrange[2 * act],
                                 m->actuator_ctrlrange[2 * act + 1]);
@@ -612,24 +822,31 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
       fail(fmt::format("non-finite state at t = {:.4f} s", t_s + dt_s));
       break;
     }
-    // normal force of this step's tube contacts (solved in mj_step2)
-    if (episode_active) {
+    // normal force of this step's tube contacts per open segment (solved in mj_step2)
+    for (int segment = 0; segment < segments; ++segment) {
+      const int open = open_segment[static_cast<size_t>(segment)];
+      if (open < 0) continue;
       double normal_force_n = 0.0;
-      for (int i : tube_contacts) {
+      for (int i : segment_contacts[static_cast<size_t>(segment)]) {
         mjtNum force[6];
         mj_contactForce(m, d, i, force);
         normal_force_n += force[0];
       }
-      ContactRecord& rec = result.contacts.back();
+      ContactRecord& rec = result.contacts[static_cast<size_t>(open)];
       rec.impulse_Ns += normal_force_n * dt_s;
       rec.peak_force_N = std::max(rec.peak_force_N, normal_force_n);
     }
   }
   const double t_final_s = static_cast<double>(first_step + step) * dt_s;
-  if (episode_active) close_episode(t_final_s);
+  for (int open : open_segment) {
+    if (open >= 0) close_episode(open, t_final_s);
+  }
+  for (int open : open_leaf) {
+    if (open >= 0) close_episode(open, t_final_s);
+  }
   result.steps = step;
   result.simulated_s = static_cast<double>(step) * dt_s;
-  if (result.valid && result.contacts.empty()) fail("no tube contact within the record");
+  if (result.valid && first_hard < 0) fail("no tube contact with the object within the record");
 
   // rows after the end hold the last state at rest
   if (AllFinite(d->qpos, m->nq)) {
@@ -641,6 +858,30 @@ RolloutResult StrikeRollout::Run(uint64_t sample_seed) const {
     if (next_row < proprio_rows) result.proprio.row(next_row) = last_row;
   }
   return result;
+}
+
+bool FirstHardContact(const RolloutResult& result, const SceneConfig& scene, ContactEvent* event,
+                      ContactLabel* label) {
+  for (const ContactRecord& c : result.contacts) {
+    if (c.kind == ContactEpisode::Kind::kBrush) continue;
+    const ObjectConfig& object = scene.objects[static_cast<size_t>(result.object)];
+    label->z_m = c.z_m;
+    label->theta_rad = c.theta_rad;
+    label->point_m = c.point_m;  // raw contact point, within 1 mm of the surface
+    label->normal = c.normal;
+    label->time_s = c.time_s;
+    label->normal_speed_m_s = c.normal_speed_m_s;
+    event->time_s = c.time_s;
+    event->z_m = c.z_m;
+    event->theta_rad = c.theta_rad;
+    event->normal_speed_m_s = c.normal_speed_m_s;
+    event->effective_mass_kg = c.effective_mass_kg;
+    event->striker_radius_m = c.segment_radius_m;
+    event->striker_youngs_modulus_pa = object.contact_youngs_modulus_pa;
+    event->striker_poisson_ratio = object.poisson_ratio;
+    return true;
+  }
+  return false;
 }
 
 }  // namespace sonicboom::sim

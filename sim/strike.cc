@@ -27,15 +27,23 @@ double MinJerkRate(double s) {
   return 30 * s * s * (1 - s) * (1 - s);
 }
 
-StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& c, const TubeConfig& tube,
-                      const AudioConfig& audio) {
-  // joint 7 turns the tube about its axis (within its limits), joint 1 sweeps towards the rod
-  // on either side (the paper's opposite-side strikes), so every theta can face the rod
+StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& c, const SceneConfig& scene,
+                      const TubeConfig& tube, const AudioConfig& audio) {
+  // joint 7 turns the tube about its axis (within its limits), the motion sweeps joint 1 (or 6)
+  // towards the object on either side, so every theta can face the object
   Rng rng(sample_seed, Stream::kStrike);
   StrikeDraw d;
   for (int i = 0; i < kPandaJoints; ++i) d.q0[i] = c.home_joints_rad[i];
   d.q0[6] = rng.Uniform(PandaLowerLimits()[6], PandaUpperLimits()[6]);
-  d.side = rng.Uniform() < 0.5 ? -1.0 : 1.0;
+  d.motion = c.motions[rng.UniformInt(c.motions.size())];
+  const double coin = rng.Uniform();
+  if (d.motion == "lateral") {
+    d.joint = 5;
+    d.side = coin < 0.5 ? -1.0 : 1.0;
+  } else {
+    d.joint = 0;
+    d.side = d.motion == "opposite" ? -1.0 : 1.0;
+  }
   const double tilt = rng.Uniform(-c.tilt_max_deg, 0.0) * kDeg;
   d.q0[1] += 0.5 * tilt;
   d.q0[3] += 0.5 * tilt;
@@ -44,12 +52,20 @@ StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& c, const TubeCon
   d.z_m = rng.Uniform(tube.contact_z_min_m, tube.contact_z_max_m);
   d.angle_offset_rad = rng.Uniform(-c.contact_angle_spread_deg, c.contact_angle_spread_deg) * kDeg;
   d.onset_s = audio.onset_time_s + rng.Uniform(-0.05, 0.05);
+  // the object, its variant and the aim on it
+  Rng scene_rng(sample_seed, Stream::kScene);
+  d.object = DrawObjectIndex(scene.objects, scene_rng.Uniform());
+  d.variant = static_cast<int64_t>(
+      scene_rng.UniformInt(static_cast<uint64_t>(ObjectVariants(scene.objects[d.object]))));
+  d.target_u = scene_rng.Uniform();
+  d.target_v = scene_rng.Uniform();
   return d;
 }
 
 void StrikeConfig::Serialize(Archive* a) {
   a->VisitChoice("engine", &engine, {"mujoco", "kinematic"});
   a->Visit("home_joints_rad", &home_joints_rad);
+  a->Visit("motions", &motions);
   a->Visit("sweep_min_deg", &sweep_min_deg, Bounds::Open(0.0, 90.0));
   a->Visit("sweep_max_deg", &sweep_max_deg, Bounds::Open(0.0, 90.0));
   a->Visit("sweep_duration_s", &sweep_duration_s, Bounds::Open(0.0, 10.0));
@@ -57,12 +73,6 @@ void StrikeConfig::Serialize(Archive* a) {
   a->Visit("contact_fraction_max", &contact_fraction_max, Bounds::Open(0.0, 1.0));
   a->Visit("contact_angle_spread_deg", &contact_angle_spread_deg, Bounds::Closed(0.0, 80.0));
   a->Visit("tilt_max_deg", &tilt_max_deg, Bounds::Closed(0.0, 30.0));
-  a->Visit("rod_diameter_m", &rod_diameter_m, Bounds::Open(0.0, 0.2));
-  a->Visit("rod_length_m", &rod_length_m, Bounds::Open(0.0, 5.0));
-  a->Visit("rod_density_kg_m3", &rod_density_kg_m3, Bounds::Open(1.0, 1e5));
-  a->Visit("rod_contact_youngs_modulus_pa", &rod_contact_youngs_modulus_pa, Bounds::Open(1e6, 1e13));
-  a->Visit("rod_contact_poisson_ratio", &rod_contact_poisson_ratio, Bounds::Open(-1.0, 0.5));
-  a->VisitChoice("rod_material", &rod_material, {"wood", "aluminium", "pvc"});
   a->Visit("proprio_rate_hz", &proprio_rate_hz, Bounds::Open(1.0, 10000.0));
   a->Visit("proprio_rows", &proprio_rows, Bounds::Closed(1, 100000));
 }
@@ -80,6 +90,13 @@ void StrikeConfig::Validate() const {
                                     i, home_joints_rad[i], lo[i], hi[i]));
     }
   }
+  if (motions.empty()) throw ConfigError("strike.motions is empty: name sweep, opposite or lateral");
+  for (const std::string& m : motions) {
+    if (m != "sweep" && m != "opposite" && m != "lateral") {
+      throw ConfigError(fmt::format(
+          "strike.motions: '{}' is not one of sweep, opposite, lateral", m));
+    }
+  }
   if (sweep_min_deg > sweep_max_deg) {
     throw ConfigError(fmt::format("strike.sweep_min_deg = {} exceeds strike.sweep_max_deg = {}",
                                   sweep_min_deg, sweep_max_deg));
@@ -91,21 +108,25 @@ void StrikeConfig::Validate() const {
   }
 }
 
-std::string StrikeConfig::RodName() const {
-  return fmt::format("rod T{:.0f}L{:.0f}", rod_diameter_m * 1e3, rod_length_m * 1e2);
-}
-
-StrikeModel::StrikeModel(const StrikeConfig& strike, const TubeConfig& tube,
-                         const AudioConfig& audio)
-    : strike_(strike), tube_(tube), audio_(audio) {
+StrikeModel::StrikeModel(const StrikeConfig& strike, const SceneConfig& scene,
+                         const TubeConfig& tube, const AudioConfig& audio)
+    : strike_(strike), scene_(scene), tube_(tube), audio_(audio) {
   strike_.Validate();
+  scene_.Validate();
   tube_.Validate();
+  if (scene_.mode != "strike") {
+    throw ConfigError(fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; use "
+                                  "strike.engine = mujoco",
+                                  scene_.mode));
+  }
 }
 
 StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
   StrikeEvents ev;
   const StrikeConfig& c = strike_;
-  const StrikeDraw draw = DrawStrike(sample_seed, c, tube_, audio_);
+  const StrikeDraw draw = DrawStrike(sample_seed, c, scene_, tube_, audio_);
+  const ObjectConfig& object = scene_.objects[draw.object];
+  const int joint = draw.joint;
   const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
   const JointVector q0 = draw.q0;
   const double sweep = draw.side * draw.sweep_rad;
@@ -115,7 +136,7 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
 
   // a tilt or sweep that leaves the joint limits cannot be executed
   for (int i = 0; i < kPandaJoints; ++i) {
-    const double q_end = q0[i] + (i == 0 ? sweep : 0.0);
+    const double q_end = q0[i] + (i == joint ? sweep : 0.0);
     if (q0[i] < lo[i] || q0[i] > hi[i] || q_end < lo[i] || q_end > hi[i]) {
       ev.valid = false;
       ev.invalid_reason = fmt::format("joint {} leaves its limits", i + 1);
@@ -130,10 +151,10 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
     JointVector q = q0;
     // the rod stops the sweep at contact; the tube then stays pressed against it
     const double s = std::min((t - t_start) / c.sweep_duration_s, s_contact);
-    q[0] += sweep * MinJerk(s);
+    q[joint] += sweep * MinJerk(s);
     return q;
   };
-  auto joint1_rate = [&](double t) {
+  auto joint_rate = [&](double t) {
     const double s = (t - t_start) / c.sweep_duration_s;
     return s >= s_contact ? 0.0 : sweep * MinJerkRate(s) / c.sweep_duration_s;
   };
@@ -169,17 +190,21 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
     ev.invalid_reason = "no approach speed at contact";
   }
 
-  // struck rod: cantilever tip modal mass m_rod / 4 (every cantilever mode, physics.md 1.4)
-  const double rod_area = 0.25 * kPi * c.rod_diameter_m * c.rod_diameter_m;
+  // struck object: its fundamental mode's modal mass near the free tip (physics.md 1.4)
+  const bool both_ends = object.clamp == "both_ends";
+  const double aim_m = both_ends ? 0.5 * object.length_m : std::max(object.length_m - 0.05, 0.0);
   ContactEvent& contact = ev.contact;
   contact.time_s = t_contact;
   contact.z_m = z_contact;
   contact.theta_rad = theta;
   contact.normal_speed_m_s = normal_speed;
-  contact.effective_mass_kg = 0.25 * c.rod_density_kg_m3 * rod_area * c.rod_length_m;
-  contact.striker_radius_m = 0.5 * c.rod_diameter_m;
-  contact.striker_youngs_modulus_pa = c.rod_contact_youngs_modulus_pa;
-  contact.striker_poisson_ratio = c.rod_contact_poisson_ratio;
+  contact.effective_mass_kg = BeamModalMassKg(object.LinearDensityKgM() * object.length_m,
+                                              object.length_m, aim_m, both_ends);
+  contact.striker_radius_m = 0.5 * object.diameter_m;
+  contact.striker_youngs_modulus_pa = object.contact_youngs_modulus_pa;
+  contact.striker_poisson_ratio = object.poisson_ratio;
+  ev.object = object.DisplayName();
+  ev.material = object.material;
 
   // proprioception rows on the audio clock: tube pose (wxyz) and velocity in the base frame
   ev.proprio.resize(c.proprio_rows, kProprioFeatures);
@@ -197,7 +222,7 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
   const int64_t rows = static_cast<int64_t>(std::ceil(audio_.record_duration_s * c.proprio_rate_hz));
   ev.joint_speed_rate_hz = c.proprio_rate_hz;
   ev.joint_speed_rad_s.resize(rows);
-  for (int64_t k = 0; k < rows; ++k) ev.joint_speed_rad_s[k] = std::abs(joint1_rate(k / c.proprio_rate_hz));
+  for (int64_t k = 0; k < rows; ++k) ev.joint_speed_rad_s[k] = std::abs(joint_rate(k / c.proprio_rate_hz));
   return ev;
 }
 

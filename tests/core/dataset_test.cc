@@ -645,18 +645,23 @@ TEST(SummaryTest, CountsValidAndInvalidWithReasons) {
     writer.Append(MakeSample(2, info));
     writer.Append(MakeSample(3, info, false, "no_contact"));
     writer.Append(MakeSample(4, info, false, "penetration"));
+    // reasons differing only in their numbers count together
+    writer.Append(MakeSample(5, info, false, "penetration 1.0219 mm at t = 0.4585 s (limit 1e-3)"));
+    writer.Append(MakeSample(6, info, false, "penetration 2.5 mm at t = -0.25 s (limit 1e-3)"));
     writer.Finish();
   }
   const nlohmann::json summary = nlohmann::json::parse(SummarizeDatasetJson(path));
+  EXPECT_EQ(summary["invalid_reasons"]["penetration # mm at t = # s (limit #)"], 2)
+      << summary["invalid_reasons"];
   EXPECT_EQ(summary["file"], path);
   EXPECT_EQ(summary["kind"], "dataset");
   EXPECT_EQ(summary["schema_version"], kDatasetSchemaVersion);
   EXPECT_EQ(summary["complete"], true);
   EXPECT_EQ(summary["source"], "sim");
-  EXPECT_EQ(summary["num_samples"], 5);
+  EXPECT_EQ(summary["num_samples"], 7);
   EXPECT_EQ(summary["valid"], 2);
-  EXPECT_EQ(summary["invalid"], 3);
-  EXPECT_EQ(summary["invalid_reasons"].size(), 2u);
+  EXPECT_EQ(summary["invalid"], 5);
+  EXPECT_EQ(summary["invalid_reasons"].size(), 3u);
   EXPECT_EQ(summary["invalid_reasons"]["no_contact"], 2);
   EXPECT_EQ(summary["invalid_reasons"]["penetration"], 1);
   EXPECT_EQ(summary["clipped"], 1);
@@ -730,7 +735,7 @@ TEST(SummaryTest, CountsContactsByKindAndObjectAndFirstContactCoverage) {
   EXPECT_EQ(contacts["per_sample"]["min"], 0);
   EXPECT_EQ(contacts["per_sample"]["max"], 3);
   EXPECT_DOUBLE_EQ(contacts["per_sample"]["mean"].get<double>(), 6.0 / 5.0);
-  EXPECT_EQ(contacts["kinds"], nlohmann::json({{"impact", 3}, {"bounce", 2}, {"press", 1}}));
+  EXPECT_EQ(contacts["kinds"], nlohmann::json({{"impact", 3}, {"bounce", 2}, {"press", 1}, {"brush", 0}}));
   EXPECT_EQ(contacts["objects"],
             nlohmann::json({{"rod A", 3}, {"rod B", 2}, {"(unnamed)", 1}}));
   const nlohmann::json& coverage = contacts["coverage"];
@@ -752,7 +757,7 @@ TEST(DatasetTest, RefusesUnknownContactKind) {
   const DatasetInfo info = MakeInfo(true);
   DatasetWriter writer(dir.File("strikes.h5"), info);
   StrikeSample sample = MakeSample(0, info);
-  sample.contacts[1].kind = static_cast<ContactEpisode::Kind>(3);
+  sample.contacts[1].kind = static_cast<ContactEpisode::Kind>(4);  // 0..3 are named
   EXPECT_THROW(writer.Append(sample), SchemaError);
   EXPECT_THROW(writer.Encode(sample), SchemaError);
   EXPECT_EQ(writer.count(), 0);
@@ -1134,7 +1139,7 @@ TEST(H5pyTest, ContactTableLayout) {
       "first [0, 3, 3, 4]\n",
       "count [3, 0, 1, 3]\n",
       "sample_row [0, 0, 0, 2, 3, 3, 3]\n",
-      "kind [0, 1, 2, 0, 0, 1, 2] impact,bounce,press\n",
+      "kind [0, 1, 2, 0, 0, 1, 2] impact,bounce,press,brush\n",
       "object ['rod T22L42', 'rod T22L42', 'rod T22L42 \u2014 \u00f822', 'rod T22L42', "
       "'rod T22L42', 'rod T22L42', 'rod T22L42 \u2014 \u00f822']\n",
       "material ['wood', 'rubber', 'wood', 'wood', 'wood', 'rubber', 'wood']\n",

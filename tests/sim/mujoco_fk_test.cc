@@ -185,20 +185,25 @@ TEST(MujocoFkTest, GravityCompensationAtHome) {
   for (int i = 0; i < kPandaJoints; ++i) EXPECT_LT(std::abs(tau_nm[i]), limits_nm[i]) << i;
 }
 
-TEST(MujocoFkTest, ObjectContactsOnlyPairsEachRodWithTheTubeAndEveryCapsule) {
+TEST(MujocoFkTest, ObjectContactsOnlyPairsEachObjectGeomWithTheTubeAndEveryCapsule) {
   PandaMjcfOptions options;
-  options.rods.resize(2);
+  // a rod and a cross (two segments)
+  ObjectConfig cross;
+  cross.kind = "cross";
+  options.objects.resize(2);
+  options.objects[0].segments = BuildObjectGeometry(ObjectConfig{}, 0).segments;
+  options.objects[1].segments = BuildObjectGeometry(cross, 0).segments;
   options.object_contacts_only = true;
   const std::string xml = PandaMjcf(TubeConfig{}, options);
   EXPECT_NE(xml.find("collision=\"predefined\""), std::string::npos);
-  // 2 rods x (tube + 11 capsules)
+  // 3 object geoms x (tube + 11 capsules)
   size_t pairs = 0;
   for (size_t at = xml.find("<pair "); at != std::string::npos; at = xml.find("<pair ", at + 1)) {
     ++pairs;
   }
-  EXPECT_EQ(pairs, 24u);
-  EXPECT_NE(xml.find("<pair geom1=\"tube\" geom2=\"rod1\""), std::string::npos);
-  EXPECT_NE(xml.find("<pair geom1=\"panda_link7_collision0\" geom2=\"rod0\""),
+  EXPECT_EQ(pairs, 36u);
+  EXPECT_NE(xml.find("<pair geom1=\"tube\" geom2=\"object1_1\""), std::string::npos);
+  EXPECT_NE(xml.find("<pair geom1=\"panda_link7_collision0\" geom2=\"object0_0\""),
             std::string::npos);
   // it compiles, and the parked rods touch nothing
   const PandaScene scene(xml);

@@ -21,13 +21,14 @@ constexpr int kSeeds = 30;
 
 // one default rollout model and its 30 seeded rollouts, shared by the tests of this file
 const StrikeRollout& DefaultRollout() {
-  static const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, RolloutConfig{});
+  static const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{},
+                                     RolloutConfig{});
   return rollout;
 }
 const std::vector<RolloutResult>& DefaultResults() {
   static const std::vector<RolloutResult> results = [] {
     std::vector<RolloutResult> out;
-    for (uint64_t i = 0; i < kSeeds; ++i) out.push_back(DefaultRollout().Run(SampleSeed(21, i)));
+    for (uint64_t i = 0; i < kSeeds; ++i) out.push_back(DefaultRollout().Run(i, SampleSeed(21, i)));
     return out;
   }();
   return results;
@@ -67,10 +68,13 @@ TEST(RolloutTest, ContactsLieOnTheTubeWhereTheRodWasPlaced) {
       EXPECT_GT(c.impulse_Ns, 0.0);
       EXPECT_GT(c.peak_force_N, 0.0);
       EXPECT_GT(c.effective_mass_kg, 0.0);
-      // in series with the rod's tip modal mass: never above it
-      EXPECT_LT(c.effective_mass_kg, 0.25 * strike.rod_density_kg_m3 * 0.25 * kPi *
-                                         strike.rod_diameter_m * strike.rod_diameter_m *
-                                         strike.rod_length_m);
+      // in series with the rod's modal mass 5 cm from its tip: never above it
+      const ObjectConfig rod;
+      const double rod_kg = rod.LinearDensityKgM() * rod.length_m;
+      EXPECT_LT(c.effective_mass_kg,
+                BeamModalMassKg(rod_kg, rod.length_m, rod.length_m - 0.05, false));
+      EXPECT_EQ(c.object, "rod T22L42");
+      EXPECT_EQ(c.material, "wood");
     }
     EXPECT_GT(first.normal_speed_m_s, 0.01);
     EXPECT_LT(first.normal_speed_m_s, 0.5);
@@ -90,7 +94,7 @@ TEST(RolloutTest, ContactsLieOnTheTubeWhereTheRodWasPlaced) {
 
 TEST(RolloutTest, TargetsMatchTheKinematicGenerator) {
   // the same draws: a seed names the same intended contact in both generators
-  const StrikeModel kinematic(StrikeConfig{}, TubeConfig{}, AudioConfig{});
+  const StrikeModel kinematic(StrikeConfig{}, SceneConfig{}, TubeConfig{}, AudioConfig{});
   for (uint64_t i = 0; i < 5; ++i) {
     const StrikeEvents ev = kinematic.Generate(SampleSeed(21, i));
     const RolloutResult& r = DefaultResults()[i];
@@ -153,15 +157,15 @@ void ExpectSameRecords(const RolloutResult& a, const RolloutResult& b) {
 
 TEST(RolloutTest, SameSeedSameRolloutOnAnyThread) {
   const StrikeRollout& rollout = DefaultRollout();
-  ExpectSameRecords(rollout.Run(SampleSeed(21, 3)), DefaultResults()[3]);
+  ExpectSameRecords(rollout.Run(3, SampleSeed(21, 3)), DefaultResults()[3]);
   // 8 seeds on one thread, then split over two threads
   constexpr int kCount = 8;
   std::vector<RolloutResult> serial(kCount), parallel(kCount);
-  for (int i = 0; i < kCount; ++i) serial[i] = rollout.Run(SampleSeed(77, i));
+  for (int i = 0; i < kCount; ++i) serial[i] = rollout.Run(i, SampleSeed(77, i));
   std::vector<std::thread> threads;
   for (int t = 0; t < 2; ++t) {
     threads.emplace_back([&, t] {
-      for (int i = t; i < kCount; i += 2) parallel[i] = rollout.Run(SampleSeed(77, i));
+      for (int i = t; i < kCount; i += 2) parallel[i] = rollout.Run(i, SampleSeed(77, i));
     });
   }
   for (std::thread& thread : threads) thread.join();
@@ -173,8 +177,8 @@ TEST(RolloutTest, SameSeedSameRolloutOnAnyThread) {
 TEST(RolloutTest, TinyPenetrationLimitInvalidatesWithoutCrashing) {
   RolloutConfig config;
   config.penetration_limit_m = 1e-9;
-  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
-  const RolloutResult r = rollout.Run(SampleSeed(21, 0));
+  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config);
+  const RolloutResult r = rollout.Run(0, SampleSeed(21, 0));
   EXPECT_FALSE(r.valid);
   EXPECT_NE(r.invalid_reason.find("rollout.penetration_limit_m"), std::string::npos)
       << r.invalid_reason;
@@ -187,8 +191,8 @@ TEST(RolloutTest, SoftContactSinksIntoTheRodAndIsInvalid) {
   config.contact_timeconst_s = 0.2;
   config.timestep_s = 0.001;
   config.settle_s = 0.3;
-  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
-  const RolloutResult r = rollout.Run(SampleSeed(21, 0));
+  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config);
+  const RolloutResult r = rollout.Run(0, SampleSeed(21, 0));
   EXPECT_FALSE(r.valid);
   EXPECT_NE(r.invalid_reason.find("penetration"), std::string::npos) << r.invalid_reason;
 }
@@ -199,8 +203,8 @@ TEST(RolloutTest, AbsurdStiffnessNeverCrashes) {
   config.stiffness_nm_rad.assign(7, 1e9);
   config.timestep_s = 0.005;
   config.contact_timeconst_s = 0.01;
-  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
-  const RolloutResult r = rollout.Run(SampleSeed(21, 1));
+  const StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config);
+  const RolloutResult r = rollout.Run(1, SampleSeed(21, 1));
   if (!r.valid) std::cout << "absurd stiffness: " << r.invalid_reason << "\n";
   EXPECT_TRUE(r.proprio.allFinite());
 }
@@ -210,7 +214,7 @@ TEST(RolloutTest, ContactTimeConstantBelowTwoTimestepsIsAConfigError) {
   config.timestep_s = 0.001;
   config.contact_timeconst_s = 0.0015;
   try {
-    StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config);
+    StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config);
     FAIL() << "no ConfigError";
   } catch (const ConfigError& e) {
     const std::string message = e.what();
@@ -219,10 +223,10 @@ TEST(RolloutTest, ContactTimeConstantBelowTwoTimestepsIsAConfigError) {
   }
   // the derived timestep (timeconst / 4) always satisfies the rule
   config.timestep_s = 0.0;
-  EXPECT_DOUBLE_EQ(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config).timestep_s(),
+  EXPECT_DOUBLE_EQ(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config).timestep_s(),
                    0.0015 / 4);
   config.stiffness_nm_rad.pop_back();
-  EXPECT_THROW(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, config), ConfigError);
+  EXPECT_THROW(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config), ConfigError);
 }
 
 }  // namespace

@@ -12,7 +12,7 @@ namespace {
 
 TEST(StrikeTest, LabelsOnSurfaceInsideRegionWithApproachSpeed) {
   const TubeConfig tube;
-  const StrikeModel model(StrikeConfig{}, tube, AudioConfig{});
+  const StrikeModel model(StrikeConfig{}, SceneConfig{}, tube, AudioConfig{});
   int valid = 0;
   double theta_min = 10, theta_max = -10;
   for (uint64_t i = 0; i < 500; ++i) {
@@ -39,7 +39,7 @@ TEST(StrikeTest, LabelsOnSurfaceInsideRegionWithApproachSpeed) {
 }
 
 TEST(StrikeTest, SameSeedSameStrike) {
-  const StrikeModel model(StrikeConfig{}, TubeConfig{}, AudioConfig{});
+  const StrikeModel model(StrikeConfig{}, SceneConfig{}, TubeConfig{}, AudioConfig{});
   const StrikeEvents a = model.Generate(SampleSeed(9, 17)), b = model.Generate(SampleSeed(9, 17));
   const StrikeEvents c = model.Generate(SampleSeed(9, 18));
   EXPECT_EQ(a.label.z_m, b.label.z_m);
@@ -50,7 +50,7 @@ TEST(StrikeTest, SameSeedSameStrike) {
 
 TEST(StrikeTest, ProprioceptionIsConsistent) {
   StrikeConfig config;
-  const StrikeModel model(config, TubeConfig{}, AudioConfig{});
+  const StrikeModel model(config, SceneConfig{}, TubeConfig{}, AudioConfig{});
   const StrikeEvents ev = model.Generate(SampleSeed(3, 0));
   ASSERT_EQ(ev.proprio.rows(), config.proprio_rows);
   ASSERT_EQ(ev.proprio.cols(), kProprioFeatures);
@@ -71,14 +71,14 @@ TEST(StrikeTest, RejectsBadConfig) {
   StrikeConfig config;
   config.home_joints_rad[3] = 0.5;  // joint 4 must stay negative
   try {
-    StrikeModel model(config, TubeConfig{}, AudioConfig{});
+    StrikeModel model(config, SceneConfig{}, TubeConfig{}, AudioConfig{});
     FAIL();
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("strike.home_joints_rad[3]"), std::string::npos);
   }
   config = StrikeConfig{};
   config.sweep_min_deg = 20;
-  EXPECT_THROW(StrikeModel(config, TubeConfig{}, AudioConfig{}), ConfigError);
+  EXPECT_THROW(StrikeModel(config, SceneConfig{}, TubeConfig{}, AudioConfig{}), ConfigError);
 }
 
 }  // namespace

@@ -34,7 +34,8 @@ struct ContactEvent {
 
 /// One tube contact episode of a strike, from touch to release (tube frame).
 struct ContactEpisode {
-  enum class Kind : uint8_t { kImpact = 0, kBounce = 1, kPress = 2 };
+  // brush: foliage sweeping over the tube, a noise event with no localized hard contact
+  enum class Kind : uint8_t { kImpact = 0, kBounce = 1, kPress = 2, kBrush = 3 };
   double time_s{0.0};                       // touch, from the start of the record
   double duration_s{0.0};
   double z_m{0.0};

@@ -12,6 +12,7 @@
 #include "sonicboom/core/tube.h"
 #include "sonicboom/learning/learning.h"
 #include "sonicboom/sim/rollout.h"
+#include "sonicboom/sim/scene.h"
 #include "sonicboom/sim/strike.h"
 
 namespace sonicboom::experiments {
@@ -40,7 +41,8 @@ struct SonicBoomConfig {
   MicArrayConfig mics;
   AudioConfig audio;
   sim::StrikeConfig strike;
-  sim::RolloutConfig rollout;              // used when strike.engine = mujoco
+  sim::SceneConfig scene;                  // objects and strike mode
+  sim::RolloutConfig rollout;              // used when strike.engine = mujoco or the scene needs it
   acoustics::SynthConfig acoustics;
   acoustics::DaqConfig daq;
   acoustics::NoiseConfig noise;

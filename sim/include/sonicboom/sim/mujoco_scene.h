@@ -59,6 +59,10 @@ class PandaScene {
   /// Joint torques that hold the arm still against gravity at q (rad), N m: MuJoCo's bias force
   /// at zero velocity.
   JointVector GravityTorques(const JointVector& q) const;
+  /// Effective mass (kg) the arm at rest at q (rad) shows at a point of the flange body (tube)
+  /// along a unit direction (both base frame): 1 / (n^T J M^-1 J^T n).
+  double FlangeEffectiveMassKg(const JointVector& q, const Eigen::Vector3d& point_m,
+                               const Eigen::Vector3d& normal) const;
   /// Number of contacts MuJoCo's collision detection finds at q (rad), at rest.
   int ContactCount(const JointVector& q) const;
 

@@ -1,44 +1,49 @@
 #pragma once
-/// Dynamic strike rollout in MuJoCo: the reference strike of reference_impl.md §6.1 simulated
-/// instead of prescribed. A joint-space impedance controller sweeps joint 1 towards a clamped
-/// wooden rod with its goal beyond the rod, so the tube hits the rod and stays pressed against
-/// it; the contacts (touch, release, impulse, approach speed, effective mass) come from MuJoCo.
+/// Dynamic strikes in MuJoCo with the arm (scene.mode strike and guided, scene.h). A joint-space
+/// impedance controller drives the arm along a minimum-jerk joint path; the tube meets a fixed
+/// object (a mocap body of cylinders: a rod, a cross or a branch structure); every tube contact
+/// (touch, release, impulse, approach speed, effective mass) comes from MuJoCo.
 ///
-/// The strike is drawn from the sample seed with the same draws, in the same order, as
-/// StrikeModel::Generate (j7, side, tilt, sweep, contact fraction, z, angle offset, onset jitter),
-/// so one seed names the same intended contact in both generators.
+/// Mode strike (the reference strike of reference_impl.md 6.1 and its variants). The strike is
+/// drawn by DrawStrike (strike.h), the same draws as the kinematic engine. At the kinematic
+/// contact configuration q_c (the swept joint turned by sweep * MinJerk(contact_fraction) from
+/// q0) the tube pose T comes from the DH forward kinematics. The intended contact (z, theta) has
+/// theta = direction of motion of the tube axis point at z (about the axis) + the drawn angle
+/// offset. With n = T (cos theta, sin theta, 0) the outward normal and a = T z the tube axis, the
+/// target segment's axis is placed along a x n: it crosses the tube at 90 degrees, tangent to the
+/// surface at (z, theta), (its radius + 1 mm) beyond the surface point along n, so the tube,
+/// moving towards it, first touches it at (z, theta) about 1 mm of travel after q_c. The rest of
+/// the object lies behind (along n; a cross's second rod, a branch's centroid), and its clamped
+/// end or trunk points away from the joint-1 axis. A one-end-clamped rod is struck 5 cm from its
+/// free tip, a both-ends-clamped rod, a cross or a branch segment in its middle 60 %.
 ///
-/// Rod placement. At the kinematic contact configuration q_c (joint 1 turned by
-/// sweep * MinJerk(contact_fraction) from home, as in StrikeModel) the tube pose T comes from the
-/// DH forward kinematics. The intended contact (z, theta) has theta = direction of motion of the
-/// tube axis point at z (about the axis) + the sampled angle offset. With n = T (cos theta,
-/// sin theta, 0) the outward normal and a = T z the tube axis, the rod axis is a x n: the rod
-/// crosses the tube at 90 degrees, tangent to the surface at (z, theta). Its axis passes
-/// (rod radius + 1 mm) beyond the surface point along n, so the tube, moving towards it, first
-/// touches it at (z, theta) about 1 mm of travel after q_c. Along its axis the rod is a
-/// cantilever struck near its free tip (5 cm in, which leaves room to slide while pressed; its
-/// tip modal mass is m_rod / 4, physics.md §1.4), with the clamped end pointing away from the
-/// joint-1 axis, so the rod does not reach back across the arm. It is a mocap body: fixed in
-/// space during the rollout. Contacts use MuJoCo's elliptic friction cones.
+/// Mode guided: the first object stands at scene.guided's pose; the tube starts at candidate
+/// points (inverse kinematics, fixed orientation) and taps along joint 1 or 6.
 ///
 /// Control (at every step, between mj_step1 and mj_step2):
 ///   tau = K (q_des(t) - q) - D qdot + qfrc_bias, clamped to the motor ranges,
-/// with D_ii = 2 damping_ratio sqrt(K_i M_ii(q0)). q_des holds q0 except joint 1, which follows a
-/// minimum-jerk profile over strike.sweep_duration_s from q0 to q0 + side (travel to the rod +
-/// sweep_overshoot_deg). The profile is timed so that q_des reaches the rod at the sampled onset
-/// (audio.onset_time_s + jitter), started earlier by the impedance's low-frequency lag
-/// D_11 / K_1 so that the arm itself, not only its set point, arrives near the onset.
+/// with D_ii = 2 damping_ratio sqrt(K_i M_ii(q0)), K = stiffness_nm_rad (lateral_stiffness_nm_rad
+/// for joint-6 motions). q_des follows a minimum-jerk path over strike.sweep_duration_s from q0
+/// to the goal (travel to the object + sweep_overshoot_deg). In mode strike the path is timed so
+/// that q_des reaches the object at the drawn onset, started earlier by the impedance's
+/// low-frequency lag D/K of the swept joint, so that the arm itself arrives near the onset.
 ///
-/// Cost. Collision detection tests only rod pairs (tube and every arm capsule; no self-collision),
-/// and a step skips it where a conservative bound (axis-segment distances, minus the most the
-/// arm can have moved since they were taken) shows no pair can touch; the simulation starts at
-/// the sweep start, the arm holding q0 at rest before it. None of these changes a result.
+/// Leaves (foliage spheres of a branch structure) do not collide: a tube passing through one
+/// records a brush episode (no localized hard contact, no force), which acoustics plays as noise.
+///
+/// Cost. Collision detection tests only object pairs (tube and every arm capsule against each
+/// object geom; no self-collision), and a step skips it where a conservative bound (axis-segment
+/// distances, minus the most the arm can have moved since they were taken) shows no pair can
+/// touch; the simulation starts at the motion start, the arm holding q0 at rest before it, and
+/// ends settle_s after the first contact (or after the motion without one). None of these
+/// changes a result.
 ///
 /// Contact durations follow MuJoCo's soft contact (contact_timeconst_s, milliseconds), longer than
-/// the Hertz contact of wood on PVC (0.2-0.6 ms, physics.md §1.6): use the impulse, approach speed
+/// the Hertz contact of wood on PVC (0.2-0.6 ms, physics.md 1.6): use the impulse, approach speed
 /// and effective mass of a ContactRecord with a Hertz model for the sound, not its duration.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -47,11 +52,10 @@
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/sample.h"
 #include "sonicboom/core/tube.h"
+#include "sonicboom/sim/scene.h"
 #include "sonicboom/sim/strike.h"
 
 namespace sonicboom::sim {
-
-class PandaScene;
 
 /// Settings of the dynamic rollout (keys under "rollout").
 struct RolloutConfig {
@@ -60,10 +64,11 @@ struct RolloutConfig {
   double contact_dampratio{1.0};     // solref damping ratio of object contacts
   double contact_friction{0.4};      // sliding friction of object contacts (wood on PVC)
   std::vector<double> stiffness_nm_rad{1000, 1000, 1000, 4000, 1000, 1000, 4000};  // (7)
+  std::vector<double> lateral_stiffness_nm_rad{4000, 4000, 4000, 4000, 4000, 1000, 4000};  // (7)
   double damping_ratio{1.0};         // joint damping = 2 ratio sqrt(K M_ii), M at the start
   double sweep_overshoot_deg{4.0};   // joint-1 goal this far beyond the contact angle
   double penetration_limit_m{0.001}; // a deeper object contact makes the sample invalid
-  double settle_s{0.3};              // simulate this long after the first contact, then stop
+  double settle_s{0.3};              // simulate this long after the first contact (or the motion)
 
   void Serialize(Archive* a);
   /// Cross-field checks; throws ConfigError naming the key and the limit.
@@ -72,14 +77,16 @@ struct RolloutConfig {
   double ResolvedTimestep() const;
 };
 
-/// One tube contact episode with one object, from touch to release.
+/// One tube contact episode with one object segment (or a leaf cluster), from touch to release.
 struct ContactRecord : ContactEpisode {
   // ContactEpisode: time and duration on the audio clock, raw MuJoCo point and outward
   // (tube to object) unit normal in the tube frame, z and theta from the raw point, approach
   // speed at touch, effective mass (robot side in series with the object side), impulse, peak
-  // force and kind; object and material are named by the caller
+  // force, kind, object name and material. A brush has the tube point nearest the leaf cluster's
+  // centre, no force and no effective mass.
   Eigen::Vector3d point_world_m{Eigen::Vector3d::Zero()};  // (3) raw MuJoCo point, base frame
-  int object_index{0};
+  int segment{0};                                          // object segment (leaf cluster: -1)
+  double segment_radius_m{0.0};                            // its radius (the contact's curvature)
 };
 
 /// Outcome of one rollout.
@@ -95,40 +102,59 @@ struct RolloutResult {
   double target_z_m{0.0};                   // intended first contact, tube frame
   double target_theta_rad{0.0};
   double target_time_s{0.0};                // intended onset, audio clock
-  Eigen::Vector3d rod_center_world_m{Eigen::Vector3d::Zero()};  // (3) base frame
-  Eigen::Vector3d rod_axis_world{Eigen::Vector3d::Zero()};      // (3) unit, base frame
+  int object{0};                            // index into scene.objects
+  int64_t variant{0};                       // its geometry variant
+  Eigen::Isometry3d object_pose{Eigen::Isometry3d::Identity()};  // object frame -> base frame
+  std::string motion;                       // sweep, opposite, lateral; guided: tap name
   // the simulation
   double timestep_s{0.0};
   int64_t steps{0};
   double simulated_s{0.0};
 };
 
-/// Immutable rollout model: the compiled MuJoCo scene (the Panda, the tube, one rod) is shared;
-/// Run is const and thread-safe, each call simulating on its own mjData.
+/// A first contact of a rollout, as the acoustics stage plays it and the dataset labels it: the
+/// first hard (non-brush) contact, with the object's contact properties; false where there is
+/// none.
+bool FirstHardContact(const RolloutResult& result, const SceneConfig& scene, ContactEvent* event,
+                      ContactLabel* label);
+
+/// Immutable rollout model: one compiled MuJoCo scene (the Panda, the tube, one object) per object
+/// geometry of the scene is shared; Run is const and thread-safe, each call simulating on its own
+/// mjData. Objects not in the scene are not built.
 class StrikeRollout {
  public:
-  /// Throws ConfigError on an invalid config (naming the key and the limit).
+  /// Throws ConfigError on an invalid config (naming the key and the limit), or where the scene
+  /// mode is not strike or guided.
   StrikeRollout(const TubeConfig& tube, const AudioConfig& audio, const StrikeConfig& strike,
-                const RolloutConfig& rollout);
+                const SceneConfig& scene, const RolloutConfig& rollout);
   ~StrikeRollout();
   StrikeRollout(const StrikeRollout&) = delete;
   StrikeRollout& operator=(const StrikeRollout&) = delete;
 
-  /// One strike from its sample seed (deterministic). A rollout that fails (bad placement, arm
-  /// hits the rod first, instability, penetration, off-surface contact) returns valid = false
-  /// with the reason; it never throws.
-  RolloutResult Run(uint64_t sample_seed) const;
+  /// One strike (deterministic in its seed; guided mode picks its point and tap by index). A
+  /// rollout that fails (bad placement, arm hits the object first, instability, penetration,
+  /// off-surface contact) returns valid = false with the reason; it never throws.
+  RolloutResult Run(uint64_t sample_index, uint64_t sample_seed) const;
   double timestep_s() const { return timestep_s_; }
+  /// Guided mode: the tube-centre candidates kept (base frame, m); empty in mode strike.
+  std::vector<Eigen::Vector3d> GuidedPoints() const;
 
  private:
-  struct Ids;
+  struct Variant;
+  struct Guided;
+  struct Plan;
+  void BuildGuided();
+  Plan PlanStrike(const StrikeDraw& draw, const Variant& variant) const;
+  RolloutResult Simulate(const Variant& variant, const Plan& plan) const;
+
   TubeConfig tube_;
   AudioConfig audio_;
   StrikeConfig strike_;
+  SceneConfig scene_;
   RolloutConfig config_;
   double timestep_s_{0.0};
-  std::unique_ptr<PandaScene> scene_;
-  std::unique_ptr<Ids> ids_;
+  std::vector<std::vector<std::unique_ptr<Variant>>> variants_;  // [object][variant]
+  std::unique_ptr<Guided> guided_;
 };
 
 }  // namespace sonicboom::sim

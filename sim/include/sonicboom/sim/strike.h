@@ -1,7 +1,7 @@
 #pragma once
 /// Kinematic strike generator (the reference motion of reference_impl.md §6.1): the arm sweeps
-/// joint 1 towards a fixed wooden rod; the tube meets the rod at a sampled height; the rod stops
-/// it. The contact is where the rod lies relative to the tube's direction of motion; joint 7 sets
+/// joint 1 (or joint 6) towards a fixed object; the tube meets it at a sampled height; the
+/// object stops it. The contact is where the rod lies relative to the tube's direction of motion; joint 7 sets
 /// which side of the tube faces the motion, as in the paper's data collection.
 /// Proprioception (tube-frame pose and velocity in the robot base frame, 100 Hz) is sampled on
 /// the audio clock: row k is time k / proprio_rate_hz from the start of the record.
@@ -14,50 +14,53 @@
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/sample.h"
 #include "sonicboom/core/tube.h"
+#include "sonicboom/sim/scene.h"
 
 namespace sonicboom::sim {
 
-/// The strike motion and the struck object.
+/// The strike motion (keys under "strike"); the struck objects are scene.objects (scene.h).
+/// Motions, one drawn per strike from `motions`: sweep (joint 1 towards +, the reference strike),
+/// opposite (joint 1 towards -, the paper's opposite-side strikes) and lateral (joint 6, either
+/// way, the paper's lateral variant). Tilted strikes: tilt_max_deg > 0.
 struct StrikeConfig {
   std::string engine{"mujoco"};            // mujoco: dynamic rollout (rollout.h); kinematic: DH only
   std::vector<double> home_joints_rad{1.2614, -0.8973, -0.0474, -2.3464, -0.0790, 1.4341, -1.7109};
-  double sweep_min_deg{12.0};              // joint-1 goal beyond the rod, uniform in [min, max]
+  std::vector<std::string> motions{"sweep", "opposite"};  // drawn uniformly per strike
+  double sweep_min_deg{12.0};              // joint goal beyond the object, uniform in [min, max]
   double sweep_max_deg{16.0};
   double sweep_duration_s{1.0};            // minimum-jerk profile to the goal
-  double contact_fraction_min{0.35};       // contact at this fraction of the sweep (rod position)
+  double contact_fraction_min{0.35};       // contact at this fraction of the sweep (object place)
   double contact_fraction_max{0.65};
-  double contact_angle_spread_deg{40.0};   // rod offset from the motion direction, +- this
+  double contact_angle_spread_deg{40.0};   // object offset from the motion direction, +- this
   double tilt_max_deg{0.0};                // joint-2/4 tilt of the strike, uniform in [-max, 0]
-  // struck rod (wood, side grain at the contact)
-  double rod_diameter_m{0.022};
-  double rod_length_m{0.42};
-  double rod_density_kg_m3{650.0};
-  double rod_contact_youngs_modulus_pa{1.0e9};
-  double rod_contact_poisson_ratio{0.35};
-  std::string rod_material{"wood"};        // recorded with every contact
   // proprioception
   double proprio_rate_hz{100.0};
   int64_t proprio_rows{50};                // window length fed to the model (0.5 s)
 
   void Serialize(Archive* a);
   void Validate() const;
-  /// The rod's name in the paper's notation, e.g. "rod T22L42" (diameter mm, length cm).
-  std::string RodName() const;
 };
 
 /// The random part of one strike, drawn from its sample seed; both strike engines start here.
 struct StrikeDraw {
   Eigen::Matrix<double, 7, 1> q0;          // rad: home pose with the drawn joint 7 and tilt
-  double side{1.0};                        // joint-1 sweep direction (+-1)
-  double sweep_rad{0.0};                   // joint-1 goal magnitude
+  std::string motion{"sweep"};             // one of StrikeConfig::motions
+  int joint{0};                            // swept joint, 0-based (0: joint 1, 5: joint 6)
+  double side{1.0};                        // sweep direction (+-1)
+  double sweep_rad{0.0};                   // goal magnitude of the swept joint
   double contact_fraction{0.5};            // contact at this fraction of the sweep time
   double z_m{0.0};                         // contact height, tube frame
-  double angle_offset_rad{0.0};            // rod offset from the motion direction
+  double angle_offset_rad{0.0};            // object offset from the motion direction
   double onset_s{0.0};                     // contact time on the audio clock
+  // the object (stream Stream::kScene)
+  int object{0};                           // index into scene.objects
+  int64_t variant{0};                      // its geometry variant (branch structures)
+  double target_u{0.0};                    // uniform in [0, 1): which target segment
+  double target_v{0.0};                    // uniform in [0, 1): where along it
 };
-/// Draws a strike (deterministic in sample_seed; stream Stream::kStrike).
-StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& strike, const TubeConfig& tube,
-                      const AudioConfig& audio);
+/// Draws a strike (deterministic in sample_seed; streams Stream::kStrike and Stream::kScene).
+StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& strike, const SceneConfig& scene,
+                      const TubeConfig& tube, const AudioConfig& audio);
 
 /// Minimum-jerk position fraction at normalised time s (clamped to [0, 1]), and its rate.
 double MinJerk(double s);
@@ -69,6 +72,8 @@ struct StrikeEvents {
   std::string invalid_reason;
   ContactLabel label;                      // tube frame; impulse and duration filled by acoustics
   ContactEvent contact;                    // what acoustics needs to play the contact
+  std::string object;                      // the struck object's name and material
+  std::string material;
   Eigen::Vector3d point_world_m{Eigen::Vector3d::Zero()};
   Eigen::MatrixXf proprio;                 // (proprio_rows x 10): pos m, quat wxyz, vel m/s (base)
   std::vector<double> joint_speed_rad_s;   // (record duration x proprio rate) |qdot|, for motor noise
@@ -78,13 +83,16 @@ struct StrikeEvents {
 /// Immutable strike model shared across threads.
 class StrikeModel {
  public:
-  StrikeModel(const StrikeConfig& strike, const TubeConfig& tube, const AudioConfig& audio);
+  /// Throws ConfigError where the scene needs the dynamic engine (modes stationary and guided).
+  StrikeModel(const StrikeConfig& strike, const SceneConfig& scene, const TubeConfig& tube,
+              const AudioConfig& audio);
   /// One strike from its sample seed (thread-safe, deterministic).
   StrikeEvents Generate(uint64_t sample_seed) const;
   const StrikeConfig& config() const { return strike_; }
 
  private:
   StrikeConfig strike_;
+  SceneConfig scene_;
   TubeConfig tube_;
   AudioConfig audio_;
 };

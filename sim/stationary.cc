@@ -1,0 +1,386 @@
+#include "sonicboom/sim/stationary.h"
+
+#include <fmt/format.h>
+#include <mujoco/mujoco.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "internal/mujoco_util.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/sim/franka.h"
+#include "sonicboom/sim/franka_mjcf.h"
+#include "sonicboom/sim/mujoco_scene.h"
+
+namespace sonicboom::sim {
+namespace {
+
+using internal::AllFinite;
+using internal::DataPtr;
+using internal::ModelPtr;
+using internal::RaisedWarning;
+using internal::RequireId;
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kDeg = kPi / 180.0;
+// largest |r - R_outer| of a raw contact point on the tube, m
+constexpr double kSurfaceToleranceM = 0.001;
+// the striker starts this far (m) clear of the surface at least
+constexpr double kMinStartGapM = 0.002;
+
+std::string Num(double v) { return fmt::format("{:.17g}", v); }
+
+// MJCF of the fixed tube and one free striker along its body x (grip at the origin, tip at x = L)
+std::string HandStrikeMjcf(const TubeConfig& tube, const Eigen::Isometry3d& tube_pose,
+                           const ObjectConfig& striker, const RolloutConfig& rollout,
+                           double timestep_s) {
+  const double r_out = 0.5 * striker.diameter_m;
+  const double r_in = striker.wall_thickness_m > 0.0 ? r_out - striker.wall_thickness_m : 0.0;
+  const double mass_kg = striker.LinearDensityKgM() * striker.length_m;
+  const double axial_kg_m2 = 0.5 * mass_kg * (r_out * r_out + r_in * r_in);
+  const double transverse_kg_m2 =
+      mass_kg * (3.0 * (r_out * r_out + r_in * r_in) + striker.length_m * striker.length_m) / 12.0;
+  const Eigen::Quaterniond q(tube_pose.linear());
+  const Eigen::Vector3d p = tube_pose.translation();
+  std::string xml = "<mujoco model=\"sonicboom_hand_strike\">\n";
+  xml += "  <compiler angle=\"radian\" inertiafromgeom=\"false\"/>\n";
+  // held in the hand: no gravity; only the tube-striker pair is tested
+  xml += fmt::format(
+      "  <option timestep=\"{}\" gravity=\"0 0 0\" integrator=\"Euler\" cone=\"elliptic\" "
+      "collision=\"predefined\"/>\n",
+      Num(timestep_s));
+  xml += "  <size nconmax=\"20\" njmax=\"60\"/>\n";
+  xml += "  <worldbody>\n";
+  xml += fmt::format("    <body name=\"tube_body\" pos=\"{} {} {}\" quat=\"{} {} {} {}\">\n",
+                     Num(p.x()), Num(p.y()), Num(p.z()), Num(q.w()), Num(q.x()), Num(q.y()),
+                     Num(q.z()));
+  xml += fmt::format("      <geom name=\"tube\" type=\"cylinder\" size=\"{} {}\"/>\n",
+                     Num(tube.outer_radius_m), Num(0.5 * tube.length_m));
+  xml += "      <site name=\"tube_center\"/>\n";
+  xml += "    </body>\n";
+  xml += "    <body name=\"striker\" pos=\"0 0 -10\">\n";
+  xml += "      <freejoint name=\"striker_joint\"/>\n";
+  xml += fmt::format("      <inertial pos=\"{} 0 0\" mass=\"{}\" diaginertia=\"{} {} {}\"/>\n",
+                     Num(0.5 * striker.length_m), Num(mass_kg), Num(axial_kg_m2),
+                     Num(transverse_kg_m2), Num(transverse_kg_m2));
+  xml += fmt::format(
+      "      <geom name=\"striker\" type=\"cylinder\" fromto=\"0 0 0 {} 0 0\" size=\"{}\"/>\n",
+      Num(striker.length_m), Num(r_out));
+  xml += "    </body>\n";
+  xml += "  </worldbody>\n";
+  xml += "  <contact>\n";
+  xml += fmt::format(
+      "    <pair geom1=\"tube\" geom2=\"striker\" condim=\"3\" friction=\"{} {} 0.005 0.0001 "
+      "0.0001\" solref=\"{} {}\" solimp=\"0.9 0.95 0.001 0.5 2\" margin=\"0\" gap=\"0\"/>\n",
+      Num(rollout.contact_friction), Num(rollout.contact_friction),
+      Num(rollout.contact_timeconst_s), Num(rollout.contact_dampratio));
+  xml += "  </contact>\n";
+  xml += "</mujoco>\n";
+  return xml;
+}
+
+}  // namespace
+
+struct HandStrikeRollout::Striker {
+  ModelPtr model;
+  int body{-1};
+  int qpos{-1};                   // free joint: position (3) and quaternion (4)
+  int dof{-1};                    // free joint: linear (3) and angular (3) velocity
+  int striker_geom{-1};
+  int tube_geom{-1};
+  double mass_kg{0.0};
+  Eigen::Matrix3d inertia_kg_m2{Eigen::Matrix3d::Zero()};  // about the COM, body frame
+};
+
+HandStrikeRollout::HandStrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
+                                     const StrikeConfig& strike, const SceneConfig& scene,
+                                     const RolloutConfig& rollout)
+    : tube_(tube), audio_(audio), strike_(strike), scene_(scene), config_(rollout) {
+  tube_.Validate();
+  strike_.Validate();
+  scene_.Validate();
+  config_.Validate();
+  if (scene_.mode != "stationary") {
+    throw ConfigError(fmt::format("HandStrikeRollout needs scene.mode stationary (mode is {})",
+                                  scene_.mode));
+  }
+  timestep_s_ = config_.ResolvedTimestep();
+
+  // the held pose and its proprioception row (zero velocity)
+  JointVector q_home;
+  for (int i = 0; i < kPandaJoints; ++i) q_home[i] = strike_.home_joints_rad[i];
+  tube_pose_ = PandaForwardKinematics(q_home, tube_.center_from_flange_m).tube;
+  const Eigen::Quaterniond quat(tube_pose_.linear());
+  const Eigen::Vector3d p = tube_pose_.translation();
+  held_row_ << p.x(), p.y(), p.z(), quat.w(), quat.x(), quat.y(), quat.z(), 0, 0, 0;
+  arm_ = std::make_unique<PandaScene>(PandaMjcf(tube_));
+
+  // one striker scene per object drawn
+  for (size_t o = 0; o < scene_.objects.size(); ++o) {
+    const ObjectConfig& object = scene_.objects[o];
+    auto s = std::make_unique<Striker>();
+    if (object.weight > 0.0) {
+      s->model = internal::CompileMjcf(HandStrikeMjcf(tube_, tube_pose_, object, config_, timestep_s_),
+                                       fmt::format("the striker scene of scene.objects.{}", o));
+      const mjModel* m = s->model.get();
+      s->body = RequireId(m, mjOBJ_BODY, "striker");
+      const int joint = RequireId(m, mjOBJ_JOINT, "striker_joint");
+      s->qpos = m->jnt_qposadr[joint];
+      s->dof = m->jnt_dofadr[joint];
+      s->striker_geom = RequireId(m, mjOBJ_GEOM, "striker");
+      s->tube_geom = RequireId(m, mjOBJ_GEOM, "tube");
+      s->mass_kg = m->body_mass[s->body];
+      s->inertia_kg_m2 = Eigen::Vector3d(m->body_inertia + 3 * s->body).asDiagonal();
+    }
+    strikers_.push_back(std::move(s));
+  }
+}
+
+HandStrikeRollout::~HandStrikeRollout() = default;
+
+RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed) const {
+  const StationaryConfig& sc = scene_.stationary;
+  RolloutResult result;
+  result.timestep_s = timestep_s_;
+  result.joint_speed_rate_hz = strike_.proprio_rate_hz;
+  result.motion = "hand strike";
+  auto fail = [&result](std::string reason) {
+    if (!result.valid) return;
+    result.valid = false;
+    result.invalid_reason = std::move(reason);
+  };
+
+  // the draws: striker; commanded point, speed, approach direction, grip side, onset
+  Rng scene_rng(sample_seed, Stream::kScene);
+  result.object = DrawObjectIndex(scene_.objects, scene_rng.Uniform());
+  const ObjectConfig& object = scene_.objects[static_cast<size_t>(result.object)];
+  const Striker& st = *strikers_[static_cast<size_t>(result.object)];
+  Rng rng(sample_seed, Stream::kStrike);
+  double z_m = rng.Uniform(tube_.contact_z_min_m, tube_.contact_z_max_m);
+  if (sc.z_grid_m > 0.0) {
+    z_m = std::clamp(std::round(z_m / sc.z_grid_m) * sc.z_grid_m, tube_.contact_z_min_m,
+                     tube_.contact_z_max_m);
+  }
+  const double theta_rad = rng.Uniform(-kPi, kPi);
+  const double speed_m_s = rng.Uniform(sc.speed_min_m_s, sc.speed_max_m_s);
+  const double tilt_rad = sc.approach_spread_deg * kDeg * std::sqrt(rng.Uniform());
+  const double tilt_azimuth_rad = rng.Uniform(0.0, 2.0 * kPi);
+  const double grip_side = rng.Uniform() < 0.5 ? -1.0 : 1.0;
+  const double onset_s = audio_.onset_time_s + rng.Uniform(-0.05, 0.05);
+  result.target_z_m = z_m;
+  result.target_theta_rad = WrapAngle(theta_rad);
+  result.target_time_s = onset_s;
+
+  // proprioception: the held pose at rest, all rows
+  const int64_t speed_rows =
+      static_cast<int64_t>(std::ceil(audio_.record_duration_s * strike_.proprio_rate_hz));
+  result.proprio = held_row_.replicate(strike_.proprio_rows, 1);
+  result.joint_speed_rad_s.assign(static_cast<size_t>(speed_rows), 0.0);
+
+  // striker frame at the touch: x along the tube's tangent across the axis (grip on either
+  // side), y = the outward normal (the striker lies outside the tube)
+  const Eigen::Matrix3d rot = tube_pose_.linear();
+  const Eigen::Vector3d n = rot * SurfaceNormal(theta_rad);
+  const Eigen::Vector3d axis = rot.col(2);
+  const Eigen::Vector3d x_s = grip_side * axis.cross(n).normalized();
+  Eigen::Matrix3d striker_rot;
+  striker_rot << x_s, n, x_s.cross(n);
+  const double r_s = 0.5 * object.diameter_m;
+  const double aim_x_m = std::max(object.length_m - sc.tip_margin_m, 0.5 * object.length_m);
+  const Eigen::Vector3d surface_point = tube_pose_ * SurfacePoint(tube_, z_m, theta_rad);
+  // the striker origin (grip) when its surface just touches the commanded point
+  const Eigen::Vector3d grip_touch = surface_point + r_s * n - aim_x_m * x_s;
+  // approach direction: the inward normal tilted within the spread
+  const Eigen::Vector3d t1 = axis, t2 = n.cross(axis);
+  const Eigen::Vector3d dir =
+      (-std::cos(tilt_rad) * n +
+       std::sin(tilt_rad) * (std::cos(tilt_azimuth_rad) * t1 + std::sin(tilt_azimuth_rad) * t2))
+          .normalized();
+  const double approach_m = std::max(speed_m_s * sc.approach_s, kMinStartGapM);
+  const double approach_s = approach_m / speed_m_s;
+  const double t0_s = onset_s - approach_s;
+  const Eigen::Vector3d grip_start = grip_touch - approach_m * dir;
+  // the hand stops once follow_through_m inside the surface (along the normal)
+  const double stop_m =
+      approach_m + sc.follow_through_m / std::max(-dir.dot(n), 1e-3);
+  auto hand_at = [&](double t_s, Eigen::Vector3d* pos, Eigen::Vector3d* vel) {
+    const double travelled_m = std::clamp(speed_m_s * (t_s - t0_s), 0.0, stop_m);
+    *pos = grip_start + travelled_m * dir;
+    *vel = travelled_m < stop_m ? Eigen::Vector3d(speed_m_s * dir) : Eigen::Vector3d::Zero();
+  };
+
+  // fresh state: the striker at the start, moving with the hand
+  const mjModel* m = st.model.get();
+  DataPtr data(mj_makeData(m));
+  SONICBOOM_DEMAND(data != nullptr);
+  mjData* d = data.get();
+  const Eigen::Quaterniond striker_quat(striker_rot);
+  for (int k = 0; k < 3; ++k) d->qpos[st.qpos + k] = grip_start[k];
+  d->qpos[st.qpos + 3] = striker_quat.w();
+  d->qpos[st.qpos + 4] = striker_quat.x();
+  d->qpos[st.qpos + 5] = striker_quat.y();
+  d->qpos[st.qpos + 6] = striker_quat.z();
+  for (int k = 0; k < 3; ++k) d->qvel[st.dof + k] = speed_m_s * dir[k];
+  mj_forward(m, d);
+
+  // grip spring: linear k and c from the striker mass; the rotational spring gives every
+  // principal axis the same natural frequency and damping ratio (inertia-scaled gains)
+  const double k_n_m = sc.hand_stiffness_n_m;
+  const double omega_n = std::sqrt(k_n_m / st.mass_kg);
+  const double c_ns_m = 2.0 * sc.hand_damping_ratio * omega_n * st.mass_kg;
+
+  const double dt_s = timestep_s_;
+  const int64_t first_step = static_cast<int64_t>(std::floor(t0_s / dt_s));
+  double t_end_s = std::min(audio_.record_duration_s, onset_s + config_.settle_s);
+  int first_hard = -1, open = -1;
+  internal::EpisodeClassifier kinds;
+  double since_release_s = 1e9;
+  auto close_episode = [&](double t_s) {
+    ContactRecord& rec = result.contacts[static_cast<size_t>(open)];
+    rec.duration_s = t_s - rec.time_s;
+    rec.kind = kinds.Release(since_release_s, rec.duration_s, open == first_hard, t_s);
+    open = -1;
+  };
+  std::vector<mjtNum> scratch(static_cast<size_t>(5 * m->nv));
+  std::vector<int> tube_contacts;
+  int64_t step = 0;
+  while (result.valid) {
+    const double t_s = static_cast<double>(first_step + step) * dt_s;
+    if (t_s >= t_end_s - 0.5 * dt_s) break;
+    mj_step1(m, d);
+    if (const char* warning = RaisedWarning(d)) {
+      fail(fmt::format("MuJoCo warning {} at t = {:.4f} s", warning, t_s));
+      break;
+    }
+    tube_contacts.clear();
+    for (int i = 0; i < d->ncon; ++i) {
+      const mjContact& c = d->contact[i];
+      if (c.dist < -config_.penetration_limit_m) {
+        fail(fmt::format("penetration {:.4f} mm of the striker into the tube at t = {:.4f} s "
+                         "exceeds rollout.penetration_limit_m = {} mm",
+                         -1e3 * c.dist, t_s, 1e3 * config_.penetration_limit_m));
+      }
+      tube_contacts.push_back(i);
+    }
+    if (!result.valid) break;
+    if (step == 0 && !tube_contacts.empty()) {
+      fail("the striker overlaps the tube at its start");
+      break;
+    }
+
+    // episodes
+    if (!tube_contacts.empty() && open < 0) {
+      int deepest = tube_contacts.front();
+      for (int i : tube_contacts) {
+        if (d->contact[i].dist < d->contact[deepest].dist) deepest = i;
+      }
+      const mjContact& c = d->contact[deepest];
+      Eigen::Vector3d normal_world(c.frame[0], c.frame[1], c.frame[2]);
+      if (c.geom1 != st.tube_geom) normal_world = -normal_world;
+      const Eigen::Vector3d point_world(c.pos[0], c.pos[1], c.pos[2]);
+      ContactRecord rec;
+      rec.time_s = t_s;
+      rec.point_world_m = point_world;
+      rec.point_m = tube_pose_.inverse() * point_world;
+      rec.normal = rot.transpose() * normal_world;
+      rec.z_m = rec.point_m.z();
+      rec.theta_rad = WrapAngle(std::atan2(rec.point_m.y(), rec.point_m.x()));
+      rec.segment = 0;
+      rec.segment_radius_m = r_s;
+      rec.object = object.DisplayName();
+      rec.material = object.material;
+      // approach speed: the striker point's velocity towards the tube (the tube is held still)
+      mj_jac(m, d, scratch.data(), nullptr, c.pos, st.body);
+      double speed = 0.0;
+      for (int k = 0; k < m->nv; ++k) {
+        speed -= (normal_world.x() * scratch[k] + normal_world.y() * scratch[m->nv + k] +
+                  normal_world.z() * scratch[2 * m->nv + k]) *
+                 d->qvel[k];
+      }
+      rec.normal_speed_m_s = speed;
+      // striker (rigid, at the point) in series with the held arm at the tube point
+      const double striker_inverse_kg =
+          internal::InverseEffectiveMass(m, d, st.body, c.pos, normal_world, scratch.data());
+      JointVector q_home;
+      for (int i = 0; i < kPandaJoints; ++i) q_home[i] = strike_.home_joints_rad[i];
+      const double arm_kg = arm_->FlangeEffectiveMassKg(q_home, point_world, normal_world);
+      rec.effective_mass_kg = 1.0 / (striker_inverse_kg + 1.0 / arm_kg);
+      since_release_s = kinds.SinceRelease(t_s);
+      result.contacts.push_back(rec);
+      open = static_cast<int>(result.contacts.size()) - 1;
+      const bool first = first_hard < 0;
+      if (first) first_hard = open;
+      const double off_surface_m =
+          std::abs(std::hypot(rec.point_m.x(), rec.point_m.y()) - tube_.outer_radius_m);
+      if (off_surface_m >= kSurfaceToleranceM) {
+        fail(fmt::format("contact point off the tube surface by {:.3f} mm at t = {:.4f} s",
+                         1e3 * off_surface_m, t_s));
+      } else if (first && (rec.z_m < tube_.contact_z_min_m || rec.z_m > tube_.contact_z_max_m)) {
+        fail(fmt::format("first contact at z = {:.4f} m outside the contact region [{}, {}] m",
+                         rec.z_m, tube_.contact_z_min_m, tube_.contact_z_max_m));
+      }
+      if (first) t_end_s = std::min(audio_.record_duration_s, t_s + config_.settle_s);
+    } else if (tube_contacts.empty() && open >= 0) {
+      close_episode(t_s);
+    }
+    if (!result.valid) break;
+
+    // the hand: spring and damper to the hand target at the grip, rotational spring to the
+    // striker's start orientation; applied as a wrench at the centre of mass
+    Eigen::Vector3d hand_pos, hand_vel;
+    hand_at(t_s, &hand_pos, &hand_vel);
+    const Eigen::Vector3d grip(d->xpos + 3 * st.body);
+    const Eigen::Vector3d com(d->xipos + 3 * st.body);
+    mjtNum velocity[6];  // angular (3), linear (3) at the body origin, world axes
+    mj_objectVelocity(m, d, mjOBJ_BODY, st.body, velocity, 0);
+    const Eigen::Vector3d omega(velocity[0], velocity[1], velocity[2]);
+    const Eigen::Vector3d grip_vel(velocity[3], velocity[4], velocity[5]);
+    const Eigen::Vector3d force = k_n_m * (hand_pos - grip) + c_ns_m * (hand_vel - grip_vel);
+    const Eigen::Matrix3d body_rot =
+        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(d->xmat + 9 * st.body);
+    const Eigen::AngleAxisd error(striker_rot * body_rot.transpose());
+    const Eigen::Vector3d error_body = body_rot.transpose() * (error.angle() * error.axis());
+    const Eigen::Vector3d omega_body = body_rot.transpose() * omega;
+    const Eigen::Vector3d spring_body =
+        st.inertia_kg_m2.diagonal().cwiseProduct(omega_n * omega_n * error_body -
+                                                 2.0 * sc.hand_damping_ratio * omega_n * omega_body);
+    const Eigen::Vector3d torque = body_rot * spring_body + (grip - com).cross(force);
+    for (int k = 0; k < 3; ++k) {
+      d->xfrc_applied[6 * st.body + k] = force[k];
+      d->xfrc_applied[6 * st.body + 3 + k] = torque[k];
+    }
+
+    mj_step2(m, d);
+    ++step;
+    if (const char* warning = RaisedWarning(d)) {
+      fail(fmt::format("MuJoCo warning {} at t = {:.4f} s", warning, t_s));
+      break;
+    }
+    if (!AllFinite(d->qpos, m->nq) || !AllFinite(d->qvel, m->nv)) {
+      fail(fmt::format("non-finite state at t = {:.4f} s", t_s + dt_s));
+      break;
+    }
+    if (open >= 0) {
+      double normal_force_n = 0.0;
+      for (int i : tube_contacts) {
+        mjtNum f[6];
+        mj_contactForce(m, d, i, f);
+        normal_force_n += f[0];
+      }
+      ContactRecord& rec = result.contacts[static_cast<size_t>(open)];
+      rec.impulse_Ns += normal_force_n * dt_s;
+      rec.peak_force_N = std::max(rec.peak_force_N, normal_force_n);
+    }
+  }
+  if (open >= 0) close_episode(static_cast<double>(first_step + step) * dt_s);
+  result.steps = step;
+  result.simulated_s = static_cast<double>(step) * dt_s;
+  if (result.valid && first_hard < 0) fail("the striker never touched the tube");
+  (void)sample_index;
+  return result;
+}
+
+}  // namespace sonicboom::sim
