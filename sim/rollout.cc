@@ -46,6 +46,11 @@ constexpr double kDirectionStepRad = 1e-6;
 // between the pressed tube and an object flickers off for single steps (with friction 0 it does
 // not), which would otherwise count as bounces
 constexpr int64_t kReleaseSteps = 2;
+// Free flight (no object pair can touch) steps k timesteps at once, k <= kMaxFreeStepMultiple,
+// with omega_max k dt <= kFreeStepOmegaDt for the stiffest joint's natural frequency
+// omega_max = max_i sqrt(K_i / M_ii) (explicit impedance torques stay well inside stability)
+constexpr int kMaxFreeStepMultiple = 4;
+constexpr double kFreeStepOmegaDt = 0.75;
 // a step skips collision detection when every object pair is this much farther apart than it
 // can close in one step, m
 constexpr double kCollisionSkipSlackM = 0.001;
@@ -166,9 +171,14 @@ struct StrikeRollout::Variant {
   int tube_site{-1};
   std::vector<int> segment_of_geom;          // (ngeom) object segment of a geom, -1 otherwise
   // The scene with contacts disabled, stepped instead where no object pair can touch: its steps
-  // equal the full model's whenever collision detection would find no contact.
-  ModelPtr contact_free;
-  std::vector<std::array<int, 2>> pairs;     // geoms of every predefined (object) pair
+  // equal the full model's whenever collision detection would find no contact. Twin k - 1 steps
+  // k timesteps at once (free flight needs only the arm's own time scale, see Simulate).
+  std::vector<ModelPtr> contact_free;
+  // The scene with the tube-object pairs only, stepped where the arm cannot touch the object:
+  // its steps equal the full model's whenever no arm pair would find a contact.
+  ModelPtr tube_only;
+  std::vector<std::array<int, 2>> tube_pairs;  // geoms of the tube-object pairs
+  std::vector<std::array<int, 2>> arm_pairs;   // geoms of the arm-object pairs
   double reach_m{0.0};                       // bound on any geom point's distance to any joint axis
 };
 
@@ -268,17 +278,26 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
       }
 
       // contact-free twin and the pairs it may skip (capsules and cylinders only)
-      var->contact_free.reset(mj_copyModel(nullptr, m));
-      SONICBOOM_DEMAND(var->contact_free != nullptr);
-      var->contact_free->opt.disableflags |= mjDSBL_CONTACT;
+      for (int k = 1; k <= kMaxFreeStepMultiple; ++k) {
+        ModelPtr twin(mj_copyModel(nullptr, m));
+        SONICBOOM_DEMAND(twin != nullptr);
+        twin->opt.disableflags |= mjDSBL_CONTACT;
+        twin->opt.timestep = k * timestep_s_;
+        var->contact_free.push_back(std::move(twin));
+      }
       SONICBOOM_DEMAND(m->opt.collision == mjCOL_PAIR);
       for (int p = 0; p < m->npair; ++p) {
         const int g1 = m->pair_geom1[p], g2 = m->pair_geom2[p];
         for (int g : {g1, g2}) {
           SONICBOOM_DEMAND(m->geom_type[g] == mjGEOM_CAPSULE || m->geom_type[g] == mjGEOM_CYLINDER);
         }
-        var->pairs.push_back({g1, g2});
+        (g1 == var->tube_geom || g2 == var->tube_geom ? var->tube_pairs : var->arm_pairs)
+            .push_back({g1, g2});
       }
+      options.arm_object_pairs = false;
+      var->tube_only = internal::CompileMjcf(PandaMjcf(tube_, options), "the tube-only Panda MJCF");
+      SONICBOOM_DEMAND(var->tube_only->npair == static_cast<int>(var->tube_pairs.size()) &&
+                       var->tube_only->ngeom == m->ngeom && var->tube_only->nv == m->nv);
       // chain length from any joint to any arm geom point: the arm's body and joint offsets,
       // plus the farthest geom point from its body origin (mocap objects do not move)
       double reach_m = 0.0;
@@ -534,6 +553,15 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
     damping[i] = 2.0 * config_.damping_ratio * std::sqrt(stiffness[i] * m_ii);
   }
 
+  // free-flight step multiple from the stiffest joint's natural frequency at the start
+  double omega_max = 0.0;
+  for (int i = 0; i < kPandaJoints; ++i) {
+    omega_max = std::max(omega_max, std::sqrt(stiffness[i] / d->qM[m->dof_Madr[var.dof[i]]]));
+  }
+  const int free_multiple = std::clamp(
+      static_cast<int>(std::floor(kFreeStepOmegaDt / (omega_max * dt_s))), 1, kMaxFreeStepMultiple);
+  const mjModel* free_model = var.contact_free[static_cast<size_t>(free_multiple - 1)].get();
+
   // path timing: a timed strike reaches the object at the onset, started earlier by the lag D/K
   const double duration_s = plan.duration_s;
   double t_path_s = plan.t_start_s;
@@ -608,35 +636,48 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
   // the path ends; without a contact, the simulation ends settle_s later
   double t_end_s = std::min(audio_.record_duration_s, t_path_s + duration_s + config_.settle_s);
   std::vector<mjtNum> scratch(static_cast<size_t>(5 * m->nv));
-  int64_t step = 0;
+  int64_t step = 0;   // MuJoCo steps taken
+  int64_t grid = 0;   // timesteps simulated (a free-flight step counts free_multiple)
   // joint angles of the last step's kinematics; lower bound of the object pairs' gaps (m) at
   // gap_qpos
   std::array<double, kPandaJoints> last_qpos{}, gap_qpos{};
-  double gap_m = -1.0;
+  double tube_gap_m = -1.0, arm_gap_m = -1.0;
   double t_s = first_step * dt_s;
   while (result.valid) {
-    t_s = static_cast<double>(first_step + step) * dt_s;
+    t_s = static_cast<double>(first_step + grid) * dt_s;
     if (t_s >= t_end_s - 0.5 * dt_s) break;
-    // Contact-free step where no pair can touch: each arm point has moved at most
-    // reach * |q - gap_qpos|_1 since the pair gaps were bounded (at gap_qpos); re-bound them from
-    // the last step's geom poses (at last_qpos) once that budget is spent
-    auto budget_left = [&] {
+    // Contact-free step where no pair can touch, tube-only step where no arm pair can: each arm
+    // point has moved at most reach * |q - gap_qpos|_1 since the pair gaps were bounded (at
+    // gap_qpos); re-bound them from the last step's geom poses (at last_qpos) once a budget is
+    // spent
+    auto budget_left = [&](double gap) {
       double travel_rad = 0.0;
       for (int i = 0; i < kPandaJoints; ++i) {
         travel_rad += std::abs(d->qpos[var.qpos[i]] - gap_qpos[i]);
       }
-      return gap_m - var.reach_m * travel_rad - kCollisionSkipSlackM > 0.0;
+      return gap - var.reach_m * travel_rad - kCollisionSkipSlackM > 0.0;
     };
-    bool may_touch = step == 0;
-    if (!may_touch && !budget_left()) {
-      gap_m = std::numeric_limits<double>::infinity();
-      for (const auto& [g1, g2] : var.pairs) {
-        gap_m = std::min(gap_m, GeomGapLowerBound(m, d, g1, g2));
-      }
+    bool tube_may_touch = step == 0, arm_may_touch = step == 0;
+    if (step > 0 && !(budget_left(tube_gap_m) && budget_left(arm_gap_m))) {
+      auto lowest_gap = [&](const std::vector<std::array<int, 2>>& pairs) {
+        double gap = std::numeric_limits<double>::infinity();
+        for (const auto& [g1, g2] : pairs) gap = std::min(gap, GeomGapLowerBound(m, d, g1, g2));
+        return gap;
+      };
+      tube_gap_m = lowest_gap(var.tube_pairs);
+      arm_gap_m = lowest_gap(var.arm_pairs);
       gap_qpos = last_qpos;
-      may_touch = !budget_left();
+      tube_may_touch = !budget_left(tube_gap_m);
+      arm_may_touch = !budget_left(arm_gap_m);
     }
-    const mjModel* step_model = may_touch ? m : var.contact_free.get();
+    const bool may_touch = tube_may_touch || arm_may_touch;
+    // a free-flight step must not pass the end
+    const bool free = !may_touch && t_s + free_multiple * dt_s < t_end_s + 0.5 * dt_s;
+    const mjModel* step_model =
+        arm_may_touch ? m
+                      : (tube_may_touch ? var.tube_only.get()
+                                        : (free ? free_model : var.contact_free[0].get()));
+    const int64_t advance = free ? free_multiple : 1;
     for (int i = 0; i < kPandaJoints; ++i) last_qpos[i] = d->qpos[var.qpos[i]];
 
     // positions and velocities at t: kinematics, collisions, mass matrix, bias forces
@@ -814,6 +855,7 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
     // actuation, constraint forces, integration to t + dt
     mj_step2(step_model, d);
     ++step;
+    grid += advance;
     if (const char* warning = RaisedWarning(d)) {
       fail(fmt::format("MuJoCo warning {} at t = {:.4f} s", warning, t_s));
       break;
@@ -837,7 +879,7 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       rec.peak_force_N = std::max(rec.peak_force_N, normal_force_n);
     }
   }
-  const double t_final_s = static_cast<double>(first_step + step) * dt_s;
+  const double t_final_s = static_cast<double>(first_step + grid) * dt_s;
   for (int open : open_segment) {
     if (open >= 0) close_episode(open, t_final_s);
   }
@@ -845,7 +887,7 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
     if (open >= 0) close_episode(open, t_final_s);
   }
   result.steps = step;
-  result.simulated_s = static_cast<double>(step) * dt_s;
+  result.simulated_s = static_cast<double>(grid) * dt_s;
   if (result.valid && first_hard < 0) fail("no tube contact with the object within the record");
 
   // rows after the end hold the last state at rest

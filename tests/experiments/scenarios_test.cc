@@ -1,0 +1,110 @@
+// The shipped scenario configs (configs/*.yaml) generate small datasets through the CLI.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <iostream>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/test_util.h"
+
+namespace sonicboom {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+using testing::RunCli;
+using testing::TempDir;
+
+struct Scenario {
+  const char* config;                       // under configs/
+  std::vector<std::string> object_prefixes; // every contact's object starts with one of these
+  const char* extra;                        // more CLI options
+  bool brushes{false};                      // valid samples include foliage brushes
+};
+
+// readable test names in gtest and ctest output
+void PrintTo(const Scenario& s, std::ostream* os) { *os << s.config; }
+
+std::string ConfigPath(const char* name) {
+  return std::string(SONICBOOM_SOURCE_DIR) + "/configs/" + name;
+}
+
+bool StartsWithAny(const std::string& name, const std::vector<std::string>& prefixes) {
+  for (const std::string& p : prefixes) {
+    if (name.rfind(p, 0) == 0) return true;
+  }
+  return false;
+}
+
+class ScenarioTest : public ::testing::TestWithParam<Scenario> {};
+
+TEST_P(ScenarioTest, GeneratesEightSamplesWithContacts) {
+  const Scenario& s = GetParam();
+  const std::string config = ConfigPath(s.config);
+  ASSERT_TRUE(fs::exists(config)) << config;
+  TempDir dir;
+  const std::string out = dir / "D.h5";
+  auto run = RunCli("--config '" + config + "' " + s.extra + " generate --count 8 --out '" + out +
+                        "' -q --json",
+                    dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json generated = json::parse(run.out);
+  EXPECT_EQ(generated["written"], 8);
+  ASSERT_TRUE(fs::exists(out));
+  EXPECT_TRUE(fs::exists(out + ".config.yaml"));
+
+  run = RunCli("inspect '" + out + "' --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json summary = json::parse(run.out);
+  EXPECT_EQ(summary["num_samples"], 8);
+  EXPECT_EQ(summary["complete"], true);
+  ASSERT_TRUE(summary.contains("contacts"));
+  const json& contacts = summary["contacts"];
+  ASSERT_TRUE(contacts.is_object());
+  EXPECT_EQ(contacts["recorded"], true);
+  const int valid = summary["valid"].get<int>();
+  std::cout << s.config << ": " << valid << " / 8 valid; invalid reasons "
+            << summary["invalid_reasons"].dump() << "; objects " << contacts["objects"].dump()
+            << "\n";
+  EXPECT_GE(valid, 1);
+  // every contact of a valid sample names an object of the scenario
+  ASSERT_TRUE(contacts["objects"].is_object());
+  if (valid > 0) {
+    EXPECT_FALSE(contacts["objects"].empty());
+  }
+  for (const auto& [name, count] : contacts["objects"].items()) {
+    EXPECT_TRUE(StartsWithAny(name, s.object_prefixes)) << s.config << ": " << name;
+    EXPECT_GT(count.get<int>(), 0);
+  }
+  // every valid sample has a first hard contact; foliage only brushes
+  EXPECT_GE(contacts["kinds"]["impact"].get<int>(), valid);
+  if (s.brushes) {
+    EXPECT_GT(contacts["kinds"]["brush"].get<int>(), 0);
+  } else {
+    EXPECT_EQ(contacts["kinds"]["brush"].get<int>(), 0);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Configs, ScenarioTest,
+    ::testing::Values(Scenario{"ts1.yaml", {"rod T12L42", "rod T22L42", "rod T25L42", "rod T32L42"}, ""},
+                      Scenario{"ts2.yaml", {"rod ", "cross "}, ""},
+                      // guided: the last grid points lie in the canopy (131 points; 4 taps each)
+                      Scenario{"ts3.yaml", {"branch ", "leaves"}, "--set dataset.first_index=504",
+                               true},
+                      Scenario{"ts4.yaml", {"striker wood T"}, ""},
+                      Scenario{"materials.yaml",
+                               {"striker wood T22L40", "striker aluminium T25L40",
+                                "striker pvc T21L40"},
+                               ""}),
+    [](const ::testing::TestParamInfo<Scenario>& info) {
+      std::string name = info.param.config;
+      return name.substr(0, name.find('.'));
+    });
+
+}  // namespace
+}  // namespace sonicboom
