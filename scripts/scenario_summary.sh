@@ -15,12 +15,14 @@ for scenario in ts1 ts2 ts3 ts4 materials; do
         --out "$OUT/$scenario.h5" -q --json)
   "$BIN" inspect "$OUT/$scenario.h5" --json | /usr/bin/python3 -c '
 import json, sys
-gen = json.loads(sys.argv[2]); s = json.load(sys.stdin); c = s["contacts"]
-speed = s.get("normal_speed_m_s") or {}
-print(f"{sys.argv[1]}: {gen[\"strikes_per_s\"]:.1f} strikes/s, valid {s[\"valid\"]}/{s[\"num_samples\"]}, "
-      f"clipped {s[\"clipped\"]}, speed {speed.get(\"min\", float(\"nan\")):.3f}-{speed.get(\"max\", float(\"nan\")):.3f} m/s, "
-      f"kinds {c[\"kinds\"]}, objects {len(c[\"objects\"])}")
+name, gen = sys.argv[1], json.loads(sys.argv[2])
+s = json.load(sys.stdin)
+c = s["contacts"]
+speed = s.get("normal_speed_m_s") or {"min": float("nan"), "max": float("nan")}
+print("%s: %.1f strikes/s, valid %d/%d, clipped %d, approach speed %.3f-%.3f m/s, kinds %s, objects %s"
+      % (name, gen["strikes_per_s"], s["valid"], s["num_samples"], s["clipped"], speed["min"],
+         speed["max"], c["kinds"], c["objects"]))
 for reason, count in sorted(s["invalid_reasons"].items(), key=lambda kv: -kv[1]):
-    print(f"    invalid {count} x {reason}")
+    print("    invalid %d x %s" % (count, reason))
 ' "$scenario" "$gen"
 done
