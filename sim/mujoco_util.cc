@@ -146,4 +146,69 @@ double InverseEffectiveMass(const mjModel* m, mjData* d, int body, const mjtNum 
   return inverse_mass;
 }
 
+double PointVelocityAlong(const mjModel* m, const mjData* d, int body, const mjtNum point[3],
+                          const Eigen::Vector3d& normal, mjtNum* scratch) {
+  const int nv = m->nv;
+  mj_jac(m, d, scratch, nullptr, point, body);
+  double speed = 0.0;
+  for (int k = 0; k < nv; ++k) {
+    speed += (normal.x() * scratch[k] + normal.y() * scratch[nv + k] +
+              normal.z() * scratch[2 * nv + k]) *
+             d->qvel[k];
+  }
+  return speed;
+}
+
+const mjContact& DeepestContact(const mjData* d, const std::vector<int>& contacts) {
+  SONICBOOM_DEMAND(!contacts.empty());
+  int deepest = contacts.front();
+  for (int i : contacts) {
+    if (d->contact[i].dist < d->contact[deepest].dist) deepest = i;
+  }
+  return d->contact[deepest];
+}
+
+ContactRecord TouchRecord(const mjContact& c, int tube_geom, const Eigen::Isometry3d& tube_pose,
+                          double t_s, Eigen::Vector3d* normal_world_out) {
+  // outward normal: MuJoCo's normal points from geom1 to geom2
+  Eigen::Vector3d normal_world(c.frame[0], c.frame[1], c.frame[2]);
+  if (c.geom1 != tube_geom) normal_world = -normal_world;
+  *normal_world_out = normal_world;
+  ContactRecord rec;
+  rec.time_s = t_s;
+  rec.point_world_m = Eigen::Vector3d(c.pos[0], c.pos[1], c.pos[2]);
+  rec.point_m = tube_pose.inverse() * rec.point_world_m;
+  rec.normal = tube_pose.linear().transpose() * normal_world;
+  rec.z_m = rec.point_m.z();
+  rec.theta_rad = WrapAngle(std::atan2(rec.point_m.y(), rec.point_m.x()));
+  return rec;
+}
+
+std::string TouchProblem(const ContactRecord& rec, const TubeConfig& tube, bool first) {
+  constexpr double kSurfaceToleranceM = 0.001;  // largest |r - R_outer| of a raw contact point
+  const double off_surface_m =
+      std::abs(std::hypot(rec.point_m.x(), rec.point_m.y()) - tube.outer_radius_m);
+  if (off_surface_m >= kSurfaceToleranceM) {
+    return fmt::format("contact point off the tube surface by {:.3f} mm at t = {:.4f} s",
+                       1e3 * off_surface_m, rec.time_s);
+  }
+  if (first && (rec.z_m < tube.contact_z_min_m || rec.z_m > tube.contact_z_max_m)) {
+    return fmt::format("first contact at z = {:.4f} m outside the contact region [{}, {}] m",
+                       rec.z_m, tube.contact_z_min_m, tube.contact_z_max_m);
+  }
+  return "";
+}
+
+void AccumulateForce(const mjModel* m, const mjData* d, const std::vector<int>& contacts,
+                     double dt_s, ContactRecord* rec) {
+  double normal_force_n = 0.0;
+  for (int i : contacts) {
+    mjtNum force[6];
+    mj_contactForce(m, d, i, force);
+    normal_force_n += force[0];
+  }
+  rec->impulse_Ns += normal_force_n * dt_s;
+  rec->peak_force_N = std::max(rec->peak_force_N, normal_force_n);
+}
+
 }  // namespace sonicboom::sim::internal

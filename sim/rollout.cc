@@ -34,8 +34,6 @@ constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
 // object surface this far beyond the intended contact point at the kinematic contact pose, m
 constexpr double kObjectGapM = 0.001;
-// largest |r - R_outer| of a raw contact point on the tube, m
-constexpr double kSurfaceToleranceM = 0.001;
 // a one-end-clamped rod is struck this far from its free tip, m (room to slide while pressed)
 constexpr double kTipMarginM = 0.05;
 // other targets are struck in this middle fraction of their length
@@ -744,23 +742,9 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       }
       missing = 0;
       if (open >= 0) continue;
-      int deepest = list.front();
-      for (int i : list) {
-        if (d->contact[i].dist < d->contact[deepest].dist) deepest = i;
-      }
-      const mjContact& c = d->contact[deepest];
-      // outward normal: MuJoCo's normal points from geom1 to geom2
-      Eigen::Vector3d normal_world(c.frame[0], c.frame[1], c.frame[2]);
-      if (c.geom1 != var.tube_geom) normal_world = -normal_world;
-      const Eigen::Vector3d point_world(c.pos[0], c.pos[1], c.pos[2]);
-
-      ContactRecord rec;
-      rec.time_s = t_s;
-      rec.point_world_m = point_world;
-      rec.point_m = tube.inverse() * point_world;
-      rec.normal = tube_rot.transpose() * normal_world;
-      rec.z_m = rec.point_m.z();
-      rec.theta_rad = WrapAngle(std::atan2(rec.point_m.y(), rec.point_m.x()));
+      const mjContact& c = internal::DeepestContact(d, list);
+      Eigen::Vector3d normal_world;
+      ContactRecord rec = internal::TouchRecord(c, var.tube_geom, tube, t_s, &normal_world);
       rec.segment = segment;
       rec.segment_radius_m = geometry.segments[static_cast<size_t>(segment)].radius_m;
       rec.object = var.name;
@@ -769,33 +753,20 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       // approach speed: tube-point velocity (J qdot) along the outward normal; the object is
       // fixed. Effective mass: robot side 1 / (n^T J M^-1 J^T n) in series with the segment's
       // modal mass at the contact
-      mj_jac(m, d, scratch.data(), nullptr, c.pos, var.flange_body);
-      double speed = 0.0;
-      for (int k = 0; k < m->nv; ++k) {
-        const double row = normal_world.x() * scratch[k] + normal_world.y() * scratch[m->nv + k] +
-                           normal_world.z() * scratch[2 * m->nv + k];
-        speed += row * d->qvel[k];
-      }
-      rec.normal_speed_m_s = speed;
+      rec.normal_speed_m_s = internal::PointVelocityAlong(m, d, var.flange_body, c.pos,
+                                                          normal_world, scratch.data());
       const double robot_inverse_kg =
           internal::InverseEffectiveMass(m, d, var.flange_body, c.pos, normal_world, scratch.data());
       const double object_mass_kg = SegmentModalMassKg(
           object, geometry.segments[static_cast<size_t>(segment)],
-          plan.object_pose.inverse() * point_world);
+          plan.object_pose.inverse() * rec.point_world_m);
       rec.effective_mass_kg = 1.0 / (robot_inverse_kg + 1.0 / object_mass_kg);
 
-      const double radius_m = std::hypot(rec.point_m.x(), rec.point_m.y());
-      const double off_surface_m = std::abs(radius_m - tube_.outer_radius_m);
       const bool first = first_hard < 0;
+      const std::string problem = internal::TouchProblem(rec, tube_, first);
       open = push_record(rec);
       if (first) first_hard = open;
-      if (off_surface_m >= kSurfaceToleranceM) {
-        fail(fmt::format("contact point off the tube surface by {:.3f} mm at t = {:.4f} s",
-                         1e3 * off_surface_m, t_s));
-      } else if (first && (rec.z_m < tube_.contact_z_min_m || rec.z_m > tube_.contact_z_max_m)) {
-        fail(fmt::format("first contact at z = {:.4f} m outside the contact region [{}, {}] m",
-                         rec.z_m, tube_.contact_z_min_m, tube_.contact_z_max_m));
-      }
+      if (!problem.empty()) fail(problem);
       if (first) t_end_s = std::min(audio_.record_duration_s, t_s + config_.settle_s);
     }
     if (!result.valid) break;
@@ -829,15 +800,8 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       rec.material = "foliage";
       // speed of the tube surface towards the cluster
       mjtNum point[3] = {rec.point_world_m.x(), rec.point_world_m.y(), rec.point_world_m.z()};
-      mj_jac(m, d, scratch.data(), nullptr, point, var.flange_body);
-      const Eigen::Vector3d normal_world = tube_rot * rec.normal;
-      double speed = 0.0;
-      for (int k = 0; k < m->nv; ++k) {
-        const double row = normal_world.x() * scratch[k] + normal_world.y() * scratch[m->nv + k] +
-                           normal_world.z() * scratch[2 * m->nv + k];
-        speed += row * d->qvel[k];
-      }
-      rec.normal_speed_m_s = speed;
+      rec.normal_speed_m_s = internal::PointVelocityAlong(m, d, var.flange_body, point,
+                                                          tube_rot * rec.normal, scratch.data());
       open = push_record(rec);
     }
 
@@ -868,15 +832,8 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
     for (int segment = 0; segment < segments; ++segment) {
       const int open = open_segment[static_cast<size_t>(segment)];
       if (open < 0) continue;
-      double normal_force_n = 0.0;
-      for (int i : segment_contacts[static_cast<size_t>(segment)]) {
-        mjtNum force[6];
-        mj_contactForce(m, d, i, force);
-        normal_force_n += force[0];
-      }
-      ContactRecord& rec = result.contacts[static_cast<size_t>(open)];
-      rec.impulse_Ns += normal_force_n * dt_s;
-      rec.peak_force_N = std::max(rec.peak_force_N, normal_force_n);
+      internal::AccumulateForce(m, d, segment_contacts[static_cast<size_t>(segment)], dt_s,
+                                &result.contacts[static_cast<size_t>(open)]);
     }
   }
   const double t_final_s = static_cast<double>(first_step + grid) * dt_s;

@@ -26,8 +26,6 @@ using internal::RequireId;
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
-// largest |r - R_outer| of a raw contact point on the tube, m
-constexpr double kSurfaceToleranceM = 0.001;
 // the striker starts this far (m) clear of the surface at least
 constexpr double kMinStartGapM = 0.002;
 
@@ -110,9 +108,8 @@ HandStrikeRollout::HandStrikeRollout(const TubeConfig& tube, const AudioConfig& 
   timestep_s_ = config_.ResolvedTimestep();
 
   // the held pose and its proprioception row (zero velocity)
-  JointVector q_home;
-  for (int i = 0; i < kPandaJoints; ++i) q_home[i] = strike_.home_joints_rad[i];
-  tube_pose_ = PandaForwardKinematics(q_home, tube_.center_from_flange_m).tube;
+  for (int i = 0; i < kPandaJoints; ++i) q_home_[i] = strike_.home_joints_rad[i];
+  tube_pose_ = PandaForwardKinematics(q_home_, tube_.center_from_flange_m).tube;
   const Eigen::Quaterniond quat(tube_pose_.linear());
   const Eigen::Vector3d p = tube_pose_.translation();
   held_row_ << p.x(), p.y(), p.z(), quat.w(), quat.x(), quat.y(), quat.z(), 0, 0, 0;
@@ -273,55 +270,28 @@ RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed
 
     // episodes
     if (!tube_contacts.empty() && open < 0) {
-      int deepest = tube_contacts.front();
-      for (int i : tube_contacts) {
-        if (d->contact[i].dist < d->contact[deepest].dist) deepest = i;
-      }
-      const mjContact& c = d->contact[deepest];
-      Eigen::Vector3d normal_world(c.frame[0], c.frame[1], c.frame[2]);
-      if (c.geom1 != st.tube_geom) normal_world = -normal_world;
-      const Eigen::Vector3d point_world(c.pos[0], c.pos[1], c.pos[2]);
-      ContactRecord rec;
-      rec.time_s = t_s;
-      rec.point_world_m = point_world;
-      rec.point_m = tube_pose_.inverse() * point_world;
-      rec.normal = rot.transpose() * normal_world;
-      rec.z_m = rec.point_m.z();
-      rec.theta_rad = WrapAngle(std::atan2(rec.point_m.y(), rec.point_m.x()));
+      const mjContact& c = internal::DeepestContact(d, tube_contacts);
+      Eigen::Vector3d normal_world;
+      ContactRecord rec = internal::TouchRecord(c, st.tube_geom, tube_pose_, t_s, &normal_world);
       rec.segment = 0;
       rec.segment_radius_m = r_s;
       rec.object = object.DisplayName();
       rec.material = object.material;
       // approach speed: the striker point's velocity towards the tube (the tube is held still)
-      mj_jac(m, d, scratch.data(), nullptr, c.pos, st.body);
-      double speed = 0.0;
-      for (int k = 0; k < m->nv; ++k) {
-        speed -= (normal_world.x() * scratch[k] + normal_world.y() * scratch[m->nv + k] +
-                  normal_world.z() * scratch[2 * m->nv + k]) *
-                 d->qvel[k];
-      }
-      rec.normal_speed_m_s = speed;
+      rec.normal_speed_m_s =
+          -internal::PointVelocityAlong(m, d, st.body, c.pos, normal_world, scratch.data());
       // striker (rigid, at the point) in series with the held arm at the tube point
       const double striker_inverse_kg =
           internal::InverseEffectiveMass(m, d, st.body, c.pos, normal_world, scratch.data());
-      JointVector q_home;
-      for (int i = 0; i < kPandaJoints; ++i) q_home[i] = strike_.home_joints_rad[i];
-      const double arm_kg = arm_->FlangeEffectiveMassKg(q_home, point_world, normal_world);
+      const double arm_kg = arm_->FlangeEffectiveMassKg(q_home_, rec.point_world_m, normal_world);
       rec.effective_mass_kg = 1.0 / (striker_inverse_kg + 1.0 / arm_kg);
       since_release_s = kinds.SinceRelease(t_s);
+      const bool first = first_hard < 0;
+      const std::string problem = internal::TouchProblem(rec, tube_, first);
       result.contacts.push_back(rec);
       open = static_cast<int>(result.contacts.size()) - 1;
-      const bool first = first_hard < 0;
       if (first) first_hard = open;
-      const double off_surface_m =
-          std::abs(std::hypot(rec.point_m.x(), rec.point_m.y()) - tube_.outer_radius_m);
-      if (off_surface_m >= kSurfaceToleranceM) {
-        fail(fmt::format("contact point off the tube surface by {:.3f} mm at t = {:.4f} s",
-                         1e3 * off_surface_m, t_s));
-      } else if (first && (rec.z_m < tube_.contact_z_min_m || rec.z_m > tube_.contact_z_max_m)) {
-        fail(fmt::format("first contact at z = {:.4f} m outside the contact region [{}, {}] m",
-                         rec.z_m, tube_.contact_z_min_m, tube_.contact_z_max_m));
-      }
+      if (!problem.empty()) fail(problem);
       if (first) t_end_s = std::min(audio_.record_duration_s, t_s + config_.settle_s);
     } else if (tube_contacts.empty() && open >= 0) {
       close_episode(t_s);
@@ -364,15 +334,8 @@ RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed
       break;
     }
     if (open >= 0) {
-      double normal_force_n = 0.0;
-      for (int i : tube_contacts) {
-        mjtNum f[6];
-        mj_contactForce(m, d, i, f);
-        normal_force_n += f[0];
-      }
-      ContactRecord& rec = result.contacts[static_cast<size_t>(open)];
-      rec.impulse_Ns += normal_force_n * dt_s;
-      rec.peak_force_N = std::max(rec.peak_force_N, normal_force_n);
+      internal::AccumulateForce(m, d, tube_contacts, dt_s,
+                                &result.contacts[static_cast<size_t>(open)]);
     }
   }
   if (open >= 0) close_episode(static_cast<double>(first_step + step) * dt_s);

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "sonicboom/core/tube.h"
+#include "sonicboom/sim/franka.h"
 #include "sonicboom/sim/rollout.h"
 #include "sonicboom/sim/scene.h"
 #include "sonicboom/sim/strike.h"
@@ -52,6 +53,7 @@ class HandStrikeRollout {
   SceneConfig scene_;
   RolloutConfig config_;
   double timestep_s_{0.0};
+  JointVector q_home_{JointVector::Zero()};                     // held pose, rad
   Eigen::Isometry3d tube_pose_{Eigen::Isometry3d::Identity()};  // held tube frame, base frame
   Eigen::Matrix<float, 1, 10> held_row_;                        // its proprioception row
   std::vector<std::unique_ptr<Striker>> strikers_;              // [object]
