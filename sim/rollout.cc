@@ -49,6 +49,9 @@ constexpr int64_t kReleaseSteps = 2;
 // omega_max = max_i sqrt(K_i / M_ii) (explicit impedance torques stay well inside stability)
 constexpr int kMaxFreeStepMultiple = 4;
 constexpr double kFreeStepOmegaDt = 0.75;
+// A steady press (no episode opened or closed for kSteadyPressS) steps
+// rollout.press_step_multiple timesteps at once (at most the free-flight multiple, for the arm)
+constexpr double kSteadyPressS = 0.05;
 // a step skips collision detection when every object pair is this much farther apart than it
 // can close in one step, m
 constexpr double kCollisionSkipSlackM = 0.001;
@@ -117,10 +120,17 @@ void RolloutConfig::Serialize(Archive* a) {
   a->Visit("sweep_overshoot_deg", &sweep_overshoot_deg, Bounds::Closed(0.0, 30.0));
   a->Visit("penetration_limit_m", &penetration_limit_m, Bounds::Open(0.0, 0.1));
   a->Visit("settle_s", &settle_s, Bounds::Closed(0.0, 10.0));
+  a->Visit("press_step_multiple", &press_step_multiple, Bounds::Closed(0.0, 8.0));
 }
 
 double RolloutConfig::ResolvedTimestep() const {
   return timestep_s > 0.0 ? timestep_s : 0.25 * contact_timeconst_s;
+}
+
+int64_t RolloutConfig::ResolvedPressStepMultiple() const {
+  if (press_step_multiple > 0) return press_step_multiple;
+  const double limit = contact_timeconst_s / (2.0 * ResolvedTimestep());
+  return limit >= 2.0 * (1.0 - 1e-9) ? 2 : 1;
 }
 
 void RolloutConfig::Validate() const {
@@ -151,6 +161,14 @@ void RolloutConfig::Validate() const {
         "rollout.contact_timeconst_s = {} s is below its limit of 2 timesteps (2 x {} s = {} s)",
         contact_timeconst_s, dt_s, 2.0 * dt_s));
   }
+  RequireInRange(static_cast<double>(press_step_multiple), 0.0, 8.0, "rollout.press_step_multiple");
+  if (contact_timeconst_s < 2.0 * static_cast<double>(press_step_multiple) * dt_s * (1.0 - 1e-9)) {
+    throw ConfigError(fmt::format(
+        "rollout.press_step_multiple = {} needs rollout.contact_timeconst_s >= 2 x {} x {} s = {} s "
+        "(MuJoCo's contact limit of 2 steps); it is {} s",
+        press_step_multiple, press_step_multiple, dt_s, 2.0 * press_step_multiple * dt_s,
+        contact_timeconst_s));
+  }
 }
 
 // One compiled scene: the Panda, the tube and one object geometry, with indices into it.
@@ -175,6 +193,9 @@ struct StrikeRollout::Variant {
   // The scene with the tube-object pairs only, stepped where the arm cannot touch the object:
   // its steps equal the full model's whenever no arm pair would find a contact.
   ModelPtr tube_only;
+  // The full and tube-only scenes stepping press_multiple timesteps at once, for a steady press
+  ModelPtr press, press_tube_only;
+  int press_multiple{1};
   std::vector<std::array<int, 2>> tube_pairs;  // geoms of the tube-object pairs
   std::vector<std::array<int, 2>> arm_pairs;   // geoms of the arm-object pairs
   double reach_m{0.0};                       // bound on any geom point's distance to any joint axis
@@ -296,6 +317,12 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
       var->tube_only = internal::CompileMjcf(PandaMjcf(tube_, options), "the tube-only Panda MJCF");
       SONICBOOM_DEMAND(var->tube_only->npair == static_cast<int>(var->tube_pairs.size()) &&
                        var->tube_only->ngeom == m->ngeom && var->tube_only->nv == m->nv);
+      var->press_multiple = static_cast<int>(config_.ResolvedPressStepMultiple());
+      var->press.reset(mj_copyModel(nullptr, m));
+      var->press_tube_only.reset(mj_copyModel(nullptr, var->tube_only.get()));
+      SONICBOOM_DEMAND(var->press != nullptr && var->press_tube_only != nullptr);
+      var->press->opt.timestep = var->press_multiple * timestep_s_;
+      var->press_tube_only->opt.timestep = var->press_multiple * timestep_s_;
       // chain length from any joint to any arm geom point: the arm's body and joint offsets,
       // plus the farthest geom point from its body origin (mocap objects do not move)
       double reach_m = 0.0;
@@ -559,6 +586,7 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
   const int free_multiple = std::clamp(
       static_cast<int>(std::floor(kFreeStepOmegaDt / (omega_max * dt_s))), 1, kMaxFreeStepMultiple);
   const mjModel* free_model = var.contact_free[static_cast<size_t>(free_multiple - 1)].get();
+  const int press_multiple = std::min(var.press_multiple, free_multiple);
 
   // path timing: a timed strike reaches the object at the onset, started earlier by the lag D/K
   const double duration_s = plan.duration_s;
@@ -614,11 +642,14 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
   std::vector<int> open_segment(static_cast<size_t>(segments), -1);   // index into contacts
   std::vector<int> open_leaf(leaves.size(), -1);
   std::vector<int64_t> missing_steps(static_cast<size_t>(segments), 0);  // steps without contact
+  std::vector<double> missing_since_s(static_cast<size_t>(segments), 0.0);  // first of them, s
+  double last_change_s = -1.0;  // when an episode last opened or closed, s
   std::vector<std::vector<int>> segment_contacts(static_cast<size_t>(segments));  // this step
   std::vector<double> since_release_s;  // per contact: time since the last release at touch
   int first_hard = -1;                  // index of the first hard contact
   internal::EpisodeClassifier kinds;
   auto close_episode = [&](int index, double t_s) {
+    last_change_s = t_s;
     ContactRecord& rec = result.contacts[static_cast<size_t>(index)];
     rec.duration_s = t_s - rec.time_s;
     if (rec.kind == ContactEpisode::Kind::kBrush) return;
@@ -626,6 +657,7 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
                              index == first_hard, t_s);
   };
   auto push_record = [&](ContactRecord rec) {
+    last_change_s = rec.time_s;
     since_release_s.push_back(kinds.SinceRelease(rec.time_s));
     result.contacts.push_back(std::move(rec));
     return static_cast<int>(result.contacts.size()) - 1;
@@ -669,13 +701,17 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       arm_may_touch = !budget_left(arm_gap_m);
     }
     const bool may_touch = tube_may_touch || arm_may_touch;
-    // a free-flight step must not pass the end
+    // a free-flight or steady-press step must not pass the end
     const bool free = !may_touch && t_s + free_multiple * dt_s < t_end_s + 0.5 * dt_s;
+    const bool steady = may_touch && press_multiple > 1 && first_hard >= 0 &&
+                        t_s - last_change_s >= kSteadyPressS - 0.5 * dt_s &&
+                        t_s + press_multiple * dt_s < t_end_s + 0.5 * dt_s;
     const mjModel* step_model =
-        arm_may_touch ? m
-                      : (tube_may_touch ? var.tube_only.get()
-                                        : (free ? free_model : var.contact_free[0].get()));
-    const int64_t advance = free ? free_multiple : 1;
+        arm_may_touch
+            ? (steady ? var.press.get() : m)
+            : (tube_may_touch ? (steady ? var.press_tube_only.get() : var.tube_only.get())
+                              : (free ? free_model : var.contact_free[0].get()));
+    const int64_t advance = free ? free_multiple : (steady ? press_multiple : 1);
     for (int i = 0; i < kPandaJoints; ++i) last_qpos[i] = d->qpos[var.qpos[i]];
 
     // positions and velocities at t: kinematics, collisions, mass matrix, bias forces
@@ -734,8 +770,9 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       if (list.empty()) {
         // released once the contact has stayed away for kReleaseSteps steps, at its first
         // missing step
-        if (open >= 0 && ++missing >= kReleaseSteps) {
-          close_episode(open, t_s - static_cast<double>(missing - 1) * dt_s);
+        if (open >= 0 && ++missing == 1) missing_since_s[static_cast<size_t>(segment)] = t_s;
+        if (open >= 0 && missing >= kReleaseSteps) {
+          close_episode(open, missing_since_s[static_cast<size_t>(segment)]);
           open = -1;
         }
         continue;
@@ -832,7 +869,8 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
     for (int segment = 0; segment < segments; ++segment) {
       const int open = open_segment[static_cast<size_t>(segment)];
       if (open < 0) continue;
-      internal::AccumulateForce(m, d, segment_contacts[static_cast<size_t>(segment)], dt_s,
+      internal::AccumulateForce(m, d, segment_contacts[static_cast<size_t>(segment)],
+                                static_cast<double>(advance) * dt_s,
                                 &result.contacts[static_cast<size_t>(open)]);
     }
   }

@@ -174,6 +174,46 @@ TEST(RolloutTest, SameSeedSameRolloutOnAnyThread) {
   EXPECT_NE(serial[0].target_z_m, serial[1].target_z_m);
 }
 
+TEST(RolloutTest, SteadyPressStepsKeepContactsAndImpulses) {
+  // every step at timestep_s against the default (a steady press steps 2 timesteps)
+  RolloutConfig config;
+  config.press_step_multiple = 1;
+  ASSERT_EQ(RolloutConfig{}.ResolvedPressStepMultiple(), 2);
+  const StrikeRollout fine(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config);
+  int64_t fine_steps = 0, default_steps = 0;
+  for (uint64_t i = 0; i < 10; ++i) {
+    const RolloutResult a = fine.Run(i, SampleSeed(21, i));
+    const RolloutResult& b = DefaultResults()[i];
+    fine_steps += a.steps;
+    default_steps += b.steps;
+    ASSERT_EQ(a.valid, b.valid) << i;
+    ASSERT_EQ(a.contacts.size(), b.contacts.size()) << i;
+    for (size_t k = 0; k < a.contacts.size(); ++k) {
+      const ContactRecord &x = a.contacts[k], &y = b.contacts[k];
+      EXPECT_EQ(x.time_s, y.time_s);
+      EXPECT_EQ(x.z_m, y.z_m);
+      EXPECT_EQ(x.theta_rad, y.theta_rad);
+      EXPECT_EQ(x.normal_speed_m_s, y.normal_speed_m_s);
+      EXPECT_EQ(x.kind, y.kind);
+      EXPECT_NEAR(x.duration_s, y.duration_s, 1e-9);
+      EXPECT_NEAR(y.impulse_Ns, x.impulse_Ns, 0.005 * x.impulse_Ns) << i << " " << k;
+    }
+    EXPECT_TRUE((a.proprio - b.proprio).cwiseAbs().maxCoeff() < 1e-3) << i;
+  }
+  // the press is most of the stepping: the default takes well under 80 % of the steps
+  EXPECT_LT(default_steps, 0.8 * fine_steps) << default_steps << " vs " << fine_steps;
+  // a multiple the contact cannot take is refused, naming the limit
+  config.press_step_multiple = 3;
+  try {
+    StrikeRollout rollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("rollout.press_step_multiple = 3"), std::string::npos) << message;
+    EXPECT_NE(message.find("0.003 s"), std::string::npos) << message;  // 2 x 3 x 0.0005 s
+  }
+}
+
 TEST(RolloutTest, TinyPenetrationLimitInvalidatesWithoutCrashing) {
   RolloutConfig config;
   config.penetration_limit_m = 1e-9;

@@ -36,7 +36,9 @@
 /// distances, minus the most the arm can have moved since they were taken) shows no pair can
 /// touch; the simulation starts at the motion start, the arm holding q0 at rest before it, and
 /// ends settle_s after the first contact (or after the motion without one). None of these
-/// changes a result.
+/// changes a result. A steady press after the impact steps rollout.press_step_multiple timesteps
+/// at once: first contacts, labels, episode kinds and durations are unchanged and impulses move by
+/// < 0.1 %, but the press's friction flicker re-contacts harder (its peak force rises).
 ///
 /// Contact durations follow MuJoCo's soft contact (contact_timeconst_s, milliseconds), longer than
 /// the Hertz contact of wood on PVC (0.2-0.6 ms, physics.md 1.6): use the impulse, approach speed
@@ -69,6 +71,12 @@ struct RolloutConfig {
   double sweep_overshoot_deg{4.0};   // joint-1 goal this far beyond the contact angle
   double penetration_limit_m{0.001}; // a deeper object contact makes the sample invalid
   double settle_s{0.3};              // simulate this long after the first contact (or the motion)
+  // a steady press (no contact episode opened or closed for 50 ms) steps this many timesteps at
+  // once; 1 = every step at timestep_s; 0 = derived: the largest of 1 and 2 that the contact
+  // allows. Needs contact_timeconst_s >= 2 x multiple x timestep (MuJoCo's 2-step limit)
+  int64_t press_step_multiple{0};
+
+  int64_t ResolvedPressStepMultiple() const;
 
   void Serialize(Archive* a);
   /// Cross-field checks; throws ConfigError naming the key and the limit.
