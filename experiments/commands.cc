@@ -10,7 +10,8 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
-#include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/array_file.h"
 #include "sonicboom/core/audio_io.h"
@@ -271,17 +272,30 @@ CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64
 
 CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool ideal,
                        int64_t count) {
-  const SonicBoomConfig config = Resolve(g);
-  if (count < 1 || count > 100000) throw ConfigError(fmt::format("--count must be in [1, 100000], got {}", count));
-  const std::vector<double> f =
-      acoustics::ClosedFormFrequencies(config.tube, config.material, boundary, static_cast<int>(count));
+  SonicBoomConfig config = Resolve(g);
+  if (count < 1 || count > 5000) throw ConfigError(fmt::format("--count must be in [1, 5000], got {}", count));
+  if (boundary != "free" && boundary != "simply-supported") {
+    throw ConfigError(fmt::format("--boundary '{}' must be free or simply-supported", boundary));
+  }
+  config.shell.ends = boundary;
+  if (ideal) config.shell.ideal = true;
+  const acoustics::ShellModel model(config.tube, config.material, config.shell);
+  const acoustics::ShellModes modes = acoustics::SolveShellModes(model, 0.0, count, false);
+  std::vector<double> f(static_cast<size_t>(modes.omega_rad_s.size()));
+  for (size_t k = 0; k < f.size(); ++k) f[k] = modes.omega_rad_s[static_cast<Eigen::Index>(k)] / (2.0 * std::numbers::pi);
   json j = {{"frequencies_hz", f},
             {"boundary", boundary},
-            {"model", "closed-form ideal shell (Flügge for simply-supported, Rayleigh for free)"},
-            {"ideal", true}};
-  std::string text = fmt::format("{} lowest modes, {} ideal tube (pairs listed twice):\n", f.size(), boundary);
+            {"ideal", config.shell.ideal},
+            {"model", "numerical shell: Sanders theory on a staggered (z, theta) grid (acoustics/shell.h)"},
+            {"grid_points", {model.axial_points(), model.circumferential_points()}},
+            {"dofs", model.dofs()},
+            {"rigid_body_modes", modes.rigid_body_modes}};
+  std::string text = fmt::format(
+      "{} lowest elastic modes, {} ends, {} tube ({} x {} grid, {} DOFs; {} rigid-body modes not "
+      "listed; pairs listed twice):\n",
+      f.size(), boundary, config.shell.ideal ? "ideal" : "seamed", model.axial_points(),
+      model.circumferential_points(), model.dofs(), modes.rigid_body_modes);
   for (size_t i = 0; i < f.size(); ++i) text += fmt::format("{:4d}  {:10.1f} Hz\n", i + 1, f[i]);
-  if (!ideal) spdlog::info("only the ideal tube is modelled so far; reporting it");
   return {j.dump(), text};
 }
 

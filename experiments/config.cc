@@ -29,6 +29,7 @@ void SonicBoomConfig::Serialize(Archive* a) {
   a->Visit("strike", &strike);
   a->Visit("scene", &scene);
   a->Visit("rollout", &rollout);
+  a->Visit("shell", &shell);
   a->Visit("acoustics", &acoustics);
   a->Visit("daq", &daq);
   a->Visit("noise", &noise);
@@ -42,6 +43,7 @@ void SonicBoomConfig::Serialize(Archive* a) {
 void SonicBoomConfig::Validate() const {
   tube.Validate();
   mics.Validate(tube);
+  shell.Validate(tube);
   strike.Validate();
   scene.Validate();
   rollout.Validate();

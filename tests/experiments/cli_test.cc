@@ -75,8 +75,9 @@ TEST(CliTest, ModesAndFkJson) {
   const json modes = json::parse(run.out);
   ASSERT_EQ(modes["frequencies_hz"].size(), 6u);
   EXPECT_NEAR(modes["frequencies_hz"][0].get<double>(), 220, 2);
+  EXPECT_EQ(modes["rigid_body_modes"], 6);
   // --set reaches the tube keys: a thicker wall raises the ring modes
-  run = RunCli("modes --json --boundary free --count 2 --set tube.wall_thickness_m=0.0061",
+  run = RunCli("modes --json --boundary free --ideal --count 2 --set tube.wall_thickness_m=0.0061",
                dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_GT(json::parse(run.out)["frequencies_hz"][0].get<double>(), 400);

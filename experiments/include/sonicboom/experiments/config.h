@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "sonicboom/acoustics/features.h"
+#include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/tube.h"
@@ -43,6 +44,7 @@ struct SonicBoomConfig {
   sim::StrikeConfig strike;
   sim::SceneConfig scene;                  // objects and strike mode
   sim::RolloutConfig rollout;              // used when strike.engine = mujoco or the scene needs it
+  acoustics::ShellConfig shell;             // the discretized tube (numerical modes, FD)
   acoustics::SynthConfig acoustics;
   acoustics::DaqConfig daq;
   acoustics::NoiseConfig noise;

@@ -1,0 +1,115 @@
+#pragma once
+/// The tube as a discretized thin cylindrical shell (physics.md §3.2), shared by the
+/// finite-difference time-domain solver and the numerical modal model: both use the same stiffness
+/// K, lumped mass M and Rayleigh damping C = alpha M + beta K, so their signals differ only by time
+/// integration and mode truncation.
+///
+/// Theory: Sanders' thin-shell strains (membrane u_x, (v_th + w)/R, v_x + u_th/R; bending -w_xx,
+/// (v_th - w_thth)/R^2 and Sanders' twist), w radial outward. Grid: a staggered (z, theta) grid,
+/// w at nodes (i dz, j dth), u at (i + 1/2, j), v at (i, j + 1/2); strains sampled at nodes and cell
+/// corners, so the discrete strain energy is U = 1/2 sum_r w_r (b_r q)^2 and K = B^T W B is
+/// symmetric positive semi-definite by construction. Second order in dz and dth in the interior.
+///
+/// Structure: the tube is sawn lengthwise along seam lines; each seam leaves two free edges (the
+/// v point on the seam is removed, a kerf of one arc step) coupled by translational springs at the
+/// bolts. Holes remove the grid points inside them. Flange and tool ends are free or simply
+/// supported (shear diaphragm: v = w = 0), with distributed mount springs to ground. An ideal
+/// tube has no seam, holes, bolts or mounts. Where a strain cannot be formed (free edge, hole) the
+/// point keeps the energy of the strain it has, with the missing one at its free (stress-free)
+/// value.
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sonicboom/core/archive.h"
+#include "sonicboom/core/tube.h"
+
+namespace sonicboom::acoustics {
+
+/// Keys under "shell": the discretized tube structure.
+struct ShellConfig {
+  double grid_spacing_m{0.0025};           // target arc spacing of the grid
+  double axial_spacing_m{0.005};           // target axial spacing; 0 = grid_spacing_m
+  std::string ends{"free"};                // free | simply-supported (both ends)
+  bool ideal{false};                       // uniform tube: no seam, holes, bolts or mounts
+  std::vector<double> seam_theta_deg{90.0, 270.0};  // saw cuts (the tube is split in halves)
+  std::vector<double> bolt_z_m{-0.1, 0.0, 0.1};     // bolts along every seam, tube frame
+  double bolt_stiffness_n_m{2.0e6};        // per bolt and direction (axial, arc, radial)
+  std::vector<double> hole_z_m{-0.146, -0.146, -0.146, 0.146, 0.146, 0.146};
+  std::vector<double> hole_theta_deg{0.0, 120.0, 240.0, 0.0, 120.0, 240.0};
+  double hole_diameter_m{0.006};           // cable holes beside the discs
+  double flange_mount_stiffness_n_m2{5.0e6};  // springs to ground per metre of the flange-end rim
+  double tool_mount_stiffness_n_m2{1.0e6};    // the same at the tool end (cap)
+  // frequency-dependent loss: Rayleigh damping through material.loss_factor at loss_low_hz and
+  // loss_factor_high (0 = material.loss_factor) at loss_high_hz; eta(f) = 2 zeta(f)
+  double loss_low_hz{1000.0};
+  double loss_high_hz{5000.0};
+  double loss_factor_high{0.0};
+
+  void Serialize(Archive* a);
+  /// Cross-field checks against the tube; throws ConfigError naming the key.
+  void Validate(const TubeConfig& tube) const;
+  double AxialSpacing() const { return axial_spacing_m > 0.0 ? axial_spacing_m : grid_spacing_m; }
+};
+
+/// Immutable discretized shell: grid, degrees of freedom, K, M, damping, and the linear maps to
+/// the contact force and the piezo outputs. Thread-safe to share.
+class ShellModel {
+ public:
+  ShellModel(const TubeConfig& tube, const MaterialConfig& material, const ShellConfig& shell);
+
+  int64_t dofs() const { return static_cast<int64_t>(mass_kg_.size()); }
+  int axial_points() const { return nz_ + 1; }      // node rows, ends included
+  int circumferential_points() const { return nth_; }
+  double dz_m() const { return dz_m_; }
+  double dtheta_rad() const { return dth_rad_; }
+  /// (dofs x dofs) stiffness, N/m, symmetric, lower and upper stored.
+  const Eigen::SparseMatrix<double>& stiffness() const { return stiffness_; }
+  /// (dofs) lumped mass of every DOF, kg.
+  const Eigen::VectorXd& mass_kg() const { return mass_kg_; }
+  /// Rayleigh coefficients: C = alpha M + beta K.
+  double rayleigh_alpha_1_s() const { return alpha_; }
+  double rayleigh_beta_s() const { return beta_; }
+  /// Modal damping ratio at angular frequency omega (rad/s).
+  double DampingRatio(double omega_rad_s) const;
+
+  /// (dofs) radial force distribution of a unit outward point force at (z, theta) of the tube
+  /// frame (bilinear over the four surrounding w nodes); its transpose interpolates w there.
+  /// Throws ConfigError when the point lies in a hole or off the tube.
+  Eigen::VectorXd RadialForceWeights(double z_m, double theta_rad) const;
+  /// (dofs) output of a piezo disc centred at (z, theta) of diameter d: outer-surface in-plane
+  /// strain (eps_x + eps_th + h/2 (kappa_x + kappa_th)) averaged over the nodes under the disc
+  /// (the nearest node where none lies under it). Unit: strain per m of the DOFs.
+  Eigen::VectorXd SensorRow(double z_m, double theta_rad, double diameter_m) const;
+  /// (mics x dofs) rows of SensorRow for a microphone array.
+  Eigen::MatrixXd SensorRows(const MicArrayConfig& mics) const;
+
+  /// Strain energy 1/2 q^T K q, J.
+  double StrainEnergy(const Eigen::VectorXd& q_m) const;
+  /// The w DOF index of node (i, theta index j), -1 when absent or fixed.
+  int64_t WIndex(int i, int j) const;
+  /// Tube-frame z of node row i, m.
+  double NodeZ(int i) const { return -0.5 * tube_.length_m + i * dz_m_; }
+
+  /// A key of every parameter K, M and the damping depend on (for the mode cache).
+  const std::string& key() const { return key_; }
+
+  const TubeConfig& tube() const { return tube_; }
+
+ private:
+  TubeConfig tube_;
+  MaterialConfig material_;
+  ShellConfig shell_;
+  int nz_{0}, nth_{0};                     // axial intervals, circumferential points
+  double dz_m_{0.0}, dth_rad_{0.0}, radius_m_{0.0};
+  std::vector<int64_t> w_index_, u_index_, v_index_;  // grid -> DOF (or kAbsent / kFixed)
+  Eigen::VectorXd mass_kg_;
+  Eigen::SparseMatrix<double> stiffness_;
+  double alpha_{0.0}, beta_{0.0};
+  std::string key_;
+};
+
+}  // namespace sonicboom::acoustics

@@ -1,0 +1,33 @@
+#pragma once
+/// Natural modes of the discretized shell (shell.h): K phi = omega^2 M phi by shift-invert
+/// Lanczos (Spectra) on M^-1/2 K M^-1/2, sliced over frequency; completeness is checked by
+/// Sylvester's inertia (the number of negative pivots of an LDL^T factorization of K - s M is the
+/// number of modes below s), so no mode of the requested range is missed.
+
+#include <Eigen/Core>
+#include <cstdint>
+
+#include "sonicboom/acoustics/shell.h"
+
+namespace sonicboom::acoustics {
+
+/// Frequencies below this are rigid-body motion of a free structure (0 in the continuum; the
+/// discretization leaves them at a fraction of a hertz) and are not listed as modes.
+constexpr double kRigidBodyHz = 20.0;
+
+struct ShellModes {
+  Eigen::VectorXd omega_rad_s;   // (modes) elastic modes, ascending
+  Eigen::MatrixXd shapes;        // (dofs x modes) mass-normalized: phi^T M phi = 1
+  int64_t rigid_body_modes{0};   // modes below kRigidBodyHz, not listed
+};
+
+/// The elastic modes with frequency <= max_frequency_hz, or the lowest max_count of them
+/// (whichever limit is given; 0 = no limit; at least one must be given). with_shapes = false
+/// skips the eigenvectors. Throws ConfigError for a range that holds more than 20000 modes.
+ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int64_t max_count,
+                           bool with_shapes = true);
+
+/// The number of modes (rigid-body ones included) with frequency below f_hz, by inertia.
+int64_t CountModesBelow(const ShellModel& model, double f_hz);
+
+}  // namespace sonicboom::acoustics

@@ -1,0 +1,442 @@
+#include "sonicboom/acoustics/shell.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <tuple>
+#include <utility>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+// grid lookups: a point that does not exist (off the grid, on a seam, in a hole) makes a strain
+// that needs it unavailable; a fixed point (a supported end) contributes zero
+constexpr int64_t kAbsent = -1;
+constexpr int64_t kFixed = -2;
+
+enum class Field { kU, kV, kW };
+struct Term {
+  Field field;
+  int i, j;    // grid indices (u: i + 1/2, v: j + 1/2)
+  double c;    // coefficient
+};
+using Row = std::vector<std::pair<int64_t, double>>;  // (dof, coefficient)
+
+double ArcDistance(double radius_m, double a_rad, double b_rad) {
+  return radius_m * std::abs(WrapAngle(a_rad - b_rad));
+}
+
+}  // namespace
+
+void ShellConfig::Serialize(Archive* a) {
+  a->Visit("grid_spacing_m", &grid_spacing_m, Bounds::Open(0.0, 1.0));
+  a->Visit("axial_spacing_m", &axial_spacing_m, Bounds::Closed(0.0, 1.0));
+  a->Visit("ends", &ends);
+  a->Visit("ideal", &ideal);
+  a->Visit("seam_theta_deg", &seam_theta_deg, Bounds::Closed(-360.0, 360.0));
+  a->Visit("bolt_z_m", &bolt_z_m);
+  a->Visit("bolt_stiffness_n_m", &bolt_stiffness_n_m, Bounds::Closed(0.0, 1e12));
+  a->Visit("hole_z_m", &hole_z_m);
+  a->Visit("hole_theta_deg", &hole_theta_deg, Bounds::Closed(-360.0, 360.0));
+  a->Visit("hole_diameter_m", &hole_diameter_m, Bounds::Closed(0.0, 0.1));
+  a->Visit("flange_mount_stiffness_n_m2", &flange_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
+  a->Visit("tool_mount_stiffness_n_m2", &tool_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
+  a->Visit("loss_low_hz", &loss_low_hz, Bounds::Open(0.0, 1e6));
+  a->Visit("loss_high_hz", &loss_high_hz, Bounds::Open(0.0, 1e6));
+  a->Visit("loss_factor_high", &loss_factor_high, Bounds::Closed(0.0, 2.0));
+}
+
+void ShellConfig::Validate(const TubeConfig& tube) const {
+  if (ends != "free" && ends != "simply-supported") {
+    throw ConfigError(fmt::format("shell.ends = '{}' must be free or simply-supported", ends));
+  }
+  const double half_length_m = 0.5 * tube.length_m;
+  for (const auto& [key, value] : {std::pair{"grid_spacing_m", grid_spacing_m},
+                                    std::pair{"axial_spacing_m", AxialSpacing()}}) {
+    if (!(value > 0.0) || value > 0.25 * tube.length_m) {
+      throw ConfigError(fmt::format(
+          "shell.{} = {} m must be positive and at most a quarter of tube.length_m ({} m)", key,
+          value, 0.25 * tube.length_m));
+    }
+  }
+  for (double z : bolt_z_m) {
+    if (!(std::abs(z) <= half_length_m)) {
+      throw ConfigError(fmt::format("shell.bolt_z_m entry {} m lies off the tube (|z| <= {} m)", z,
+                                    half_length_m));
+    }
+  }
+  if (hole_z_m.size() != hole_theta_deg.size()) {
+    throw ConfigError(fmt::format("shell.hole_z_m has {} entries but shell.hole_theta_deg has {}",
+                                  hole_z_m.size(), hole_theta_deg.size()));
+  }
+  for (double z : hole_z_m) {
+    if (!(std::abs(z) <= half_length_m)) {
+      throw ConfigError(fmt::format("shell.hole_z_m entry {} m lies off the tube (|z| <= {} m)", z,
+                                    half_length_m));
+    }
+  }
+  if (!(loss_high_hz > loss_low_hz)) {
+    throw ConfigError(fmt::format("shell.loss_high_hz = {} must exceed shell.loss_low_hz = {}",
+                                  loss_high_hz, loss_low_hz));
+  }
+}
+
+ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
+                       const ShellConfig& shell)
+    : tube_(tube), material_(material), shell_(shell) {
+  tube.Validate();
+  shell.Validate(tube);
+  const double R = tube.mid_radius_m();
+  const double h = tube.wall_thickness_m;
+  const double E = material.youngs_modulus_pa, nu = material.poisson_ratio;
+  const double rho_h = material.density_kg_m3 * h;
+  const double C = E * h / (1.0 - nu * nu);               // membrane stiffness, N/m
+  const double D = E * h * h * h / (12.0 * (1.0 - nu * nu));  // bending stiffness, N m
+  radius_m_ = R;
+
+  // grid: nz intervals along the tube, nth points around it
+  nz_ = std::max(4, static_cast<int>(std::lround(tube.length_m / shell.AxialSpacing())));
+  nth_ = std::max(8, static_cast<int>(std::lround(2.0 * kPi * R / shell.grid_spacing_m)));
+  dz_m_ = tube.length_m / nz_;
+  dth_rad_ = 2.0 * kPi / nth_;
+  const double dz = dz_m_, dth = dth_rad_, ds = R * dth;
+  const int nz = nz_, nth = nth_;
+  auto wrap = [nth](int j) { return ((j % nth) + nth) % nth; };
+  auto z_of = [&](double i) { return -0.5 * tube.length_m + i * dz; };
+
+  // seams: the v point (i, js) lies on the cut at theta = (js + 1/2) dth
+  const bool real = !shell.ideal;
+  std::vector<int> seams;
+  if (real) {
+    for (double deg : shell.seam_theta_deg) {
+      const double theta = deg * kPi / 180.0;
+      const int js = wrap(static_cast<int>(std::lround(theta / dth - 0.5)));
+      if (std::find(seams.begin(), seams.end(), js) != seams.end()) {
+        throw ConfigError(fmt::format(
+            "shell.seam_theta_deg: two seams fall on the same grid column (at {} deg); use a finer "
+            "shell.grid_spacing_m", deg));
+      }
+      seams.push_back(js);
+    }
+  }
+  std::vector<bool> seam_v(static_cast<size_t>(nth), false), edge(static_cast<size_t>(nth), false);
+  for (int js : seams) {
+    seam_v[js] = true;
+    edge[js] = edge[wrap(js + 1)] = true;
+  }
+  auto in_hole = [&](double z_m, double theta_rad) {
+    if (!real) return false;
+    for (size_t k = 0; k < shell.hole_z_m.size(); ++k) {
+      const double dzh = z_m - shell.hole_z_m[k];
+      const double dsh = ArcDistance(R, theta_rad, shell.hole_theta_deg[k] * kPi / 180.0);
+      if (std::hypot(dzh, dsh) < 0.5 * shell.hole_diameter_m) return true;
+    }
+    return false;
+  };
+  const bool supported = shell.ends == "simply-supported";
+
+  // DOF numbering: w, u, v point by point; lumped masses from the area each point carries
+  std::vector<double> mass;
+  auto number = [&](std::vector<int64_t>* index, int rows, double i_offset, double j_offset,
+                    auto fixed, auto area) {
+    index->assign(static_cast<size_t>(rows) * nth, kAbsent);
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < nth; ++j) {
+        if (in_hole(z_of(i + i_offset), (j + j_offset) * dth)) continue;
+        int64_t& slot = (*index)[static_cast<size_t>(i) * nth + j];
+        if (fixed(i, j)) {
+          slot = kFixed;
+          continue;
+        }
+        slot = static_cast<int64_t>(mass.size());
+        mass.push_back(rho_h * area(i, j));
+      }
+    }
+  };
+  auto fz = [&](int i) { return (i == 0 || i == nz) ? 0.5 : 1.0; };     // end rows carry half
+  auto fth = [&](int j) { return edge[j] ? 0.5 : 1.0; };               // seam edges carry half
+  number(&w_index_, nz + 1, 0.0, 0.0, [&](int i, int) { return supported && (i == 0 || i == nz); },
+         [&](int i, int j) { return dz * fz(i) * ds * fth(j); });
+  number(&u_index_, nz, 0.5, 0.0, [](int, int) { return false; },
+         [&](int, int j) { return dz * ds * fth(j); });
+  number(&v_index_, nz + 1, 0.0, 0.5, [&](int i, int) { return supported && (i == 0 || i == nz); },
+         [&](int i, int) { return dz * fz(i) * ds; });
+  for (int i = 0; i <= nz; ++i) {
+    for (int j = 0; j < nth; ++j) {
+      if (seam_v[j]) v_index_[static_cast<size_t>(i) * nth + j] = kAbsent;
+    }
+  }
+  // renumber after the seam removals (drop the masses of removed v points)
+  {
+    std::vector<int64_t> remap(mass.size(), kAbsent);
+    std::vector<bool> used(mass.size(), false);
+    for (const auto* index : {&w_index_, &u_index_, &v_index_}) {
+      for (int64_t d : *index) {
+        if (d >= 0) used[static_cast<size_t>(d)] = true;
+      }
+    }
+    std::vector<double> kept;
+    for (size_t d = 0; d < mass.size(); ++d) {
+      if (!used[d]) continue;
+      remap[d] = static_cast<int64_t>(kept.size());
+      kept.push_back(mass[d]);
+    }
+    for (auto* index : {&w_index_, &u_index_, &v_index_}) {
+      for (int64_t& d : *index) {
+        if (d >= 0) d = remap[static_cast<size_t>(d)];
+      }
+    }
+    mass_kg_ = Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size()));
+  }
+
+  // strain samples: each row b_r with weight w_r adds w_r (b_r q)^2 / 2 to the energy
+  auto lookup = [&](Field f, int i, int j) -> int64_t {
+    const int rows = f == Field::kU ? nz : nz + 1;
+    if (i < 0 || i >= rows) return kAbsent;
+    const auto& index = f == Field::kU ? u_index_ : (f == Field::kV ? v_index_ : w_index_);
+    return index[static_cast<size_t>(i) * nth + wrap(j)];
+  };
+  // a linear form of grid values, or false when a point is absent
+  auto form = [&](std::initializer_list<Term> terms, Row* row) {
+    row->clear();
+    for (const Term& t : terms) {
+      const int64_t d = lookup(t.field, t.i, t.j);
+      if (d == kAbsent) return false;
+      if (d >= 0) row->push_back({d, t.c});
+    }
+    return true;
+  };
+  std::vector<Eigen::Triplet<double>> triplets;
+  std::vector<double> weights;
+  auto add = [&](const Row& a, double ca, const Row& b, double cb, double weight) {
+    if (weight == 0.0) return;
+    const int64_t r = static_cast<int64_t>(weights.size());
+    for (const auto& [d, c] : a) triplets.emplace_back(r, d, ca * c);
+    for (const auto& [d, c] : b) triplets.emplace_back(r, d, cb * c);
+    weights.push_back(weight);
+  };
+  const Row none;
+  // the pair energy s (x^2 + y^2 + 2 nu x y) of two strains, or s (1 - nu^2) x^2 with y free
+  auto pair_energy = [&](bool has_x, const Row& x, bool has_y, const Row& y, double s, double area) {
+    if (has_x && has_y) {
+      add(x, 1.0, y, 1.0, area * s * 0.5 * (1.0 + nu));
+      add(x, 1.0, y, -1.0, area * s * 0.5 * (1.0 - nu));
+    } else if (has_x) {
+      add(x, 1.0, none, 0.0, area * s * (1.0 - nu * nu));
+    } else if (has_y) {
+      add(y, 1.0, none, 0.0, area * s * (1.0 - nu * nu));
+    }
+  };
+  Row ex, et, kx, kt, g, tw;
+  for (int i = 0; i <= nz; ++i) {
+    for (int j = 0; j < nth; ++j) {
+      if (in_hole(z_of(i), j * dth)) continue;
+      const double area = dz * fz(i) * ds * fth(j);
+      // node (i, j): eps_x = u_x, eps_th = (v_th + w) / R, kappa_x = -w_xx,
+      // kappa_th = (v_th - w_thth) / R^2
+      const bool has_ex = form({{Field::kU, i, j, 1.0 / dz}, {Field::kU, i - 1, j, -1.0 / dz}}, &ex);
+      const bool has_et = form({{Field::kV, i, j, 1.0 / (R * dth)},
+                                {Field::kV, i, j - 1, -1.0 / (R * dth)},
+                                {Field::kW, i, j, 1.0 / R}}, &et);
+      const bool has_kx = form({{Field::kW, i + 1, j, -1.0 / (dz * dz)},
+                                {Field::kW, i, j, 2.0 / (dz * dz)},
+                                {Field::kW, i - 1, j, -1.0 / (dz * dz)}}, &kx);
+      const bool has_kt = form({{Field::kV, i, j, 1.0 / (R * R * dth)},
+                                {Field::kV, i, j - 1, -1.0 / (R * R * dth)},
+                                {Field::kW, i, j + 1, -1.0 / (R * R * dth * dth)},
+                                {Field::kW, i, j, 2.0 / (R * R * dth * dth)},
+                                {Field::kW, i, j - 1, -1.0 / (R * R * dth * dth)}}, &kt);
+      pair_energy(has_ex, ex, has_et, et, C, area);
+      pair_energy(has_kx, kx, has_kt, kt, D, area);
+      // corner (i + 1/2, j + 1/2): shear gamma = v_x + u_th / R and Sanders' twist
+      // tau = (-w_xth + 3/4 v_x - u_th / (4 R)) / R
+      if (i == nz || in_hole(z_of(i + 0.5), (j + 0.5) * dth)) continue;
+      if (form({{Field::kV, i + 1, j, 1.0 / dz}, {Field::kV, i, j, -1.0 / dz},
+                {Field::kU, i, j + 1, 1.0 / (R * dth)}, {Field::kU, i, j, -1.0 / (R * dth)}}, &g)) {
+        add(g, 1.0, none, 0.0, dz * ds * C * 0.5 * (1.0 - nu));
+      }
+      const double cw = -1.0 / (R * dz * dth);
+      if (form({{Field::kW, i + 1, j + 1, cw}, {Field::kW, i + 1, j, -cw},
+                {Field::kW, i, j + 1, -cw}, {Field::kW, i, j, cw},
+                {Field::kV, i + 1, j, 0.75 / (R * dz)}, {Field::kV, i, j, -0.75 / (R * dz)},
+                {Field::kU, i, j + 1, -0.25 / (R * R * dth)}, {Field::kU, i, j, 0.25 / (R * R * dth)}},
+               &tw)) {
+        add(tw, 1.0, none, 0.0, dz * ds * 2.0 * D * (1.0 - nu));
+      }
+    }
+  }
+
+  // springs: bolts across every seam (axial, arc and radial), mounts to ground at the end rims
+  Row a, b;
+  auto spring = [&](Field f, int ia, int ja, Field g2, int ib, int jb, double k) {
+    if (k <= 0.0) return;
+    const bool has_a = form({{f, ia, ja, 1.0}}, &a);
+    const bool has_b = form({{g2, ib, jb, -1.0}}, &b);
+    if (has_a && has_b) add(a, 1.0, b, 1.0, k);
+  };
+  if (real) {
+    for (int js : seams) {
+      for (double z : shell.bolt_z_m) {
+        const int ib = std::clamp(static_cast<int>(std::lround((z + 0.5 * tube.length_m) / dz)), 0, nz);
+        const int iu = std::clamp(static_cast<int>(std::floor((z + 0.5 * tube.length_m) / dz)), 0, nz - 1);
+        const double k = shell.bolt_stiffness_n_m;
+        spring(Field::kW, ib, js, Field::kW, ib, js + 1, k);
+        spring(Field::kU, iu, js, Field::kU, iu, js + 1, k);
+        spring(Field::kV, ib, js - 1, Field::kV, ib, js + 1, k);
+      }
+    }
+    for (const auto& [i, iu, k_per_m] :
+         {std::tuple{0, 0, shell.flange_mount_stiffness_n_m2},
+          std::tuple{nz, nz - 1, shell.tool_mount_stiffness_n_m2}}) {
+      if (k_per_m <= 0.0) continue;
+      for (int j = 0; j < nth; ++j) {
+        const double k = k_per_m * ds * fth(j);
+        for (const auto& [f, ii] : {std::pair{Field::kW, i}, std::pair{Field::kU, iu},
+                                     std::pair{Field::kV, i}}) {
+          if (form({{f, ii, j, 1.0}}, &a)) add(a, 1.0, none, 0.0, k);
+        }
+      }
+    }
+  }
+
+  // K = B^T W B
+  const Eigen::Index n = dofs();
+  Eigen::SparseMatrix<double> B(static_cast<Eigen::Index>(weights.size()), n);
+  B.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::Map<const Eigen::VectorXd> w(weights.data(), static_cast<Eigen::Index>(weights.size()));
+  const Eigen::SparseMatrix<double> WB = w.asDiagonal() * B;
+  stiffness_ = Eigen::SparseMatrix<double>(B.transpose() * WB);
+  stiffness_.makeCompressed();
+
+  // Rayleigh damping through (f_low, eta) and (f_high, eta_high): zeta = alpha/(2 w) + beta w / 2
+  const double eta_low = material.loss_factor;
+  const double eta_high = shell.loss_factor_high > 0.0 ? shell.loss_factor_high : eta_low;
+  const double w1 = 2.0 * kPi * shell.loss_low_hz, w2 = 2.0 * kPi * shell.loss_high_hz;
+  const double z1 = 0.5 * eta_low, z2 = 0.5 * eta_high;
+  beta_ = 2.0 * (z2 * w2 - z1 * w1) / (w2 * w2 - w1 * w1);
+  alpha_ = 2.0 * w1 * z1 - beta_ * w1 * w1;
+  if (alpha_ < 0.0 || beta_ < 0.0) {
+    throw ConfigError(fmt::format(
+        "shell.loss_factor_high = {} with material.loss_factor = {} between {} and {} Hz has no "
+        "Rayleigh fit with non-negative coefficients (alpha = {:.4g}, beta = {:.4g}); keep "
+        "eta_high / eta_low within [f_low / f_high, f_high / f_low]",
+        eta_high, eta_low, shell.loss_low_hz, shell.loss_high_hz, alpha_, beta_));
+  }
+
+  key_ = fmt::format(
+      "shell-v1 R={:.17g} h={:.17g} L={:.17g} E={:.17g} nu={:.17g} rho={:.17g} nz={} nth={} "
+      "ends={} ideal={} seams={} bolts={} kb={:.17g} holes={}/{} dh={:.17g} kf={:.17g} kt={:.17g}",
+      tube.outer_radius_m, h, tube.length_m, E, nu, material.density_kg_m3, nz, nth, shell.ends,
+      shell.ideal, fmt::join(shell.seam_theta_deg, ","), fmt::join(shell.bolt_z_m, ","),
+      shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","), fmt::join(shell.hole_theta_deg, ","),
+      shell.hole_diameter_m, shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
+}
+
+double ShellModel::DampingRatio(double omega_rad_s) const {
+  return alpha_ / (2.0 * omega_rad_s) + 0.5 * beta_ * omega_rad_s;
+}
+
+int64_t ShellModel::WIndex(int i, int j) const {
+  if (i < 0 || i > nz_ || j < 0 || j >= nth_) return -1;
+  const int64_t d = w_index_[static_cast<size_t>(i) * nth_ + j];
+  return d >= 0 ? d : -1;
+}
+
+Eigen::VectorXd ShellModel::RadialForceWeights(double z_m, double theta_rad) const {
+  const double x = (z_m + 0.5 * tube_.length_m) / dz_m_;
+  if (!(x >= -1e-9 && x <= nz_ + 1e-9)) {
+    throw ConfigError(fmt::format("contact z = {} m lies off the tube (|z| <= {} m)", z_m,
+                                  0.5 * tube_.length_m));
+  }
+  double y = WrapAngle(theta_rad) / dth_rad_;
+  if (y < 0.0) y += nth_;
+  const int i0 = std::clamp(static_cast<int>(std::floor(x)), 0, nz_ - 1);
+  const int j0 = static_cast<int>(std::floor(y)) % nth_;
+  const double fx = std::clamp(x - i0, 0.0, 1.0), fy = y - std::floor(y);
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
+  double absent = 0.0;
+  for (int di = 0; di < 2; ++di) {
+    for (int dj = 0; dj < 2; ++dj) {
+      const double wgt = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
+      const int64_t d = w_index_[static_cast<size_t>(i0 + di) * nth_ + (j0 + dj) % nth_];
+      if (d >= 0) out[d] += wgt;
+      if (d == kAbsent) absent += wgt;
+    }
+  }
+  if (absent > 0.5) {
+    throw ConfigError(fmt::format("contact at z = {} m, theta = {} rad lies in a hole of the shell",
+                                  z_m, theta_rad));
+  }
+  return out / (1.0 - absent);
+}
+
+Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diameter_m) const {
+  const double R = radius_m_, h = tube_.wall_thickness_m;
+  const double dz = dz_m_, dth = dth_rad_;
+  auto at = [&](int i, int j, auto field) -> int64_t {
+    if (i < 0) return kAbsent;
+    j = ((j % nth_) + nth_) % nth_;
+    if (field == 0) return i <= nz_ ? w_index_[static_cast<size_t>(i) * nth_ + j] : kAbsent;
+    if (field == 1) return i < nz_ ? u_index_[static_cast<size_t>(i) * nth_ + j] : kAbsent;
+    return i <= nz_ ? v_index_[static_cast<size_t>(i) * nth_ + j] : kAbsent;
+  };
+  // outer-surface strain at node (i, j): eps_x + eps_th + h/2 (kappa_x + kappa_th)
+  auto node_row = [&](int i, int j, Eigen::VectorXd* row) {
+    const std::initializer_list<std::tuple<int, int, int, double>> terms = {
+        {1, i, j, 1.0 / dz}, {1, i - 1, j, -1.0 / dz},
+        {2, i, j, 1.0 / (R * dth) + 0.5 * h / (R * R * dth)},
+        {2, i, j - 1, -1.0 / (R * dth) - 0.5 * h / (R * R * dth)},
+        {0, i, j, 1.0 / R + 0.5 * h * (2.0 / (dz * dz) + 2.0 / (R * R * dth * dth))},
+        {0, i + 1, j, -0.5 * h / (dz * dz)}, {0, i - 1, j, -0.5 * h / (dz * dz)},
+        {0, i, j + 1, -0.5 * h / (R * R * dth * dth)}, {0, i, j - 1, -0.5 * h / (R * R * dth * dth)}};
+    for (const auto& [f, ii, jj, c] : terms) {
+      if (at(ii, jj, f) == kAbsent) return false;
+    }
+    for (const auto& [f, ii, jj, c] : terms) {
+      const int64_t d = at(ii, jj, f);
+      if (d >= 0) (*row)[d] += c;
+    }
+    return true;
+  };
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
+  const int ic = static_cast<int>(std::lround((z_m + 0.5 * tube_.length_m) / dz));
+  double y = WrapAngle(theta_rad) / dth;
+  const int jc = static_cast<int>(std::lround(y));
+  const int reach_i = static_cast<int>(std::ceil(0.5 * diameter_m / dz)) + 1;
+  const int reach_j = static_cast<int>(std::ceil(0.5 * diameter_m / (R * dth))) + 1;
+  int count = 0;
+  for (int i = ic - reach_i; i <= ic + reach_i; ++i) {
+    for (int j = jc - reach_j; j <= jc + reach_j; ++j) {
+      const double dzn = NodeZ(i) - z_m, dsn = R * (j * dth - y * dth);
+      if (std::hypot(dzn, dsn) > 0.5 * diameter_m) continue;
+      if (node_row(i, j, &out)) ++count;
+    }
+  }
+  if (count == 0 && node_row(ic, jc, &out)) count = 1;  // disc smaller than the grid
+  if (count == 0) {
+    throw ConfigError(fmt::format("microphone at z = {} m, theta = {} rad has no complete grid node "
+                                  "under it (seam, hole or end)", z_m, theta_rad));
+  }
+  return out / count;
+}
+
+Eigen::MatrixXd ShellModel::SensorRows(const MicArrayConfig& mics) const {
+  Eigen::MatrixXd rows(mics.count(), dofs());
+  for (int m = 0; m < mics.count(); ++m) {
+    rows.row(m) = SensorRow(mics.z_m[m], mics.theta_deg[m] * kPi / 180.0, mics.disc_diameter_m)
+                      .transpose();
+  }
+  return rows;
+}
+
+double ShellModel::StrainEnergy(const Eigen::VectorXd& q_m) const {
+  return 0.5 * q_m.dot(stiffness_ * q_m);
+}
+
+}  // namespace sonicboom::acoustics

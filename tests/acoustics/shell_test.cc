@@ -1,0 +1,266 @@
+// The discretized shell (K, M, seams, holes, mounts), its numerical modes, and the FD solver:
+// theory checks (Flügge, Rayleigh), grid convergence order, energy conservation, decay, stability.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <iostream>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_fd.h"
+#include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+ShellConfig Ideal(const std::string& ends, double arc_m, double axial_m) {
+  ShellConfig s;
+  s.ideal = true;
+  s.ends = ends;
+  s.grid_spacing_m = arc_m;
+  s.axial_spacing_m = axial_m;
+  return s;
+}
+
+double Hz(double omega_rad_s) { return omega_rad_s / (2.0 * kPi); }
+
+// dominant circumferential order of a mode's radial motion on the middle ring
+int CircumferentialOrder(const ShellModel& model, const Eigen::VectorXd& shape) {
+  const int i = model.axial_points() / 2, nth = model.circumferential_points();
+  int best = 0;
+  double best_power = -1.0;
+  for (int n = 0; n <= nth / 2; ++n) {
+    std::complex<double> sum = 0.0;
+    for (int j = 0; j < nth; ++j) {
+      const int64_t d = model.WIndex(i, j);
+      if (d >= 0) sum += shape[d] * std::polar(1.0, -n * j * model.dtheta_rad());
+    }
+    if (std::norm(sum) > best_power) {
+      best_power = std::norm(sum);
+      best = n;
+    }
+  }
+  return best;
+}
+
+TEST(ShellModesTest, IdealSimplySupportedMatchesFluggeWithinOnePercent) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  const ShellModel model(tube, material, Ideal("simply-supported", 0.0025, 0.005));
+  const ShellModes modes = SolveShellModes(model, 0.0, 10, false);
+  ASSERT_EQ(modes.omega_rad_s.size(), 10);
+  // the axial rigid translation (u is free at a shear diaphragm) is the only rigid-body mode
+  EXPECT_EQ(modes.rigid_body_modes, 1);
+  const std::vector<double> flugge = ClosedFormFrequencies(tube, material, "simply-supported", 10);
+  for (int k = 0; k < 10; ++k) {
+    EXPECT_NEAR(Hz(modes.omega_rad_s[k]) / flugge[k], 1.0, 0.01)
+        << "mode " << k << ": " << Hz(modes.omega_rad_s[k]) << " Hz vs Flügge " << flugge[k];
+  }
+  // degenerate pairs come out twice
+  EXPECT_NEAR(modes.omega_rad_s[0] / modes.omega_rad_s[1], 1.0, 1e-8);
+}
+
+TEST(ShellModesTest, IdealFreeFreeMatchesRayleighWithinTwoPercent) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  const ShellModel model(tube, material, Ideal("free", 0.0025, 0.006));
+  const ShellModes modes = SolveShellModes(model, 2900.0, 0, true);
+  EXPECT_EQ(modes.rigid_body_modes, 6);  // 3 translations, 3 rotations
+  for (int n = 2; n <= 6; ++n) {
+    // the lowest mode whose radial motion has order n is Rayleigh's inextensional mode
+    double found_hz = 0.0;
+    for (Eigen::Index k = 0; k < modes.omega_rad_s.size() && found_hz == 0.0; ++k) {
+      if (CircumferentialOrder(model, modes.shapes.col(k)) == n) found_hz = Hz(modes.omega_rad_s[k]);
+    }
+    const double rayleigh_hz = RayleighFrequency(tube, material, n);
+    EXPECT_NEAR(found_hz / rayleigh_hz, 1.0, 0.02) << "n = " << n << ": " << found_hz << " Hz vs "
+                                                  << rayleigh_hz;
+  }
+  // ascending, mass-normalized
+  for (Eigen::Index k = 1; k < modes.omega_rad_s.size(); ++k) {
+    EXPECT_LE(modes.omega_rad_s[k - 1], modes.omega_rad_s[k]);
+  }
+  const Eigen::VectorXd& m = model.mass_kg();
+  EXPECT_NEAR(modes.shapes.col(3).dot(m.cwiseProduct(modes.shapes.col(3))), 1.0, 1e-8);
+  EXPECT_NEAR(modes.shapes.col(3).dot(m.cwiseProduct(modes.shapes.col(7))), 0.0, 1e-8);
+}
+
+TEST(ShellModesTest, GridConvergesAtSecondOrder) {
+  // the (m, n) = (1, 2) frequency of the ideal simply-supported tube on three grids, each half
+  // the spacing of the last: errors fall by 4 at second order, so successive differences do too
+  const TubeConfig tube;
+  const MaterialConfig material;
+  std::vector<double> f;
+  for (double h : {0.012, 0.006, 0.003}) {
+    const ShellModel model(tube, material, Ideal("simply-supported", h, h));
+    f.push_back(Hz(SolveShellModes(model, 0.0, 1, false).omega_rad_s[0]));
+  }
+  const double ratio = (f[0] - f[1]) / (f[1] - f[2]);
+  std::cout << "(1,2) mode on 12/6/3 mm grids: " << f[0] << ", " << f[1] << ", " << f[2]
+            << " Hz; difference ratio " << ratio << "\n";
+  EXPECT_NEAR(ratio, 4.0, 0.6);
+}
+
+TEST(ShellModesTest, BandIsCompleteByInertia) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  ShellConfig real;
+  real.grid_spacing_m = 0.008;
+  const ShellModel model(tube, material, real);
+  const ShellModes modes = SolveShellModes(model, 3000.0, 0, false);
+  EXPECT_EQ(modes.omega_rad_s.size() + modes.rigid_body_modes, CountModesBelow(model, 3000.0));
+  EXPECT_LE(Hz(modes.omega_rad_s[modes.omega_rad_s.size() - 1]), 3000.0);
+  // bolted halves on mounts: no rigid-body motion is left
+  EXPECT_EQ(modes.rigid_body_modes, 0);
+}
+
+TEST(ShellModelTest, SeamAndHolesSplitTheDegeneratePairs) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  ShellConfig free_real;
+  free_real.grid_spacing_m = 0.006;
+  free_real.flange_mount_stiffness_n_m2 = 0.0;
+  free_real.tool_mount_stiffness_n_m2 = 0.0;
+  const ShellModel model(tube, material, free_real);
+  const ShellModes modes = SolveShellModes(model, 0.0, 8, false);
+  // the ideal tube's lowest pair is degenerate to 1e-8; the seams split it
+  EXPECT_GT(modes.omega_rad_s[1] / modes.omega_rad_s[0] - 1.0, 1e-3);
+  // mass: the sawn tube loses one arc step per seam and the holes their area (within a grid cell)
+  const double h = tube.wall_thickness_m, R = tube.mid_radius_m();
+  const double ds = R * model.dtheta_rad();
+  const double expected_kg = material.density_kg_m3 * h * tube.length_m * (2.0 * kPi * R - 2.0 * ds);
+  // every grid point carries three DOFs (u, v, w): a third of the lumped mass is the shell's
+  EXPECT_NEAR(model.mass_kg().sum() / 3.0, expected_kg, 0.02 * expected_kg);
+}
+
+TEST(ShellModelTest, BadSettingsAreConfigErrors) {
+  const TubeConfig tube;
+  MaterialConfig material;
+  ShellConfig s;
+  s.ends = "clamped";
+  EXPECT_THROW(ShellModel(tube, material, s), ConfigError);
+  s = ShellConfig{};
+  s.loss_factor_high = 1.0;  // 50x the low-frequency loss over a 5x band: no Rayleigh fit
+  try {
+    ShellModel model(tube, material, s);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("shell.loss_factor_high"), std::string::npos) << e.what();
+  }
+  s = ShellConfig{};
+  s.hole_z_m = {0.5};
+  s.hole_theta_deg = {0.0};
+  EXPECT_THROW(ShellModel(tube, material, s), ConfigError);
+}
+
+TEST(ShellModelTest, RayleighDampingHitsBothAnchors) {
+  const TubeConfig tube;
+  MaterialConfig material;
+  material.loss_factor = 0.02;
+  ShellConfig s;
+  s.grid_spacing_m = 0.02;
+  s.loss_factor_high = 0.04;
+  const ShellModel model(tube, material, s);
+  EXPECT_NEAR(2.0 * model.DampingRatio(2.0 * kPi * s.loss_low_hz), 0.02, 1e-12);
+  EXPECT_NEAR(2.0 * model.DampingRatio(2.0 * kPi * s.loss_high_hz), 0.04, 1e-12);
+}
+
+TEST(ShellFdTest, LosslessSchemeConservesItsEnergy) {
+  const TubeConfig tube;
+  MaterialConfig material;
+  material.loss_factor = 0.0;
+  ShellConfig s;
+  s.grid_spacing_m = 0.01;
+  const ShellModel model(tube, material, s);
+  const ShellFd fd(model, 44100.0, 0);
+  ShellFdState state = fd.Rest();
+  // a struck start: a short push at one point, then free vibration
+  const Eigen::VectorXd push = model.RadialForceWeights(0.03, 0.4);
+  for (int n = 0; n < 20; ++n) fd.Step(&state, 10.0 * push);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.dofs());
+  const double e0 = fd.Energy(state);
+  ASSERT_GT(e0, 0.0);
+  double worst = 0.0;
+  for (int n = 0; n < 20000; ++n) {
+    fd.Step(&state, zero);
+    if (n % 100 == 0) worst = std::max(worst, std::abs(fd.Energy(state) / e0 - 1.0));
+  }
+  std::cout << "oversampling " << fd.oversampling() << ", energy drift over 20000 steps: " << worst
+            << "\n";
+  EXPECT_LT(worst, 1e-11);
+}
+
+TEST(ShellFdTest, UnstableOversamplingIsRefusedNamingTheLimit) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  ShellConfig s;
+  s.grid_spacing_m = 0.01;
+  const ShellModel model(tube, material, s);
+  const ShellFd automatic(model, 44100.0, 0);
+  ASSERT_GT(automatic.oversampling(), 1);
+  EXPECT_LE(automatic.timestep_s(), automatic.stability_limit_s());
+  try {
+    ShellFd fd(model, 44100.0, automatic.oversampling() - 1);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("stability limit"), std::string::npos) << message;
+    EXPECT_NE(message.find("fd.oversampling >="), std::string::npos) << message;
+  }
+  // at the automatic step the state stays bounded over many steps (an unstable mode would grow
+  // by orders of magnitude)
+  ShellFdState state = automatic.Rest();
+  const Eigen::VectorXd push = model.RadialForceWeights(-0.05, 2.0);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.dofs());
+  for (int n = 0; n < 5; ++n) automatic.Step(&state, push);
+  const double e0 = automatic.Energy(state);
+  for (int n = 0; n < 30000; ++n) automatic.Step(&state, zero);
+  EXPECT_TRUE(state.current.allFinite());
+  EXPECT_LE(automatic.Energy(state), e0 * (1.0 + 1e-9));
+}
+
+TEST(ShellFdTest, DampedModeDecaysAtItsConfiguredT60) {
+  // one mode of the ideal simply-supported tube as the initial state; its modal amplitude decays
+  // at sigma = zeta omega, T60 = 3 ln 10 / sigma
+  const TubeConfig tube;
+  MaterialConfig material;
+  material.loss_factor = 0.02;
+  const ShellModel model(tube, material, Ideal("simply-supported", 0.01, 0.01));
+  const ShellModes modes = SolveShellModes(model, 0.0, 1, true);
+  const Eigen::VectorXd phi = modes.shapes.col(0);
+  const double omega = modes.omega_rad_s[0];
+  const double expected_t60_s = 3.0 * std::log(10.0) / (model.DampingRatio(omega) * omega);
+  const ShellFd fd(model, 44100.0, 0);
+  ShellFdState state{phi, phi};
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.dofs());
+  const Eigen::VectorXd m_phi = model.mass_kg().cwiseProduct(phi);
+  // peak modal amplitude over one period at t = 0 and at t = 0.1 s
+  const int64_t period_steps = static_cast<int64_t>(std::ceil(2.0 * kPi / omega / fd.timestep_s()));
+  auto peak = [&] {
+    double p = 0.0;
+    for (int64_t n = 0; n < period_steps; ++n) {
+      fd.Step(&state, zero);
+      p = std::max(p, std::abs(m_phi.dot(state.current)));
+    }
+    return p;
+  };
+  const double a0 = peak();
+  const int64_t gap_steps = static_cast<int64_t>(0.1 / fd.timestep_s());
+  for (int64_t n = 0; n < gap_steps; ++n) fd.Step(&state, zero);
+  const double a1 = peak();
+  const double sigma = std::log(a0 / a1) / (static_cast<double>(gap_steps + period_steps) * fd.timestep_s());
+  const double t60_s = 3.0 * std::log(10.0) / sigma;
+  std::cout << "mode at " << Hz(omega) << " Hz: T60 " << t60_s << " s, configured "
+            << expected_t60_s << " s\n";
+  EXPECT_NEAR(t60_s / expected_t60_s, 1.0, 0.05);
+}
+
+}  // namespace
+}  // namespace sonicboom::acoustics
