@@ -4,12 +4,17 @@
 #include <Spectra/SymEigsShiftSolver.h>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <numbers>
 #include <utility>
 #include <vector>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "sonicboom/core/errors.h"
 
@@ -234,6 +239,103 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
     }
   }
   return out;
+}
+
+namespace {
+
+constexpr char kCacheMagic[8] = {'S', 'B', 'M', 'O', 'D', 'E', 'S', '1'};
+
+uint64_t Fnv1a(const std::string& text) {
+  uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : text) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+// file layout: magic, key length, key, rigid, modes, rows, omega (modes), shapes (rows x modes)
+bool ReadModes(const std::string& path, const std::string& key, ShellModes* out) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  char magic[8];
+  uint64_t key_size = 0;
+  in.read(magic, 8);
+  in.read(reinterpret_cast<char*>(&key_size), sizeof key_size);
+  if (!in || std::memcmp(magic, kCacheMagic, 8) != 0 || key_size != key.size()) return false;
+  std::string stored(key_size, '\0');
+  in.read(stored.data(), static_cast<std::streamsize>(key_size));
+  int64_t header[3];
+  in.read(reinterpret_cast<char*>(header), sizeof header);
+  if (!in || stored != key || header[1] < 0 || header[2] < 0) return false;
+  out->rigid_body_modes = header[0];
+  out->omega_rad_s.resize(header[1]);
+  out->shapes.resize(header[2], header[2] > 0 ? header[1] : 0);
+  in.read(reinterpret_cast<char*>(out->omega_rad_s.data()),
+          static_cast<std::streamsize>(sizeof(double) * out->omega_rad_s.size()));
+  in.read(reinterpret_cast<char*>(out->shapes.data()),
+          static_cast<std::streamsize>(sizeof(double) * out->shapes.size()));
+  return static_cast<bool>(in) && in.peek() == std::char_traits<char>::eof();
+}
+
+void WriteModes(const std::string& path, const std::string& key, const ShellModes& modes) {
+  const std::string partial = path + ".partial";
+  {
+    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+    const uint64_t key_size = key.size();
+    const int64_t header[3] = {modes.rigid_body_modes, modes.omega_rad_s.size(), modes.shapes.rows()};
+    out.write(kCacheMagic, 8);
+    out.write(reinterpret_cast<const char*>(&key_size), sizeof key_size);
+    out.write(key.data(), static_cast<std::streamsize>(key.size()));
+    out.write(reinterpret_cast<const char*>(header), sizeof header);
+    out.write(reinterpret_cast<const char*>(modes.omega_rad_s.data()),
+              static_cast<std::streamsize>(sizeof(double) * modes.omega_rad_s.size()));
+    out.write(reinterpret_cast<const char*>(modes.shapes.data()),
+              static_cast<std::streamsize>(sizeof(double) * modes.shapes.size()));
+    if (!out) {
+      spdlog::warn("mode cache: cannot write {}; continuing without it", partial);
+      std::error_code ec;
+      std::filesystem::remove(partial, ec);
+      return;
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) spdlog::warn("mode cache: cannot rename {} to {}: {}", partial, path, ec.message());
+}
+
+}  // namespace
+
+std::string DefaultModeCacheDir() {
+  if (const char* dir = std::getenv("SONICBOOM_CACHE_DIR"); dir != nullptr && *dir != '\0') return dir;
+  if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0') {
+    return (std::filesystem::path(home) / ".cache" / "sonicboom" / "modes").string();
+  }
+  return "";
+}
+
+ShellModes CachedShellModes(const ShellModel& model, double max_frequency_hz, int64_t max_count,
+                            bool with_shapes, const std::string& cache_dir, bool* hit) {
+  if (hit != nullptr) *hit = false;
+  if (cache_dir.empty()) return SolveShellModes(model, max_frequency_hz, max_count, with_shapes);
+  const std::string key = fmt::format("{} | band={:.17g} count={} shapes={}", model.key(),
+                                      max_frequency_hz, max_count, with_shapes);
+  const std::string path =
+      (std::filesystem::path(cache_dir) / fmt::format("modes-{:016x}.bin", Fnv1a(key))).string();
+  ShellModes modes;
+  if (ReadModes(path, key, &modes)) {
+    if (hit != nullptr) *hit = true;
+    return modes;
+  }
+  modes = SolveShellModes(model, max_frequency_hz, max_count, with_shapes);
+  std::error_code ec;
+  std::filesystem::create_directories(cache_dir, ec);
+  if (ec) {
+    spdlog::warn("mode cache: cannot create {}: {}; continuing without it", cache_dir, ec.message());
+  } else {
+    WriteModes(path, key, modes);
+  }
+  return modes;
 }
 
 }  // namespace sonicboom::acoustics

@@ -280,7 +280,11 @@ CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool
   config.shell.ends = boundary;
   if (ideal) config.shell.ideal = true;
   const acoustics::ShellModel model(config.tube, config.material, config.shell);
-  const acoustics::ShellModes modes = acoustics::SolveShellModes(model, 0.0, count, false);
+  bool cached = false;
+  const acoustics::ShellModes modes = acoustics::CachedShellModes(
+      model, 0.0, count, false, acoustics::DefaultModeCacheDir(), &cached);
+  spdlog::info("modes {} the cache ({})", cached ? "read from" : "computed and stored in",
+               acoustics::DefaultModeCacheDir());
   std::vector<double> f(static_cast<size_t>(modes.omega_rad_s.size()));
   for (size_t k = 0; k < f.size(); ++k) f[k] = modes.omega_rad_s[static_cast<Eigen::Index>(k)] / (2.0 * std::numbers::pi);
   json j = {{"frequencies_hz", f},
@@ -289,7 +293,8 @@ CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool
             {"model", "numerical shell: Sanders theory on a staggered (z, theta) grid (acoustics/shell.h)"},
             {"grid_points", {model.axial_points(), model.circumferential_points()}},
             {"dofs", model.dofs()},
-            {"rigid_body_modes", modes.rigid_body_modes}};
+            {"rigid_body_modes", modes.rigid_body_modes},
+            {"from_cache", cached}};
   std::string text = fmt::format(
       "{} lowest elastic modes, {} ends, {} tube ({} x {} grid, {} DOFs; {} rigid-body modes not "
       "listed; pairs listed twice):\n",

@@ -1,9 +1,13 @@
 // The discretized shell (K, M, seams, holes, mounts), its numerical modes, and the FD solver:
 // theory checks (Flügge, Rayleigh), grid convergence order, energy conservation, decay, stability.
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
 
 #include <cmath>
 #include <complex>
+#include <filesystem>
 #include <iostream>
 #include <numbers>
 #include <string>
@@ -139,6 +143,40 @@ TEST(ShellModelTest, SeamAndHolesSplitTheDegeneratePairs) {
   const double expected_kg = material.density_kg_m3 * h * tube.length_m * (2.0 * kPi * R - 2.0 * ds);
   // every grid point carries three DOFs (u, v, w): a third of the lumped mass is the shell's
   EXPECT_NEAR(model.mass_kg().sum() / 3.0, expected_kg, 0.02 * expected_kg);
+}
+
+TEST(ShellModesTest, CacheReturnsTheSameModesBitForBit) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  ShellConfig s;
+  s.grid_spacing_m = 0.012;
+  const ShellModel model(tube, material, s);
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / fmt::format("sb_modes_{}", ::getpid());
+  std::filesystem::remove_all(dir);
+  bool hit = true;
+  const ShellModes first = CachedShellModes(model, 2000.0, 0, true, dir.string(), &hit);
+  EXPECT_FALSE(hit);
+  const ShellModes second = CachedShellModes(model, 2000.0, 0, true, dir.string(), &hit);
+  EXPECT_TRUE(hit);
+  EXPECT_TRUE(first.omega_rad_s == second.omega_rad_s);
+  EXPECT_TRUE(first.shapes == second.shapes);
+  EXPECT_EQ(first.rigid_body_modes, second.rigid_body_modes);
+  // another structure (a stiffer bolt) is another entry
+  s.bolt_stiffness_n_m *= 2.0;
+  const ShellModel other(tube, material, s);
+  CachedShellModes(other, 2000.0, 0, true, dir.string(), &hit);
+  EXPECT_FALSE(hit);
+  // a damaged file is recomputed and replaced
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    std::filesystem::resize_file(entry.path(), 100);
+  }
+  const ShellModes third = CachedShellModes(model, 2000.0, 0, true, dir.string(), &hit);
+  EXPECT_FALSE(hit);
+  EXPECT_TRUE(third.omega_rad_s == first.omega_rad_s);
+  CachedShellModes(model, 2000.0, 0, true, dir.string(), &hit);
+  EXPECT_TRUE(hit);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ShellModelTest, BadSettingsAreConfigErrors) {

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <string>
 
 #include "sonicboom/acoustics/shell.h"
 
@@ -26,6 +27,16 @@ struct ShellModes {
 /// skips the eigenvectors. Throws ConfigError for a range that holds more than 20000 modes.
 ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int64_t max_count,
                            bool with_shapes = true);
+
+/// SolveShellModes through an on-disk cache: the result is stored bit for bit in cache_dir under
+/// a hash of ShellModel::key() and the request, and read back when the same structure and request
+/// come again (the stored key is compared in full). An empty cache_dir disables the cache; a file
+/// that cannot be read is recomputed and replaced. *hit (optional) tells whether it was read.
+ShellModes CachedShellModes(const ShellModel& model, double max_frequency_hz, int64_t max_count,
+                            bool with_shapes, const std::string& cache_dir, bool* hit = nullptr);
+
+/// The default mode cache: $SONICBOOM_CACHE_DIR, else $HOME/.cache/sonicboom/modes, else "".
+std::string DefaultModeCacheDir();
 
 /// The number of modes (rigid-body ones included) with frequency below f_hz, by inertia.
 int64_t CountModesBelow(const ShellModel& model, double f_hz);
