@@ -338,6 +338,13 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       shell.hole_diameter_m, shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
 }
 
+Eigen::SparseMatrix<double> ShellModel::MassScaledStiffness() const {
+  const Eigen::VectorXd s = mass_kg_.cwiseSqrt().cwiseInverse();
+  Eigen::SparseMatrix<double> a = s.asDiagonal() * stiffness_ * s.asDiagonal();
+  a.makeCompressed();
+  return a;
+}
+
 double ShellModel::DampingRatio(double omega_rad_s) const {
   return alpha_ / (2.0 * omega_rad_s) + 0.5 * beta_ * omega_rad_s;
 }

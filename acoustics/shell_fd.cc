@@ -19,8 +19,7 @@ constexpr double kAutoMargin = 0.98;
 
 // Largest eigenvalue of M^-1 K (rad^2/s^2), from M^-1/2 K M^-1/2 by Lanczos
 double LargestEigenvalue(const ShellModel& model) {
-  const Eigen::VectorXd s = model.mass_kg().cwiseSqrt().cwiseInverse();
-  Eigen::SparseMatrix<double> a = s.asDiagonal() * model.stiffness() * s.asDiagonal();
+  const Eigen::SparseMatrix<double> a = model.MassScaledStiffness();
   Spectra::SparseSymMatProd<double> op(a);
   const Eigen::Index n = a.rows();
   Spectra::SymEigsSolver<Spectra::SparseSymMatProd<double>> solver(op, 1, std::min<Eigen::Index>(n, 40));

@@ -32,19 +32,16 @@ constexpr double kEdgeTolerance = 1e-6;
 using SpMat = Eigen::SparseMatrix<double>;
 using Ldlt = Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>>;
 
-// A = M^-1/2 K M^-1/2 (dofs x dofs), symmetric
-SpMat ScaledStiffness(const ShellModel& model) {
-  const Eigen::VectorXd s = model.mass_kg().cwiseSqrt().cwiseInverse();
-  SpMat a = s.asDiagonal() * model.stiffness() * s.asDiagonal();
-  a.makeCompressed();
-  return a;
+// A - sigma I
+SpMat Shifted(const SpMat& a, double sigma) {
+  SpMat shifted = a;
+  for (Eigen::Index i = 0; i < a.rows(); ++i) shifted.coeffRef(i, i) -= sigma;
+  return shifted;
 }
 
 // Number of eigenvalues of A below sigma: negative pivots of LDL^T(A - sigma I)
 int64_t NegativePivots(const SpMat& a, double sigma) {
-  SpMat shifted = a;
-  for (Eigen::Index i = 0; i < a.rows(); ++i) shifted.coeffRef(i, i) -= sigma;
-  Ldlt ldlt(shifted);
+  Ldlt ldlt(Shifted(a, sigma));
   SONICBOOM_DEMAND(ldlt.info() == Eigen::Success);
   return (ldlt.vectorD().array() < 0.0).count();
 }
@@ -57,9 +54,7 @@ class ShiftInvert {
   Eigen::Index rows() const { return a_.rows(); }
   Eigen::Index cols() const { return a_.cols(); }
   void set_shift(double sigma) {
-    SpMat shifted = a_;
-    for (Eigen::Index i = 0; i < a_.rows(); ++i) shifted.coeffRef(i, i) -= sigma;
-    ldlt_.compute(shifted);
+    ldlt_.compute(Shifted(a_, sigma));
     if (ldlt_.info() != Eigen::Success) {
       throw Error(fmt::format("shell modes: the factorization at shift {} Hz failed",
                               std::sqrt(std::abs(sigma)) / (2.0 * kPi)));
@@ -91,7 +86,7 @@ class ShiftInvert {
 
 int64_t CountModesBelow(const ShellModel& model, double f_hz) {
   const double omega = 2.0 * kPi * f_hz;
-  return NegativePivots(ScaledStiffness(model), omega * omega);
+  return NegativePivots(model.MassScaledStiffness(), omega * omega);
 }
 
 ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int64_t max_count,
@@ -102,7 +97,7 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
   if (max_count > kMaxModes) {
     throw ConfigError(fmt::format("shell modes: {} modes requested, at most {}", max_count, kMaxModes));
   }
-  const SpMat a = ScaledStiffness(model);
+  const SpMat a = model.MassScaledStiffness();
   const Eigen::Index n = a.rows();
   const double rigid_lambda = std::pow(2.0 * kPi * kRigidBodyHz, 2);
   const double cut_lambda =

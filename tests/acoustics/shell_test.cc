@@ -315,21 +315,26 @@ double RelativeError(const Eigen::MatrixXd& x, const Eigen::MatrixXd& reference)
   return (x - reference).norm() / reference.norm();
 }
 
+// the default seamed, drilled, mounted tube on a 10 mm grid, shared by the signal tests
+const ShellModel& SeamedTube10mm() {
+  static const ShellModel model = [] {
+    ShellConfig s;
+    s.grid_spacing_m = 0.01;
+    s.axial_spacing_m = 0.01;
+    return ShellModel(TubeConfig{}, MaterialConfig{}, s);
+  }();
+  return model;
+}
+
 TEST(ShellFdTest, FdAndModalAgreeOnTheSameStructure) {
   // the seamed, drilled, mounted tube on a 10 mm grid: FD at its automatic step against modal
   // synthesis with every mode below 15 kHz plus the residual of the rest, 6 discs, 20 ms
-  const TubeConfig tube;
-  const MaterialConfig material;
-  const MicArrayConfig mics;
-  ShellConfig s;
-  s.grid_spacing_m = 0.01;
-  s.axial_spacing_m = 0.01;
-  const ShellModel model(tube, material, s);
+  const ShellModel& model = SeamedTube10mm();
   const double fs = 44100.0;
   const int64_t samples = 882;
   const std::vector<double> force = Pulse(fs, 0.4e-3, 50.0);
   const Eigen::VectorXd weights = model.RadialForceWeights(0.02, 1.0);
-  const Eigen::MatrixXd sensors = model.SensorRows(mics);
+  const Eigen::MatrixXd sensors = model.SensorRows(MicArrayConfig{});
   const ShellFd fd(model, fs, 0);
   const Eigen::MatrixXd y_fd = fd.Run(weights, force, sensors, samples);
   const ShellModes modes = SolveShellModes(model, 15000.0, 0, true);
@@ -347,17 +352,11 @@ TEST(ShellFdTest, FdAndModalAgreeOnTheSameStructure) {
 }
 
 TEST(ShellSynthTest, ResidualRestoresTheTruncatedModes) {
-  const TubeConfig tube;
-  const MaterialConfig material;
-  const MicArrayConfig mics;
-  ShellConfig s;
-  s.grid_spacing_m = 0.01;
-  s.axial_spacing_m = 0.01;
-  const ShellModel model(tube, material, s);
+  const ShellModel& model = SeamedTube10mm();
   const double fs = 44100.0;
   const std::vector<double> force = Pulse(fs, 0.4e-3, 50.0);
   const Eigen::VectorXd weights = model.RadialForceWeights(-0.06, -2.0);
-  const Eigen::MatrixXd sensors = model.SensorRows(mics);
+  const Eigen::MatrixXd sensors = model.SensorRows(MicArrayConfig{});
   const ShellModes all = SolveShellModes(model, 20000.0, 0, true);
   const Eigen::MatrixXd reference = ModalRun(model, all, weights, force, sensors, 600, fs, true);
   const ShellModes band = SolveShellModes(model, 5000.0, 0, true);

@@ -12,6 +12,7 @@
 #include "sonicboom/core/rng.h"
 #include "sonicboom/sim/rollout.h"
 #include "sonicboom/sim/strike.h"
+#include "rollout_expect.h"
 
 namespace sonicboom::sim {
 namespace {
@@ -130,29 +131,6 @@ TEST(RolloutTest, TubeStaysPressedAgainstTheRod) {
   for (const auto& [kind, count] : kinds) std::cout << " " << static_cast<int>(kind) << " " << count;
   std::cout << "\n";
   EXPECT_EQ(pressed, valid);
-}
-
-void ExpectSameRecords(const RolloutResult& a, const RolloutResult& b) {
-  ASSERT_EQ(a.valid, b.valid);
-  EXPECT_EQ(a.invalid_reason, b.invalid_reason);
-  EXPECT_EQ(a.steps, b.steps);
-  ASSERT_EQ(a.contacts.size(), b.contacts.size());
-  for (size_t i = 0; i < a.contacts.size(); ++i) {
-    const ContactRecord &x = a.contacts[i], &y = b.contacts[i];
-    EXPECT_EQ(x.time_s, y.time_s);
-    EXPECT_EQ(x.duration_s, y.duration_s);
-    EXPECT_EQ(x.point_world_m, y.point_world_m);
-    EXPECT_EQ(x.point_m, y.point_m);
-    EXPECT_EQ(x.normal, y.normal);
-    EXPECT_EQ(x.normal_speed_m_s, y.normal_speed_m_s);
-    EXPECT_EQ(x.effective_mass_kg, y.effective_mass_kg);
-    EXPECT_EQ(x.impulse_Ns, y.impulse_Ns);
-    EXPECT_EQ(x.peak_force_N, y.peak_force_N);
-    EXPECT_EQ(x.kind, y.kind);
-  }
-  ASSERT_EQ(a.proprio.rows(), b.proprio.rows());
-  EXPECT_TRUE((a.proprio.array() == b.proprio.array()).all());
-  EXPECT_EQ(a.joint_speed_rad_s, b.joint_speed_rad_s);
 }
 
 TEST(RolloutTest, SameSeedSameRolloutOnAnyThread) {

@@ -68,6 +68,8 @@ class ShellModel {
   double dtheta_rad() const { return dth_rad_; }
   /// (dofs x dofs) stiffness, N/m, symmetric, lower and upper stored.
   const Eigen::SparseMatrix<double>& stiffness() const { return stiffness_; }
+  /// (dofs x dofs) M^-1/2 K M^-1/2, 1/s^2: its eigenvalues are omega^2 (modes, FD stability).
+  Eigen::SparseMatrix<double> MassScaledStiffness() const;
   /// (dofs) lumped mass of every DOF, kg.
   const Eigen::VectorXd& mass_kg() const { return mass_kg_; }
   /// Rayleigh coefficients: C = alpha M + beta K.
