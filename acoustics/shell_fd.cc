@@ -4,6 +4,7 @@
 #include <Spectra/SymEigsSolver.h>
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -63,6 +64,30 @@ ShellFd::ShellFd(const ShellModel& model, double sample_rate_hz, int64_t oversam
     }
   }
   k_s_ = 1.0 / (sample_rate_hz * static_cast<double>(oversampling_));
+  // the step's combined coefficients: u+ = c_u u - c_prev u- - c_force (K v - f)
+  const double a = 0.5 * alpha_ * k_s_;
+  c_u_ = 2.0 / (1.0 + a);
+  c_prev_ = (1.0 - a) / (1.0 + a);
+  c_v_ = beta_ / k_s_;
+  c_force_ = ((k_s_ * k_s_) / (1.0 + a)) * inv_mass_;
+  // K's upper triangle by rows, the diagonal first in each row (K is symmetric: this halves the
+  // bytes a step streams; the assembled K is symmetric to 1 ulp, the upper one exactly)
+  stiffness_.makeCompressed();
+  const Eigen::Index n = stiffness_.rows();
+  upper_row_.assign(1, 0);
+  upper_col_.clear();
+  upper_val_.clear();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    upper_col_.push_back(static_cast<int32_t>(i));
+    upper_val_.push_back(stiffness_.coeff(i, i));
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(stiffness_, i); it; ++it) {
+      if (it.col() > i) {
+        upper_col_.push_back(static_cast<int32_t>(it.col()));
+        upper_val_.push_back(it.value());
+      }
+    }
+    upper_row_.push_back(static_cast<int32_t>(upper_col_.size()));
+  }
 }
 
 ShellFdState ShellFd::Rest() const {
@@ -70,15 +95,48 @@ ShellFdState ShellFd::Rest() const {
 }
 
 void ShellFd::Step(ShellFdState* state, const Eigen::VectorXd& force_n) const {
-  const double k = k_s_;
-  Eigen::VectorXd& u_prev = state->previous;
-  Eigen::VectorXd& u = state->current;
-  // K (u + beta (u - u-)/k), then u+ into u_prev's storage
-  const Eigen::VectorXd ku = stiffness_ * (u + (beta_ / k) * (u - u_prev));
-  const double a = 0.5 * alpha_ * k;
-  u_prev = ((2.0 * u - (1.0 - a) * u_prev -
-             (k * k) * inv_mass_.cwiseProduct(ku - force_n)) / (1.0 + a)).eval();
-  u.swap(u_prev);
+  SONICBOOM_DEMAND(force_n.size() == model_.dofs());
+  StepScaled(state, force_n.data(), 1.0);
+}
+
+void ShellFd::StepScaled(ShellFdState* state, const double* force, double force_scale) const {
+  const Eigen::Index n = model_.dofs();
+  SONICBOOM_DEMAND(state->current.size() == n && state->previous.size() == n);
+  double* const u_prev = state->previous.data();
+  const double* const u = state->current.data();
+  // per-thread buffers reused across steps: v = u + beta (u - u-)/k (dofs, m) and the part of
+  // (K v)_i scattered from the rows above i (dofs, N)
+  thread_local std::vector<double> v_buffer, lower_buffer;
+  v_buffer.resize(static_cast<size_t>(n));
+  lower_buffer.resize(static_cast<size_t>(n));
+  double* const v = v_buffer.data();
+  double* const lower = lower_buffer.data();
+  // coefficients in locals: the scatter's stores could otherwise alias the members
+  const double c_v = c_v_, c_u = c_u_, c_prev = c_prev_;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    v[i] = u[i] + c_v * (u[i] - u_prev[i]);
+    lower[i] = 0.0;
+  }
+  // one pass over the upper triangle: row i gathers K_ij v_j (j >= i) and scatters K_ij v_i to
+  // row j > i, so (K v)_i is complete at row i and u+_i goes straight into u-'s storage
+  const int32_t* const row = upper_row_.data();
+  const int32_t* const col = upper_col_.data();
+  const double* const val = upper_val_.data();
+  const double* const c_force = c_force_.data();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double v_i = v[i];
+    const int32_t end = row[i + 1];
+    int32_t p = row[i];
+    double upper = val[p] * v_i;  // the diagonal leads each row
+    for (++p; p < end; ++p) {
+      const int32_t j = col[p];
+      upper += val[p] * v[j];
+      lower[j] += val[p] * v_i;
+    }
+    const double kv = lower[i] + upper;
+    u_prev[i] = c_u * u[i] - c_prev * u_prev[i] - c_force[i] * (kv - force_scale * force[i]);
+  }
+  state->current.swap(state->previous);
 }
 
 double ShellFd::Energy(const ShellFdState& state) const {
@@ -93,7 +151,6 @@ Eigen::MatrixXd ShellFd::Run(const Eigen::VectorXd& force_weights, std::span<con
   SONICBOOM_DEMAND(force_weights.size() == model_.dofs() && sensor_rows.cols() == model_.dofs());
   Eigen::MatrixXd out(sensor_rows.rows(), samples);
   ShellFdState state = Rest();
-  Eigen::VectorXd f(model_.dofs());
   const auto force_at = [&](int64_t sample, double frac) {
     const auto at = [&](int64_t s) {
       return s >= 0 && s < static_cast<int64_t>(force_n.size()) ? force_n[static_cast<size_t>(s)] : 0.0;
@@ -101,11 +158,10 @@ Eigen::MatrixXd ShellFd::Run(const Eigen::VectorXd& force_weights, std::span<con
     return (1.0 - frac) * at(sample) + frac * at(sample + 1);
   };
   for (int64_t s = 0; s < samples; ++s) {
-    out.col(s) = sensor_rows * state.current;
+    out.col(s).noalias() = sensor_rows * state.current;
     for (int64_t sub = 0; sub < oversampling_; ++sub) {
       const double frac = static_cast<double>(sub) / static_cast<double>(oversampling_);
-      f = force_at(s, frac) * force_weights;
-      Step(&state, f);
+      StepScaled(&state, force_weights.data(), force_at(s, frac));
     }
   }
   return out;
