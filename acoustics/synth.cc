@@ -1,6 +1,8 @@
 #include "sonicboom/acoustics/synth.h"
 
 #include <algorithm>
+#include <chrono>
+#include <limits>
 #include <cmath>
 #include <complex>
 #include <numbers>
@@ -8,6 +10,10 @@
 #include <fmt/format.h>
 
 #include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/acoustics/fd_render.h"
+#include "sonicboom/acoustics/shell_bank.h"
+#include "sonicboom/acoustics/shell_fd.h"
+#include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 
@@ -15,12 +21,8 @@ namespace sonicboom::acoustics {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-// round to nearest (ties to even) without a libm call; |x| < 2^51
-inline double RoundFast(double x) {
-  constexpr double kMagic = 6755399441055744.0;  // 1.5 * 2^52
-  return (x + kMagic) - kMagic;
-}
+// the default grid (2.5 mm) has >= 6 points per bending wavelength up to about here
+constexpr double kDefaultModeBandHz = 20000.0;
 
 // one precomputed mode: recursion pole, drive and sensor factors
 struct ModeBank {
@@ -38,33 +40,17 @@ struct ModeBank {
 }  // namespace
 
 void SynthConfig::Serialize(Archive* a) {
-  a->VisitChoice("model", &model, {"modal-closed-form"});
+  a->VisitChoice("model", &model, {"modal", "fd", "modal-closed-form"});
   a->Visit("max_frequency_hz", &max_frequency_hz, Bounds::NonNegative());
+  a->Visit("mode_count", &mode_count, Bounds::Closed(0, 20000));
   a->Visit("band_factor", &band_factor, Bounds::Open(0.0, 100.0));
   a->Visit("decay_floor_db", &decay_floor_db, Bounds::Open(-300.0, 0.0));
   a->Visit("force_substeps", &force_substeps, Bounds::Closed(1, 1024));
-}
-
-void DaqConfig::Serialize(Archive* a) {
-  a->Visit("sensitivity_v_per_strain", &sensitivity_v_per_strain, Bounds::Positive());
-  a->Visit("gain_mismatch_db", &gain_mismatch_db, Bounds::Closed(0.0, 20.0));
-  a->Visit("input_resistance_ohm", &input_resistance_ohm, Bounds::Positive());
-  a->Visit("disc_capacitance_f", &disc_capacitance_f, Bounds::Positive());
-  a->Visit("preamp_noise_v", &preamp_noise_v, Bounds::NonNegative());
-  a->Visit("full_scale_v", &full_scale_v, Bounds::Positive());
-  a->Visit("adc_bits", &adc_bits, Bounds::Closed(8, 32));
-  a->Visit("output_bits", &output_bits, Bounds::Closed(8, 32));
-}
-
-double DaqConfig::highpass_hz() const {
-  return 1.0 / (2 * kPi * input_resistance_ohm * disc_capacitance_f);
-}
-
-void NoiseConfig::Serialize(Archive* a) {
-  a->Visit("ambient_rms_v", &ambient_rms_v, Bounds::NonNegative());
-  a->Visit("motor_rms_v_per_rad_s", &motor_rms_v_per_rad_s, Bounds::NonNegative());
-  a->Visit("motor_base_hz", &motor_base_hz, Bounds::Positive());
-  a->Visit("motor_harmonics", &motor_harmonics, Bounds::Closed(0, 64));
+  a->Visit("residual", &residual);
+  a->Visit("mode_band_hz", &mode_band_hz, Bounds::NonNegative());
+  a->Visit("fd_oversampling", &fd_oversampling, Bounds::Closed(0, 4096));
+  a->Visit("mode_cache_dir", &mode_cache_dir);
+  a->Visit("contact", &contact);
 }
 
 HertzImpact SolveHertzImpact(const ContactEvent& contact, const TubeConfig& tube,
@@ -92,53 +78,36 @@ double HertzForce(const HertzImpact& impact, double t_s) {
 }
 
 struct StrikeSynthesizer::Impl {
-  TubeConfig tube;
-  MaterialConfig material;
-  MicArrayConfig mics;
-  AudioConfig audio;
-  SynthConfig synth;
-  DaqConfig daq;
-  NoiseConfig noise;
-  std::vector<ModeBank> modes;     // ascending frequency, up to the widest band
+  AcousticModelConfig c;
   double widest_band_hz{0.0};
+  // modal-closed-form
+  std::vector<ModeBank> modes;     // ascending frequency, up to the widest band
   Eigen::VectorXd mic_theta_rad;   // (mics)
+  // modal and fd: the discretized shell, its modes, and the FD solver
+  std::unique_ptr<ShellModel> shell;
+  std::unique_ptr<ShellModalBank> bank;
+  std::unique_ptr<ShellFd> fd;
+  Eigen::MatrixXd sensor_rows;     // (mics x dofs) fd only
+  std::unique_ptr<DaqChain> daq;
+
+  void BuildClosedForm();
+  // the first contact's strain by the closed-form modes, (mics x T)
+  Eigen::MatrixXd ClosedFormStrain(const ContactEvent& contact, const HertzImpact& impact,
+                                   RenderedStrike* out) const;
 };
 
-StrikeSynthesizer::StrikeSynthesizer(const TubeConfig& tube, const MaterialConfig& material,
-                                     const MicArrayConfig& mics, const AudioConfig& audio,
-                                     const SynthConfig& synth, const DaqConfig& daq,
-                                     const NoiseConfig& noise)
-    : impl_(std::make_unique<Impl>()) {
-  tube.Validate();
-  mics.Validate(tube);
-  impl_->tube = tube;
-  impl_->material = material;
-  impl_->mics = mics;
-  impl_->audio = audio;
-  impl_->synth = synth;
-  impl_->daq = daq;
-  impl_->noise = noise;
-
-  // widest band: the configured limit, never above 0.95 Nyquist
-  const double nyquist = 0.5 * audio.sample_rate_hz;
-  impl_->widest_band_hz = synth.max_frequency_hz > 0 ? synth.max_frequency_hz : 0.95 * nyquist;
-  if (impl_->widest_band_hz >= nyquist) {
-    throw NumericalError(fmt::format(
-        "acoustics.max_frequency_hz = {} must be below the Nyquist frequency {} Hz "
-        "(audio.sample_rate_hz / 2): modes above it alias",
-        synth.max_frequency_hz, nyquist));
-  }
-
-  // modes and their per-mode constants
-  const double T = 1.0 / audio.sample_rate_hz;
+void StrikeSynthesizer::Impl::BuildClosedForm() {
+  const TubeConfig& tube = c.tube;
+  const MaterialConfig& material = c.material;
+  const double T = 1.0 / c.audio.sample_rate_hz;
   const double R = tube.mid_radius_m();
   const double h = tube.wall_thickness_m;
   const double rho_h = material.density_kg_m3 * h;
   const double zeta = 0.5 * material.loss_factor;
-  const int num_mics = mics.count();
-  impl_->mic_theta_rad.resize(num_mics);
-  for (int i = 0; i < num_mics; ++i) impl_->mic_theta_rad[i] = mics.theta_deg[i] * kPi / 180.0;
-  for (const ShellMode& sm : SimplySupportedModes(tube, material, impl_->widest_band_hz)) {
+  const int num_mics = c.mics.count();
+  mic_theta_rad.resize(num_mics);
+  for (int i = 0; i < num_mics; ++i) mic_theta_rad[i] = c.mics.theta_deg[i] * kPi / 180.0;
+  for (const ShellMode& sm : SimplySupportedModes(tube, material, widest_band_hz)) {
     if (std::abs(sm.w) < 1e-9) continue;  // no radial part: a normal force cannot excite it
     ModeBank mb;
     mb.frequency_hz = sm.frequency_hz;
@@ -161,45 +130,29 @@ StrikeSynthesizer::StrikeSynthesizer(const TubeConfig& tube, const MaterialConfi
     const double bending = 0.5 * h * sm.w * (lambda * lambda + sm.n * sm.n) / (R * R);
     // disc aperture: 2 J1(x) / x with x = k_t d / 2
     const double k_t = std::hypot(mb.wavenumber_m, sm.n / tube.outer_radius_m);
-    const double x = 0.5 * k_t * mics.disc_diameter_m;
+    const double x = 0.5 * k_t * c.mics.disc_diameter_m;
     const double aperture = x < 1e-6 ? 1.0 : 2 * std::cyl_bessel_j(1.0, x) / x;
     mb.strain_factor = (membrane + bending) * aperture;
     mb.mic_axial.resize(num_mics);
     for (int i = 0; i < num_mics; ++i) {
-      mb.mic_axial[i] = std::sin(mb.wavenumber_m * (mics.z_m[i] + 0.5 * tube.length_m));
+      mb.mic_axial[i] = std::sin(mb.wavenumber_m * (c.mics.z_m[i] + 0.5 * tube.length_m));
     }
-    impl_->modes.push_back(std::move(mb));
+    modes.push_back(std::move(mb));
   }
 }
 
-StrikeSynthesizer::~StrikeSynthesizer() = default;
-
-int64_t StrikeSynthesizer::mode_count() const { return static_cast<int64_t>(impl_->modes.size()); }
-
-RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
-                                         std::span<const double> joint_speed_rad_s,
-                                         double joint_speed_rate_hz, uint64_t sample_seed) const {
-  const Impl& m = *impl_;
-  const double fs = m.audio.sample_rate_hz;
+Eigen::MatrixXd StrikeSynthesizer::Impl::ClosedFormStrain(const ContactEvent& contact,
+                                                          const HertzImpact& impact,
+                                                          RenderedStrike* out) const {
+  const double fs = c.audio.sample_rate_hz;
   const double T = 1.0 / fs;
-  const int64_t num_frames = m.audio.num_samples();
-  const int num_mics = m.mics.count();
-  RenderedStrike out;
-
+  const int64_t num_frames = c.audio.num_samples();
+  const int num_mics = c.mics.count();
   // contact force at audio rate: Hertz pulse, averaged over substeps within each sample
-  const HertzImpact impact = SolveHertzImpact(contact, m.tube, m.material);
-  if (!std::isfinite(impact.duration_s) || impact.duration_s <= 0) {
-    throw NumericalError(fmt::format("contact of speed {} m/s and mass {} kg has no finite "
-                                     "Hertz duration",
-                                     contact.normal_speed_m_s, contact.effective_mass_kg));
-  }
-  out.impulse_ns = impact.impulse_ns;
-  out.duration_s = impact.duration_s;
-  out.peak_force_n = impact.peak_force_n;
   const int64_t k_first = static_cast<int64_t>(std::floor(contact.time_s * fs));
   const int64_t k_last = static_cast<int64_t>(std::ceil((contact.time_s + impact.duration_s) * fs));
   std::vector<double> force(std::max<int64_t>(k_last - k_first + 1, 1));  // N, per sample
-  const int64_t sub = m.synth.force_substeps;
+  const int64_t sub = c.synth.force_substeps;
   for (size_t j = 0; j < force.size(); ++j) {
     double acc = 0;
     for (int64_t s = 0; s < sub; ++s) {
@@ -208,29 +161,23 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
     }
     force[j] = acc / sub;
   }
-
-  // band the strike can excite: a multiple of the pulse's first spectral minimum (1.8 / t_c)
-  out.band_hz = m.synth.max_frequency_hz > 0
-                    ? m.widest_band_hz
-                    : std::min(m.widest_band_hz, m.synth.band_factor * 1.8 / impact.duration_s);
-
   // modal superposition: strain at each mic, (mics x T) in double
   Eigen::MatrixXd strain = Eigen::MatrixXd::Zero(num_mics, num_frames);
-  const double x_c = contact.z_m + 0.5 * m.tube.length_m;
-  const double floor_ln = std::abs(m.synth.decay_floor_db) / 20.0 * std::log(10.0);
+  const double x_c = contact.z_m + 0.5 * c.tube.length_m;
+  const double floor_ln = std::abs(c.synth.decay_floor_db) / 20.0 * std::log(10.0);
   Eigen::VectorXd gain(num_mics);
-  for (const ModeBank& mb : m.modes) {
-    if (mb.frequency_hz > out.band_hz) break;
-    ++out.modes_used;
+  for (const ModeBank& mb : modes) {
+    if (mb.frequency_hz > out->band_hz) break;
+    ++out->modes_used;
     // drive at the contact and pickup at each mic (the degenerate pair collapses to cos n dtheta)
     const double drive = mb.drive_w * std::sin(mb.wavenumber_m * x_c);
     for (int i = 0; i < num_mics; ++i) {
       gain[i] = mb.response_scale * drive * mb.strain_factor * mb.mic_axial[i] *
-                std::cos(mb.n * (m.mic_theta_rad[i] - contact.theta_rad));
+                std::cos(mb.n * (mic_theta_rad[i] - contact.theta_rad));
     }
     // complex one-pole recursion z[k] = p z[k-1] + F[k]; q = Im(z) T / (omega_d M)
-    const int64_t k_end =
-        std::min<int64_t>(num_frames, k_last + 1 + static_cast<int64_t>(floor_ln / mb.decay_per_sample));
+    const int64_t k_end = std::min<int64_t>(
+        num_frames, k_last + 1 + static_cast<int64_t>(floor_ln / mb.decay_per_sample));
     double zr = 0, zi = 0;
     for (int64_t k = std::max<int64_t>(k_first, 0); k < k_end; ++k) {
       const int64_t j = k - k_first;
@@ -241,81 +188,231 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
       strain.col(k) += gain * zi;
     }
   }
+  return strain;
+}
 
-  // piezo volts with per-channel gain mismatch, plus structure-borne noise
-  Rng rng(sample_seed, Stream::kDaq);
-  Eigen::MatrixXd volts(num_mics, num_frames);
-  for (int i = 0; i < num_mics; ++i) {
-    const double g = m.daq.sensitivity_v_per_strain *
-                     std::pow(10.0, rng.Normal() * m.daq.gain_mismatch_db / 20.0);
-    volts.row(i) = strain.row(i) * g;
+StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  config.tube.Validate();
+  config.mics.Validate(config.tube);
+  m.c = config;
+  const AudioConfig& audio = config.audio;
+  const SynthConfig& synth = config.synth;
+
+  // widest band: the configured limit, never above 0.95 Nyquist
+  const double nyquist = 0.5 * audio.sample_rate_hz;
+  m.widest_band_hz = synth.max_frequency_hz > 0 ? synth.max_frequency_hz : 0.95 * nyquist;
+  if (m.widest_band_hz >= nyquist) {
+    throw ConfigError(fmt::format(
+        "acoustics.max_frequency_hz = {} must be below the Nyquist frequency {} Hz "
+        "(audio.sample_rate_hz / 2): modes above it alias",
+        synth.max_frequency_hz, nyquist));
   }
-  Rng noise_rng(sample_seed, Stream::kNoise);
-  // motor and gear tones follow the joint speed; each channel picks them up with its own gain
-  const int64_t harmonics = m.noise.motor_harmonics;
-  std::vector<double> phase(harmonics), channel_gain(num_mics);
-  for (auto& p : phase) p = noise_rng.Uniform(0, 2 * kPi);
-  for (auto& g : channel_gain) g = noise_rng.Uniform(0.5, 1.5);
-  const double tone_amp =
-      harmonics > 0 ? std::sqrt(2.0 / harmonics) * m.noise.motor_rms_v_per_rad_s : 0.0;
-  // each harmonic is a unit phasor advanced by one rotation per sample
-  std::vector<std::complex<double>> phasor(harmonics), step(harmonics);
-  for (int64_t hm = 0; hm < harmonics; ++hm) {
-    phasor[hm] = std::polar(1.0, phase[hm]);
-    step[hm] = std::polar(1.0, 2 * kPi * m.noise.motor_base_hz * (hm + 1) * T);
-  }
-  for (int64_t k = 0; k < num_frames; ++k) {
-    double speed = 0.0;
-    if (!joint_speed_rad_s.empty()) {
-      const double pos = k * T * joint_speed_rate_hz;
-      const size_t idx = std::min(static_cast<size_t>(pos), joint_speed_rad_s.size() - 1);
-      const size_t nxt = std::min(idx + 1, joint_speed_rad_s.size() - 1);
-      const double frac = std::clamp(pos - static_cast<double>(idx), 0.0, 1.0);
-      speed = (1 - frac) * joint_speed_rad_s[idx] + frac * joint_speed_rad_s[nxt];
-    }
-    double motor = 0.0;
-    for (int64_t hm = 0; hm < harmonics; ++hm) {
-      motor += phasor[hm].imag();
-      phasor[hm] *= step[hm];
-    }
-    motor *= tone_amp * speed;
-    for (int i = 0; i < num_mics; ++i) {
-      volts(i, k) += channel_gain[i] * motor + m.noise.ambient_rms_v * noise_rng.NoiseSample();
-    }
+  m.daq = std::make_unique<DaqChain>(config.daq, config.noise, config.mics.count(),
+                                     audio.sample_rate_hz, audio.num_samples());
+  if (synth.model == "modal-closed-form") {
+    m.BuildClosedForm();
+    return;
   }
 
-  // first-order high-pass of disc capacitance into the preamp input (bilinear), preamp noise
-  const double kk = std::tan(kPi * m.daq.highpass_hz() / fs);
-  const double b0 = 1.0 / (1.0 + kk), a1 = (kk - 1.0) / (kk + 1.0);
-  for (int i = 0; i < num_mics; ++i) {
-    double x_prev = 0, y_prev = 0;
-    for (int64_t k = 0; k < num_frames; ++k) {
-      const double x = volts(i, k);
-      const double y = b0 * (x - x_prev) - a1 * y_prev;
-      x_prev = x;
-      y_prev = y;
-      volts(i, k) = y + m.daq.preamp_noise_v * noise_rng.NoiseSample();
-    }
+  // the discretized shell and its modes (from the cache when solved before)
+  config.shell.Validate(config.tube);
+  m.shell = std::make_unique<ShellModel>(config.tube, config.material, config.shell);
+  // modes to the configured band; by default what the grid resolves (20 kHz) below Nyquist
+  const double mode_band =
+      synth.mode_band_hz > 0 ? synth.mode_band_hz : std::min(0.95 * nyquist, kDefaultModeBandHz);
+  if (mode_band >= nyquist) {
+    throw ConfigError(fmt::format("acoustics.mode_band_hz = {} must be below the Nyquist frequency "
+                                  "{} Hz", synth.mode_band_hz, nyquist));
   }
+  const std::string cache = synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : synth.mode_cache_dir;
+  const ShellModes modes = CachedShellModes(*m.shell, mode_band, 0, true, cache);
+  m.widest_band_hz = std::min(m.widest_band_hz, mode_band);
+  m.bank = std::make_unique<ShellModalBank>(*m.shell, modes, config.mics, audio.sample_rate_hz,
+                                            synth.decay_floor_db, synth.residual);
+  if (synth.model == "fd") {
+    m.fd = std::make_unique<ShellFd>(*m.shell, audio.sample_rate_hz, synth.fd_oversampling);
+    m.sensor_rows = m.shell->SensorRows(config.mics);
+  }
+}
 
-  // converter: clip at full scale, quantize to the ADC, then to the output word length
-  const double adc_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.adc_bits) - 1) - 1);
-  const double out_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.output_bits) - 1) - 1);
-  out.audio.resize(num_mics, num_frames);
-  for (int64_t k = 0; k < num_frames; ++k) {
-    for (int i = 0; i < num_mics; ++i) {
-      double x = volts(i, k) / m.daq.full_scale_v;
-      if (!std::isfinite(x)) {
-        throw NumericalError(fmt::format("non-finite audio at mic {} sample {}", i, k));
+StrikeSynthesizer::~StrikeSynthesizer() = default;
+
+int64_t StrikeSynthesizer::mode_count() const {
+  return impl_->bank ? impl_->bank->modes() : static_cast<int64_t>(impl_->modes.size());
+}
+
+double StrikeSynthesizer::BandFor(double contact_duration_s) const {
+  const Impl& m = *impl_;
+  if (m.c.synth.max_frequency_hz > 0) return m.widest_band_hz;
+  return std::min(m.widest_band_hz, m.c.synth.band_factor * 1.8 / contact_duration_s);
+}
+
+namespace {
+
+// a foliage rustle: band-passed noise (two-pole resonators at the band edges' geometric mean)
+// under a Hann envelope over the brush, scaled to rms_n; one sample per audio sample
+std::vector<double> RustleForce(double duration_s, double fs, double rms_n, double low_hz,
+                                double high_hz, Rng* rng) {
+  const int64_t n = std::max<int64_t>(static_cast<int64_t>(duration_s * fs), 1);
+  std::vector<double> f(static_cast<size_t>(n));
+  // RBJ band-pass biquad (constant peak gain) centred at sqrt(lo hi), bandwidth hi - lo
+  const double f0 = std::sqrt(low_hz * high_hz);
+  const double w0 = 2 * kPi * std::min(f0, 0.45 * fs) / fs;
+  const double q = f0 / (high_hz - low_hz);
+  const double alpha = std::sin(w0) / (2 * q);
+  const double a0 = 1 + alpha;
+  const double b0 = alpha / a0, b2 = -alpha / a0, a1 = -2 * std::cos(w0) / a0, a2 = (1 - alpha) / a0;
+  double x1 = 0, x2 = 0, y1 = 0, y2 = 0, sum_sq = 0;
+  for (int64_t k = 0; k < n; ++k) {
+    const double x = rng->NoiseSample();
+    const double y = b0 * x + b2 * x2 - a1 * y1 - a2 * y2;
+    x2 = x1;
+    x1 = x;
+    y2 = y1;
+    y1 = y;
+    const double env = std::sin(kPi * (k + 0.5) / n);
+    f[static_cast<size_t>(k)] = y * env * env;
+    sum_sq += f[static_cast<size_t>(k)] * f[static_cast<size_t>(k)];
+  }
+  const double scale = sum_sq > 0 ? rms_n / std::sqrt(sum_sq / n) : 0.0;
+  for (double& v : f) v *= scale;
+  return f;
+}
+
+// a press: its mean force (impulse / duration) with 5 ms raised-cosine ramps, per audio sample
+std::vector<double> PressForce(double duration_s, double mean_force_n, double fs) {
+  const int64_t n = std::max<int64_t>(static_cast<int64_t>(duration_s * fs), 1);
+  const double ramp = std::min(0.005 * fs, 0.5 * n);
+  std::vector<double> f(static_cast<size_t>(n));
+  for (int64_t k = 0; k < n; ++k) {
+    const double edge = std::min<double>(k + 0.5, n - k - 0.5);
+    const double w = edge >= ramp ? 1.0 : 0.5 - 0.5 * std::cos(kPi * edge / ramp);
+    f[static_cast<size_t>(k)] = mean_force_n * w;
+  }
+  return f;
+}
+
+}  // namespace
+
+RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
+                                         std::span<const ContactEpisode> episodes,
+                                         std::span<const double> joint_speed_rad_s,
+                                         double joint_speed_rate_hz, uint64_t sample_seed) const {
+  const Impl& m = *impl_;
+  const double fs = m.c.audio.sample_rate_hz;
+  const int64_t num_frames = m.c.audio.num_samples();
+  RenderedStrike out;
+
+  // the rigid-wall Hertz impact: closed-form rung's pulse, and the contact band's first guess
+  const HertzImpact impact = SolveHertzImpact(contact, m.c.tube, m.c.material);
+  if (!std::isfinite(impact.duration_s) || impact.duration_s <= 0) {
+    throw NumericalError(fmt::format("contact of speed {} m/s and mass {} kg has no finite "
+                                     "Hertz duration",
+                                     contact.normal_speed_m_s, contact.effective_mass_kg));
+  }
+  Eigen::MatrixXd strain;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!m.bank) {
+    out.impulse_ns = impact.impulse_ns;
+    out.duration_s = impact.duration_s;
+    out.peak_force_n = impact.peak_force_n;
+    out.touches = 1;
+    out.forces_played = 1;
+    out.band_hz = BandFor(impact.duration_s);
+    strain = m.ClosedFormStrain(contact, impact, &out);
+  } else {
+    // the striker: the struck rod's beam modes, or a rigid body of the contact's effective mass
+    DrivingPoint striker;
+    if (contact.beam_length_m > 0) {
+      BeamSpec beam;
+      beam.length_m = contact.beam_length_m;
+      beam.flexural_rigidity_n_m2 = contact.beam_flexural_rigidity_n_m2;
+      beam.linear_density_kg_m = contact.beam_linear_density_kg_m;
+      beam.contact_from_clamp_m = contact.beam_contact_from_clamp_m;
+      beam.clamped_both_ends = contact.beam_clamped_both_ends;
+      beam.loss_factor = contact.beam_loss_factor;
+      striker = BeamDrivingPoint(beam, m.c.synth.contact.beam_max_frequency_hz);
+      // a contact is far shorter than the rod's fundamental period: that mode acts as a free mass
+      // (its modal mass at the contact) that carries the approach and separates; the higher
+      // modes ring in the contact
+      if (striker.phi.size() > 0) {
+        striker.rigid_mass_kg = 1.0 / (striker.phi[0] * striker.phi[0]);
+        const Eigen::Index rest = striker.phi.size() - 1;
+        striker.omega_rad_s = striker.omega_rad_s.tail(rest).eval();
+        striker.zeta = striker.zeta.tail(rest).eval();
+        striker.phi = striker.phi.tail(rest).eval();
       }
-      if (std::abs(x) >= 1.0) {
-        out.clipped = true;
-        x = std::clamp(x, -1.0, 1.0);
+    } else {
+      striker.rigid_mass_kg = contact.effective_mass_kg;
+    }
+    // the wall at the contact: modes up to twice the band the rigid-wall pulse suggests
+    const double contact_band = std::min(m.widest_band_hz, 2.0 * BandFor(impact.duration_s));
+    std::vector<ForceInput> forces;
+    auto play_contact = [&](double time_s, double z_m, double theta_rad, double speed_m_s,
+                            double tube_side_kg, const DrivingPoint& other) {
+      DrivingPoint wall = m.bank->WallAt(z_m, theta_rad, contact_band);
+      wall.rigid_mass_kg = tube_side_kg > 0 ? tube_side_kg : std::numeric_limits<double>::infinity();
+      ContactForce cf = SolveContact(wall, other, impact.stiffness_n_m15, speed_m_s, time_s, fs,
+                                     m.c.synth.contact);
+      forces.push_back({z_m, theta_rad, cf.first_sample, std::move(cf.force_n)});
+      return cf;
+    };
+    const ContactForce first = play_contact(contact.time_s, contact.z_m, contact.theta_rad,
+                                            contact.normal_speed_m_s, contact.robot_side_mass_kg,
+                                            striker);
+    out.impulse_ns = first.impulse_ns;
+    out.duration_s = first.duration_s;
+    out.peak_force_n = first.peak_force_n;
+    out.touches = first.touches;
+    // the other episodes of the record: bounces and later impacts, presses, brushes
+    Rng rng(sample_seed, Stream::kAcoustics);
+    for (const ContactEpisode& e : episodes) {
+      const bool is_first = std::abs(e.time_s - contact.time_s) < 0.5 / fs;
+      if (e.kind == ContactEpisode::Kind::kBrush) {
+        if (m.c.noise.foliage_force_rms_n <= 0) continue;
+        const double z = std::clamp(e.z_m, -0.49 * m.c.tube.length_m, 0.49 * m.c.tube.length_m);
+        try {
+          forces.push_back({z, e.theta_rad, static_cast<int64_t>(std::floor(e.time_s * fs)),
+                            RustleForce(e.duration_s, fs, m.c.noise.foliage_force_rms_n,
+                                        m.c.noise.foliage_low_hz, m.c.noise.foliage_high_hz, &rng)});
+        } catch (const ConfigError&) {
+          // the brushed point lies in a hole: its rustle reaches the wall around it elsewhere
+        }
+        continue;
       }
-      x = RoundFast(x / adc_step) * adc_step;
-      out.audio(i, k) = static_cast<float>(RoundFast(x / out_step) * out_step);
+      if (e.kind == ContactEpisode::Kind::kPress && e.duration_s > 0) {
+        // the impact that opened the press is played below (or above, as the first contact)
+        const double start_s = e.time_s + (is_first ? first.duration_s : 0.0);
+        forces.push_back({e.z_m, e.theta_rad, static_cast<int64_t>(std::floor(start_s * fs)),
+                          PressForce(e.duration_s, e.impulse_Ns / e.duration_s, fs)});
+      }
+      if (is_first || !(e.normal_speed_m_s > 1e-4) || !(e.effective_mass_kg > 0)) continue;
+      // a bounce or later impact: the same striker, its own speed and point
+      DrivingPoint other = striker;
+      if (contact.beam_length_m <= 0) other.rigid_mass_kg = e.effective_mass_kg;
+      play_contact(e.time_s, e.z_m, e.theta_rad, e.normal_speed_m_s, contact.robot_side_mass_kg, other);
+    }
+    out.forces_played = static_cast<int64_t>(forces.size());
+
+    // vibration: the band the first contact excites, or the configured count
+    // (the first closure sets it: a chatter's later touches are softer and no shorter)
+    out.band_hz = BandFor(first.first_closure_s);
+    if (m.fd) {
+      out.modes_used = 0;
+      strain = FdRender(*m.shell, *m.fd, forces, m.sensor_rows, num_frames,
+                        m.c.synth.decay_floor_db);
+    } else {
+      out.modes_used = m.c.synth.mode_count > 0 ? std::min(m.c.synth.mode_count, m.bank->modes())
+                                                : m.bank->ModesBelow(out.band_hz);
+      strain = m.bank->Render(forces, out.modes_used, num_frames);
     }
   }
+  out.vibration_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  // piezo, background, converter
+  out.clipped = m.daq->Convert(strain, joint_speed_rad_s, joint_speed_rate_hz, sample_seed, &out.audio);
   return out;
 }
 

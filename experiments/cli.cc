@@ -73,6 +73,20 @@ int RunCli(int argc, char** argv) {
   modes->add_option("--count", mode_count, "number of modes (pairs count twice)");
   modes->callback([&] { run = [&] { return RunModes(g, boundary, ideal, mode_count); }; });
 
+  std::string fidelity_out = "docs/fidelity.md";
+  int64_t fidelity_strikes = 4;
+  double fidelity_window_s = 0.03;
+  bool fidelity_quick = false;
+  auto* fidelity = app.add_subcommand("fidelity", "time and error of every vibration-model rung "
+                                                  "against the finest FD reference");
+  fidelity->add_option("--out", fidelity_out, "markdown table (\"\" = print only)");
+  fidelity->add_option("--strikes", fidelity_strikes, "test strikes (1-6)");
+  fidelity->add_option("--window-s", fidelity_window_s, "compared signal after the onset, s");
+  fidelity->add_flag("--quick", fidelity_quick, "coarse grids only (a smoke run)");
+  fidelity->callback([&] {
+    run = [&] { return RunFidelity(g, fidelity_out, fidelity_strikes, fidelity_window_s, fidelity_quick); };
+  });
+
   auto* features = app.add_subcommand("features", "mel spectrograms and GCC-PHAT of a WAV or dataset");
   features->add_option("--in", in, "WAV file or dataset (.h5)")->required();
   features->add_option("--out", out, "features file (.h5)")->required();

@@ -65,6 +65,8 @@ void SonicBoomConfig::Validate() const {
                                   "than the record (audio.record_duration_s = {})",
                                   proprio_s, audio.record_duration_s));
   }
+  daq.Validate(mics.count());
+  noise.Validate();
   if (acoustics.max_frequency_hz >= 0.5 * audio.sample_rate_hz) {
     throw ConfigError(fmt::format("acoustics.max_frequency_hz = {} must be below Nyquist "
                                   "(audio.sample_rate_hz / 2 = {})",

@@ -57,6 +57,19 @@ sim::StrikeEvents RolloutEvents(const sim::RolloutResult& r, const sim::SceneCon
 
 }  // namespace
 
+acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config) {
+  acoustics::AcousticModelConfig a;
+  a.tube = config.tube;
+  a.material = config.material;
+  a.mics = config.mics;
+  a.audio = config.audio;
+  a.shell = config.shell;
+  a.synth = config.acoustics;
+  a.daq = config.daq;
+  a.noise = config.noise;
+  return a;
+}
+
 StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_unique<Impl>()) {
   impl_->config = config;
   // build only the engine the scene asks for
@@ -70,9 +83,7 @@ StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_
     impl_->strikes = std::make_unique<sim::StrikeModel>(config.strike, config.scene, config.tube,
                                                         config.audio);
   }
-  impl_->synth = std::make_unique<acoustics::StrikeSynthesizer>(
-      config.tube, config.material, config.mics, config.audio, config.acoustics, config.daq,
-      config.noise);
+  impl_->synth = std::make_unique<acoustics::StrikeSynthesizer>(AcousticModel(config));
 }
 
 StrikePipeline::~StrikePipeline() = default;
@@ -105,8 +116,9 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   const int64_t frames = c.audio.num_samples();
   try {
     if (!sample.valid) throw NumericalError("no contact to play");
-    acoustics::RenderedStrike r = impl_->synth->Render(ev.contact, ev.joint_speed_rad_s,
-                                                       ev.joint_speed_rate_hz, sample.seed);
+    acoustics::RenderedStrike r = impl_->synth->Render(ev.contact, sample.contacts,
+                                                       ev.joint_speed_rad_s, ev.joint_speed_rate_hz,
+                                                       sample.seed);
     sample.audio = std::move(r.audio);
     sample.clipped = r.clipped;
     sample.label.impulse_Ns = r.impulse_ns;

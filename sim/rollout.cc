@@ -798,6 +798,12 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
           object, geometry.segments[static_cast<size_t>(segment)],
           plan.object_pose.inverse() * rec.point_world_m);
       rec.effective_mass_kg = 1.0 / (robot_inverse_kg + 1.0 / object_mass_kg);
+      rec.robot_side_mass_kg = 1.0 / robot_inverse_kg;
+      {
+        const ObjectSegment& seg = geometry.segments[static_cast<size_t>(segment)];
+        const Eigen::Vector3d axis = (seg.p1 - seg.p0).normalized();
+        rec.segment_x_m = (plan.object_pose.inverse() * rec.point_world_m - seg.p0).dot(axis);
+      }
 
       const bool first = first_hard < 0;
       const std::string problem = internal::TouchProblem(rec, tube_, first);
@@ -916,6 +922,9 @@ bool FirstHardContact(const RolloutResult& result, const SceneConfig& scene, Con
     event->striker_radius_m = c.segment_radius_m;
     event->striker_youngs_modulus_pa = object.contact_youngs_modulus_pa;
     event->striker_poisson_ratio = object.poisson_ratio;
+    event->robot_side_mass_kg = c.robot_side_mass_kg;
+    // the struck rod (segment 0 of a rod or cross) rings in the contact
+    if (c.segment == 0) DescribeStruckBeam(object, c.segment_x_m, event);
     return true;
   }
   return false;

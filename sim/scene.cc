@@ -219,6 +219,20 @@ double BeamModalMassKg(double mass_kg, double length_m, double x_m, bool clamped
   return mass_kg * mean_sq / (phi_x * phi_x);
 }
 
+void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m, ContactEvent* event) {
+  if (object.kind != "rod" && object.kind != "cross") return;
+  // second moment of a solid rod or a pipe: pi (r_out^4 - r_in^4) / 4
+  const double r_out = 0.5 * object.diameter_m;
+  const double r_in = object.wall_thickness_m > 0.0 ? r_out - object.wall_thickness_m : 0.0;
+  const double second_moment_m4 = 0.25 * kPi * (std::pow(r_out, 4) - std::pow(r_in, 4));
+  event->beam_length_m = object.length_m;
+  event->beam_contact_from_clamp_m = std::clamp(contact_from_clamp_m, 1e-3 * object.length_m, object.length_m);
+  event->beam_flexural_rigidity_n_m2 = object.youngs_modulus_pa * second_moment_m4;
+  event->beam_linear_density_kg_m = object.LinearDensityKgM();
+  event->beam_clamped_both_ends = object.clamp == "both_ends";
+  event->beam_loss_factor = object.loss_factor;
+}
+
 ObjectGeometry BuildObjectGeometry(const ObjectConfig& o, int64_t variant) {
   ObjectGeometry g;
   const double radius_m = 0.5 * o.diameter_m;

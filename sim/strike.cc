@@ -203,6 +203,7 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
   contact.striker_radius_m = 0.5 * object.diameter_m;
   contact.striker_youngs_modulus_pa = object.contact_youngs_modulus_pa;
   contact.striker_poisson_ratio = object.poisson_ratio;
+  DescribeStruckBeam(object, aim_m, &contact);
   ev.object = object.DisplayName();
   ev.material = object.material;
 

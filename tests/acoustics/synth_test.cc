@@ -23,9 +23,17 @@ ContactEvent DowelContact(double z_m, double theta_rad, double speed) {
   return c;
 }
 
+// the closed-form rung (ideal simply-supported tube) with default sensors
+AcousticModelConfig ClosedForm(NoiseConfig noise = {}, DaqConfig daq = {}) {
+  AcousticModelConfig c;
+  c.synth.model = "modal-closed-form";
+  c.noise = noise;
+  c.daq = daq;
+  return c;
+}
+
 StrikeSynthesizer MakeSynth(NoiseConfig noise = {}, DaqConfig daq = {}) {
-  return StrikeSynthesizer(TubeConfig{}, MaterialConfig{}, MicArrayConfig{}, AudioConfig{},
-                           SynthConfig{}, daq, noise);
+  return StrikeSynthesizer(ClosedForm(noise, daq));
 }
 
 // first sample whose |x| exceeds frac of the channel's peak
@@ -112,13 +120,12 @@ TEST(SynthTest, ExtremesStayFinite) {
 }
 
 TEST(SynthTest, RefusesBandAboveNyquist) {
-  SynthConfig synth;
-  synth.max_frequency_hz = 30000;
+  AcousticModelConfig c = ClosedForm();
+  c.synth.max_frequency_hz = 30000;
   try {
-    StrikeSynthesizer s(TubeConfig{}, MaterialConfig{}, MicArrayConfig{}, AudioConfig{}, synth,
-                        DaqConfig{}, NoiseConfig{});
+    StrikeSynthesizer s(c);
     FAIL();
-  } catch (const NumericalError& e) {
+  } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("Nyquist"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("22050"), std::string::npos);
   }

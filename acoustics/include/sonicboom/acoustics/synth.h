@@ -11,46 +11,45 @@
 #include <string>
 #include <vector>
 
+#include "sonicboom/acoustics/contact.h"
+#include "sonicboom/acoustics/daq.h"
+#include "sonicboom/acoustics/shell.h"
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/sample.h"
 #include "sonicboom/core/tube.h"
 
 namespace sonicboom::acoustics {
 
-/// Vibration model fidelity.
+/// Vibration model fidelity: the rung of the ladder (docs/fidelity.md). Keys under "acoustics".
 struct SynthConfig {
-  std::string model{"modal-closed-form"};  // ideal simply-supported shell, Flügge modes
+  // modal: the discretized shell's numerical modes (shell.h), the production rung;
+  // fd: the finite-difference solver of the same shell, the reference;
+  // modal-closed-form: ideal simply-supported tube, Flügge modes (the first rung, no seam)
+  std::string model{"modal"};
   double max_frequency_hz{0.0};            // mode band; 0 = derive from the contact (and Nyquist)
+  int64_t mode_count{0};                   // modal: play the lowest N modes (overrides the band)
   double band_factor{3.0};                 // auto band = band_factor x first spectral minimum (1.8 / t_c)
-  double decay_floor_db{-100.0};           // a mode stops once it decayed this far
-  int64_t force_substeps{8};               // force averaged over this many points per sample
+  double decay_floor_db{-100.0};           // a mode (the FD run) stops once it decayed this far
+  int64_t force_substeps{8};               // modal-closed-form: force averaged over this many points
+  bool residual{true};                     // modal: static part of the modes above the band
+  double mode_band_hz{0.0};                // modes solved (and cached) up to here; 0 = min(20 kHz, 0.95 Nyquist)
+  int64_t fd_oversampling{0};              // fd: steps per audio sample; 0 = smallest stable
+  std::string mode_cache_dir;              // "" = $SONICBOOM_CACHE_DIR or ~/.cache/sonicboom/modes
+  ContactConfig contact;                   // the striker-tube contact solve
 
   void Serialize(Archive* a);
 };
 
-/// Piezo disc, preamp and converter.
-struct DaqConfig {
-  double sensitivity_v_per_strain{2000.0}; // open-circuit volts per unit surface strain
-  double gain_mismatch_db{1.0};            // per-channel gain spread (std dev, dB)
-  double input_resistance_ohm{1.0e6};      // with the disc capacitance sets the high-pass
-  double disc_capacitance_f{16e-9};
-  double preamp_noise_v{2e-5};             // white, rms
-  double full_scale_v{1.0};                // ADC full scale
-  int64_t adc_bits{24};
-  int64_t output_bits{16};                 // the paper's recordings were 16-bit PCM
-
-  void Serialize(Archive* a);
-  double highpass_hz() const;
-};
-
-/// Background vibration picked up by the discs.
-struct NoiseConfig {
-  double ambient_rms_v{3e-5};              // broadband floor, rms
-  double motor_rms_v_per_rad_s{3e-3};      // motor and gear tones, rms per rad/s of joint speed
-  double motor_base_hz{110.0};             // fundamental of the gear tones
-  int64_t motor_harmonics{8};
-
-  void Serialize(Archive* a);
+/// Everything the strike renderer depends on.
+struct AcousticModelConfig {
+  TubeConfig tube;
+  MaterialConfig material;
+  MicArrayConfig mics;
+  AudioConfig audio;
+  ShellConfig shell;
+  SynthConfig synth;
+  DaqConfig daq;
+  NoiseConfig noise;
 };
 
 /// The Hertz impact of a striker on the wall (rigid target): physics.md §1.6.
@@ -70,29 +69,43 @@ double HertzForce(const HertzImpact& impact, double t_s);
 struct RenderedStrike {
   Eigen::MatrixXf audio;                   // (mics x T), full scale 1, quantized to output_bits
   bool clipped{false};
-  double impulse_ns{0.0};
+  double impulse_ns{0.0};                  // of the first (localized) contact
   double duration_s{0.0};
   double peak_force_n{0.0};
-  double band_hz{0.0};                     // mode band used
+  int64_t touches{0};                      // closures of the first contact (> 1: chatter)
+  double band_hz{0.0};                     // mode band used (modal rungs)
   int64_t modes_used{0};
+  int64_t forces_played{0};                // impacts, bounces, presses and brushes rendered
+  double vibration_s{0.0};                 // wall time of the vibration model alone, s
 };
 
-/// Immutable acoustic model of one tube + sensor set-up.
+/// Immutable acoustic model of one tube + sensor set-up, shared across threads; Render is const
+/// and depends only on its inputs and the sample seed. Building a modal or fd model solves (or
+/// reads from the cache) the shell's modes once.
 class StrikeSynthesizer {
  public:
-  StrikeSynthesizer(const TubeConfig& tube, const MaterialConfig& material,
-                    const MicArrayConfig& mics, const AudioConfig& audio, const SynthConfig& synth,
-                    const DaqConfig& daq, const NoiseConfig& noise);
+  explicit StrikeSynthesizer(const AcousticModelConfig& config);
   ~StrikeSynthesizer();
   StrikeSynthesizer(const StrikeSynthesizer&) = delete;
   StrikeSynthesizer& operator=(const StrikeSynthesizer&) = delete;
 
-  /// Renders one record. joint_speed_rad_s is sampled at joint_speed_rate_hz from the record start.
+  /// Renders one record: the first hard contact, plus every other episode of the record
+  /// (bounces and impacts by the contact solve, presses as their mean force, foliage brushes as
+  /// a rustle force; the episode at the first contact's time is that contact). joint_speed_rad_s
+  /// is sampled at joint_speed_rate_hz from the record start.
+  RenderedStrike Render(const ContactEvent& contact, std::span<const ContactEpisode> episodes,
+                        std::span<const double> joint_speed_rad_s, double joint_speed_rate_hz,
+                        uint64_t sample_seed) const;
+  /// The first contact alone.
   RenderedStrike Render(const ContactEvent& contact, std::span<const double> joint_speed_rad_s,
-                        double joint_speed_rate_hz, uint64_t sample_seed) const;
+                        double joint_speed_rate_hz, uint64_t sample_seed) const {
+    return Render(contact, {}, joint_speed_rad_s, joint_speed_rate_hz, sample_seed);
+  }
 
   /// Modes in the model's widest band (for inspection).
   int64_t mode_count() const;
+  /// The modal rung's band for a first contact of duration t_c (what Render derives), Hz.
+  double BandFor(double contact_duration_s) const;
 
  private:
   struct Impl;

@@ -30,6 +30,15 @@ struct ContactEvent {
   double striker_radius_m{0.0};             // radius of the striker's contact surface
   double striker_youngs_modulus_pa{0.0};
   double striker_poisson_ratio{0.0};
+  // the struck rod as a beam, when it is one (acoustics plays its bending modes in the contact);
+  // beam_length_m = 0: the striker is a rigid body of effective_mass_kg
+  double beam_length_m{0.0};                // free length between clamps
+  double beam_contact_from_clamp_m{0.0};    // where the tube touches it
+  double beam_flexural_rigidity_n_m2{0.0};  // E I
+  double beam_linear_density_kg_m{0.0};     // rho A
+  bool beam_clamped_both_ends{false};
+  double beam_loss_factor{0.01};
+  double robot_side_mass_kg{0.0};           // the tube side's mass at the contact; 0 = held
 };
 
 /// One tube contact episode of a strike, from touch to release (tube frame).

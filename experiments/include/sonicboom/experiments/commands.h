@@ -32,6 +32,10 @@ CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
 CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index);
 CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool ideal,
                        int64_t count);
+/// The fidelity ladder's speed-accuracy table (docs/fidelity.md): every rung against the finest
+/// FD reference on `strikes` test strikes over `window_s` after the onset.
+CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
+                          double window_s, bool quick);
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv);
 CommandResult RunTrain(const GlobalOptions& g, const std::string& data, const std::string& out_dir,

@@ -12,6 +12,9 @@
 
 namespace sonicboom::experiments {
 
+/// The acoustic part of a config, as the strike renderer takes it.
+acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config);
+
 /// Immutable models of one config, shared by all worker threads.
 class StrikePipeline {
  public:

@@ -95,6 +95,8 @@ struct ContactRecord : ContactEpisode {
   Eigen::Vector3d point_world_m{Eigen::Vector3d::Zero()};  // (3) raw MuJoCo point, base frame
   int segment{0};                                          // object segment (leaf cluster: -1)
   double segment_radius_m{0.0};                            // its radius (the contact's curvature)
+  double segment_x_m{0.0};                                 // contact from the segment's base, m
+  double robot_side_mass_kg{0.0};                          // tube side at the contact (0 = held)
 };
 
 /// Outcome of one rollout.

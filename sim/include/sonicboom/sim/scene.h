@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "sonicboom/core/archive.h"
+#include "sonicboom/core/sample.h"
 #include "sonicboom/core/tube.h"
 
 namespace sonicboom::sim {
@@ -152,5 +153,10 @@ int DrawObjectIndex(const std::vector<ObjectConfig>& objects, double u);
 /// kg: m / phi(x)^2 with the mode shape normalised to integral(phi^2) = L (physics.md 1.4): a
 /// cantilever (clamped_both_ends false) has m / 4 at its tip. Infinite at a clamp.
 double BeamModalMassKg(double mass_kg, double length_m, double x_m, bool clamped_both_ends);
+
+/// Describes the struck rod of a rod or cross object as a beam for acoustics (its bending modes
+/// take part in the contact): length, E I, rho A, clamping, loss, and the contact's distance from
+/// the clamped base. Other kinds (branches, strikers) are left as rigid bodies.
+void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m, ContactEvent* event);
 
 }  // namespace sonicboom::sim

@@ -1,0 +1,577 @@
+#include "sonicboom/acoustics/contact.h"
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+// rigid Hertz duration factor: t_c = kHertzDuration delta_max / v (physics.md §1.6)
+constexpr double kHertzDuration = 2.9432;
+// a first closure shorter than this fraction of substeps_per_duration substeps (or longer than
+// its inverse) is redone with a substep sized on it, at most kMaxResolves times
+constexpr double kResolveFraction = 0.5;
+constexpr int kMaxResolves = 4;
+// substeps per Hertz time of the lightest apparent mass, at least (stability of the coupling)
+constexpr double kStabilitySubsteps = 20.0;
+// apart near the other body: free strides of substeps_per_duration / this many substeps
+constexpr int64_t kApartStrideDivisor = 50;
+constexpr int64_t kMaxSubstepsPerSample = int64_t{1} << 20;
+
+// ---- beam finite elements ----
+
+// the rod's mesh: node positions (m), two uniform parts either side of the contact node
+struct BeamMesh {
+  std::vector<double> x_m;   // (nodes) from the clamp
+  int contact_node{0};
+};
+
+void CheckBeam(const BeamSpec& beam, int elements) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!positive(beam.length_m)) {
+    throw ConfigError(fmt::format("beam length_m must be positive, got {}", beam.length_m));
+  }
+  if (!positive(beam.flexural_rigidity_n_m2)) {
+    throw ConfigError(fmt::format("beam flexural_rigidity_n_m2 (E I) must be positive, got {}",
+                                  beam.flexural_rigidity_n_m2));
+  }
+  if (!positive(beam.linear_density_kg_m)) {
+    throw ConfigError(fmt::format("beam linear_density_kg_m (rho A) must be positive, got {}",
+                                  beam.linear_density_kg_m));
+  }
+  const double a = beam.contact_from_clamp_m;
+  if (!(a > 0.0 && a <= beam.length_m) || (beam.clamped_both_ends && a >= beam.length_m)) {
+    throw ConfigError(fmt::format(
+        "beam contact_from_clamp_m must lie in (0, {}{} m (the rod's length), got {}",
+        beam.length_m, beam.clamped_both_ends ? ")" : "]", a));
+  }
+  if (!(std::isfinite(beam.loss_factor) && beam.loss_factor >= 0.0 && beam.loss_factor < 2.0)) {
+    throw ConfigError(
+        fmt::format("beam loss_factor must lie in [0, 2), got {}", beam.loss_factor));
+  }
+  if (elements < 2) throw ConfigError(fmt::format("beam elements must be >= 2, got {}", elements));
+}
+
+BeamMesh MakeMesh(const BeamSpec& beam, int elements) {
+  const double length = beam.length_m, a = beam.contact_from_clamp_m;
+  // elements either side of the contact, in proportion to the lengths (at least one each)
+  int inner = elements;
+  if (a < length) {
+    inner = static_cast<int>(std::lround(elements * a / length));
+    inner = std::clamp(inner, 1, elements - 1);
+  }
+  const int outer = elements - inner;
+  BeamMesh mesh;
+  mesh.x_m.reserve(static_cast<size_t>(elements) + 1);
+  for (int i = 0; i <= inner; ++i) mesh.x_m.push_back(a * i / inner);
+  for (int i = 1; i <= outer; ++i) mesh.x_m.push_back(a + (length - a) * i / outer);
+  mesh.contact_node = inner;
+  return mesh;
+}
+
+// the rod's modes: omega (rad/s, ascending), mass-normalized shapes over the free DOFs, and the
+// free-DOF index of the contact node's displacement; only modes the mesh resolves
+struct BeamModes {
+  Eigen::VectorXd omega_rad_s;   // (modes)
+  Eigen::MatrixXd shapes;        // (free dofs x modes), shapes^T M shapes = I
+  Eigen::Index contact_dof{-1};  // row of the contact displacement in shapes
+};
+
+BeamModes SolveBeam(const BeamSpec& beam, int elements, double max_frequency_hz) {
+  CheckBeam(beam, elements);
+  const BeamMesh mesh = MakeMesh(beam, elements);
+  const int nodes = static_cast<int>(mesh.x_m.size());
+  const int dofs = 2 * nodes;  // per node: w (m), w' (rad)
+  const double ei = beam.flexural_rigidity_n_m2, rho_a = beam.linear_density_kg_m;
+
+  // assemble Hermite-cubic stiffness and consistent mass (dofs x dofs)
+  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(dofs, dofs), m = Eigen::MatrixXd::Zero(dofs, dofs);
+  double largest_element_m = 0.0;
+  for (int e = 0; e + 1 < nodes; ++e) {
+    const double l = mesh.x_m[e + 1] - mesh.x_m[e];
+    largest_element_m = std::max(largest_element_m, l);
+    Eigen::Matrix4d ke, me;
+    ke << 12, 6 * l, -12, 6 * l,
+          6 * l, 4 * l * l, -6 * l, 2 * l * l,
+          -12, -6 * l, 12, -6 * l,
+          6 * l, 2 * l * l, -6 * l, 4 * l * l;
+    me << 156, 22 * l, 54, -13 * l,
+          22 * l, 4 * l * l, 13 * l, -3 * l * l,
+          54, 13 * l, 156, -22 * l,
+          -13 * l, -3 * l * l, -22 * l, 4 * l * l;
+    k.block<4, 4>(2 * e, 2 * e) += ei / (l * l * l) * ke;
+    m.block<4, 4>(2 * e, 2 * e) += rho_a * l / 420.0 * me;
+  }
+
+  // clamp: drop w and w' at x = 0 (and at x = L)
+  const int first = 2, last = beam.clamped_both_ends ? dofs - 2 : dofs;
+  const int free = last - first;
+  const Eigen::MatrixXd kf = k.block(first, first, free, free);
+  const Eigen::MatrixXd mf = m.block(first, first, free, free);
+
+  // generalized eigenproblem K v = omega^2 M v; Eigen normalizes v^T M v = 1
+  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> solver(kf, mf);
+  if (solver.info() != Eigen::Success) {
+    throw NumericalError("beam modes: the generalized eigenproblem failed to converge");
+  }
+  const Eigen::VectorXd lambda = solver.eigenvalues();  // (free) ascending, rad^2/s^2
+
+  // keep modes the mesh resolves: at least 2 of the largest elements per half flexural
+  // wavelength (k l <= pi / 2, k = (omega^2 rho A / EI)^(1/4)), and never the top third of the
+  // FE spectrum
+  const double k_max_rad_m = kPi / (2.0 * largest_element_m);
+  const double omega_resolved = k_max_rad_m * k_max_rad_m * std::sqrt(ei / rho_a);
+  const double omega_cap = max_frequency_hz > 0.0 ? 2.0 * kPi * max_frequency_hz
+                                                  : std::numeric_limits<double>::infinity();
+  const Eigen::Index spectrum_cap = (2 * free) / 3;
+  Eigen::Index kept = 0;
+  while (kept < spectrum_cap && lambda[kept] > 0.0) {
+    const double omega = std::sqrt(lambda[kept]);
+    if (omega > omega_resolved || omega > omega_cap) break;
+    ++kept;
+  }
+  BeamModes modes;
+  modes.omega_rad_s = lambda.head(kept).cwiseSqrt();
+  modes.shapes = solver.eigenvectors().leftCols(kept);
+  modes.contact_dof = 2 * mesh.contact_node - first;
+  return modes;
+}
+
+// ---- contact integrator ----
+
+// exact one-step maps of y'' + 2 zeta omega y' + omega^2 y = u over a step h, u held:
+// [y; y'](h) = [e11 e12; e21 e22] [y; y'](0) + [g1; e12] u
+struct StepMap {
+  double e11, e12, e21, e22, g1;
+};
+
+StepMap OscillatorStep(double omega, double zeta, double h) {
+  StepMap s{};
+  if (zeta < 1.0) {
+    // underdamped closed form; g1 = (1 - e11) / omega^2 rearranged against cancellation
+    const double sigma = zeta * omega, omega_d = omega * std::sqrt(1.0 - zeta * zeta);
+    const double decay = std::exp(-sigma * h);
+    const double c = std::cos(omega_d * h), sn = std::sin(omega_d * h);
+    const double half_sin = std::sin(0.5 * omega_d * h);
+    s.e11 = decay * (c + sigma / omega_d * sn);
+    s.e12 = decay * sn / omega_d;
+    s.e21 = -decay * omega * omega / omega_d * sn;
+    s.e22 = decay * (c - sigma / omega_d * sn);
+    const double one_minus_e11 =
+        -std::expm1(-sigma * h) + decay * (2.0 * half_sin * half_sin - sigma / omega_d * sn);
+    s.g1 = one_minus_e11 / (omega * omega);
+    return s;
+  }
+  // critically or over-damped (rare): augmented matrix exponential
+  Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+  a(0, 1) = 1.0;
+  a(1, 0) = -omega * omega;
+  a(1, 1) = -2.0 * zeta * omega;
+  a(1, 2) = 1.0;
+  const Eigen::Matrix3d e = (a * h).exp();
+  s.e11 = e(0, 0);
+  s.e12 = e(0, 1);
+  s.e21 = e(1, 0);
+  s.e22 = e(1, 1);
+  s.g1 = e(0, 2);
+  return s;
+}
+
+void CheckBody(const DrivingPoint& body, const char* side) {
+  const Eigen::Index n = body.omega_rad_s.size();
+  if (body.zeta.size() != n || body.phi.size() != n) {
+    throw ConfigError(
+        fmt::format("contact {}: omega_rad_s, zeta and phi differ in length ({}, {}, {})", side, n,
+                    body.zeta.size(), body.phi.size()));
+  }
+  if (!(body.rigid_mass_kg > 0.0)) {
+    throw ConfigError(fmt::format("contact {}: rigid_mass_kg must be positive (inf = held), got {}",
+                                  side, body.rigid_mass_kg));
+  }
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double w = body.omega_rad_s[i], z = body.zeta[i], p = body.phi[i];
+    if (!(std::isfinite(w) && w > 0.0 && std::isfinite(z) && z >= 0.0 && std::isfinite(p))) {
+      throw ConfigError(fmt::format(
+          "contact {}: mode {} needs omega_rad_s > 0, zeta >= 0 and a finite phi, got {}, {}, {}",
+          side, i, w, z, p));
+    }
+  }
+}
+
+// rigid-target Hertz duration for mass m_kg at speed v (physics.md §1.6)
+double HertzDuration(double m_kg, double stiffness_n_m15, double v_m_s) {
+  const double delta_max = std::pow(5.0 * m_kg * v_m_s * v_m_s / (4.0 * stiffness_n_m15), 0.4);
+  return kHertzDuration * delta_max / v_m_s;
+}
+
+// both bodies reduced to the compression delta = x_tube - x_striker: a rigid part with inverse
+// mass 1/m_tube + 1/m_striker and modes y_i = phi_i q_i (the striker's sign flipped), each
+// y_i'' + 2 zeta_i omega_i y_i' + omega_i^2 y_i = -gain_i F, gain_i = phi_i^2
+struct Reduced {
+  double inv_mass_per_kg{0.0};
+  Eigen::ArrayXd omega_rad_s, zeta, gain_per_kg;  // (modes)
+};
+
+// what one pass at a fixed substep needs besides the bodies
+struct PassSetup {
+  double stiffness_n_m15, v_m_s, time_s, sample_rate_hz;
+  int64_t per_sample;        // substeps per audio sample
+  int64_t apart_stride;      // substeps per free step while apart near the other body
+  int64_t restart_below;     // abandon the pass when the first closure is shorter (substeps)
+  int64_t restart_above;     // ... or longer (substeps)
+};
+
+// one pass of the contact solve at a fixed substep
+struct Pass {
+  ContactForce result;
+  bool restart{false};                // the first closure fell outside the wanted substep band
+  int64_t first_closure_substeps{0};  // length of the first closure, substeps
+};
+
+Pass SolveAtSubsteps(const Reduced& body, const PassSetup& setup, const ContactConfig& config) {
+  const Eigen::ArrayXd& omega = body.omega_rad_s;
+  const Eigen::Index n = omega.size();
+  const double inv_mass = body.inv_mass_per_kg;
+  const double period_s = 1.0 / setup.sample_rate_hz;
+  const int64_t per_sample = setup.per_sample, stride = setup.apart_stride;
+  const double h = period_s / static_cast<double>(per_sample);
+  const double stride_s = h * static_cast<double>(stride);
+  const double k = setup.stiffness_n_m15, lambda = config.hunt_crossley_s_m;
+
+  // per-mode maps (modes x 18): half step e11 e12 e21 e22 (predictor) | substep e11 e12 e21 e22
+  // | substep input (x gain) g1 g2 | stride e11..e22 | sample e11..e22 (both free, apart)
+  Eigen::ArrayXXd map(n, 18);
+  const Eigen::ArrayXd inv_omega_sq = omega.square().inverse();  // (modes) s^2
+  double half_g1 = 0.0, half_g2 = 0.0;  // sum of gain x half-step input response, m/N, m/(N s)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const StepMap half = OscillatorStep(omega[i], body.zeta[i], 0.5 * h);
+    const StepMap full = OscillatorStep(omega[i], body.zeta[i], h);
+    const StepMap strided = OscillatorStep(omega[i], body.zeta[i], stride_s);
+    const StepMap sample = OscillatorStep(omega[i], body.zeta[i], period_s);
+    const double g = body.gain_per_kg[i];
+    map.row(i) << half.e11, half.e12, half.e21, half.e22, full.e11, full.e12, full.e21, full.e22,
+        g * full.g1, g * full.e12, strided.e11, strided.e12, strided.e21, strided.e22, sample.e11,
+        sample.e12, sample.e21, sample.e22;
+    half_g1 += g * half.g1;
+    half_g2 += g * half.e12;
+  }
+
+  // contact force (N) from compression (m) and its rate (m/s); Hunt-Crossley never pulls
+  auto force = [&](double delta, double rate) {
+    if (delta <= 0.0) return 0.0;
+    const double bracket = 1.0 + lambda * rate;
+    return bracket > 0.0 ? k * delta * std::sqrt(delta) * bracket : 0.0;
+  };
+
+  // time runs from the start of the sample holding time_s; the bodies start apart on the
+  // substep grid, closing at v with the modes at rest, so that they touch exactly at time_s
+  const double first_sample_f = std::floor(setup.time_s * setup.sample_rate_hz);
+  const double touch_s = setup.time_s - first_sample_f * period_s;  // [0, T) from the origin
+  int64_t step = static_cast<int64_t>(std::floor(touch_s / h));
+  double x_m = -setup.v_m_s * (touch_s - static_cast<double>(step) * h);  // rigid part, m
+  double xd_m_s = setup.v_m_s;                                            // its rate, m/s
+  // modal parts (modes): y (m), y' (m/s); the next state is built beside them, then swapped
+  Eigen::ArrayXd y = Eigen::ArrayXd::Zero(n), yd = Eigen::ArrayXd::Zero(n);
+  Eigen::ArrayXd y_next(n), yd_next(n);
+  double sum_y = 0.0, sum_yd = 0.0;  // sums over the modes of y, y'
+
+  Pass pass;
+  ContactForce& out = pass.result;
+  out.first_sample = static_cast<int64_t>(first_sample_f);
+  std::vector<double>& impulse = out.force_n;  // N s per audio sample until the end, then / T
+  impulse.reserve(16);
+
+  bool closed = false;
+  int64_t touches = 0, closure_start = 0, fine_until = 0;
+  double modal_reach = -1.0;  // m, the modes' energy bound while free; < 0 = to compute
+  double release_s = touch_s;  // the last release, from the origin
+  const double give_up_s = touch_s + config.max_duration_s;
+
+  // a free step of `substeps` substeps with map columns from `col` into the next state; kept
+  // when no contact can have happened inside it
+  auto free_step = [&](int col, int64_t substeps, double dt_s, double delta, double rate,
+                       bool certain) {
+    y_next = map.col(col) * y + map.col(col + 1) * yd;
+    yd_next = map.col(col + 2) * y + map.col(col + 3) * yd;
+    const double x_end = x_m + xd_m_s * dt_s;
+    const double delta_end = x_end + y_next.sum(), rate_end = xd_m_s + yd_next.sum();
+    ++out.substeps;
+    if (!certain) {
+      // refused when closed at the end, or when the cubic through both ends peaks above zero
+      if (delta_end > 0.0) return false;
+      const double a = rate * dt_s, b = rate_end * dt_s;
+      const double c2 = 3.0 * (delta_end - delta) - 2.0 * a - b;
+      const double c3 = 2.0 * (delta - delta_end) + a + b;
+      // roots of the cubic's slope a + 2 c2 s + 3 c3 s^2 on (0, 1)
+      const double qa = 3.0 * c3, qb = 2.0 * c2, qc = a;
+      const double disc = qb * qb - 4.0 * qa * qc;
+      if (disc >= 0.0 && qa != 0.0) {
+        for (const double sgn : {-1.0, 1.0}) {
+          const double s = (-qb + sgn * std::sqrt(disc)) / (2.0 * qa);
+          if (s > 0.0 && s < 1.0 && delta + s * (a + s * (c2 + s * c3)) > 0.0) return false;
+        }
+      } else if (qa == 0.0 && qb != 0.0) {
+        const double s = -qc / qb;
+        if (s > 0.0 && s < 1.0 && delta + s * (a + s * (c2 + s * c3)) > 0.0) return false;
+      }
+    }
+    y.swap(y_next);
+    yd.swap(yd_next);
+    x_m = x_end;
+    sum_y = delta_end - x_end;
+    sum_yd = rate_end - xd_m_s;
+    step += substeps;
+    return true;
+  };
+
+  for (;;) {
+    const double t_s = static_cast<double>(step) * h;
+    const double delta = x_m + sum_y, rate = xd_m_s + sum_yd;
+    if (!std::isfinite(delta) || !std::isfinite(rate)) {
+      throw NumericalError(fmt::format(
+          "contact solve turned non-finite {:.3g} s after the touch ({} substeps per sample)",
+          t_s - touch_s, per_sample));
+    }
+    if (t_s > give_up_s && (closed || t_s > give_up_s + config.separation_window_s)) {
+      throw NumericalError(fmt::format(
+          "contact not over {:.3g} s after the first touch ({} touches): over "
+          "acoustics.contact.max_duration_s = {} s (a heavy side pressing into a compliant one "
+          "takes long to push back)",
+          t_s - touch_s, touches, config.max_duration_s));
+    }
+    // done once apart for the separation window with the rigid parts not closing (a rigid
+    // part still closing meets the other body again: the modal parts are bounded)
+    if (!closed && touches > 0 && t_s - release_s >= config.separation_window_s &&
+        xd_m_s <= 0.0) {
+      break;
+    }
+
+    // apart: a whole free sample when no mode can reach across the gap in it (energy bound
+    // |y_i(t)| <= sqrt(y_i^2 + (y_i'/omega_i)^2), which only shrinks while free, so it is kept
+    // until a force acts), else a free stride when it shows no contact, else substeps
+    if (!closed && delta < 0.0 && step >= fine_until) {
+      const double rigid_reach = std::max(x_m, x_m + xd_m_s * period_s);
+      if (rigid_reach < 0.0 && modal_reach < 0.0) {
+        modal_reach = (y.square() + yd.square() * inv_omega_sq).sqrt().sum();
+      }
+      if (rigid_reach < 0.0 && rigid_reach + modal_reach < 0.0 &&
+          free_step(14, per_sample, period_s, delta, rate, true)) {
+        continue;
+      }
+      if (stride > 1 && free_step(10, stride, stride_s, delta, rate, false)) continue;
+      fine_until = step + stride;  // this stride closes: take it in substeps
+    }
+
+    const size_t sample = static_cast<size_t>(step / per_sample);
+    if (impulse.size() <= sample) impulse.resize(sample + 1, 0.0);
+
+    // midpoint predictor: the half-step state under the force at the step start
+    const double f0 = force(delta, rate);
+    const double delta_mid = x_m + 0.5 * h * xd_m_s - 0.125 * h * h * inv_mass * f0 +
+                             (map.col(0) * y + map.col(1) * yd).sum() - half_g1 * f0;
+    const double rate_mid = xd_m_s - 0.5 * h * inv_mass * f0 +
+                            (map.col(2) * y + map.col(3) * yd).sum() - half_g2 * f0;
+    const double f = force(delta_mid, rate_mid);
+
+    // exact substep for the midpoint force held over it (rigid and modal parts)
+    y_next = map.col(4) * y + map.col(5) * yd - map.col(8) * f;
+    yd_next = map.col(6) * y + map.col(7) * yd - map.col(9) * f;
+    y.swap(y_next);
+    yd.swap(yd_next);
+    x_m += h * xd_m_s - 0.5 * h * h * inv_mass * f;
+    xd_m_s -= h * inv_mass * f;
+    sum_y = y.sum();
+    sum_yd = yd.sum();
+    ++step;
+    ++out.substeps;
+
+    // the impulse into its audio sample; touches and releases
+    if (f != 0.0) modal_reach = -1.0;
+    impulse[sample] += f * h;
+    out.impulse_ns += f * h;
+    out.peak_force_n = std::max(out.peak_force_n, f);
+    const double delta_end = x_m + sum_y, rate_end = xd_m_s + sum_yd;
+    if (!closed && delta_end > 0.0) {
+      closed = true;
+      ++touches;
+      closure_start = step - 1;
+    } else if (closed && delta_end <= 0.0) {
+      // release inside the substep, by linear interpolation of the compression
+      closed = false;
+      const double frac = delta > 0.0 ? delta / (delta - delta_end) : 0.0;
+      release_s = t_s + frac * h;
+      out.rebound_speed_m_s = -(rate + frac * (rate_end - rate));
+      if (touches == 1) {
+        out.first_closure_s = release_s - touch_s;
+        pass.first_closure_substeps = step - closure_start;
+        if (pass.first_closure_substeps < setup.restart_below ||
+            pass.first_closure_substeps > setup.restart_above) {
+          pass.restart = true;
+          return pass;
+        }
+      }
+    }
+  }
+
+  // trim to the sample of the final release (less a trailing sample whose only substep held no
+  // force); impulses to sample-averaged forces
+  const size_t last = static_cast<size_t>(std::floor(release_s / period_s));
+  impulse.resize(std::min(impulse.size(), last + 1));
+  while (!impulse.empty() && impulse.back() == 0.0) impulse.pop_back();
+  for (double& v : impulse) v /= period_s;
+  out.duration_s = release_s - touch_s;
+  out.touches = touches;
+  return pass;
+}
+
+}  // namespace
+
+void ContactConfig::Serialize(Archive* a) {
+  a->Visit("substeps_per_duration", &substeps_per_duration, Bounds::Closed(50, 100000));
+  a->Visit("min_substeps", &min_substeps, Bounds::Closed(1, 4096));
+  a->Visit("hunt_crossley_s_m", &hunt_crossley_s_m, Bounds::Closed(0.0, 100.0));
+  a->Visit("separation_window_s", &separation_window_s, Bounds{0.0, 1.0, true, false});
+  a->Visit("max_duration_s", &max_duration_s, Bounds{0.0, 10.0, true, false});
+  a->Visit("beam_max_frequency_hz", &beam_max_frequency_hz, Bounds::Positive());
+}
+
+Eigen::VectorXd BeamFrequenciesHz(const BeamSpec& beam, int elements, double max_frequency_hz) {
+  return SolveBeam(beam, elements, max_frequency_hz).omega_rad_s / (2.0 * kPi);
+}
+
+DrivingPoint BeamDrivingPoint(const BeamSpec& beam, double max_frequency_hz) {
+  constexpr int kElements = 48;
+  // the same rods are struck again and again: each thread keeps its last few answers
+  struct Entry {
+    BeamSpec beam;
+    double max_frequency_hz{-1.0};
+    DrivingPoint point;
+    bool used{false};
+  };
+  constexpr size_t kCached = 8;
+  thread_local std::array<Entry, kCached> cache;
+  thread_local size_t next_slot = 0;
+  auto same = [&](const Entry& e) {
+    const BeamSpec& b = e.beam;
+    return e.used && e.max_frequency_hz == max_frequency_hz && b.length_m == beam.length_m &&
+           b.flexural_rigidity_n_m2 == beam.flexural_rigidity_n_m2 &&
+           b.linear_density_kg_m == beam.linear_density_kg_m &&
+           b.contact_from_clamp_m == beam.contact_from_clamp_m &&
+           b.clamped_both_ends == beam.clamped_both_ends && b.loss_factor == beam.loss_factor;
+  };
+  for (const Entry& e : cache) {
+    if (same(e)) return e.point;
+  }
+
+  const BeamModes modes = SolveBeam(beam, kElements, max_frequency_hz);
+  DrivingPoint point;  // held at the clamp: no rigid motion
+  point.omega_rad_s = modes.omega_rad_s;
+  point.zeta = Eigen::VectorXd::Constant(modes.omega_rad_s.size(), 0.5 * beam.loss_factor);
+  point.phi = modes.shapes.row(modes.contact_dof).transpose();
+  cache[next_slot] = Entry{beam, max_frequency_hz, point, true};
+  next_slot = (next_slot + 1) % kCached;
+  return point;
+}
+
+ContactForce SolveContact(const DrivingPoint& tube, const DrivingPoint& striker,
+                          double stiffness_n_m15, double approach_speed_m_s, double time_s,
+                          double sample_rate_hz, const ContactConfig& config) {
+  CheckBody(tube, "tube");
+  CheckBody(striker, "striker");
+  if (!(std::isfinite(stiffness_n_m15) && stiffness_n_m15 > 0.0)) {
+    throw ConfigError(fmt::format("contact: Hertz stiffness must be positive, got {} N/m^1.5",
+                                  stiffness_n_m15));
+  }
+  if (!(std::isfinite(approach_speed_m_s) && approach_speed_m_s > 0.0)) {
+    throw ConfigError(
+        fmt::format("contact: approach speed must be positive, got {} m/s", approach_speed_m_s));
+  }
+  if (!(std::isfinite(sample_rate_hz) && sample_rate_hz > 0.0 && std::isfinite(time_s))) {
+    throw ConfigError(fmt::format("contact: needs a positive sample rate and a finite time, got "
+                                  "{} Hz, {} s", sample_rate_hz, time_s));
+  }
+  // relative rigid coordinate: (x_tube - x_striker)'' = -F (1/m_tube + 1/m_striker)
+  const double inv_mass = 1.0 / tube.rigid_mass_kg + 1.0 / striker.rigid_mass_kg;
+  if (inv_mass == 0.0) {
+    throw ConfigError(
+        "contact: the tube and the striker are both held (infinite rigid_mass_kg): closing at a "
+        "constant speed they never release; give one side a finite mass");
+  }
+
+  // both bodies' modes as compression parts; modes that do not move the contact dropped
+  Reduced body;
+  body.inv_mass_per_kg = inv_mass;
+  const Eigen::Index n_all = tube.omega_rad_s.size() + striker.omega_rad_s.size();
+  body.omega_rad_s.resize(n_all);
+  body.zeta.resize(n_all);
+  body.gain_per_kg.resize(n_all);
+  Eigen::Index n = 0;
+  for (const DrivingPoint* side : {&tube, &striker}) {
+    for (Eigen::Index i = 0; i < side->phi.size(); ++i) {
+      if (side->phi[i] == 0.0) continue;
+      body.omega_rad_s[n] = side->omega_rad_s[i];
+      body.zeta[n] = side->zeta[i];
+      body.gain_per_kg[n] = side->phi[i] * side->phi[i];
+      ++n;
+    }
+  }
+  body.omega_rad_s.conservativeResize(n);
+  body.zeta.conservativeResize(n);
+  body.gain_per_kg.conservativeResize(n);
+
+  // substep: substeps_per_duration per contact time, first the rigid-mass Hertz duration; a
+  // pass whose first closure takes under half or over twice that many substeps is abandoned at
+  // its first release and redone on the measured length. The substep never exceeds 1/20 of the
+  // Hertz time of the lightest mass the contact can see (all modes as masses), which keeps the
+  // explicit force coupling stable. An integer number of substeps fits one audio sample.
+  const double period_s = 1.0 / sample_rate_hz;
+  const double spd = static_cast<double>(config.substeps_per_duration);
+  const double lightest_kg = 1.0 / (inv_mass + body.gain_per_kg.sum());
+  const double h_stable_s =
+      HertzDuration(lightest_kg, stiffness_n_m15, approach_speed_m_s) / kStabilitySubsteps;
+  double t_c = HertzDuration(1.0 / inv_mass, stiffness_n_m15, approach_speed_m_s);
+  int64_t total_steps = 0;
+  for (int attempt = 0;; ++attempt) {
+    const double h_target = std::min(t_c / spd, h_stable_s);
+    const double per_sample_f = std::ceil(period_s / h_target * (1.0 - 1e-12));
+    if (!(per_sample_f <= static_cast<double>(kMaxSubstepsPerSample))) {
+      throw NumericalError(fmt::format(
+          "contact needs {:.3g} substeps per audio sample (contact time {:.3g} s): over the "
+          "limit {}; lower acoustics.contact.substeps_per_duration",
+          per_sample_f, t_c, kMaxSubstepsPerSample));
+    }
+    PassSetup setup{stiffness_n_m15, approach_speed_m_s, time_s, sample_rate_hz, 0, 1, 0,
+                    std::numeric_limits<int64_t>::max()};
+    setup.per_sample = std::max<int64_t>(config.min_substeps, static_cast<int64_t>(per_sample_f));
+    setup.apart_stride = std::max<int64_t>(1, config.substeps_per_duration / kApartStrideDivisor);
+    if (attempt < kMaxResolves) {
+      setup.restart_below = static_cast<int64_t>(kResolveFraction * spd);
+      // longer closures only matter when the substep can still grow
+      if (setup.per_sample > config.min_substeps && h_target < h_stable_s) {
+        setup.restart_above = static_cast<int64_t>(spd / kResolveFraction);
+      }
+    }
+    Pass pass = SolveAtSubsteps(body, setup, config);
+    total_steps += pass.result.substeps;
+    if (!pass.restart) {
+      pass.result.substeps = total_steps;
+      return std::move(pass.result);
+    }
+    // redo with the substep sized on the first closure's measured length
+    t_c = static_cast<double>(pass.first_closure_substeps) * period_s /
+          static_cast<double>(setup.per_sample);
+  }
+}
+
+}  // namespace sonicboom::acoustics

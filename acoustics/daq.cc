@@ -1,0 +1,249 @@
+#include "sonicboom/acoustics/daq.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/rng.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// round to nearest (ties to even) without a libm call; |x| < 2^51
+inline double RoundFast(double x) {
+  constexpr double kMagic = 6755399441055744.0;  // 1.5 * 2^52
+  return (x + kMagic) - kMagic;
+}
+
+// entry c of a per-channel list, or the scalar when the list is empty
+double PerChannel(const std::vector<double>& list, double scalar, int c) {
+  return list.empty() ? scalar : list[static_cast<size_t>(c)];
+}
+
+void CheckChannelList(const std::vector<double>& list, const char* key, int channels) {
+  if (!list.empty() && static_cast<int>(list.size()) != channels) {
+    throw ConfigError(fmt::format("daq.{} has {} entries; it needs one per microphone ({}) or none",
+                                  key, list.size(), channels));
+  }
+}
+
+}  // namespace
+
+void DaqConfig::Serialize(Archive* a) {
+  a->Visit("sensitivity_v_per_strain", &sensitivity_v_per_strain, Bounds::Positive());
+  a->Visit("gain_mismatch_db", &gain_mismatch_db, Bounds::Closed(0.0, 20.0));
+  a->Visit("input_resistance_ohm", &input_resistance_ohm, Bounds::Positive());
+  a->Visit("disc_capacitance_f", &disc_capacitance_f, Bounds::Positive());
+  a->Visit("preamp_noise_v", &preamp_noise_v, Bounds::NonNegative());
+  a->Visit("full_scale_v", &full_scale_v, Bounds::Positive());
+  a->Visit("adc_bits", &adc_bits, Bounds::Closed(8, 32));
+  a->Visit("output_bits", &output_bits, Bounds::Closed(8, 32));
+  a->Visit("channel_gain_db", &channel_gain_db, Bounds::Closed(-60.0, 60.0));
+  a->Visit("channel_input_resistance_ohm", &channel_input_resistance_ohm, Bounds::Positive());
+  a->Visit("channel_capacitance_f", &channel_capacitance_f, Bounds::Positive());
+  a->Visit("channel_preamp_noise_v", &channel_preamp_noise_v, Bounds::NonNegative());
+}
+
+void DaqConfig::Validate(int channels) const {
+  CheckChannelList(channel_gain_db, "channel_gain_db", channels);
+  CheckChannelList(channel_input_resistance_ohm, "channel_input_resistance_ohm", channels);
+  CheckChannelList(channel_capacitance_f, "channel_capacitance_f", channels);
+  CheckChannelList(channel_preamp_noise_v, "channel_preamp_noise_v", channels);
+  if (output_bits > adc_bits) {
+    throw ConfigError(fmt::format("daq.output_bits = {} exceeds daq.adc_bits = {}", output_bits,
+                                  adc_bits));
+  }
+}
+
+double DaqConfig::highpass_hz(int channel) const {
+  const double r = PerChannel(channel_input_resistance_ohm, input_resistance_ohm, channel);
+  const double c = PerChannel(channel_capacitance_f, disc_capacitance_f, channel);
+  return 1.0 / (2 * kPi * r * c);
+}
+
+void NoiseConfig::Serialize(Archive* a) {
+  a->Visit("ambient_rms_v", &ambient_rms_v, Bounds::NonNegative());
+  a->Visit("motor_rms_v_per_rad_s", &motor_rms_v_per_rad_s, Bounds::NonNegative());
+  a->Visit("motor_base_hz", &motor_base_hz, Bounds::Positive());
+  a->Visit("motor_harmonics", &motor_harmonics, Bounds::Closed(0, 64));
+  a->Visit("foliage_force_rms_n", &foliage_force_rms_n, Bounds::NonNegative());
+  a->Visit("foliage_low_hz", &foliage_low_hz, Bounds::Positive());
+  a->Visit("foliage_high_hz", &foliage_high_hz, Bounds::Positive());
+  a->Visit("wav_files", &wav_files);
+  a->Visit("wav_gain", &wav_gain, Bounds::NonNegative());
+}
+
+void NoiseConfig::Validate() const {
+  if (!(foliage_low_hz < foliage_high_hz)) {
+    throw ConfigError(fmt::format("noise.foliage_low_hz = {} must be below noise.foliage_high_hz = {}",
+                                  foliage_low_hz, foliage_high_hz));
+  }
+}
+
+struct DaqChain::Impl {
+  DaqConfig daq;
+  NoiseConfig noise;
+  int channels{0};
+  double fs{0.0};
+  int64_t record_samples{0};
+  Eigen::VectorXd b0, a1;                 // (channels) bilinear high-pass coefficients
+  Eigen::VectorXd preamp_noise_v;         // (channels)
+  std::vector<Eigen::MatrixXf> recordings;  // each (channels x frames), full scale units
+};
+
+DaqChain::DaqChain(const DaqConfig& daq, const NoiseConfig& noise, int channels,
+                   double sample_rate_hz, int64_t record_samples)
+    : impl_(std::make_unique<Impl>()) {
+  daq.Validate(channels);
+  noise.Validate();
+  Impl& m = *impl_;
+  m.daq = daq;
+  m.noise = noise;
+  m.channels = channels;
+  m.fs = sample_rate_hz;
+  m.record_samples = record_samples;
+  // first-order high-pass of disc capacitance into the preamp input, per channel (bilinear)
+  m.b0.resize(channels);
+  m.a1.resize(channels);
+  m.preamp_noise_v.resize(channels);
+  for (int c = 0; c < channels; ++c) {
+    const double fc = daq.highpass_hz(c);
+    if (!(fc < 0.5 * sample_rate_hz)) {
+      throw ConfigError(fmt::format("daq: channel {} high-pass corner {} Hz (1 / 2 pi R C) is not "
+                                    "below the Nyquist frequency {} Hz",
+                                    c, fc, 0.5 * sample_rate_hz));
+    }
+    const double kk = std::tan(kPi * fc / sample_rate_hz);
+    m.b0[c] = 1.0 / (1.0 + kk);
+    m.a1[c] = (kk - 1.0) / (kk + 1.0);
+    m.preamp_noise_v[c] = PerChannel(daq.channel_preamp_noise_v, daq.preamp_noise_v, c);
+  }
+  // recorded background: checked and held in memory once
+  for (const std::string& path : noise.wav_files) {
+    AudioClip clip = ReadWav(path);
+    if (std::abs(clip.sample_rate_hz - sample_rate_hz) > 1e-6) {
+      throw ConfigError(fmt::format("noise.wav_files: {} is sampled at {} Hz; audio.sample_rate_hz "
+                                    "is {} Hz (resample it first)",
+                                    path, clip.sample_rate_hz, sample_rate_hz));
+    }
+    if (clip.channels() != 1 && clip.channels() != channels) {
+      throw ConfigError(fmt::format("noise.wav_files: {} has {} channels; it needs 1 or {}", path,
+                                    clip.channels(), channels));
+    }
+    if (clip.frames() < record_samples) {
+      throw ConfigError(fmt::format("noise.wav_files: {} has {} frames, shorter than one record "
+                                    "({} frames)",
+                                    path, clip.frames(), record_samples));
+    }
+    if (clip.channels() == 1) clip.samples = clip.samples.replicate(channels, 1).eval();
+    m.recordings.push_back(std::move(clip.samples));
+  }
+}
+
+DaqChain::~DaqChain() = default;
+
+const DaqConfig& DaqChain::daq() const { return impl_->daq; }
+
+bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> joint_speed_rad_s,
+                       double joint_speed_rate_hz, uint64_t sample_seed,
+                       Eigen::MatrixXf* audio) const {
+  const Impl& m = *impl_;
+  SONICBOOM_DEMAND(strain.rows() == m.channels);
+  const int64_t num_frames = strain.cols();
+  const double T = 1.0 / m.fs;
+
+  // piezo volts with per-channel gain (fixed offsets, or a mismatch drawn per strike)
+  Rng rng(sample_seed, Stream::kDaq);
+  Eigen::MatrixXd volts(m.channels, num_frames);
+  for (int i = 0; i < m.channels; ++i) {
+    const double gain_db = m.daq.channel_gain_db.empty() ? rng.Normal() * m.daq.gain_mismatch_db
+                                                         : m.daq.channel_gain_db[static_cast<size_t>(i)];
+    volts.row(i) = strain.row(i) * (m.daq.sensitivity_v_per_strain * std::pow(10.0, gain_db / 20.0));
+  }
+
+  // motor and gear tones follow the joint speed; each channel picks them up with its own gain
+  Rng noise_rng(sample_seed, Stream::kNoise);
+  const int64_t harmonics = m.noise.motor_harmonics;
+  std::vector<double> phase(harmonics), channel_gain(m.channels);
+  for (auto& p : phase) p = noise_rng.Uniform(0, 2 * kPi);
+  for (auto& g : channel_gain) g = noise_rng.Uniform(0.5, 1.5);
+  const double tone_amp =
+      harmonics > 0 ? std::sqrt(2.0 / harmonics) * m.noise.motor_rms_v_per_rad_s : 0.0;
+  // each harmonic is a unit phasor advanced by one rotation per sample
+  std::vector<std::complex<double>> phasor(harmonics), step(harmonics);
+  for (int64_t hm = 0; hm < harmonics; ++hm) {
+    phasor[hm] = std::polar(1.0, phase[hm]);
+    step[hm] = std::polar(1.0, 2 * kPi * m.noise.motor_base_hz * (hm + 1) * T);
+  }
+  for (int64_t k = 0; k < num_frames; ++k) {
+    double speed = 0.0;
+    if (!joint_speed_rad_s.empty()) {
+      const double pos = k * T * joint_speed_rate_hz;
+      const size_t idx = std::min(static_cast<size_t>(pos), joint_speed_rad_s.size() - 1);
+      const size_t nxt = std::min(idx + 1, joint_speed_rad_s.size() - 1);
+      const double frac = std::clamp(pos - static_cast<double>(idx), 0.0, 1.0);
+      speed = (1 - frac) * joint_speed_rad_s[idx] + frac * joint_speed_rad_s[nxt];
+    }
+    double motor = 0.0;
+    for (int64_t hm = 0; hm < harmonics; ++hm) {
+      motor += phasor[hm].imag();
+      phasor[hm] *= step[hm];
+    }
+    motor *= tone_amp * speed;
+    for (int i = 0; i < m.channels; ++i) {
+      volts(i, k) += channel_gain[i] * motor + m.noise.ambient_rms_v * noise_rng.NoiseSample();
+    }
+  }
+
+  // high-pass of disc capacitance into the preamp input (bilinear), then preamp noise
+  for (int i = 0; i < m.channels; ++i) {
+    double x_prev = 0, y_prev = 0;
+    for (int64_t k = 0; k < num_frames; ++k) {
+      const double x = volts(i, k);
+      const double y = m.b0[i] * (x - x_prev) - m.a1[i] * y_prev;
+      x_prev = x;
+      y_prev = y;
+      volts(i, k) = y + m.preamp_noise_v[i] * noise_rng.NoiseSample();
+    }
+  }
+
+  // recorded background (already through a real DAQ): one file and offset per strike
+  if (!m.recordings.empty()) {
+    const Eigen::MatrixXf& rec = m.recordings[noise_rng.UniformInt(m.recordings.size())];
+    const int64_t span = std::min<int64_t>(num_frames, rec.cols());
+    const int64_t offset = static_cast<int64_t>(noise_rng.UniformInt(
+        static_cast<uint64_t>(rec.cols() - span + 1)));
+    volts.leftCols(span) +=
+        (rec.middleCols(offset, span).cast<double>() * (m.noise.wav_gain * m.daq.full_scale_v));
+  }
+
+  // converter: clip at full scale, quantize to the ADC, then to the output word length
+  const double adc_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.adc_bits) - 1) - 1);
+  const double out_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.output_bits) - 1) - 1);
+  audio->resize(m.channels, num_frames);
+  bool clipped = false;
+  for (int64_t k = 0; k < num_frames; ++k) {
+    for (int i = 0; i < m.channels; ++i) {
+      double x = volts(i, k) / m.daq.full_scale_v;
+      if (!std::isfinite(x)) {
+        throw NumericalError(fmt::format("non-finite audio at mic {} sample {}", i, k));
+      }
+      if (std::abs(x) >= 1.0) {
+        clipped = true;
+        x = std::clamp(x, -1.0, 1.0);
+      }
+      x = RoundFast(x / adc_step) * adc_step;
+      (*audio)(i, k) = static_cast<float>(RoundFast(x / out_step) * out_step);
+    }
+  }
+  return clipped;
+}
+
+}  // namespace sonicboom::acoustics

@@ -1,0 +1,292 @@
+#include "sonicboom/acoustics/shell_bank.h"
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cmath>
+#include <complex>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+constexpr int64_t kBlock = 256;  // samples between checks of the live mode count
+constexpr int kMaxMics = 16;
+
+// One sample of `live` modes: y_c += sum_n g_c[n] Im z_n (before the step), then
+// z_n <- p_n z_n + h_n u_n (h = p^(1/2): the impulse lands mid-sample). Modes vectorized; six
+// mics (the SonicBoom array) get one fused pass with six independent sums.
+void StepModes(int64_t live, int mics, const float* const* gain, const float* pr, const float* pim,
+               const float* ir, const float* ii, const float* u, float* zr, float* zi, float* y) {
+  if (mics == 6) {
+    const float *g0 = gain[0], *g1 = gain[1], *g2 = gain[2], *g3 = gain[3], *g4 = gain[4],
+                *g5 = gain[5];
+    float a0 = 0, a1 = 0, a2 = 0, a3 = 0, a4 = 0, a5 = 0;
+#pragma omp simd reduction(+ : a0, a1, a2, a3, a4, a5)
+    for (int64_t q = 0; q < live; ++q) {
+      const float r = zr[q], i = zi[q];
+      a0 += g0[q] * i;
+      a1 += g1[q] * i;
+      a2 += g2[q] * i;
+      a3 += g3[q] * i;
+      a4 += g4[q] * i;
+      a5 += g5[q] * i;
+      zr[q] = pr[q] * r - pim[q] * i + ir[q] * u[q];
+      zi[q] = pim[q] * r + pr[q] * i + ii[q] * u[q];
+    }
+    y[0] = a0, y[1] = a1, y[2] = a2, y[3] = a3, y[4] = a4, y[5] = a5;
+    return;
+  }
+  for (int c = 0; c < mics; ++c) {
+    const float* g = gain[c];
+    float sum = 0.0f;
+#pragma omp simd reduction(+ : sum)
+    for (int64_t q = 0; q < live; ++q) sum += g[q] * zi[q];
+    y[c] = sum;
+  }
+#pragma omp simd
+  for (int64_t q = 0; q < live; ++q) {
+    const float r = zr[q], i = zi[q];
+    zr[q] = pr[q] * r - pim[q] * i + ir[q] * u[q];
+    zi[q] = pim[q] * r + pr[q] * i + ii[q] * u[q];
+  }
+}
+
+// the w DOFs a radial point force spreads over, and their weights
+struct PointWeights {
+  std::vector<int64_t> dof;
+  std::vector<double> weight;
+};
+
+// rows (of the radial-DOF tables) and weights of a radial point force at (z, theta)
+PointWeights SparseWeights(const ShellModel& model, const std::vector<int64_t>& w_row, double z_m,
+                           double theta_rad) {
+  const Eigen::VectorXd w = model.RadialForceWeights(z_m, theta_rad);
+  PointWeights p;
+  for (Eigen::Index d = 0; d < w.size(); ++d) {
+    if (w[d] != 0.0) {
+      SONICBOOM_DEMAND(w_row[static_cast<size_t>(d)] >= 0);
+      p.dof.push_back(w_row[static_cast<size_t>(d)]);
+      p.weight.push_back(w[d]);
+    }
+  }
+  return p;
+}
+
+}  // namespace
+
+struct ShellModalBank::Impl {
+  const ShellModel* model{nullptr};
+  double fs{0.0};
+  int64_t n_modes{0};
+  Eigen::VectorXd frequency_hz;        // (modes) ascending
+  Eigen::VectorXd omega, zeta;         // (modes) rad/s, damping ratio
+  Eigen::ArrayXd pole_re, pole_im;     // (modes) p = exp((-sigma + i omega_d) T)
+  Eigen::ArrayXd in_re, in_im;         // (modes) p^(1/2): an impulse mid-sample
+  Eigen::ArrayXd decay_per_sample;     // (modes) sigma T
+  Eigen::ArrayXf pole_re_f, pole_im_f, in_re_f, in_im_f;  // (modes) the same in float
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> sensor_gain;
+                                       // (mics x modes) S phi_n / omega_d, rows contiguous
+  Eigen::MatrixXd sensor_static;       // (mics x modes) S phi_n / omega_n^2
+  std::vector<int64_t> w_row;          // (dofs) row of a radial DOF in the tables below, or -1
+  Eigen::MatrixXf shapes;              // (radial DOFs x modes) mass-normalized shapes, 1/sqrt(kg)
+  Eigen::MatrixXd flexibility;         // (radial DOFs x mics) rows of K^-1 S^T, or empty
+  double floor_ln{0.0};                // ln of the decay floor ratio
+};
+
+ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
+                               const MicArrayConfig& mics, double sample_rate_hz,
+                               double decay_floor_db, bool residual)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  SONICBOOM_DEMAND(modes.shapes.rows() == model.dofs() &&
+                   modes.shapes.cols() == modes.omega_rad_s.size());
+  m.model = &model;
+  m.fs = sample_rate_hz;
+  const double T = 1.0 / sample_rate_hz;
+  const double nyquist_rad_s = M_PI * sample_rate_hz;
+  // keep the modes below Nyquist: above it a recursion aliases
+  m.n_modes = 0;
+  while (m.n_modes < modes.omega_rad_s.size() && modes.omega_rad_s[m.n_modes] < 0.95 * nyquist_rad_s) {
+    ++m.n_modes;
+  }
+  const int64_t n = m.n_modes;
+  m.omega = modes.omega_rad_s.head(n);
+  m.frequency_hz = m.omega / (2 * M_PI);
+  m.zeta.resize(n);
+  m.pole_re.resize(n);
+  m.pole_im.resize(n);
+  m.in_re.resize(n);
+  m.in_im.resize(n);
+  m.decay_per_sample.resize(n);
+  Eigen::VectorXd out_scale(n);  // 1 / omega_d: modal displacement per unit impulse amplitude
+  for (int64_t k = 0; k < n; ++k) {
+    const double w = m.omega[k];
+    const double zeta = model.DampingRatio(w);
+    if (!(zeta < 1.0)) {
+      throw ConfigError(fmt::format("mode at {:.1f} Hz has damping ratio {:.3f} >= 1 (overdamped); "
+                                    "lower shell.loss_factor_high or material.loss_factor",
+                                    m.frequency_hz[k], zeta));
+    }
+    m.zeta[k] = zeta;
+    const double sigma = zeta * w, wd = w * std::sqrt(1 - zeta * zeta);
+    const std::complex<double> p = std::exp(std::complex<double>(-sigma * T, wd * T));
+    const std::complex<double> half = std::exp(std::complex<double>(-0.5 * sigma * T, 0.5 * wd * T));
+    m.pole_re[k] = p.real();
+    m.pole_im[k] = p.imag();
+    m.in_re[k] = half.real();
+    m.in_im[k] = half.imag();
+    m.decay_per_sample[k] = sigma * T;
+    out_scale[k] = 1.0 / wd;
+  }
+  // Rayleigh decay grows with frequency, so the live modes stay a prefix; check it
+  for (int64_t k = 1; k < n; ++k) {
+    SONICBOOM_DEMAND(m.decay_per_sample[k] >= m.decay_per_sample[k - 1] * (1 - 1e-9));
+  }
+  // forces act on radial DOFs only: keep those rows of the shapes
+  m.w_row.assign(static_cast<size_t>(model.dofs()), -1);
+  std::vector<int64_t> w_dofs;
+  for (int i = 0; i < model.axial_points(); ++i) {
+    for (int j = 0; j < model.circumferential_points(); ++j) {
+      const int64_t d = model.WIndex(i, j);
+      if (d < 0) continue;
+      m.w_row[static_cast<size_t>(d)] = static_cast<int64_t>(w_dofs.size());
+      w_dofs.push_back(d);
+    }
+  }
+  m.shapes.resize(static_cast<Eigen::Index>(w_dofs.size()), n);
+  for (size_t r = 0; r < w_dofs.size(); ++r) {
+    m.shapes.row(static_cast<Eigen::Index>(r)) = modes.shapes.row(w_dofs[r]).head(n).cast<float>();
+  }
+  const Eigen::MatrixXd rows = model.SensorRows(mics);                      // (mics x dofs)
+  const Eigen::MatrixXd gain = rows * modes.shapes.leftCols(n);             // (mics x modes)
+  m.sensor_gain = (gain * out_scale.asDiagonal()).cast<float>();
+  m.pole_re_f = m.pole_re.cast<float>();
+  m.pole_im_f = m.pole_im.cast<float>();
+  m.in_re_f = m.in_re.cast<float>();
+  m.in_im_f = m.in_im.cast<float>();
+  if (mics.count() > kMaxMics) {
+    throw ConfigError(fmt::format("mics: {} microphones; the modal bank renders at most {}",
+                                  mics.count(), kMaxMics));
+  }
+  m.sensor_static = gain * m.omega.cwiseAbs2().cwiseInverse().asDiagonal();
+  m.floor_ln = std::abs(decay_floor_db) / 20.0 * std::log(10.0);
+  // static flexibility at the sensors for the residual: K^-1 S^T (symmetric K)
+  if (residual && modes.rigid_body_modes == 0) {
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(model.stiffness());
+    SONICBOOM_DEMAND(ldlt.info() == Eigen::Success);
+    const Eigen::MatrixXd flex = ldlt.solve(rows.transpose());           // (dofs x mics)
+    m.flexibility.resize(static_cast<Eigen::Index>(w_dofs.size()), flex.cols());
+    for (size_t r = 0; r < w_dofs.size(); ++r) m.flexibility.row(static_cast<Eigen::Index>(r)) = flex.row(w_dofs[r]);
+  }
+}
+
+ShellModalBank::~ShellModalBank() = default;
+
+int64_t ShellModalBank::modes() const { return impl_->n_modes; }
+
+double ShellModalBank::max_frequency_hz() const {
+  return impl_->n_modes > 0 ? impl_->frequency_hz[impl_->n_modes - 1] : 0.0;
+}
+
+int64_t ShellModalBank::ModesBelow(double band_hz) const {
+  const Eigen::VectorXd& f = impl_->frequency_hz;
+  return std::upper_bound(f.data(), f.data() + f.size(), band_hz) - f.data();
+}
+
+DrivingPoint ShellModalBank::WallAt(double z_m, double theta_rad, double band_hz) const {
+  const Impl& m = *impl_;
+  const PointWeights p = SparseWeights(*m.model, m.w_row, z_m, theta_rad);
+  const int64_t n = ModesBelow(band_hz);
+  DrivingPoint wall;
+  wall.omega_rad_s = m.omega.head(n);
+  wall.zeta = m.zeta.head(n);
+  wall.phi = Eigen::VectorXd::Zero(n);
+  for (size_t i = 0; i < p.dof.size(); ++i) {
+    wall.phi += p.weight[i] * m.shapes.row(p.dof[i]).head(n).transpose().cast<double>();
+  }
+  return wall;
+}
+
+Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64_t mode_count,
+                                       int64_t samples) const {
+  const Impl& m = *impl_;
+  const int64_t n = std::clamp<int64_t>(mode_count, 0, m.n_modes);
+  const double T = 1.0 / m.fs;
+  const int mics = static_cast<int>(m.sensor_gain.rows());
+  Eigen::MatrixXd strain = Eigen::MatrixXd::Zero(mics, samples);
+
+  // each force's modal input b = phi^T w (modes), its static sensor part, and its span
+  std::vector<Eigen::ArrayXf> input(forces.size());
+  int64_t force_end = 0;
+  for (size_t e = 0; e < forces.size(); ++e) {
+    const ForceInput& f = forces[e];
+    const PointWeights p = SparseWeights(*m.model, m.w_row, f.z_m, f.theta_rad);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+    Eigen::VectorXd stat = Eigen::VectorXd::Zero(mics);
+    for (size_t i = 0; i < p.dof.size(); ++i) {
+      b += p.weight[i] * m.shapes.row(p.dof[i]).head(n).transpose().cast<double>();
+      if (m.flexibility.size() > 0) stat += p.weight[i] * m.flexibility.row(p.dof[i]).transpose();
+    }
+    input[e] = (b.array() * T).cast<float>();  // impulse per newton of sample force
+    force_end = std::max<int64_t>(force_end, f.first_sample + static_cast<int64_t>(f.force_n.size()));
+    // residual flexibility of the modes left out: (S K^-1 w - sum_n S phi_n b_n / omega_n^2) F
+    if (m.flexibility.size() > 0) {
+      stat -= m.sensor_static.leftCols(n) * b;
+      for (size_t j = 0; j < f.force_n.size(); ++j) {
+        const int64_t k = f.first_sample + static_cast<int64_t>(j);
+        if (k >= 0 && k < samples) strain.col(k) += stat * f.force_n[j];
+      }
+    }
+  }
+  if (n == 0) return strain;
+
+  // mode recursions in float (their error stays far below the 16-bit output's step), modes in
+  // the inner loop so it vectorizes; the live modes shrink to a prefix as they decay
+  const float* pr = m.pole_re_f.data();
+  const float* pim = m.pole_im_f.data();
+  const float* ir = m.in_re_f.data();
+  const float* ii = m.in_im_f.data();
+  std::vector<float> zr(static_cast<size_t>(n), 0.0f), zi(static_cast<size_t>(n), 0.0f);
+  std::vector<float> u(static_cast<size_t>(n), 0.0f);
+  std::vector<const float*> gain(static_cast<size_t>(mics));
+  for (int c = 0; c < mics; ++c) gain[static_cast<size_t>(c)] = m.sensor_gain.row(c).data();
+  float* zr_p = zr.data();
+  float* zi_p = zi.data();
+  float* u_p = u.data();
+  int64_t live = n;
+  int64_t force_start = samples;  // the modes rest until the first force
+  for (const ForceInput& f : forces) force_start = std::min(force_start, std::max<int64_t>(f.first_sample, 0));
+  for (int64_t k = force_start; k < samples && live > 0; ++k) {
+    // modal impulses of this sample from every force acting in it
+    bool driven = false;
+    for (size_t e = 0; e < forces.size(); ++e) {
+      const int64_t s = k - forces[e].first_sample;
+      if (s < 0 || s >= static_cast<int64_t>(forces[e].force_n.size())) continue;
+      const float f = static_cast<float>(forces[e].force_n[static_cast<size_t>(s)]);
+      const float* b = input[e].data();
+      if (!driven) {
+        for (int64_t q = 0; q < live; ++q) u_p[q] = b[q] * f;
+      } else {
+        for (int64_t q = 0; q < live; ++q) u_p[q] += b[q] * f;
+      }
+      driven = true;
+    }
+    if (!driven) std::fill(u_p, u_p + live, 0.0f);
+    // outputs from the state before this sample's impulse, then one recursion step
+    float y[kMaxMics] = {};
+    StepModes(live, mics, gain.data(), pr, pim, ir, ii, u_p, zr_p, zi_p, y);
+    for (int c = 0; c < mics; ++c) strain(c, k) += y[c];
+    // modes that decayed past the floor since the last force stop (checked once a block)
+    const double t_free = static_cast<double>(k + 1 - force_end);
+    if (t_free > 0 && (k % kBlock) == 0) {
+      while (live > 0 && m.decay_per_sample[live - 1] * t_free > m.floor_ln) --live;
+    }
+  }
+  return strain;
+}
+
+}  // namespace sonicboom::acoustics

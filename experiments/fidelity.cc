@@ -1,0 +1,358 @@
+// The fidelity ladder measured: every rung of the vibration model renders the same strikes (the
+// same contact forces), and is timed and compared against the finest FD reference.
+#include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <filesystem>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "sonicboom/acoustics/contact.h"
+#include "sonicboom/acoustics/fd_render.h"
+#include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_bank.h"
+#include "sonicboom/acoustics/shell_fd.h"
+#include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/experiments/commands.h"
+#include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/sim/scene.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+constexpr double kPi = std::numbers::pi;
+
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+// a test strike: a wooden rod crossing the tube (rigid striker) at (z, theta)
+struct TestStrike {
+  double z_m, theta_rad, speed_m_s, mass_kg;
+};
+constexpr TestStrike kStrikes[] = {{0.05, 0.3, 0.1, 0.03},   {-0.08, 2.0, 0.3, 0.03},
+                                   {0.0, -1.2, 1.0, 0.03},   {0.09, 3.0, 0.05, 0.1},
+                                   {-0.1, -2.8, 0.5, 0.02},  {0.03, 1.4, 0.2, 0.05}};
+
+ContactEvent StrikeEvent(const TestStrike& s, double time_s) {
+  ContactEvent c;
+  c.time_s = time_s;
+  c.z_m = s.z_m;
+  c.theta_rad = s.theta_rad;
+  c.normal_speed_m_s = s.speed_m_s;
+  c.effective_mass_kg = s.mass_kg;
+  c.striker_radius_m = 0.011;
+  c.striker_youngs_modulus_pa = 1e9;
+  c.striker_poisson_ratio = 0.35;
+  return c;
+}
+
+// relative L2 error over all channels
+double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref) {
+  return (y - ref).norm() / ref.norm();
+}
+
+// arrival of each channel: first crossing of 20 % of its peak |y|, linear between samples
+Eigen::VectorXd Arrivals(const Eigen::MatrixXd& y) {
+  Eigen::VectorXd t(y.rows());
+  for (Eigen::Index i = 0; i < y.rows(); ++i) {
+    const double thr = 0.2 * y.row(i).cwiseAbs().maxCoeff();
+    t[i] = 0;
+    for (Eigen::Index k = 1; k < y.cols(); ++k) {
+      const double a = std::abs(y(i, k - 1)), b = std::abs(y(i, k));
+      if (b >= thr) {
+        t[i] = (k - 1) + (b > a ? (thr - a) / (b - a) : 1.0);
+        break;
+      }
+    }
+  }
+  return t;
+}
+
+// mean over the channel pairs of the inter-channel delay error, microseconds
+double DelayErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref, double fs) {
+  const Eigen::VectorXd a = Arrivals(y), b = Arrivals(ref);
+  double sum = 0;
+  int pairs = 0;
+  for (Eigen::Index i = 0; i < y.rows(); ++i) {
+    for (Eigen::Index j = i + 1; j < y.rows(); ++j) {
+      sum += std::abs((a[j] - a[i]) - (b[j] - b[i]));
+      ++pairs;
+    }
+  }
+  return sum / pairs / fs * 1e6;
+}
+
+// octave-band energies (centres 250 Hz .. 16 kHz) summed over channels, by a direct DFT
+Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double fs) {
+  const std::vector<double> centres{250, 500, 1000, 2000, 4000, 8000, 16000};
+  Eigen::VectorXd e = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(centres.size()));
+  const Eigen::Index n = y.cols();
+  for (Eigen::Index bin = 1; bin < n / 2; ++bin) {
+    const double f = bin * fs / n;
+    int band = -1;
+    for (size_t b = 0; b < centres.size(); ++b) {
+      if (f >= centres[b] / std::sqrt(2.0) && f < centres[b] * std::sqrt(2.0)) band = static_cast<int>(b);
+    }
+    if (band < 0) continue;
+    // one bin of every channel: rotate a unit phasor through the record
+    const std::complex<double> step = std::polar(1.0, -2 * kPi * bin / n);
+    for (Eigen::Index i = 0; i < y.rows(); ++i) {
+      std::complex<double> acc = 0, w = 1;
+      for (Eigen::Index k = 0; k < n; ++k) {
+        acc += y(i, k) * w;
+        w *= step;
+      }
+      e[band] += std::norm(acc);
+    }
+  }
+  return e;
+}
+
+// mean |dB| difference over the bands that hold energy in the reference
+double BandEnergyErrorDb(const Eigen::VectorXd& e, const Eigen::VectorXd& ref) {
+  const double floor = 1e-6 * ref.maxCoeff();
+  double sum = 0;
+  int bands = 0;
+  for (Eigen::Index b = 0; b < ref.size(); ++b) {
+    if (ref[b] <= floor) continue;
+    sum += std::abs(10 * std::log10(std::max(e[b], 1e-300) / ref[b]));
+    ++bands;
+  }
+  return bands > 0 ? sum / bands : 0.0;
+}
+
+// one grid of the shell and what was built on it
+struct Grid {
+  std::string name;
+  double arc_m, axial_m;
+};
+
+struct Rung {
+  std::string name;
+  std::string kind;                        // modal | fd
+  Grid grid;
+  double band_hz{0};                       // modal: fixed band; 0 = derived from the contact
+  int64_t mode_count{0};                   // modal: fixed count
+  bool residual{true};
+  int64_t oversampling_factor{1};          // fd: multiple of the smallest stable oversampling
+};
+
+struct RungResult {
+  double ms_per_strike{0}, rel_error{0}, delay_error_us{0}, band_error_db{0};
+  double modes{0}, dofs{0}, oversampling{0};
+};
+
+}  // namespace
+
+CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
+                          double window_s, bool quick) {
+  const SonicBoomConfig config = ResolveConfig(g.sources);
+  if (strikes < 1 || strikes > static_cast<int64_t>(std::size(kStrikes))) {
+    throw ConfigError(fmt::format("--strikes must be in [1, {}], got {}", std::size(kStrikes), strikes));
+  }
+  if (!(window_s >= 0.005 && window_s <= 1.0)) {
+    throw ConfigError(fmt::format("--window-s must be in [0.005, 1], got {}", window_s));
+  }
+  if (!out_md.empty()) {
+    const std::filesystem::path parent = std::filesystem::path(out_md).parent_path();
+    if (!parent.empty() && !std::filesystem::is_directory(parent)) {
+      throw IoError(fmt::format("--out {}: directory {} does not exist", out_md, parent.string()));
+    }
+  }
+  const double fs = config.audio.sample_rate_hz;
+  const int64_t one_second = static_cast<int64_t>(std::llround(fs));
+  const double onset_s = 0.001;
+  const int64_t window = static_cast<int64_t>(std::llround((onset_s + window_s) * fs));
+  const std::string cache = config.acoustics.mode_cache_dir.empty()
+                                ? acoustics::DefaultModeCacheDir()
+                                : config.acoustics.mode_cache_dir;
+
+  // grids: the configured one (the production rung's), coarser ones, and the reference
+  const double arc = config.shell.grid_spacing_m, axial = config.shell.AxialSpacing();
+  const double finest = quick ? 0.005 : std::min(arc, axial);
+  const Grid reference{"reference", finest, finest};
+  const Grid configured{"configured", quick ? 0.005 : arc, quick ? 0.01 : axial};
+  const Grid coarse{"coarse", 2 * configured.arc_m, 2 * configured.axial_m};
+  const Grid coarser{"coarser", 0.01, 0.02};
+  auto shell_model = [&](const Grid& grid) {
+    acoustics::ShellConfig sc = config.shell;
+    sc.grid_spacing_m = grid.arc_m;
+    sc.axial_spacing_m = grid.axial_m;
+    return std::make_unique<acoustics::ShellModel>(config.tube, config.material, sc);
+  };
+  // the modes every modal rung draws from: the production default (20 kHz below Nyquist)
+  const double full_band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
+                                                             : std::min(20000.0, 0.95 * 0.5 * fs);
+
+  // the contact forces, solved once against the configured grid's modal wall
+  spdlog::info("fidelity: modes of the configured grid ({} x {} mm)", configured.arc_m * 1e3,
+               configured.axial_m * 1e3);
+  const auto main_model = shell_model(configured);
+  const acoustics::ShellModes main_modes =
+      acoustics::CachedShellModes(*main_model, full_band, 0, true, cache);
+  const acoustics::ShellModalBank main_bank(*main_model, main_modes, config.mics, fs,
+                                            config.acoustics.decay_floor_db, true);
+  std::vector<std::vector<acoustics::ForceInput>> forces(static_cast<size_t>(strikes));
+  std::vector<double> derived_band(static_cast<size_t>(strikes));
+  for (int64_t s = 0; s < strikes; ++s) {
+    const ContactEvent ev = StrikeEvent(kStrikes[s], onset_s);
+    const acoustics::HertzImpact hz = acoustics::SolveHertzImpact(ev, config.tube, config.material);
+    acoustics::DrivingPoint striker;
+    striker.rigid_mass_kg = ev.effective_mass_kg;
+    const double band = std::min(full_band, config.acoustics.band_factor * 1.8 / hz.duration_s);
+    const acoustics::DrivingPoint wall = main_bank.WallAt(ev.z_m, ev.theta_rad, std::min(full_band, 2 * band));
+    acoustics::ContactForce cf = acoustics::SolveContact(wall, striker, hz.stiffness_n_m15,
+                                                         ev.normal_speed_m_s, ev.time_s, fs,
+                                                         config.acoustics.contact);
+    derived_band[static_cast<size_t>(s)] =
+        std::min(full_band, config.acoustics.band_factor * 1.8 / cf.first_closure_s);
+    forces[static_cast<size_t>(s)].push_back({ev.z_m, ev.theta_rad, cf.first_sample, std::move(cf.force_n)});
+  }
+
+  // the rungs, the reference first
+  std::vector<Rung> rungs{
+      {"FD reference (2x stable oversampling)", "fd", reference, 0, 0, true, 2},
+      {"FD", "fd", configured, 0, 0, true, 1},
+      {"FD", "fd", coarse, 0, 0, true, 1},
+      {"FD", "fd", coarser, 0, 0, true, 1},
+      {"modal, derived band (default)", "modal", configured, 0, 0, true, 1},
+      {"modal, all modes", "modal", configured, full_band, 0, true, 1},
+      {"modal, all modes, no residual", "modal", configured, full_band, 0, false, 1},
+      {"modal, 10 kHz", "modal", configured, 10000, 0, true, 1},
+      {"modal, 5 kHz", "modal", configured, 5000, 0, true, 1},
+      {"modal, 2 kHz", "modal", configured, 2000, 0, true, 1},
+      {"modal, 100 modes", "modal", configured, 0, 100, true, 1},
+      {"modal, derived band", "modal", coarse, 0, 0, true, 1},
+      {"modal, derived band", "modal", coarser, 0, 0, true, 1}};
+  std::vector<Eigen::MatrixXd> ref_signal(static_cast<size_t>(strikes));
+  std::vector<Eigen::VectorXd> ref_bands(static_cast<size_t>(strikes));
+  std::vector<RungResult> results;
+  for (const Rung& rung : rungs) {
+    spdlog::info("fidelity: {} on the {} grid", rung.name, rung.grid.name);
+    const auto model = shell_model(rung.grid);
+    const Eigen::MatrixXd rows = model->SensorRows(config.mics);
+    RungResult r;
+    r.dofs = static_cast<double>(model->dofs());
+    std::unique_ptr<acoustics::ShellFd> fd;
+    std::unique_ptr<acoustics::ShellModalBank> bank;
+    acoustics::ShellModes modes;
+    if (rung.kind == "fd") {
+      const acoustics::ShellFd stable(*model, fs, 0);
+      fd = std::make_unique<acoustics::ShellFd>(*model, fs, stable.oversampling() * rung.oversampling_factor);
+      r.oversampling = static_cast<double>(fd->oversampling());
+    } else {
+      modes = acoustics::CachedShellModes(*model, full_band, 0, true, cache);
+      bank = std::make_unique<acoustics::ShellModalBank>(*model, modes, config.mics, fs,
+                                                         config.acoustics.decay_floor_db, rung.residual);
+    }
+    for (int64_t s = 0; s < strikes; ++s) {
+      const auto& f = forces[static_cast<size_t>(s)];
+      Eigen::MatrixXd y;
+      double seconds = 0;
+      if (fd) {
+        // FD cost is the same for every sample: time the window, scale to one second
+        const auto t0 = Clock::now();
+        y = acoustics::FdRender(*model, *fd, f, rows, window, -300.0);
+        seconds = Seconds(t0) * static_cast<double>(one_second) / static_cast<double>(window);
+      } else {
+        const int64_t n = rung.mode_count > 0 ? rung.mode_count
+                          : bank->ModesBelow(rung.band_hz > 0 ? rung.band_hz : derived_band[static_cast<size_t>(s)]);
+        r.modes += static_cast<double>(n) / strikes;
+        y = bank->Render(f, n, window);
+        // a whole second, best of three
+        seconds = 1e30;
+        for (int rep = 0; rep < 3; ++rep) {
+          const auto t0 = Clock::now();
+          const Eigen::MatrixXd full = bank->Render(f, n, one_second);
+          seconds = std::min(seconds, Seconds(t0));
+          if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
+        }
+      }
+      if (!y.allFinite()) throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", rung.name));
+      r.ms_per_strike += 1e3 * seconds / strikes;
+      if (&rung == &rungs.front()) {
+        ref_signal[static_cast<size_t>(s)] = y;
+        ref_bands[static_cast<size_t>(s)] = OctaveEnergies(y, fs);
+      }
+      r.rel_error += RelativeError(y, ref_signal[static_cast<size_t>(s)]) / strikes;
+      r.delay_error_us += DelayErrorUs(y, ref_signal[static_cast<size_t>(s)], fs) / strikes;
+      r.band_error_db += BandEnergyErrorDb(OctaveEnergies(y, fs), ref_bands[static_cast<size_t>(s)]) / strikes;
+    }
+    results.push_back(r);
+  }
+
+  // the whole default strike (contact solve, modes, DAQ) through the production renderer
+  const acoustics::StrikeSynthesizer synth(AcousticModel(config));
+  const int64_t reps = 40;
+  const auto t0 = Clock::now();
+  double vibration_s = 0;
+  for (int64_t i = 0; i < reps; ++i) {
+    const TestStrike& ts = kStrikes[i % strikes];
+    ContactEvent ev = StrikeEvent(ts, config.audio.onset_time_s);
+    sim::ObjectConfig rod;  // the default struck rod: its bending modes take part
+    sim::DescribeStruckBeam(rod, rod.length_m - 0.05, &ev);
+    const acoustics::RenderedStrike rs = synth.Render(ev, {}, 0.0, static_cast<uint64_t>(i));
+    vibration_s += rs.vibration_s;
+  }
+  const double whole_ms = 1e3 * Seconds(t0) / reps;
+
+  // the table
+  std::string md = fmt::format(
+      "# Fidelity ladder: speed against accuracy\n\n"
+      "Made by `sonicboom fidelity --out docs/fidelity.md{}` (experiments/fidelity.cc); do not edit "
+      "by hand. One core, {}.\n\n"
+      "Every rung renders the same {} strikes (wooden rod, 0.05–1 m/s, contact forces solved once "
+      "against the configured grid's modal wall). Time: the vibration model for 1 s of 6 channels "
+      "(FD: timed on the {:.0f} ms window and scaled; its cost per sample is constant). Errors: "
+      "sensor strain over the first {:.0f} ms after the onset against the reference, averaged "
+      "over the strikes: relative L2 error over all channels; inter-channel delay error (20 % "
+      "threshold arrival, mean over the 15 pairs); octave-band energy error (250 Hz–16 kHz, mean "
+      "|dB|).\n\n"
+      "| rung | grid (arc x axial mm) | DOFs | modes / oversampling | ms per strike | strikes/s | "
+      "relative error | delay error (µs) | band-energy error (dB) |\n"
+      "|---|---|---|---|---|---|---|---|---|\n",
+      quick ? " --quick" : "", fmt::format("{} Hz", fs), strikes, window_s * 1e3, window_s * 1e3);
+  json rows_json = json::array();
+  for (size_t i = 0; i < rungs.size(); ++i) {
+    const Rung& rung = rungs[i];
+    const RungResult& r = results[i];
+    const std::string size = rung.kind == "fd" ? fmt::format("{:.0f}x", r.oversampling)
+                                                : fmt::format("{:.0f}", r.modes);
+    md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.1f} | {:.1f} | {} | {} | {} |\n",
+                      rung.name, rung.grid.arc_m * 1e3, rung.grid.axial_m * 1e3, r.dofs, size,
+                      r.ms_per_strike, 1e3 / r.ms_per_strike,
+                      i == 0 ? "—" : fmt::format("{:.3f}", r.rel_error),
+                      i == 0 ? "—" : fmt::format("{:.1f}", r.delay_error_us),
+                      i == 0 ? "—" : fmt::format("{:.2f}", r.band_error_db));
+    rows_json.push_back({{"rung", rung.name}, {"kind", rung.kind}, {"grid_arc_m", rung.grid.arc_m},
+                         {"grid_axial_m", rung.grid.axial_m}, {"dofs", r.dofs}, {"modes", r.modes},
+                         {"oversampling", r.oversampling}, {"ms_per_strike", r.ms_per_strike},
+                         {"relative_error", r.rel_error}, {"delay_error_us", r.delay_error_us},
+                         {"band_energy_error_db", r.band_error_db}});
+  }
+  md += fmt::format(
+      "\nWhole default strike through `StrikeSynthesizer` (acoustics.model = {}, contact solve with "
+      "the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike = "
+      "{:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
+      config.acoustics.model, whole_ms, 1e3 / whole_ms, 1e3 * vibration_s / reps);
+  json j = {{"rungs", rows_json}, {"strikes", strikes}, {"window_s", window_s},
+            {"whole_strike_ms", whole_ms}, {"whole_strike_vibration_ms", 1e3 * vibration_s / reps},
+            {"quick", quick}};
+  if (!out_md.empty()) WriteTextAtomic(out_md, md);
+  return {j.dump(), md};
+}
+
+}  // namespace sonicboom::experiments

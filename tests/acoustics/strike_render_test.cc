@@ -1,0 +1,255 @@
+// The strike renderer on the discretized shell: the modal rung (numerical modes, contact solve,
+// episodes) against the FD rung, the derived band, per-channel DAQ, noise injection, the extremes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "../common/test_util.h"
+#include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// one mode cache for the whole suite (the coarse tube's modes are solved once)
+const testing::TempDir& Cache() {
+  static const testing::TempDir dir;
+  return dir;
+}
+
+// a coarse seamed tube (10 mm grid), modes to 12 kHz, noise off, gain mismatch off
+AcousticModelConfig Coarse(const std::string& model = "modal") {
+  AcousticModelConfig c;
+  c.shell.grid_spacing_m = 0.01;
+  c.shell.axial_spacing_m = 0.01;
+  c.synth.model = model;
+  c.synth.mode_band_hz = 12000;
+  c.synth.mode_cache_dir = Cache().path().string();
+  c.noise.ambient_rms_v = 0;
+  c.noise.motor_rms_v_per_rad_s = 0;
+  c.daq.preamp_noise_v = 0;
+  c.daq.gain_mismatch_db = 0;
+  return c;
+}
+
+ContactEvent Dowel(double z_m, double theta_rad, double speed_m_s, double time_s = 0.1) {
+  ContactEvent c;
+  c.time_s = time_s;
+  c.z_m = z_m;
+  c.theta_rad = theta_rad;
+  c.normal_speed_m_s = speed_m_s;
+  c.effective_mass_kg = 0.03;
+  c.striker_radius_m = 0.011;
+  c.striker_youngs_modulus_pa = 1e9;
+  c.striker_poisson_ratio = 0.35;
+  return c;
+}
+
+// first sample whose |x| exceeds frac of the channel's peak
+int64_t Arrival(const Eigen::MatrixXf& audio, int ch, double frac) {
+  const float peak = audio.row(ch).cwiseAbs().maxCoeff();
+  for (int64_t k = 0; k < audio.cols(); ++k) {
+    if (std::abs(audio(ch, k)) >= frac * peak) return k;
+  }
+  return -1;
+}
+
+TEST(StrikeRenderTest, ModalRungIsFiniteDeterministicAndCarriesTheCues) {
+  const StrikeSynthesizer synth(Coarse());
+  // near the first ring (z = -0.1 m side) at the first mic's angle
+  const RenderedStrike a = synth.Render(Dowel(-0.09, 0.0, 0.1), {}, 0.0, 7);
+  const RenderedStrike b = synth.Render(Dowel(-0.09, 0.0, 0.1), {}, 0.0, 7);
+  ASSERT_TRUE(a.audio.allFinite());
+  EXPECT_EQ(a.audio, b.audio);
+  EXPECT_FALSE(a.clipped);
+  EXPECT_GT(a.modes_used, 50);
+  EXPECT_EQ(a.touches, 1);
+  // the contact is coupled to the wall: close to, but not exactly, the rigid-wall Hertz pulse
+  const HertzImpact rigid = SolveHertzImpact(Dowel(-0.09, 0.0, 0.1), TubeConfig{}, MaterialConfig{});
+  EXPECT_GT(a.duration_s, 0.9 * rigid.duration_s);
+  EXPECT_LT(a.duration_s, 2.0 * rigid.duration_s);
+  EXPECT_NE(a.duration_s, rigid.duration_s);
+  EXPECT_LE(a.impulse_ns, 2 * 0.03 * 0.1 * 1.001);
+  // arrival-time and level cues: the near ring (mics 0-2) hears first and louder than the far one
+  const MicArrayConfig mics;
+  int near = 0, far = 0;
+  for (int i = 0; i < 6; ++i) (mics.z_m[i] < 0 ? near : far) = i;
+  EXPECT_LT(Arrival(a.audio, near, 0.2), Arrival(a.audio, far, 0.2));
+  double near_rms = 0, far_rms = 0;
+  for (int i = 0; i < 6; ++i) {
+    (mics.z_m[i] < 0 ? near_rms : far_rms) += a.audio.row(i).squaredNorm();
+  }
+  EXPECT_GT(near_rms, far_rms);
+}
+
+TEST(StrikeRenderTest, BandFollowsTheContactUnlessOverridden) {
+  const StrikeSynthesizer synth(Coarse());
+  // a slow strike lasts longer, so its band and mode count are smaller
+  const RenderedStrike slow = synth.Render(Dowel(0.02, 1.0, 0.01), {}, 0.0, 1);
+  const RenderedStrike fast = synth.Render(Dowel(0.02, 1.0, 1.0), {}, 0.0, 1);
+  EXPECT_GT(slow.duration_s, fast.duration_s);
+  EXPECT_LT(slow.band_hz, fast.band_hz);
+  EXPECT_LE(slow.modes_used, fast.modes_used);
+  EXPECT_NEAR(slow.band_hz, synth.BandFor(slow.duration_s), 1e-9);  // one touch: closure = duration
+  // a fixed mode count overrides the band
+  AcousticModelConfig c = Coarse();
+  c.synth.mode_count = 40;
+  const RenderedStrike fixed = StrikeSynthesizer(c).Render(Dowel(0.02, 1.0, 1.0), {}, 0.0, 1);
+  EXPECT_EQ(fixed.modes_used, 40);
+}
+
+TEST(StrikeRenderTest, FdRungAgreesWithModalRung) {
+  // the same structure, force and sensors: only time integration and truncation differ
+  AcousticModelConfig c = Coarse("fd");
+  c.audio.record_duration_s = 0.03;
+  c.audio.onset_time_s = 0.005;
+  c.daq.input_resistance_ohm = 1e9;  // high-pass far below the record's band
+  c.daq.adc_bits = 32;
+  c.daq.output_bits = 32;
+  const RenderedStrike fd = StrikeSynthesizer(c).Render(Dowel(0.03, 0.7, 0.3, 0.005), {}, 0.0, 3);
+  c.synth.model = "modal";
+  c.synth.max_frequency_hz = 12000;
+  const RenderedStrike modal = StrikeSynthesizer(c).Render(Dowel(0.03, 0.7, 0.3, 0.005), {}, 0.0, 3);
+  ASSERT_TRUE(fd.audio.allFinite());
+  const double err = (fd.audio - modal.audio).norm() / fd.audio.norm();
+  std::printf("FD vs modal (10 mm grid, 12 kHz band + residual): relative error %.4f\n", err);
+  EXPECT_LT(err, 0.05);
+}
+
+TEST(StrikeRenderTest, EpisodesPlayBouncesPressesAndBrushes) {
+  const StrikeSynthesizer synth(Coarse());
+  const ContactEvent first = Dowel(0.0, 0.5, 0.2);
+  const RenderedStrike alone = synth.Render(first, {}, 0.0, 2);
+  // the same impact, a bounce 20 ms later, then a press and a foliage brush
+  std::vector<ContactEpisode> eps(4);
+  eps[0].time_s = first.time_s;
+  eps[0].z_m = first.z_m;
+  eps[0].theta_rad = first.theta_rad;
+  eps[0].normal_speed_m_s = 0.2;
+  eps[0].effective_mass_kg = 0.03;
+  eps[1] = eps[0];
+  eps[1].kind = ContactEpisode::Kind::kBounce;
+  eps[1].time_s = first.time_s + 0.02;
+  eps[1].normal_speed_m_s = 0.05;
+  eps[2] = eps[0];
+  eps[2].kind = ContactEpisode::Kind::kPress;
+  eps[2].time_s = first.time_s + 0.1;
+  eps[2].duration_s = 0.2;
+  eps[2].impulse_Ns = 2.0;
+  eps[2].normal_speed_m_s = 0;
+  eps[3].kind = ContactEpisode::Kind::kBrush;
+  eps[3].time_s = 0.5;
+  eps[3].duration_s = 0.1;
+  eps[3].z_m = 0.1;
+  eps[3].theta_rad = -2.0;
+  const RenderedStrike all = synth.Render(first, eps, {}, 0.0, 2);
+  EXPECT_EQ(alone.forces_played, 1);
+  EXPECT_EQ(all.forces_played, 4);
+  // up to the bounce the two records agree; after it they differ
+  const double fs = AudioConfig{}.sample_rate_hz;
+  const int64_t bounce = static_cast<int64_t>(eps[1].time_s * fs);
+  EXPECT_EQ(all.audio.leftCols(bounce), alone.audio.leftCols(bounce));
+  EXPECT_GT((all.audio - alone.audio).middleCols(bounce, 400).norm(), 0.0f);
+  // the brush adds energy in its span that the lone impact lacks
+  const int64_t b0 = static_cast<int64_t>(0.52 * fs), len = static_cast<int64_t>(0.06 * fs);
+  EXPECT_GT(all.audio.middleCols(b0, len).squaredNorm(), 4 * alone.audio.middleCols(b0, len).squaredNorm());
+  // the first contact's figures are the same with or without the other episodes
+  EXPECT_EQ(all.impulse_ns, alone.impulse_ns);
+}
+
+TEST(StrikeRenderTest, ExtremesStayFiniteAndFlagClipping) {
+  // speeds 0.01-10 m/s, both ends of the contact region, theta at +-pi
+  const StrikeSynthesizer synth(Coarse());
+  const TubeConfig tube;
+  for (double v : {0.01, 10.0}) {
+    for (double z : {tube.contact_z_min_m, tube.contact_z_max_m}) {
+      for (double th : {kPi, -kPi + 1e-12}) {
+        const RenderedStrike r = synth.Render(Dowel(z, th, v), {}, 0.0, 5);
+        ASSERT_TRUE(r.audio.allFinite()) << v << " " << z << " " << th;
+        EXPECT_GT(r.audio.cwiseAbs().maxCoeff(), 0.0f);
+        if (v == 10.0) EXPECT_TRUE(r.clipped);
+        if (v == 0.01) EXPECT_FALSE(r.clipped);
+      }
+    }
+  }
+  // loss factors 1e-4 and 0.2, sample rates 16 and 192 kHz
+  for (double loss : {1e-4, 0.2}) {
+    for (double fs : {16000.0, 192000.0}) {
+      AcousticModelConfig c = Coarse();
+      c.material.loss_factor = loss;
+      c.audio.sample_rate_hz = fs;
+      c.audio.record_duration_s = 0.3;
+      c.synth.mode_band_hz = std::min(12000.0, 0.45 * fs);
+      const RenderedStrike r = StrikeSynthesizer(c).Render(Dowel(0.05, -1.0, 1.0), {}, 0.0, 9);
+      ASSERT_TRUE(r.audio.allFinite()) << loss << " " << fs;
+      EXPECT_GT(r.audio.cwiseAbs().maxCoeff(), 0.0f) << loss << " " << fs;
+      EXPECT_GT(r.modes_used, 0);
+    }
+  }
+}
+
+TEST(DaqChainTest, PerChannelGainAndHighPass) {
+  AcousticModelConfig c = Coarse();
+  c.daq.channel_gain_db = {0, 6.0206, 0, 0, 0, 0};   // channel 1 at twice the gain
+  c.daq.channel_input_resistance_ohm = {1e6, 1e6, 1e6, 1e6, 1e6, 5e4};
+  EXPECT_NEAR(c.daq.highpass_hz(5), 1.0 / (2 * kPi * 5e4 * 16e-9), 1e-6);
+  // strain equal on channels 0 and 1 (a constant-strain step), converted
+  const DaqChain chain(c.daq, c.noise, 6, 44100, 4410);
+  Eigen::MatrixXd strain = Eigen::MatrixXd::Constant(6, 4410, 1e-5);
+  Eigen::MatrixXf audio;
+  EXPECT_FALSE(chain.Convert(strain, {}, 0.0, 1, &audio));
+  EXPECT_NEAR(audio(1, 0) / audio(0, 0), 2.0, 1e-3);
+  // the 200 Hz high-pass of channel 5 removes the step far faster than the 10 Hz one of channel 0
+  EXPECT_LT(std::abs(audio(5, 441)), 0.01 * std::abs(audio(5, 0)));
+  EXPECT_GT(std::abs(audio(0, 441)), 0.5 * std::abs(audio(0, 0)));
+  // a list of the wrong length is refused, naming the key
+  c.daq.channel_gain_db = {0, 1};
+  try {
+    c.daq.Validate(6);
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("daq.channel_gain_db"), std::string::npos);
+  }
+}
+
+TEST(DaqChainTest, RecordedNoiseIsInjectedAndCheckedWhenLoaded) {
+  const testing::TempDir dir;
+  // one-channel background of 0.5 s at 44.1 kHz: a 1 kHz tone at 0.01 full scale
+  AudioClip clip;
+  clip.sample_rate_hz = 44100;
+  clip.samples.resize(1, 22050);
+  for (int64_t k = 0; k < 22050; ++k) clip.samples(0, k) = 0.01f * std::sin(2 * kPi * 1000 * k / 44100.0);
+  WriteWav(dir / "bg.wav", clip, false);
+  AcousticModelConfig c = Coarse();
+  c.noise.wav_files = {dir / "bg.wav"};
+  c.noise.wav_gain = 1.0;
+  const DaqChain chain(c.daq, c.noise, 6, 44100, 4410);
+  Eigen::MatrixXf audio;
+  chain.Convert(Eigen::MatrixXd::Zero(6, 4410), {}, 0.0, 3, &audio);
+  // every channel carries the tone at 0.01 full scale (rms 0.00707)
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(std::sqrt(audio.row(i).squaredNorm() / 4410), 0.00707, 0.0005);
+  }
+  // a recording at the wrong rate or shorter than a record is refused, naming the file
+  clip.sample_rate_hz = 48000;
+  WriteWav(dir / "bg48.wav", clip, false);
+  c.noise.wav_files = {dir / "bg48.wav"};
+  try {
+    DaqChain bad(c.daq, c.noise, 6, 44100, 4410);
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("bg48.wav"), std::string::npos);
+  }
+  c.noise.wav_files = {dir / "bg.wav"};
+  EXPECT_THROW(DaqChain(c.daq, c.noise, 6, 44100, 44100), ConfigError);
+}
+
+}  // namespace
+}  // namespace sonicboom::acoustics
