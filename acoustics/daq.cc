@@ -16,12 +16,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// round to nearest (ties to even) without a libm call; |x| < 2^51
-inline double RoundFast(double x) {
-  constexpr double kMagic = 6755399441055744.0;  // 1.5 * 2^52
-  return (x + kMagic) - kMagic;
-}
-
 // entry c of a per-channel list, or the scalar when the list is empty
 double PerChannel(const std::vector<double>& list, double scalar, int c) {
   return list.empty() ? scalar : list[static_cast<size_t>(c)];
@@ -158,90 +152,98 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
   SONICBOOM_DEMAND(strain.rows() == m.channels);
   const int64_t num_frames = strain.cols();
   const double T = 1.0 / m.fs;
-
-  // piezo volts with per-channel gain (fixed offsets, or a mismatch drawn per strike)
   Rng rng(sample_seed, Stream::kDaq);
-  Eigen::MatrixXd volts(m.channels, num_frames);
-  for (int i = 0; i < m.channels; ++i) {
-    const double gain_db = m.daq.channel_gain_db.empty() ? rng.Normal() * m.daq.gain_mismatch_db
-                                                         : m.daq.channel_gain_db[static_cast<size_t>(i)];
-    volts.row(i) = strain.row(i) * (m.daq.sensitivity_v_per_strain * std::pow(10.0, gain_db / 20.0));
-  }
-
-  // motor and gear tones follow the joint speed; each channel picks them up with its own gain
   Rng noise_rng(sample_seed, Stream::kNoise);
+
+  // motor and gear tones (volts per unit channel gain, T samples), following the joint speed:
+  // each harmonic a unit phasor advanced by one rotation per sample
   const int64_t harmonics = m.noise.motor_harmonics;
   std::vector<double> phase(harmonics), channel_gain(m.channels);
   for (auto& p : phase) p = noise_rng.Uniform(0, 2 * kPi);
   for (auto& g : channel_gain) g = noise_rng.Uniform(0.5, 1.5);
-  const double tone_amp =
-      harmonics > 0 ? std::sqrt(2.0 / harmonics) * m.noise.motor_rms_v_per_rad_s : 0.0;
-  // each harmonic is a unit phasor advanced by one rotation per sample
-  std::vector<std::complex<double>> phasor(harmonics), step(harmonics);
-  for (int64_t hm = 0; hm < harmonics; ++hm) {
-    phasor[hm] = std::polar(1.0, phase[hm]);
-    step[hm] = std::polar(1.0, 2 * kPi * m.noise.motor_base_hz * (hm + 1) * T);
-  }
-  for (int64_t k = 0; k < num_frames; ++k) {
-    double speed = 0.0;
-    if (!joint_speed_rad_s.empty()) {
-      const double pos = k * T * joint_speed_rate_hz;
-      const size_t idx = std::min(static_cast<size_t>(pos), joint_speed_rad_s.size() - 1);
-      const size_t nxt = std::min(idx + 1, joint_speed_rad_s.size() - 1);
-      const double frac = std::clamp(pos - static_cast<double>(idx), 0.0, 1.0);
-      speed = (1 - frac) * joint_speed_rad_s[idx] + frac * joint_speed_rad_s[nxt];
-    }
-    double motor = 0.0;
+  Eigen::ArrayXd motor = Eigen::ArrayXd::Zero(num_frames);
+  if (harmonics > 0 && m.noise.motor_rms_v_per_rad_s > 0 && !joint_speed_rad_s.empty()) {
+    const double tone_amp = std::sqrt(2.0 / harmonics) * m.noise.motor_rms_v_per_rad_s;
+    // phasors as (re, im) pairs rotated by hand (std::complex products call a NaN-safe helper)
+    std::vector<double> pr(harmonics), pi(harmonics), sr(harmonics), si(harmonics);
     for (int64_t hm = 0; hm < harmonics; ++hm) {
-      motor += phasor[hm].imag();
-      phasor[hm] *= step[hm];
+      pr[hm] = std::cos(phase[hm]);
+      pi[hm] = std::sin(phase[hm]);
+      const double w = 2 * kPi * m.noise.motor_base_hz * (hm + 1) * T;
+      sr[hm] = std::cos(w);
+      si[hm] = std::sin(w);
     }
-    motor *= tone_amp * speed;
-    for (int i = 0; i < m.channels; ++i) {
-      volts(i, k) += channel_gain[i] * motor + m.noise.ambient_rms_v * noise_rng.NoiseSample();
-    }
-  }
-
-  // high-pass of disc capacitance into the preamp input (bilinear), then preamp noise
-  for (int i = 0; i < m.channels; ++i) {
-    double x_prev = 0, y_prev = 0;
+    const double rate = T * joint_speed_rate_hz;  // joint-speed rows per audio sample
+    const size_t last = joint_speed_rad_s.size() - 1;
     for (int64_t k = 0; k < num_frames; ++k) {
-      const double x = volts(i, k);
-      const double y = m.b0[i] * (x - x_prev) - m.a1[i] * y_prev;
-      x_prev = x;
-      y_prev = y;
-      volts(i, k) = y + m.preamp_noise_v[i] * noise_rng.NoiseSample();
+      const double pos = k * rate;
+      const size_t idx = std::min(static_cast<size_t>(pos), last);
+      const size_t nxt = std::min(idx + 1, last);
+      const double frac = std::clamp(pos - static_cast<double>(idx), 0.0, 1.0);
+      const double speed = (1 - frac) * joint_speed_rad_s[idx] + frac * joint_speed_rad_s[nxt];
+      double sum = 0.0;
+      for (int64_t hm = 0; hm < harmonics; ++hm) {
+        sum += pi[hm];
+        const double r = pr[hm] * sr[hm] - pi[hm] * si[hm];
+        pi[hm] = pr[hm] * si[hm] + pi[hm] * sr[hm];
+        pr[hm] = r;
+      }
+      motor[k] = tone_amp * speed * sum;
     }
   }
 
   // recorded background (already through a real DAQ): one file and offset per strike
+  const Eigen::MatrixXf* rec = nullptr;
+  int64_t rec_offset = 0, rec_span = 0;
   if (!m.recordings.empty()) {
-    const Eigen::MatrixXf& rec = m.recordings[noise_rng.UniformInt(m.recordings.size())];
-    const int64_t span = std::min<int64_t>(num_frames, rec.cols());
-    const int64_t offset = static_cast<int64_t>(noise_rng.UniformInt(
-        static_cast<uint64_t>(rec.cols() - span + 1)));
-    volts.leftCols(span) +=
-        (rec.middleCols(offset, span).cast<double>() * (m.noise.wav_gain * m.daq.full_scale_v));
+    rec = &m.recordings[noise_rng.UniformInt(m.recordings.size())];
+    rec_span = std::min<int64_t>(num_frames, rec->cols());
+    rec_offset = static_cast<int64_t>(noise_rng.UniformInt(static_cast<uint64_t>(rec->cols() - rec_span + 1)));
   }
 
-  // converter: clip at full scale, quantize to the ADC, then to the output word length
   const double adc_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.adc_bits) - 1) - 1);
   const double out_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.output_bits) - 1) - 1);
   audio->resize(m.channels, num_frames);
   bool clipped = false;
-  for (int64_t k = 0; k < num_frames; ++k) {
-    for (int i = 0; i < m.channels; ++i) {
-      double x = volts(i, k) / m.daq.full_scale_v;
-      if (!std::isfinite(x)) {
-        throw NumericalError(fmt::format("non-finite audio at mic {} sample {}", i, k));
-      }
-      if (std::abs(x) >= 1.0) {
-        clipped = true;
-        x = std::clamp(x, -1.0, 1.0);
-      }
-      x = RoundFast(x / adc_step) * adc_step;
-      (*audio)(i, k) = static_cast<float>(RoundFast(x / out_step) * out_step);
+  Eigen::ArrayXd v(num_frames);  // one channel's volts, contiguous
+  for (int i = 0; i < m.channels; ++i) {
+    // piezo volts with the channel's gain (a fixed offset, or a mismatch drawn per strike)
+    const double gain_db = m.daq.channel_gain_db.empty() ? rng.Normal() * m.daq.gain_mismatch_db
+                                                         : m.daq.channel_gain_db[static_cast<size_t>(i)];
+    v = strain.row(i).transpose().array() *
+            (m.daq.sensitivity_v_per_strain * std::pow(10.0, gain_db / 20.0)) +
+        channel_gain[static_cast<size_t>(i)] * motor;
+    // high-pass of disc capacitance into the preamp input (bilinear); the ambient floor and the
+    // preamp noise are white, so they join after it as one draw (the 10 Hz corner removes a
+    // negligible part of white noise)
+    const double noise_v = std::hypot(m.noise.ambient_rms_v, m.preamp_noise_v[i]);
+    const double b0 = m.b0[i], a1 = m.a1[i];
+    double x_prev = 0, y_prev = 0;
+    for (int64_t k = 0; k < num_frames; ++k) {
+      const double x = v[k];
+      const double y = b0 * (x - x_prev) - a1 * y_prev;
+      x_prev = x;
+      y_prev = y;
+      v[k] = y + noise_v * noise_rng.NoiseSample();
     }
+    if (rec != nullptr) {
+      v.head(rec_span) += rec->row(i).segment(rec_offset, rec_span).transpose().cast<double>().array() *
+                          (m.noise.wav_gain * m.daq.full_scale_v);
+    }
+    // converter: clip at full scale, quantize to the ADC, then to the output word length
+    v /= m.daq.full_scale_v;
+    if (!v.isFinite().all()) {
+      Eigen::Index k = 0;
+      while (std::isfinite(v[k])) ++k;
+      throw NumericalError(fmt::format("non-finite audio at mic {} sample {}", i, k));
+    }
+    if ((v.abs() >= 1.0).any()) clipped = true;
+    v = v.max(-1.0).min(1.0);
+    // round to nearest by the 1.5 * 2^52 trick, vectorized (|v| <= 2^31 steps here)
+    constexpr double kMagic = 6755399441055744.0;
+    v = ((v * (1.0 / adc_step) + kMagic) - kMagic) * (adc_step / out_step);
+    v = ((v + kMagic) - kMagic) * out_step;
+    audio->row(i) = v.cast<float>().transpose().matrix();
   }
   return clipped;
 }
