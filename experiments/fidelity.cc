@@ -295,7 +295,12 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   }
 
   // the whole default strike (contact solve, modes, DAQ) through the production renderer
-  const acoustics::StrikeSynthesizer synth(AcousticModel(config));
+  acoustics::AcousticModelConfig whole = AcousticModel(config);
+  if (quick) {
+    whole.shell.grid_spacing_m = configured.arc_m;
+    whole.shell.axial_spacing_m = configured.axial_m;
+  }
+  const acoustics::StrikeSynthesizer synth(whole);
   const int64_t reps = 40;
   const auto t0 = Clock::now();
   double vibration_s = 0;
@@ -331,7 +336,7 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
     const RungResult& r = results[i];
     const std::string size = rung.kind == "fd" ? fmt::format("{:.0f}x", r.oversampling)
                                                 : fmt::format("{:.0f}", r.modes);
-    md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.1f} | {:.1f} | {} | {} | {} |\n",
+    md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} |\n",
                       rung.name, rung.grid.arc_m * 1e3, rung.grid.axial_m * 1e3, r.dofs, size,
                       r.ms_per_strike, 1e3 / r.ms_per_strike,
                       i == 0 ? "—" : fmt::format("{:.3f}", r.rel_error),

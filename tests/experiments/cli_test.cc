@@ -28,7 +28,7 @@ TEST(CliTest, HelpListsEverySubcommand) {
   const auto run = RunCli("--help", dir.path().string());
   EXPECT_EQ(run.exit_code, 0);
   for (const char* sub : {"demo", "generate", "synth", "modes", "features", "train", "eval",
-                          "localize", "fk", "inspect"}) {
+                          "localize", "fk", "inspect", "fidelity"}) {
     EXPECT_NE(run.out.find(sub), std::string::npos) << sub;
   }
 }
@@ -86,6 +86,29 @@ TEST(CliTest, ModesAndFkJson) {
   const json fk = json::parse(run.out);
   EXPECT_EQ(fk["flange_pos_m"].size(), 3u);
   EXPECT_EQ(fk["tube_quat_wxyz"].size(), 4u);
+}
+
+TEST(CliTest, FidelityQuickWritesItsTable) {
+  // every rung renders, the reference is exact against itself, the FD rungs beat the coarsest
+  // modal rung, and the table lands where asked
+  TempDir dir;
+  const auto run = RunCli("fidelity --quick --strikes 1 --window-s 0.006 --out F.md --json -q",
+                          dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json j = json::parse(run.out);
+  ASSERT_EQ(j["rungs"].size(), 13u);
+  EXPECT_EQ(j["rungs"][0]["relative_error"].get<double>(), 0.0);
+  for (const json& r : j["rungs"]) {
+    EXPECT_TRUE(std::isfinite(r["relative_error"].get<double>())) << r.dump();
+    EXPECT_GT(r["ms_per_strike"].get<double>(), 0.0) << r.dump();
+  }
+  EXPECT_LT(j["rungs"][1]["relative_error"].get<double>(), j["rungs"][12]["relative_error"].get<double>());
+  EXPECT_GT(j["whole_strike_ms"].get<double>(), 0.0);
+  EXPECT_TRUE(std::filesystem::exists(dir / "F.md"));
+  // a bad option is refused, naming it
+  const auto bad = RunCli("fidelity --strikes 9 --out F.md", dir.path().string());
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("--strikes"), std::string::npos);
 }
 
 TEST(CliTest, FeaturesOfSynthWav) {

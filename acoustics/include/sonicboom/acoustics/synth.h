@@ -28,7 +28,8 @@ struct SynthConfig {
   std::string model{"modal"};
   double max_frequency_hz{0.0};            // mode band; 0 = derive from the contact (and Nyquist)
   int64_t mode_count{0};                   // modal: play the lowest N modes (overrides the band)
-  double band_factor{3.0};                 // auto band = band_factor x first spectral minimum (1.8 / t_c)
+  double band_factor{8.0};                 // auto band = band_factor x first spectral minimum (1.8 / t_c);
+                                           // 8 keeps the arrival-time cues (docs/fidelity.md)
   double decay_floor_db{-100.0};           // a mode (the FD run) stops once it decayed this far
   int64_t force_substeps{8};               // modal-closed-form: force averaged over this many points
   bool residual{true};                     // modal: static part of the modes above the band
