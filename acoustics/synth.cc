@@ -347,8 +347,8 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
     } else {
       striker.rigid_mass_kg = contact.effective_mass_kg;
     }
-    // the wall at the contact: modes up to twice the band the rigid-wall pulse suggests
-    const double contact_band = std::min(m.widest_band_hz, 2.0 * BandFor(impact.duration_s));
+    // the wall at the contact: its modes in the band the rigid-wall pulse suggests
+    const double contact_band = BandFor(impact.duration_s);
     std::vector<ForceInput> forces;
     auto play_contact = [&](double time_s, double z_m, double theta_rad, double speed_m_s,
                             double tube_side_kg, const DrivingPoint& other) {
