@@ -2,13 +2,7 @@
 
 #include <cmath>
 
-
 namespace sonicboom {
-namespace {
-
-constexpr uint64_t Rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-}  // namespace
 
 Rng::Rng(uint64_t seed) {
   // fill the 256-bit state from a SplitMix64 sequence (never all zero)
@@ -21,19 +15,6 @@ Rng::Rng(uint64_t seed) {
 
 Rng::Rng(uint64_t sample_seed, Stream stream)
     : Rng(SplitMix64(sample_seed ^ (static_cast<uint64_t>(stream) * 0xA0761D6478BD642FULL))) {}
-
-uint64_t Rng::NextU64() {
-  // xoshiro256** step
-  const uint64_t result = Rotl(s_[1] * 5, 7) * 9;
-  const uint64_t t = s_[1] << 17;
-  s_[2] ^= s_[0];
-  s_[3] ^= s_[1];
-  s_[1] ^= s_[2];
-  s_[0] ^= s_[3];
-  s_[2] ^= t;
-  s_[3] = Rotl(s_[3], 45);
-  return result;
-}
 
 double Rng::Uniform() { return static_cast<double>(NextU64() >> 11) * 0x1.0p-53; }
 

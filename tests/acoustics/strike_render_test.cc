@@ -174,8 +174,8 @@ TEST(StrikeRenderTest, ExtremesStayFiniteAndFlagClipping) {
         const RenderedStrike r = synth.Render(Dowel(z, th, v), {}, 0.0, 5);
         ASSERT_TRUE(r.audio.allFinite()) << v << " " << z << " " << th;
         EXPECT_GT(r.audio.cwiseAbs().maxCoeff(), 0.0f);
-        if (v == 10.0) EXPECT_TRUE(r.clipped);
-        if (v == 0.01) EXPECT_FALSE(r.clipped);
+        // the hardest strike clips the converter and says so; the softest does not
+        EXPECT_EQ(r.clipped, v == 10.0);
       }
     }
   }

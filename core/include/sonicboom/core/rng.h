@@ -32,7 +32,18 @@ class Rng {
   explicit Rng(uint64_t seed);
   Rng(uint64_t sample_seed, Stream stream);
 
-  uint64_t NextU64();
+  /// xoshiro256** step (inline: noise signals draw one per sample).
+  uint64_t NextU64() {
+    const uint64_t result = Rotl(s_[1] * 5, 7) * 9;
+    const uint64_t t = s_[1] << 17;
+    s_[2] ^= s_[0];
+    s_[3] ^= s_[1];
+    s_[1] ^= s_[2];
+    s_[0] ^= s_[3];
+    s_[2] ^= t;
+    s_[3] = Rotl(s_[3], 45);
+    return result;
+  }
   /// Uniform in [0, 1).
   double Uniform();
   double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
@@ -52,6 +63,7 @@ class Rng {
   }
 
  private:
+  static constexpr uint64_t Rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
   uint64_t s_[4];
   double spare_{0.0};
   bool has_spare_{false};
