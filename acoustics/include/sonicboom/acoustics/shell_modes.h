@@ -1,8 +1,10 @@
 #pragma once
-/// Natural modes of the discretized shell (shell.h): K phi = omega^2 M phi by shift-invert
-/// Lanczos (Spectra) on M^-1/2 K M^-1/2, sliced over frequency; completeness is checked by
-/// Sylvester's inertia (the number of negative pivots of an LDL^T factorization of K - s M is the
-/// number of modes below s), so no mode of the requested range is missed.
+/// Natural modes of the discretized shell (shell.h): K phi = omega^2 M phi by shift-invert block
+/// Lanczos on M^-1/2 K M^-1/2, sliced over frequency. Sylvester's inertia (the number of negative
+/// pivots of an LDL^T factorization of K - s M is the number of modes below s) plans the slices and
+/// tells each how many modes it holds, so no mode of the requested range is missed. Slices are
+/// solved concurrently (oneTBB); the plan depends on inertia counts only, so the result is the same
+/// bit for bit for any number of threads.
 
 #include <Eigen/Core>
 #include <cstdint>
