@@ -1,6 +1,5 @@
 #include "sonicboom/acoustics/features.h"
 
-#include <fftw3.h>
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -11,6 +10,8 @@
 #include <numbers>
 #include <utility>
 
+#include "internal/fftw_util.h"
+#include "sonicboom/acoustics/spectral_gate.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -26,117 +27,37 @@ void FeatureConfig::Serialize(Archive* a) {
   a->Visit("gcc_max_lag", &gcc_max_lag, Bounds::NonNegative());
   a->Visit("onset_frame_s", &onset_frame_s, Bounds::Positive());
   a->Visit("onset_threshold", &onset_threshold, Bounds{0.0, 1.0, true, false});
+  a->Visit("gating", &gating);
+  a->Visit("gating_n_std", &gating_n_std, Bounds::Closed(-100.0, 100.0));
+  a->Visit("gating_n_fft", &gating_n_fft, Bounds::Closed(2, 1 << 20));
+  a->Visit("gating_hop", &gating_hop, Bounds::Closed(1, 1 << 19));
+  a->Visit("gating_freq_smooth_hz", &gating_freq_smooth_hz, Bounds::NonNegative());
+  a->Visit("gating_time_smooth_s", &gating_time_smooth_s, Bounds::Closed(0.0, 60.0));
+  a->Visit("gating_prop_decrease", &gating_prop_decrease, Bounds::Closed(0.0, 1.0));
+  a->Visit("gating_noise_wav", &gating_noise_wav);
+}
+
+SpectralGateConfig GatingConfig(const FeatureConfig& config) {
+  SpectralGateConfig g;
+  g.n_fft = config.gating_n_fft;
+  g.hop = config.gating_hop;
+  g.n_std = config.gating_n_std;
+  g.freq_smooth_hz = config.gating_freq_smooth_hz;
+  g.time_smooth_s = config.gating_time_smooth_s;
+  g.prop_decrease = config.gating_prop_decrease;
+  return g;
 }
 
 namespace {
 
-// The FFTW planner (plan creation and destruction) is not thread-safe; every plan made or
-// destroyed in this file goes through this lock. Plan execution is thread-safe.
-std::mutex& FftwPlannerMutex() {
-  static std::mutex mutex;
-  return mutex;
-}
-
-// An FFTW-aligned array of T (fftw_malloc), so that every scratch buffer has the same
-// alignment as the arrays the plans were made with and new-array execution is allowed.
+// FFTW plumbing shared with spectral_gate.cc (one planner lock for the whole module)
 template <typename T>
-class FftwArray {
- public:
-  FftwArray() = default;
-  explicit FftwArray(int64_t size) : size_(size) {
-    const size_t bytes = sizeof(T) * static_cast<size_t>(std::max<int64_t>(size, 1));
-    data_ = static_cast<T*>(fftw_malloc(bytes));
-    if (data_ == nullptr) throw std::bad_alloc();
-    std::memset(static_cast<void*>(data_), 0, bytes);
-  }
-  ~FftwArray() { fftw_free(data_); }
-  FftwArray(FftwArray&& other) noexcept
-      : data_(std::exchange(other.data_, nullptr)), size_(std::exchange(other.size_, 0)) {}
-  FftwArray& operator=(FftwArray&& other) noexcept {
-    std::swap(data_, other.data_);
-    std::swap(size_, other.size_);
-    return *this;
-  }
-  FftwArray(const FftwArray&) = delete;
-  FftwArray& operator=(const FftwArray&) = delete;
-  T* data() const { return data_; }
-  int64_t size() const { return size_; }
-  T& operator[](int64_t i) const { return data_[i]; }
-
- private:
-  T* data_{nullptr};
-  int64_t size_{0};
-};
-
-// Owns an fftw_plan; destroys it under the planner lock.
-class FftwPlan {
- public:
-  FftwPlan() = default;
-  ~FftwPlan() { Destroy(); }
-  // Takes ownership of a plan made under the planner lock (call without holding it).
-  void Adopt(fftw_plan plan) {
-    Destroy();
-    if (plan == nullptr) throw NumericalError("FFTW could not create a plan");
-    plan_ = plan;
-  }
-  FftwPlan(const FftwPlan&) = delete;
-  FftwPlan& operator=(const FftwPlan&) = delete;
-  fftw_plan get() const { return plan_; }
-
- private:
-  void Destroy() {
-    if (plan_ == nullptr) return;
-    std::lock_guard<std::mutex> lock(FftwPlannerMutex());
-    fftw_destroy_plan(plan_);
-    plan_ = nullptr;
-  }
-  fftw_plan plan_{nullptr};
-};
-
-// A pool of scratch objects shared by the threads that call one const object. A call leases
-// one object (created only when every existing one is in use), so in steady state nothing is
-// allocated and no two concurrent calls share scratch.
+using FftwArray = internal::fftw::Array<T>;
+using FftwPlan = internal::fftw::Plan;
 template <typename T>
-class ScratchPool {
- public:
-  explicit ScratchPool(std::function<std::unique_ptr<T>()> make) : make_(std::move(make)) {}
-
-  class Lease {
-   public:
-    Lease(const ScratchPool* pool, std::unique_ptr<T> item) : pool_(pool), item_(std::move(item)) {}
-    ~Lease() { pool_->Release(std::move(item_)); }
-    Lease(const Lease&) = delete;
-    Lease& operator=(const Lease&) = delete;
-    T& operator*() const { return *item_; }
-    T* operator->() const { return item_.get(); }
-
-   private:
-    const ScratchPool* pool_;
-    std::unique_ptr<T> item_;
-  };
-
-  Lease Acquire() const {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (!free_.empty()) {
-        std::unique_ptr<T> item = std::move(free_.back());
-        free_.pop_back();
-        return Lease(this, std::move(item));
-      }
-    }
-    return Lease(this, make_());
-  }
-
- private:
-  void Release(std::unique_ptr<T> item) const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    free_.push_back(std::move(item));
-  }
-
-  std::function<std::unique_ptr<T>()> make_;
-  mutable std::mutex mutex_;
-  mutable std::vector<std::unique_ptr<T>> free_;
-};
+using ScratchPool = internal::fftw::ScratchPool<T>;
+using internal::fftw::ReflectIndex;
+std::mutex& FftwPlannerMutex() { return internal::fftw::PlannerMutex(); }
 
 // Smallest m >= n whose only prime factors are 2, 3 and 5 (fast FFTW sizes). The golden
 // script scripts/make_goldens.py uses the same rule, since PHAT output depends on the size.
@@ -148,16 +69,6 @@ int64_t NextFastFftSize(int64_t n) {
     }
     if (r == 1) return m;
   }
-}
-
-// Reflect-pads index i into [0, n) without repeating the edge sample (torch "reflect"),
-// folding again when the padding is longer than the signal.
-int64_t ReflectIndex(int64_t i, int64_t n) {
-  if (n == 1) return 0;
-  const int64_t period = 2 * (n - 1);
-  int64_t k = i % period;
-  if (k < 0) k += period;
-  return k < n ? k : period - k;
 }
 
 double HzToMelHtk(double hz) { return 2595.0 * std::log10(1.0 + hz / 700.0); }
@@ -467,6 +378,7 @@ struct FeatureExtractor::Impl {
   double sample_rate_hz{0.0};
   int channels{0};
   int64_t window_samples{0};
+  std::unique_ptr<SpectralGate> gate;  // null: no gating
   std::unique_ptr<MelSpectrogram> mel;
   std::unique_ptr<GccPhat> gcc;
   std::unique_ptr<ScratchPool<Scratch>> pool;
@@ -521,11 +433,44 @@ void ValidateFeatureConfig(const FeatureConfig& c, double fs, int channels) {
     throw ConfigError(
         fmt::format("features.onset_threshold must be in (0, 1], got {}", c.onset_threshold));
   }
+  if (!c.gating) return;
+  if (!std::isfinite(c.gating_n_std)) {
+    throw ConfigError(fmt::format("features.gating_n_std must be finite, got {}", c.gating_n_std));
+  }
+  if (c.gating_n_fft < 2 || c.gating_n_fft > window_samples) {
+    throw ConfigError(fmt::format("features.gating_n_fft must be in [2, window samples = {}], "
+                                  "got {}",
+                                  window_samples, c.gating_n_fft));
+  }
+  if (c.gating_hop < 1 || c.gating_hop > c.gating_n_fft / 2) {
+    throw ConfigError(fmt::format("features.gating_hop must be in [1, gating_n_fft / 2 = {}], "
+                                  "got {}",
+                                  c.gating_n_fft / 2, c.gating_hop));
+  }
+  if (!(c.gating_freq_smooth_hz >= 0.0 && c.gating_freq_smooth_hz <= nyquist)) {
+    throw ConfigError(fmt::format("features.gating_freq_smooth_hz must be in [0, Nyquist = {}] Hz, "
+                                  "got {}",
+                                  nyquist, c.gating_freq_smooth_hz));
+  }
+  const double window_s = static_cast<double>(window_samples) / fs;
+  if (!(c.gating_time_smooth_s >= 0.0 && c.gating_time_smooth_s <= window_s)) {
+    throw ConfigError(fmt::format("features.gating_time_smooth_s must be in [0, window = {} s], "
+                                  "got {}",
+                                  window_s, c.gating_time_smooth_s));
+  }
+  if (!(c.gating_prop_decrease >= 0.0 && c.gating_prop_decrease <= 1.0)) {
+    throw ConfigError(fmt::format("features.gating_prop_decrease must be in [0, 1], got {}",
+                                  c.gating_prop_decrease));
+  }
 }
 
 }  // namespace
 
 FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_rate_hz, int channels)
+    : FeatureExtractor(config, sample_rate_hz, channels, nullptr) {}
+
+FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_rate_hz, int channels,
+                                   const Eigen::MatrixXf* noise_clip)
     : impl_(std::make_unique<Impl>()) {
   ValidateFeatureConfig(config, sample_rate_hz, channels);
   Impl& e = *impl_;
@@ -537,6 +482,19 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
   e.mel = std::make_unique<MelSpectrogram>(config.n_fft, config.hop, config.n_mels, config.f_min_hz,
                                            f_max, sample_rate_hz);
   e.gcc = std::make_unique<GccPhat>(e.window_samples, config.gcc_max_lag, channels);
+  if (config.gating && noise_clip != nullptr) {
+    if (noise_clip->rows() != channels) {
+      throw ConfigError(fmt::format("features.gating: the reference noise clip has {} channels, "
+                                    "the records have {}",
+                                    noise_clip->rows(), channels));
+    }
+    if (noise_clip->cols() < config.gating_n_fft) {
+      throw ConfigError(fmt::format("features.gating: the reference noise clip has {} samples, "
+                                    "shorter than one gate frame (features.gating_n_fft = {})",
+                                    noise_clip->cols(), config.gating_n_fft));
+    }
+    e.gate = std::make_unique<SpectralGate>(GatingConfig(config), *noise_clip, sample_rate_hz);
+  }
   const int64_t n = e.window_samples;
   e.pool = std::make_unique<ScratchPool<Impl::Scratch>>([channels, n] {
     auto s = std::make_unique<Impl::Scratch>();
@@ -552,6 +510,7 @@ int64_t FeatureExtractor::window_samples() const { return impl_->window_samples;
 int64_t FeatureExtractor::mel_frames() const { return impl_->mel->Frames(impl_->window_samples); }
 int64_t FeatureExtractor::gcc_lags() const { return 2 * impl_->config.gcc_max_lag + 1; }
 int FeatureExtractor::channels() const { return impl_->channels; }
+const SpectralGate* FeatureExtractor::gate() const { return impl_->gate.get(); }
 
 StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio) const {
   const Impl& e = *impl_;
@@ -573,6 +532,16 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio) const {
   const int64_t hi = std::min<int64_t>(audio.cols(), features.window_start + n);
   if (hi > lo) {
     window.middleCols(lo - features.window_start, hi - lo) = audio.middleCols(lo, hi - lo);
+  }
+
+  // Spectral gating per channel against that channel's noise statistics (in place), so that
+  // mel and GCC-PHAT both see the gated window.
+  if (e.gate) {
+    for (int c = 0; c < e.channels; ++c) {
+      for (int64_t t = 0; t < n; ++t) scratch->row[t] = window(c, t);
+      e.gate->Apply(scratch->row.data(), n, c, scratch->row.data());
+      for (int64_t t = 0; t < n; ++t) window(c, t) = scratch->row[t];
+    }
   }
 
   // Power mel (n_mels x frames) per channel, optionally log10(power + 1e-10).

@@ -104,11 +104,50 @@ int RunCli(int argc, char** argv) {
   eval->add_option("--data", data, "dataset (.h5)")->required();
   eval->callback([&] { run = [&] { return RunEval(g, model, data); }; });
 
+  BaselineOptions baseline_options;
+  auto* baseline = app.add_subcommand("baseline", "a baseline's errors on a dataset: kNN on "
+                                                  "pooled log-mel, analytic TDOA, or a constant");
+  baseline->add_option("--method", baseline_options.method, "knn | tdoa | constant")->required();
+  baseline->add_option("--train", baseline_options.train,
+                       "training dataset (.h5): knn and constant need it; tdoa fits its speed "
+                       "scale on it");
+  baseline->add_option("--data", baseline_options.data, "held-out dataset (.h5)")->required();
+  baseline->add_option("--k", baseline_options.k, "knn: neighbours")->check(CLI::PositiveNumber);
+  baseline->add_option("--gcc-lags", baseline_options.knn_gcc_lags,
+                       "knn: GCC-PHAT lags each side of zero in the feature vector (0 = none)")
+      ->check(CLI::NonNegativeNumber);
+  baseline->add_option("--bands", baseline_options.bands_hz,
+                       "tdoa: band edges in Hz, e.g. 1000,2000,4000,8000,16000")
+      ->delimiter(',');
+  baseline->add_flag("--non-dispersive", baseline_options.non_dispersive,
+                     "tdoa: one speed for every band");
+  baseline->add_flag("--no-fit", baseline_options.no_fit, "tdoa: analytic speeds only");
+  baseline->add_option("--fit-strikes", baseline_options.fit_strikes,
+                       "tdoa: training strikes used by the speed fit")
+      ->check(CLI::PositiveNumber);
+  baseline->callback([&] { run = [&] { return RunBaseline(g, baseline_options); }; });
+
+  AblateOptions ablate_options;
+  auto* ablate = app.add_subcommand("ablate", "train and evaluate every ablation config (modality "
+                                              "sets, preprocessing switches) and write a table");
+  ablate->add_option("--data", ablate_options.data, "training dataset (.h5)")->required();
+  ablate->add_option("--test", ablate_options.test, "held-out dataset (.h5)")->required();
+  ablate->add_option("--out", ablate_options.out, "output directory")->required();
+  ablate->add_option("--configs", ablate_options.configs_dir, "directory of ablation YAML layers");
+  ablate->add_option("--only", ablate_options.only, "ablation names to run (default all)")
+      ->delimiter(',');
+  ablate->callback([&] { run = [&] { return RunAblate(g, ablate_options); }; });
+
   auto* localize = app.add_subcommand("localize", "locate the contact of one recorded strike");
   localize->add_option("--model", model, "run directory")->required();
   localize->add_option("--wav", wav, "6-channel WAV")->required();
   localize->add_option("--proprio", proprio, "robot log CSV");
-  localize->callback([&] { run = [&] { return RunLocalize(g, model, wav, proprio); }; });
+  int64_t localize_repeat = 1;
+  localize->add_option("--repeat", localize_repeat,
+                       "time the WAV-read-to-answer path this many times (median reported)");
+  localize->callback([&] {
+    run = [&] { return RunLocalize(g, model, wav, proprio, localize_repeat); };
+  });
 
   auto* fk = app.add_subcommand("fk", "flange and tube poses of the Panda for joint angles");
   fk->add_option("--joints", joints, "q1,...,q7 in rad")->required();

@@ -1,5 +1,7 @@
 #include "sonicboom/experiments/commands.h"
+#include "internal/report.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -19,8 +21,10 @@
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/core/tube.h"
+#include "sonicboom/experiments/baselines.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/hardware/capture.h"
+#include "sonicboom/learning/baselines.h"
 #include "sonicboom/learning/learning.h"
 #include "sonicboom/sim/franka.h"
 
@@ -46,14 +50,7 @@ void RequireParentDir(const std::string& path) {
   }
 }
 
-json MetricsJson(const learning::Metrics& m) {
-  return {{"n", m.n},
-          {"med_cm", m.med_cm},
-          {"height_err_cm", m.height_err_cm},
-          {"angle_err_deg", m.angle_err_deg},
-          {"reference_med_cm", m.reference_med_cm}};
-}
-
+// NaN (no labelled strike, or a model without predictive uncertainty) prints as null
 json LabelJson(const ContactLabel& l) {
   return {{"z_m", l.z_m},
           {"theta_rad", l.theta_rad},
@@ -63,6 +60,10 @@ json LabelJson(const ContactLabel& l) {
           {"time_s", l.time_s},
           {"normal_speed_m_s", l.normal_speed_m_s},
           {"duration_s", l.duration_s}};
+}
+
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 // a run directory's own config: the base layer for eval and localize
@@ -80,16 +81,7 @@ learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::strin
                                  const std::string& run_dir, bool resume, int threads, bool quiet) {
   std::vector<uint64_t> indices;
   const learning::FeatureSet all = ComputeDatasetFeatures(data, config, threads, !quiet, &indices);
-  const auto [train_rows, val_rows] = SplitRows(indices, config.train.val_fraction, config.seed);
-  if (train_rows.empty() || val_rows.empty()) {
-    throw ConfigError(fmt::format("{}: {} valid samples cannot be split into train and validation "
-                                  "with train.val_fraction = {}",
-                                  data, all.size(), config.train.val_fraction));
-  }
-  spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
-  return learning::Train(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,
-                         config.train, config.tube.outer_radius_m, config.seed, run_dir, resume,
-                         !quiet);
+  return TrainOnFeatures(config, all, indices, data, run_dir, resume, quiet);
 }
 
 std::string MetricsRow(const std::string& name, const learning::Metrics& m) {
@@ -98,6 +90,19 @@ std::string MetricsRow(const std::string& name, const learning::Metrics& m) {
 }
 
 }  // namespace
+
+json MetricsJson(const learning::Metrics& m) {
+  return {{"n", m.n},
+          {"med_cm", m.med_cm},
+          {"height_err_cm", m.height_err_cm},
+          {"angle_err_deg", m.angle_err_deg},
+          {"reference_med_cm", m.reference_med_cm},
+          {"z_coverage_50", m.z_coverage_50},
+          {"z_coverage_90", m.z_coverage_90},
+          {"theta_coverage_50", m.theta_coverage_50},
+          {"theta_coverage_90", m.theta_coverage_90},
+          {"nll", m.nll}};
+}
 
 const std::string& DemoConfigYaml() {
   // small, fast model and short training: the demo must finish in minutes on 2 cores
@@ -367,27 +372,68 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
   const learning::FeatureSet set = ComputeDatasetFeatures(data, config, g.threads, !g.quiet);
   const learning::Metrics m =
       learning::ComputeMetrics(localizer.Predict(set), set, localizer.surface_radius_m());
-  return {MetricsJson(m).dump(),
-          fmt::format("{} strikes: MED {:.2f} cm, height {:.2f} cm, angle {:.1f} deg "
-                      "(published-code MED {:.2f})\n",
-                      m.n, m.med_cm, m.height_err_cm, m.angle_err_deg, m.reference_med_cm)};
+  std::string text = fmt::format("{} strikes: MED {:.2f} cm, height {:.2f} cm, angle {:.1f} deg "
+                                 "(published-code MED {:.2f})\n",
+                                 m.n, m.med_cm, m.height_err_cm, m.angle_err_deg,
+                                 m.reference_med_cm);
+  if (std::isfinite(m.nll)) {
+    text += fmt::format("coverage of the 50 % / 90 % intervals: z {:.2f} / {:.2f}, theta {:.2f} / "
+                        "{:.2f}; mean NLL {:.3f} (z in cm, theta in rad)\n",
+                        m.z_coverage_50, m.z_coverage_90, m.theta_coverage_50,
+                        m.theta_coverage_90, m.nll);
+  }
+  return {MetricsJson(m).dump(), text};
 }
 
 CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
-                          const std::string& wav, const std::string& proprio_csv) {
+                          const std::string& wav, const std::string& proprio_csv, int64_t repeat) {
+  if (repeat < 1) throw ConfigError(fmt::format("--repeat must be >= 1, got {}", repeat));
+  // set-up, once per process: the model, the gate's reference clip, FFT plans
+  const auto setup_start = std::chrono::steady_clock::now();
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
   learning::Localizer localizer(model_dir);
-  const hardware::Capture cap =
-      hardware::LoadCapture(wav, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
-  const learning::FeatureSet set =
-      ComputeRecordFeatures(cap.audio, cap.sample_rate_hz, cap.proprio, config);
-  const learning::Prediction p = localizer.Predict(set).front();
+  const RecordFeaturizer featurizer(config, config.audio.sample_rate_hz, config.mics.count());
+  const double setup_ms = MillisecondsSince(setup_start);
+  // per strike: WAV (and robot log) read -> features -> network -> answer; the median of
+  // `repeat` runs is the latency
+  std::vector<double> latency_ms;
+  learning::Prediction p;
+  for (int64_t r = 0; r < repeat; ++r) {
+    const auto start = std::chrono::steady_clock::now();
+    const hardware::Capture cap =
+        hardware::LoadCapture(wav, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
+    p = localizer.Predict(featurizer.Compute(cap.audio, cap.proprio)).front();
+    latency_ms.push_back(MillisecondsSince(start));
+  }
+  std::nth_element(latency_ms.begin(), latency_ms.begin() + repeat / 2, latency_ms.end());
+  const double median_ms = latency_ms[repeat / 2];
   const Eigen::Vector3d point = SurfacePoint(config.tube, p.z_m, p.theta_rad);
   json j = {{"z_m", p.z_m}, {"theta_rad", p.theta_rad}, {"point_m", {point.x(), point.y(), point.z()}},
-            {"frame", "tube"}};
-  return {j.dump(), fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, "
-                                "{:.4f}, {:.4f}) m in the tube frame\n",
-                                p.z_m, p.theta_rad, point.x(), point.y(), point.z())};
+            {"frame", "tube"}, {"latency_ms", median_ms}, {"setup_ms", setup_ms}};
+  // the predictive distribution (null for a model without one); the theta interval is
+  // [theta - h, theta + h], not wrapped, so lo < hi also across +-pi
+  std::string text = fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, "
+                                 "{:.4f}, {:.4f}) m in the tube frame\n",
+                                 p.z_m, p.theta_rad, point.x(), point.y(), point.z());
+  j["z_std_m"] = j["theta_std_rad"] = j["theta_kappa"] = nullptr;
+  j["z_interval_90_m"] = j["theta_interval_90_rad"] = nullptr;
+  if (p.has_uncertainty()) {
+    const double z_half = learning::GaussianIntervalHalfWidth(0.9) * p.z_std_m;
+    const double theta_half = learning::VonMisesIntervalHalfWidth(p.theta_kappa, 0.9);
+    const double theta_std = learning::VonMisesCircularStd(p.theta_kappa);
+    j["z_std_m"] = p.z_std_m;
+    j["theta_std_rad"] = theta_std;
+    j["theta_kappa"] = p.theta_kappa;
+    j["z_interval_90_m"] = {p.z_m - z_half, p.z_m + z_half};
+    j["theta_interval_90_rad"] = {p.theta_rad - theta_half, p.theta_rad + theta_half};
+    text += fmt::format("uncertainty: z std {:.4f} m (90 %: [{:.4f}, {:.4f}] m), theta circular "
+                        "std {:.4f} rad (90 %: [{:.4f}, {:.4f}] rad, kappa {:.3g})\n",
+                        p.z_std_m, p.z_m - z_half, p.z_m + z_half, theta_std,
+                        p.theta_rad - theta_half, p.theta_rad + theta_half, p.theta_kappa);
+  }
+  text += fmt::format("latency {:.1f} ms from WAV read to answer (median of {}); set-up {:.0f} ms\n",
+                      median_ms, repeat, setup_ms);
+  return {j.dump(), text};
 }
 
 CommandResult RunFk(const GlobalOptions& g, const std::string& joints) {
@@ -525,6 +571,111 @@ CommandResult RunConfig(const GlobalOptions& g) {
   const SonicBoomConfig config = Resolve(g);
   const std::string yaml = ConfigToYaml(config);
   return {json{{"config_yaml", yaml}}.dump(), yaml};
+}
+
+namespace {
+
+// the test dataset's own config as the base layer, then --config files and --set overrides
+SonicBoomConfig ResolveWithDataset(const GlobalOptions& g, const std::string& data) {
+  ConfigSources sources = g.sources;
+  const DatasetInfo info = DatasetReader(data).info();
+  if (!info.config_yaml.empty()) {
+    sources.embedded_yaml = info.config_yaml;
+    sources.embedded_name = data + " (its config)";
+  }
+  return ResolveConfig(sources);
+}
+
+}  // namespace
+
+CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
+  if (o.method != "knn" && o.method != "tdoa" && o.method != "constant") {
+    throw ConfigError(fmt::format("--method '{}' must be knn, tdoa or constant", o.method));
+  }
+  if ((o.method == "knn" || o.method == "constant") && o.train.empty()) {
+    throw ConfigError(fmt::format("--method {} needs --train TRAIN.h5", o.method));
+  }
+  for (const std::string& path : {o.data, o.train}) {
+    if (!path.empty() && !fs::exists(path)) throw IoError(fmt::format("{}: no such dataset", path));
+  }
+  const SonicBoomConfig config = ResolveWithDataset(g, o.data);
+  const double radius = config.tube.outer_radius_m;
+  std::vector<learning::Prediction> predictions;
+  learning::FeatureSet truth;
+  json extra;
+  std::string detail;
+
+  if (o.method == "constant") {
+    // mean height and circular mean angle of the training labels
+    const learning::FeatureSet train = DatasetLabels(o.train);
+    const learning::Prediction p = learning::ConstantPrediction(train.z_m, train.theta_rad);
+    truth = DatasetLabels(o.data);
+    predictions.assign(static_cast<size_t>(truth.size()), p);
+    extra = {{"train_n", train.size()}, {"z_m", p.z_m}, {"theta_rad", p.theta_rad}};
+  } else if (o.method == "knn") {
+    // pooled log-mel (+ GCC lags) of the training strikes, k nearest by standardized distance
+    const learning::FeatureSet train = ComputeDatasetFeatures(o.train, config, g.threads, !g.quiet);
+    truth = ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet);
+    learning::KnnConfig knn_config;
+    knn_config.k = o.k;
+    knn_config.crop_frames = config.model.crop_frames;
+    knn_config.mel_is_log = config.features.log_mel;
+    knn_config.gcc_lags = o.knn_gcc_lags;
+    knn_config.threads = g.threads;
+    const learning::KnnBaseline knn(train, knn_config);
+    predictions = knn.Predict(truth);
+    extra = {{"train_n", knn.size()}, {"k", o.k}, {"dimensions", knn.dimensions()},
+             {"gcc_lags", o.knn_gcc_lags}};
+    detail = fmt::format(" (k = {}, {} training strikes, {} dimensions)", o.k, knn.size(),
+                         knn.dimensions());
+  } else {
+    // steered response of band GCC-PHAT envelopes over the contact region
+    acoustics::TdoaConfig tdoa_config;
+    tdoa_config.dispersive = !o.non_dispersive;
+    if (!o.bands_hz.empty()) tdoa_config.band_edges_hz = o.bands_hz;
+    const double fs = DatasetReader(o.data).info().sample_rate_hz;
+    const acoustics::TdoaLocator locator(TdoaGeometryOf(config), tdoa_config, fs);
+    std::vector<double> speeds;
+    for (int b = 0; b < locator.bands(); ++b) speeds.push_back(locator.BandSpeed(b));
+    double scale = 1.0;
+    extra = {{"dispersive", tdoa_config.dispersive}, {"band_edges_hz", tdoa_config.band_edges_hz},
+             {"band_speeds_m_s", speeds}, {"seamed", !TdoaGeometryOf(config).seam_theta_rad.empty()}};
+    if (!o.train.empty() && !o.no_fit) {
+      // one global speed scale, fitted on (at most fit_strikes) training strikes; the range
+      // holds the simulated tube's best scale (about 0.5, docs/baselines.md) with room
+      constexpr double kFitLo = 0.3, kFitHi = 1.5;
+      learning::FeatureSet fit_labels;
+      const std::vector<acoustics::TdoaCorrelations> fit = CorrelateDataset(
+          o.train, config, locator, g.threads, !g.quiet, o.fit_strikes, &fit_labels);
+      double fit_med_m = 0.0;
+      scale = acoustics::FitSpeedScale(locator, fit, fit_labels.z_m, fit_labels.theta_rad, radius,
+                                       kFitLo, kFitHi, g.threads, &fit_med_m);
+      extra["fit_strikes"] = fit_labels.size();
+      extra["fit_med_cm"] = 100.0 * fit_med_m;
+    }
+    const std::vector<acoustics::TdoaCorrelations> test =
+        CorrelateDataset(o.data, config, locator, g.threads, !g.quiet, 0, &truth);
+    predictions = LocateAll(locator, test, scale, g.threads);
+    extra["speed_scale"] = scale;
+    detail = fmt::format(" ({}, speed scale {:.3f})",
+                         tdoa_config.dispersive ? "per-band group velocity" : "one speed", scale);
+    if (scale != 1.0) {
+      // the pure analytic figure beside the fitted one
+      const learning::Metrics analytic =
+          learning::ComputeMetrics(LocateAll(locator, test, 1.0, g.threads), truth, radius);
+      extra["analytic"] = MetricsJson(analytic);
+      detail += fmt::format("; analytic speeds: MED {:.2f} cm", analytic.med_cm);
+    }
+  }
+
+  const learning::Metrics m = learning::ComputeMetrics(predictions, truth, radius);
+  json j = MetricsJson(m);
+  j["method"] = o.method;
+  j.update(extra);
+  return {j.dump(), fmt::format("{} baseline, {} strikes: MED {:.2f} cm, height {:.2f} cm, angle "
+                                "{:.1f} deg (published-code MED {:.2f}){}\n",
+                                o.method, m.n, m.med_cm, m.height_err_cm, m.angle_err_deg,
+                                m.reference_med_cm, detail)};
 }
 
 }  // namespace sonicboom::experiments

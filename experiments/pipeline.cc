@@ -7,12 +7,15 @@
 #include <chrono>
 #include <cmath>
 #include <mutex>
+#include <numbers>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "sonicboom/acoustics/daq.h"
 #include "sonicboom/acoustics/features.h"
 #include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/progress.h"
@@ -291,13 +294,113 @@ void ResizeArrays(int64_t n, learning::FeatureSet* set) {
 
 }  // namespace
 
+Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config) {
+  const double fs = config.audio.sample_rate_hz;
+  const int channels = config.mics.count();
+  const acoustics::FeatureConfig& features = config.features;
+
+  // a recording: checked against the audio config
+  if (!features.gating_noise_wav.empty()) {
+    const std::string& path = features.gating_noise_wav;
+    AudioClip clip;
+    try {
+      clip = ReadWav(path);
+    } catch (const IoError& e) {
+      throw IoError(fmt::format("features.gating_noise_wav: {}", e.what()));
+    }
+    if (std::abs(clip.sample_rate_hz - fs) > 1e-6) {
+      throw ConfigError(fmt::format("features.gating_noise_wav: {} is sampled at {} Hz; "
+                                    "audio.sample_rate_hz is {} Hz",
+                                    path, clip.sample_rate_hz, fs));
+    }
+    if (clip.channels() != channels) {
+      throw ConfigError(fmt::format("features.gating_noise_wav: {} has {} channels; it needs one "
+                                    "per microphone ({})",
+                                    path, clip.channels(), channels));
+    }
+    if (clip.frames() < features.gating_n_fft) {
+      throw ConfigError(fmt::format("features.gating_noise_wav: {} has {} frames, shorter than "
+                                    "one gate frame (features.gating_n_fft = {})",
+                                    path, clip.frames(), features.gating_n_fft));
+    }
+    for (int64_t t = 0; t < clip.frames(); ++t) {
+      for (int c = 0; c < channels; ++c) {
+        if (!std::isfinite(clip.samples(c, t))) {
+          throw ConfigError(fmt::format("features.gating_noise_wav: {} has a non-finite sample "
+                                        "at channel {} frame {}",
+                                        path, c, t));
+        }
+      }
+    }
+    return std::move(clip.samples);
+  }
+
+  // the noise model with no contact: records through the DAQ chain on zero strain, the motor
+  // held at the peak joint speed of a mean strike sweep (stationary, like the reference's
+  // constant-motion no-contact recording; no motor when the robot holds still), each record
+  // with its own draw of the per-strike channel gains and tone phases
+  const int64_t frames = config.audio.num_samples();
+  const acoustics::DaqChain daq(config.daq, config.noise, channels, fs, frames);
+  std::vector<double> joint_speed_rad_s;
+  const sim::StrikeConfig& strike = config.strike;
+  if (config.scene.mode != "stationary") {
+    const double sweep_rad =
+        0.5 * (strike.sweep_min_deg + strike.sweep_max_deg) * std::numbers::pi / 180.0;
+    const double peak_speed = sweep_rad * sim::MinJerkRate(0.5) / strike.sweep_duration_s;
+    const auto rows = static_cast<int64_t>(
+        std::ceil(config.audio.record_duration_s * strike.proprio_rate_hz));
+    joint_speed_rad_s.assign(static_cast<size_t>(rows), peak_speed);
+  }
+  Eigen::MatrixXf clip(channels, kReferenceNoiseRecords * frames);
+  Eigen::MatrixXf audio;
+  for (int64_t r = 0; r < kReferenceNoiseRecords; ++r) {
+    daq.Convert(Eigen::MatrixXd::Zero(channels, frames), joint_speed_rad_s,
+                strike.proprio_rate_hz, SampleSeed(config.seed, kReferenceNoiseIndex - r), &audio);
+    clip.middleCols(r * frames, frames) = audio;
+  }
+  return clip;
+}
+
+namespace {
+
+// The gate's reference clip for records at (rate, channels), or an empty matrix when gating is
+// off. `what` names the records in errors.
+Eigen::MatrixXf GatingClipFor(const SonicBoomConfig& config, double sample_rate_hz, int channels,
+                              const std::string& what) {
+  if (!config.features.gating) return {};
+  if (std::abs(sample_rate_hz - config.audio.sample_rate_hz) > 1e-6 ||
+      channels != config.mics.count()) {
+    throw ConfigError(fmt::format("{}: records at {} Hz with {} channels, but features.gating "
+                                  "gates against a reference noise clip at audio.sample_rate_hz = "
+                                  "{} Hz with one channel per mic ({}); match the config or set "
+                                  "features.gating=false",
+                                  what, sample_rate_hz, channels, config.audio.sample_rate_hz,
+                                  config.mics.count()));
+  }
+  spdlog::debug("spectral gating against {}", config.features.gating_noise_wav.empty()
+                                                  ? "the noise model's reference clip"
+                                                  : config.features.gating_noise_wav);
+  return ReferenceNoiseClip(config);
+}
+
+}  // namespace
+
 learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
                                             const SonicBoomConfig& config, int threads,
                                             bool show_progress,
                                             std::vector<uint64_t>* sample_indices) {
   DatasetReader reader(dataset_path);
   const DatasetInfo& info = reader.info();
-  acoustics::FeatureExtractor fx(config.features, info.sample_rate_hz, info.channels);
+  if (config.features.gating && config.features.gating_noise_wav.empty() &&
+      info.source == "hardware") {
+    spdlog::warn("{}: hardware records gated against the simulated noise model; set "
+                 "features.gating_noise_wav to a no-contact recording",
+                 dataset_path);
+  }
+  const Eigen::MatrixXf noise =
+      GatingClipFor(config, info.sample_rate_hz, info.channels, dataset_path);
+  acoustics::FeatureExtractor fx(config.features, info.sample_rate_hz, info.channels,
+                                 noise.size() > 0 ? &noise : nullptr);
 
   // valid rows only
   std::vector<int64_t> rows;
@@ -345,15 +448,36 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
   return set;
 }
 
+struct RecordFeaturizer::Impl {
+  Impl(const SonicBoomConfig& config, double sample_rate_hz, int channels)
+      : noise(GatingClipFor(config, sample_rate_hz, channels, "record")),
+        fx(config.features, sample_rate_hz, channels, noise.size() > 0 ? &noise : nullptr),
+        n_mels(config.features.n_mels),
+        proprio_rows(config.strike.proprio_rows) {}
+  Eigen::MatrixXf noise;  // (C x T) reference clip of the gate, empty without gating
+  acoustics::FeatureExtractor fx;
+  int64_t n_mels, proprio_rows;
+};
+
+RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
+                                   int channels)
+    : impl_(std::make_unique<Impl>(config, sample_rate_hz, channels)) {}
+RecordFeaturizer::~RecordFeaturizer() = default;
+
+learning::FeatureSet RecordFeaturizer::Compute(const Eigen::MatrixXf& audio,
+                                               const Eigen::MatrixXf& proprio) const {
+  learning::FeatureSet set = AllocateFeatures(impl_->fx, 1, impl_->proprio_rows);
+  set.mels = impl_->n_mels;
+  ResizeArrays(1, &set);
+  StoreFeatures(impl_->fx.Compute(audio), proprio, 0, &set);
+  return set;
+}
+
 learning::FeatureSet ComputeRecordFeatures(const Eigen::MatrixXf& audio, double sample_rate_hz,
                                            const Eigen::MatrixXf& proprio,
                                            const SonicBoomConfig& config) {
-  acoustics::FeatureExtractor fx(config.features, sample_rate_hz, static_cast<int>(audio.rows()));
-  learning::FeatureSet set = AllocateFeatures(fx, 1, config.strike.proprio_rows);
-  set.mels = config.features.n_mels;
-  ResizeArrays(1, &set);
-  StoreFeatures(fx.Compute(audio), proprio, 0, &set);
-  return set;
+  return RecordFeaturizer(config, sample_rate_hz, static_cast<int>(audio.rows()))
+      .Compute(audio, proprio);
 }
 
 std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
@@ -364,6 +488,23 @@ std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
     (rng.Uniform() < val_fraction ? split.second : split.first).push_back(static_cast<int64_t>(r));
   }
   return split;
+}
+
+learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning::FeatureSet& all,
+                                  const std::vector<uint64_t>& sample_indices,
+                                  const std::string& data, const std::string& run_dir, bool resume,
+                                  bool quiet) {
+  const auto [train_rows, val_rows] =
+      SplitRows(sample_indices, config.train.val_fraction, config.seed);
+  if (train_rows.empty() || val_rows.empty()) {
+    throw ConfigError(fmt::format("{}: {} valid samples cannot be split into train and validation "
+                                  "with train.val_fraction = {}",
+                                  data, all.size(), config.train.val_fraction));
+  }
+  spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
+  return learning::Train(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,
+                         config.train, config.tube.outer_radius_m, config.seed, run_dir, resume,
+                         !quiet);
 }
 
 }  // namespace sonicboom::experiments

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "internal/uncertainty.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/learning/learning.h"
 
@@ -94,6 +95,7 @@ void TrainConfig::Serialize(Archive* a) {
   a->Visit("loss_weight_z", &loss_weight_z, Bounds::NonNegative());
   a->Visit("loss_weight_cos", &loss_weight_cos, Bounds::NonNegative());
   a->Visit("loss_weight_sin", &loss_weight_sin, Bounds::NonNegative());
+  a->Visit("uncertainty_weight", &uncertainty_weight, Bounds::NonNegative());
   a->Visit("augment", &augment);
   a->Visit("time_shift_frames", &time_shift_frames, Bounds::NonNegative());
   a->Visit("time_mask_frames", &time_mask_frames, Bounds::NonNegative());
@@ -116,6 +118,7 @@ void TrainConfig::Validate() const {
     Reject("train.loss_weight_z", fmt::format("{}", loss_weight_z),
            "at least one of train.loss_weight_z/cos/sin must be positive");
   }
+  RequireIn("train.uncertainty_weight", uncertainty_weight, Bounds::NonNegative());
   RequireAtLeast("train.time_shift_frames", time_shift_frames, 0);
   RequireAtLeast("train.time_mask_frames", time_mask_frames, 0);
   RequireAtLeast("train.freq_mask_bands", freq_mask_bands, 0);
@@ -134,6 +137,12 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
   constexpr double kReferenceRadius = 0.06;
   double sum_med = 0.0, sum_dz = 0.0, sum_dtheta = 0.0, sum_reference = 0.0;
   int64_t n = 0;
+  // Predictive distribution: interval hits and log-likelihoods, while every record has one.
+  const double z_half_50 = GaussianIntervalHalfWidth(0.5);
+  const double z_half_90 = GaussianIntervalHalfWidth(0.9);
+  bool uncertain = true;
+  int64_t z_in_50 = 0, z_in_90 = 0, theta_in_50 = 0, theta_in_90 = 0;
+  double sum_nll = 0.0;
   for (size_t i = 0; i < predictions.size(); ++i) {
     const double z_true = truth.z_m[i], theta_true = truth.theta_rad[i];
     if (std::isnan(z_true) || std::isnan(theta_true)) continue;
@@ -153,6 +162,21 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
     const double rz = 100.0 * dz;
     sum_reference += std::sqrt(rx * rx + ry * ry + rz * rz);
     ++n;
+    uncertain = uncertain && predictions[i].has_uncertainty();
+    if (uncertain) {
+      const double z_std = predictions[i].z_std_m, kappa = predictions[i].theta_kappa;
+      const double dtheta =
+          std::abs(std::remainder(theta_pred - theta_true, 2.0 * std::numbers::pi));
+      z_in_50 += std::abs(dz) <= z_half_50 * z_std;
+      z_in_90 += std::abs(dz) <= z_half_90 * z_std;
+      // inside the central interval of probability p <=> its own central probability <= p
+      const double inside = VonMisesCentralProbability(kappa, dtheta);
+      theta_in_50 += inside <= 0.5;
+      theta_in_90 += inside <= 0.9;
+      // z in cm, theta in rad
+      sum_nll += internal::GaussianNll(100.0 * dz, 100.0 * z_std) +
+                 internal::VonMisesNll(dtheta, kappa);
+    }
   }
   Metrics metrics;
   metrics.n = n;
@@ -161,6 +185,13 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
   metrics.height_err_cm = n > 0 ? sum_dz / n : nan;
   metrics.angle_err_deg = n > 0 ? sum_dtheta / n : nan;
   metrics.reference_med_cm = n > 0 ? sum_reference / n : nan;
+  if (n > 0 && uncertain) {
+    metrics.z_coverage_50 = double(z_in_50) / n;
+    metrics.z_coverage_90 = double(z_in_90) / n;
+    metrics.theta_coverage_50 = double(theta_in_50) / n;
+    metrics.theta_coverage_90 = double(theta_in_90) / n;
+    metrics.nll = sum_nll / n;
+  }
   return metrics;
 }
 
@@ -177,25 +208,30 @@ FeatureSet FeatureSet::ShapesOnly() const {
 }
 
 FeatureSet FeatureSet::SelectRows(const std::vector<int64_t>& rows) const {
-  // copy each chosen row of every array
+  // copy each chosen row of every array; an empty array (an unused modality) stays empty
   FeatureSet out = ShapesOnly();
   const int64_t n = static_cast<int64_t>(rows.size());
-  const int64_t mel_size = channels * mels * frames;
-  const int64_t gcc_size = gcc_pairs * gcc_lags;
-  const int64_t prop_size = proprio_rows * proprio_features;
-  out.mel.resize(n * mel_size);
-  out.gcc.resize(n * gcc_size);
-  out.proprio.resize(n * prop_size);
+  auto select = [&](const char* name, const std::vector<float>& from, int64_t row_size,
+                    std::vector<float>* to) {
+    if (from.empty()) return;
+    if (static_cast<int64_t>(from.size()) != size() * row_size) {
+      throw SchemaError(fmt::format("FeatureSet::SelectRows: {} holds {} values, expected {} x {}",
+                                    name, from.size(), size(), row_size));
+    }
+    to->resize(n * row_size);
+    for (int64_t i = 0; i < n; ++i) {
+      std::copy_n(from.begin() + rows[i] * row_size, row_size, to->begin() + i * row_size);
+    }
+  };
+  for (int64_t r : rows) SONICBOOM_DEMAND(r >= 0 && r < size());
+  select("mel", mel, channels * mels * frames, &out.mel);
+  select("gcc", gcc, gcc_pairs * gcc_lags, &out.gcc);
+  select("proprio", proprio, proprio_rows * proprio_features, &out.proprio);
   out.z_m.resize(n);
   out.theta_rad.resize(n);
   for (int64_t i = 0; i < n; ++i) {
-    const int64_t r = rows[i];
-    SONICBOOM_DEMAND(r >= 0 && r < size());
-    std::copy_n(mel.begin() + r * mel_size, mel_size, out.mel.begin() + i * mel_size);
-    std::copy_n(gcc.begin() + r * gcc_size, gcc_size, out.gcc.begin() + i * gcc_size);
-    std::copy_n(proprio.begin() + r * prop_size, prop_size, out.proprio.begin() + i * prop_size);
-    out.z_m[i] = z_m[r];
-    out.theta_rad[i] = theta_rad[r];
+    out.z_m[i] = z_m[rows[i]];
+    out.theta_rad[i] = theta_rad[rows[i]];
   }
   return out;
 }

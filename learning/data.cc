@@ -228,14 +228,20 @@ std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f,
     const int64_t count = std::min(kPredictBatch, f.size() - first);
     std::vector<int64_t> records(count);
     for (int64_t i = 0; i < count; ++i) records[i] = first + i;
-    // (B, 3) = (z_cm, cos, sin)
+    // (B, 3) = (z_cm, cos, sin), then (log sigma_z_cm, log kappa) with the uncertainty head
     torch::Tensor out =
         network.forward(AssembleBatch(f, records, network.modalities(), crop_frames, nullptr, fill))
             .contiguous();
     auto acc = out.accessor<float, 2>();
+    const bool uncertain = out.size(1) == 5;
     for (int64_t i = 0; i < count; ++i) {
-      predictions[first + i].z_m = acc[i][0] / 100.0;
-      predictions[first + i].theta_rad = std::atan2(double{acc[i][2]}, double{acc[i][1]});
+      Prediction& p = predictions[first + i];
+      p.z_m = acc[i][0] / 100.0;
+      p.theta_rad = std::atan2(double{acc[i][2]}, double{acc[i][1]});
+      if (uncertain) {
+        p.z_std_m = std::exp(double{acc[i][3]}) / 100.0;
+        p.theta_kappa = std::exp(double{acc[i][4]});
+      }
     }
   }
   return predictions;
@@ -344,21 +350,35 @@ json MetricsToJson(const Metrics& m) {
               {"med_cm", number(m.med_cm)},
               {"height_err_cm", number(m.height_err_cm)},
               {"angle_err_deg", number(m.angle_err_deg)},
-              {"reference_med_cm", number(m.reference_med_cm)}};
+              {"reference_med_cm", number(m.reference_med_cm)},
+              {"z_coverage_50", number(m.z_coverage_50)},
+              {"z_coverage_90", number(m.z_coverage_90)},
+              {"theta_coverage_50", number(m.theta_coverage_50)},
+              {"theta_coverage_90", number(m.theta_coverage_90)},
+              {"nll", number(m.nll)}};
 }
 
 json ModelFileToJson(const ModelFile& file, const TrainConfig& train_config,
                      const Metrics& val_metrics, int64_t epochs_trained) {
-  return json{{"format", "sonicboom-model"},
-              {"version", 1},
-              {"model", ConfigToJson(file.model_config)},
-              {"shapes", ShapesToJson(file.shapes)},
-              {"surface_radius_m", file.surface_radius_m},
-              {"seed", file.seed},
-              {"train", ConfigToJson(train_config)},
-              {"epochs_trained", epochs_trained},
-              {"val_metrics", MetricsToJson(val_metrics)},
-              {"software", json{{"name", "sonicboom"}, {"libtorch", TORCH_VERSION}}}};
+  json j{{"format", "sonicboom-model"},
+         {"version", 1},
+         {"model", ConfigToJson(file.model_config)},
+         {"shapes", ShapesToJson(file.shapes)},
+         {"surface_radius_m", file.surface_radius_m},
+         {"seed", file.seed},
+         {"train", ConfigToJson(train_config)},
+         {"epochs_trained", epochs_trained},
+         {"val_metrics", MetricsToJson(val_metrics)},
+         {"software", json{{"name", "sonicboom"}, {"libtorch", TORCH_VERSION}}}};
+  if (file.has_calibration) {
+    j["uncertainty"] = json{
+        {"z_std_scale", file.calibration.z_std_scale},
+        {"kappa_scale", file.calibration.kappa_scale},
+        {"method", "scales minimizing the mean NLL of the validation split"},
+        {"records", file.uncalibrated_val_metrics.n},
+        {"uncalibrated_val_metrics", MetricsToJson(file.uncalibrated_val_metrics)}};
+  }
+  return j;
 }
 
 ModelFile ModelFileFromJson(const json& j, const std::string& origin) {
@@ -389,6 +409,21 @@ ModelFile ModelFileFromJson(const json& j, const std::string& origin) {
     throw SchemaError(fmt::format("{}: 'seed' must be a non-negative integer", origin));
   }
   file.seed = j["seed"].get<uint64_t>();
+  // Calibration of the predictive distribution; absent in older files (scales stay 1).
+  if (j.contains("uncertainty")) {
+    const json& u = j["uncertainty"];
+    auto scale = [&](const char* key) {
+      if (!u.is_object() || !u.contains(key) || !u[key].is_number() ||
+          !std::isfinite(u[key].get<double>()) || !(u[key].get<double>() > 0.0)) {
+        throw SchemaError(
+            fmt::format("{}: 'uncertainty.{}' must be a positive number", origin, key));
+      }
+      return u[key].get<double>();
+    };
+    file.calibration.z_std_scale = scale("z_std_scale");
+    file.calibration.kappa_scale = scale("kappa_scale");
+    file.has_calibration = true;
+  }
   return file;
 }
 

@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <torch/serialize.h>
 
 #include "internal/data.h"
@@ -37,16 +38,30 @@ Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>(
   if (!fs::is_regular_file(weights_path)) {
     throw IoError(fmt::format("{}: file not found", weights_path));
   }
-  impl_->network = internal::Network(config, internal::ShapesOf(shapes, config));
   torch::serialize::InputArchive archive;
+  bool uncertainty_head = false;
   try {
     archive.load_from(weights_path);
+    // Weights trained before the uncertainty head existed, or with
+    // train.uncertainty_weight = 0, have no "uncertainty_head" entry.
+    torch::serialize::InputArchive head;
+    uncertainty_head = archive.try_read("uncertainty_head", head);
   } catch (const c10::Error& e) {
     throw SchemaError(fmt::format("{}: unreadable: {}", weights_path, e.what_without_backtrace()));
   }
+  impl_->network =
+      internal::Network(config, internal::ShapesOf(shapes, config), uncertainty_head);
   internal::LoadModuleChecked(*impl_->network, archive,
                               fmt::format("{} (with {})", weights_path, json_path));
   impl_->network->eval();
+  if (!uncertainty_head) {
+    spdlog::info("{}: the model has no uncertainty head; predictions are point estimates only",
+                 weights_path);
+  } else if (!impl_->file.has_calibration) {
+    spdlog::warn("{}: no 'uncertainty' calibration (written before calibration existed); "
+                 "using the uncalibrated distribution (scales 1)",
+                 json_path);
+  }
 }
 
 Localizer::~Localizer() = default;
@@ -57,8 +72,15 @@ std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   const internal::ModalitySet use = impl_->network->modalities();
   internal::CheckFeatureSet(features, use, "features to localize");
   internal::CheckSameShapes(impl_->file.shapes, features, use, "features to localize");
-  return internal::PredictAll(*impl_->network, features, impl_->file.model_config.crop_frames);
+  std::vector<Prediction> predictions =
+      internal::PredictAll(*impl_->network, features, impl_->file.model_config.crop_frames);
+  for (Prediction& p : predictions) p = ApplyCalibration(p, impl_->file.calibration);
+  return predictions;
 }
+
+bool Localizer::has_uncertainty() const { return impl_->network->has_uncertainty_head(); }
+
+const UncertaintyCalibration& Localizer::calibration() const { return impl_->file.calibration; }
 
 const ModelConfig& Localizer::model_config() const { return impl_->file.model_config; }
 

@@ -223,7 +223,8 @@ torch::Tensor TransformerBlockImpl::forward(torch::Tensor x) {
   return x + dropout_->forward(y);
 }
 
-NetworkImpl::NetworkImpl(const ModelConfig& config, const NetworkShapes& shapes)
+NetworkImpl::NetworkImpl(const ModelConfig& config, const NetworkShapes& shapes,
+                         bool uncertainty_head)
     : modalities_(SelectedModalities(config)), shapes_(shapes) {
   const int64_t w = config.width;
   // Encoders of the selected modalities only.
@@ -259,6 +260,19 @@ NetworkImpl::NetworkImpl(const ModelConfig& config, const NetworkShapes& shapes)
     } else if (auto* conv1 = module->as<nn::Conv1d>()) {
       nn::init::kaiming_normal_(conv1->weight, 0.0, torch::kFanOut, torch::kReLU);
       if (conv1->bias.defined()) nn::init::zeros_(conv1->bias);
+    }
+  }
+  // Uncertainty head last: its random draws come after those of every other part.
+  if (uncertainty_head) {
+    uncertainty_head_ = register_module(
+        "uncertainty_head",
+        nn::Sequential(nn::LayerNorm(nn::LayerNormOptions({w})), nn::Linear(w, w), nn::GELU(),
+                       nn::Linear(w, 2)));
+    for (const auto& module : uncertainty_head_->modules(/*include_self=*/false)) {
+      if (auto* linear = module->as<nn::Linear>()) {
+        nn::init::xavier_uniform_(linear->weight);
+        nn::init::zeros_(linear->bias);
+      }
     }
   }
 }
@@ -297,7 +311,14 @@ torch::Tensor NetworkImpl::forward(const Batch& batch) {
   x = input_norm_->forward(x);
   for (auto& block : blocks_) x = block->forward(x);
   // CLS output (B, w) -> (B, 3)
-  return head_->forward(x.select(1, 0));
+  const torch::Tensor cls = x.select(1, 0);
+  const torch::Tensor point = head_->forward(cls);
+  if (!uncertainty_head_) return point;
+  // (B, 2) log sigma_z (cm), log kappa from the detached CLS output -> (B, 5)
+  const torch::Tensor raw = uncertainty_head_->forward(cls.detach());
+  const torch::Tensor log_std = raw.select(1, 0).clamp(kLogStdZCmMin, kLogStdZCmMax);
+  const torch::Tensor log_kappa = raw.select(1, 1).clamp(kLogKappaMin, kLogKappaMax);
+  return torch::cat({point, torch::stack({log_std, log_kappa}, 1)}, 1);
 }
 
 std::map<std::string, int64_t> CountParametersOf(const NetworkImpl& network) {
@@ -317,9 +338,9 @@ std::map<std::string, int64_t> CountParametersOf(const NetworkImpl& network) {
 namespace sonicboom::learning {
 
 std::map<std::string, int64_t> CountParameters(const ModelConfig& config,
-                                               const FeatureSet& shapes) {
+                                               const FeatureSet& shapes, bool uncertainty_head) {
   config.Validate();
-  internal::Network network(config, internal::ShapesOf(shapes, config));
+  internal::Network network(config, internal::ShapesOf(shapes, config), uncertainty_head);
   return internal::CountParametersOf(*network);
 }
 

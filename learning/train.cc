@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <thread>
 
@@ -14,10 +15,12 @@
 #include <spdlog/spdlog.h>
 #include <torch/optim.h>
 #include <torch/serialize.h>
+#include <torch/special.h>
 
 #include "internal/data.h"
 #include "internal/json_archive.h"
 #include "internal/network.h"
+#include "internal/train_step.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/learning/learning.h"
@@ -62,12 +65,6 @@ std::vector<std::vector<int64_t>> MakeBatches(const std::vector<int64_t>& order,
     batches.pop_back();
   }
   return batches;
-}
-
-// Weighted MSE of (B, 3) outputs against (B, 3) targets: z_cm, cos, sin.
-torch::Tensor Loss(const torch::Tensor& out, const torch::Tensor& target, const TrainConfig& c) {
-  auto mse = [&](int64_t k) { return torch::mse_loss(out.select(1, k), target.select(1, k)); };
-  return c.loss_weight_z * mse(0) + c.loss_weight_cos * mse(1) + c.loss_weight_sin * mse(2);
 }
 
 // The same loss in double precision from predictions (for validation).
@@ -131,11 +128,15 @@ int64_t LoadCheckpoint(internal::NetworkImpl* network, torch::optim::Adam* optim
   }
 }
 
-// Identity of a run, stored in checkpoint.json and compared on resume.
-json RunIdentity(const ModelConfig& model_config, const FeatureSet& shapes, uint64_t seed) {
-  return json{{"model", internal::ConfigToJson(model_config)},
-              {"shapes", internal::ShapesToJson(shapes)},
-              {"seed", seed}};
+// Identity of a run, stored in checkpoint.json and compared on resume. The uncertainty head is
+// named only when present, so runs without it keep the identity they had before it existed.
+json RunIdentity(const ModelConfig& model_config, const FeatureSet& shapes, uint64_t seed,
+                 bool uncertainty_head) {
+  json identity{{"model", internal::ConfigToJson(model_config)},
+                {"shapes", internal::ShapesToJson(shapes)},
+                {"seed", seed}};
+  if (uncertainty_head) identity["uncertainty_head"] = true;
+  return identity;
 }
 
 // Keeps the metrics lines of epochs 1..epochs_done (a crash may have left later ones).
@@ -207,7 +208,9 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
 
   // Network (initialized from the seed) and per-mic normalization from the training split.
   torch::manual_seed(seed);
-  internal::Network network(model_config, internal::ShapesOf(train, model_config));
+  const bool uncertainty_head = train_config.uncertainty_weight > 0.0;
+  internal::Network network(model_config, internal::ShapesOf(train, model_config),
+                            uncertainty_head);
   if (use.audio && train_config.normalize) {
     const internal::MelStats stats = internal::ComputeMelStats(train, records);
     network->SetNormalization(stats.mean, stats.std);
@@ -216,7 +219,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
                                torch::optim::AdamOptions(train_config.learning_rate));
 
   // Resume: weights, optimizer state and epoch count from the checkpoint of the same run.
-  const json identity = RunIdentity(model_config, train, seed);
+  const json identity = RunIdentity(model_config, train, seed, uncertainty_head);
   int64_t epochs_done = 0;
   if (resume && fs::exists(files.checkpoint_pt)) {
     const json saved = internal::ReadJsonFile(files.checkpoint_json);
@@ -236,7 +239,6 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   }
 
   Metrics val_metrics;
-  bool have_val_metrics = false;
   double seconds_sum = 0.0;
   for (int64_t epoch = epochs_done; epoch < train_config.epochs; ++epoch) {
     const auto start = std::chrono::steady_clock::now();
@@ -250,38 +252,28 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
 
     network->train();
     const std::vector<float> fill = network->MelMean();
-    double loss_sum = 0.0;
+    double loss_sum = 0.0, nll_sum = 0.0;
     for (const std::vector<int64_t>& batch_records : MakeBatches(order, train_config.batch_size)) {
-      std::vector<internal::Augmentation> augment;
-      if (train_config.augment) {
-        for (int64_t r : batch_records) {
-          augment.push_back(internal::DrawAugmentation(train_config, model_config.crop_frames,
-                                                       train.mels, seed, epoch, r));
-        }
-      }
-      const internal::Batch batch =
-          internal::AssembleBatch(train, batch_records, use, model_config.crop_frames,
-                                  train_config.augment ? &augment : nullptr, fill);
-      // (B, 3) outputs and targets
-      const torch::Tensor target = internal::AssembleTargets(train, batch_records);
-      const torch::Tensor loss = Loss(network->forward(batch), target, train_config);
-      optimizer.zero_grad();
-      loss.backward();
-      optimizer.step();
-      loss_sum += loss.item<double>() * static_cast<double>(batch_records.size());
+      const internal::StepLoss step =
+          internal::TrainStep(*network, optimizer, train, batch_records, use, model_config,
+                              train_config, seed, epoch, fill);
+      const double weight = static_cast<double>(batch_records.size());
+      loss_sum += step.point * weight;
+      nll_sum += step.nll * weight;
     }
     const double train_loss = loss_sum / static_cast<double>(records.size());
-    if (!std::isfinite(train_loss)) {
+    const double train_nll = nll_sum / static_cast<double>(records.size());
+    if (!std::isfinite(train_loss) || !std::isfinite(train_nll)) {
       throw NumericalError(fmt::format(
-          "training loss became {} in epoch {} (train.learning_rate = {}); lower the rate",
-          train_loss, epoch + 1, lr));
+          "training loss became {} (uncertainty NLL {}) in epoch {} (train.learning_rate = {}); "
+          "lower the rate",
+          train_loss, train_nll, epoch + 1, lr));
     }
 
     // Validation without augmentation, in eval mode.
     const std::vector<Prediction> predictions =
         internal::PredictAll(*network, val, model_config.crop_frames);
     val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
-    have_val_metrics = true;
     const double val_loss = PredictionLoss(predictions, val, train_config);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -290,12 +282,13 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
     // metrics.jsonl line, then the checkpoint of this epoch: checkpoint.json (run identity)
     // before checkpoint.pt, whose own epoch count is the one a resume trusts.
     auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
-    const json line{{"epoch", epoch + 1},
-                    {"lr", lr},
-                    {"train_loss", train_loss},
-                    {"val_loss", number(val_loss)},
-                    {"val", internal::MetricsToJson(val_metrics)},
-                    {"epoch_seconds", seconds}};
+    json line{{"epoch", epoch + 1},
+              {"lr", lr},
+              {"train_loss", train_loss},
+              {"val_loss", number(val_loss)},
+              {"val", internal::MetricsToJson(val_metrics)},
+              {"epoch_seconds", seconds}};
+    if (uncertainty_head) line["train_nll"] = train_nll;
     AppendLine(files.metrics, line.dump());
     internal::WriteFileAtomically(
         files.checkpoint_json,
@@ -312,16 +305,30 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
           val_metrics.height_err_cm, val_metrics.angle_err_deg, lr, seconds, FormatDuration(eta));
     }
   }
-  // A resumed run that was already complete: evaluate the loaded weights.
-  if (!have_val_metrics) {
-    val_metrics = ComputeMetrics(internal::PredictAll(*network, val, model_config.crop_frames),
-                                 val, surface_radius_m);
+  // Post-hoc calibration of the predictive distribution on the validation split: one scale
+  // for sigma_z, one for kappa, each minimizing the mean validation NLL.
+  internal::ModelFile model_file{model_config, train.ShapesOnly(), surface_radius_m, seed};
+  std::vector<Prediction> predictions =
+      internal::PredictAll(*network, val, model_config.crop_frames);
+  if (uncertainty_head) {
+    model_file.has_calibration = true;
+    model_file.uncalibrated_val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
+    model_file.calibration = FitUncertaintyCalibration(predictions, val);
+    for (Prediction& p : predictions) p = ApplyCalibration(p, model_file.calibration);
+  }
+  val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
+  if (show_progress && uncertainty_head) {
+    const Metrics& raw = model_file.uncalibrated_val_metrics;
+    spdlog::info(
+        "calibrated on {} validation strikes: sigma_z x {:.3g}, kappa x {:.3g}; 90 % coverage "
+        "z {:.2f} -> {:.2f}, theta {:.2f} -> {:.2f}; NLL {:.3f} -> {:.3f}",
+        val_metrics.n, model_file.calibration.z_std_scale, model_file.calibration.kappa_scale,
+        raw.z_coverage_90, val_metrics.z_coverage_90, raw.theta_coverage_90,
+        val_metrics.theta_coverage_90, raw.nll, val_metrics.nll);
   }
 
   // Final model files.
   internal::SaveModuleAtomically(*network, files.model_pt);
-  const internal::ModelFile model_file{model_config, train.ShapesOnly(),
-                                       surface_radius_m, seed};
   const json model_json = internal::ModelFileToJson(model_file, train_config, val_metrics,
                                                     std::max(epochs_done, train_config.epochs));
   internal::WriteFileAtomically(files.model_json, model_json.dump(2) + "\n");

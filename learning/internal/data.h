@@ -65,7 +65,8 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
 torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& records);
 
 /// Predictions for every record of `f` in eval mode without gradients, in batches of
-/// kPredictBatch. Leaves the network in eval mode.
+/// kPredictBatch, with the uncalibrated distribution when the network has an uncertainty head.
+/// Leaves the network in eval mode.
 std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f,
                                    int64_t crop_frames);
 
@@ -87,12 +88,16 @@ FeatureSet ShapesFromJson(const nlohmann::json& j, const std::string& origin);
 /// Metrics as JSON (NaN becomes null).
 nlohmann::json MetricsToJson(const Metrics& m);
 
-/// Contents of model.json.
+/// Contents of model.json. "uncertainty" (the calibration) is optional: files of models
+/// without an uncertainty head, and files written before calibration existed, lack it.
 struct ModelFile {
   ModelConfig model_config;
   FeatureSet shapes;  // shape fields only
   double surface_radius_m{0.0};
   uint64_t seed{0};
+  bool has_calibration{false};
+  UncertaintyCalibration calibration;      // scales 1 without "uncertainty"
+  Metrics uncalibrated_val_metrics;        // written with the calibration, not read back
 };
 nlohmann::json ModelFileToJson(const ModelFile& file, const TrainConfig& train_config,
                                const Metrics& val_metrics, int64_t epochs_trained);

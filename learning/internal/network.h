@@ -2,7 +2,9 @@
 /// The multimodal localization network: one encoder per selected modality (audio mel image,
 /// GCC-PHAT lags, proprioception window) turns its input into a token; a learned CLS token and
 /// the modality tokens pass through pre-norm transformer blocks; the CLS output is regressed to
-/// (z_cm, cos theta, sin theta).
+/// (z_cm, cos theta, sin theta). An optional second head reads the detached CLS output and
+/// predicts (log sigma_z in cm, log kappa) of the predictive distribution, so that no gradient
+/// of the uncertainty loss reaches the point estimate.
 
 #include <cstdint>
 #include <map>
@@ -35,6 +37,13 @@ struct Batch {
   torch::Tensor gcc;      // (B, gcc_pairs, gcc_lags)
   torch::Tensor proprio;  // (B, proprio_rows, proprio_features)
 };
+
+/// Ranges the uncertainty head's outputs are clamped to: sigma_z in [0.0067, 1097] cm, kappa in
+/// [9e-4, 1.6e5] (from a uniform angle to an angular standard deviation of 0.14 degrees).
+inline constexpr double kLogStdZCmMin = -5.0;
+inline constexpr double kLogStdZCmMax = 7.0;
+inline constexpr double kLogKappaMin = -7.0;
+inline constexpr double kLogKappaMax = 12.0;
 
 /// Which modalities a config selects.
 struct ModalitySet {
@@ -156,9 +165,14 @@ TORCH_MODULE(TransformerBlock);
 /// is saved with the weights.
 class NetworkImpl : public torch::nn::Module {
  public:
-  NetworkImpl(const ModelConfig& config, const NetworkShapes& shapes);
-  /// (B, 3) = (z_cm, cos theta, sin theta).
+  /// With `uncertainty_head` false this is the paper's network (and the weights of runs trained
+  /// before the head existed). The head is built after every other part is initialized, so for
+  /// a given torch seed the other parts start from the same weights either way.
+  NetworkImpl(const ModelConfig& config, const NetworkShapes& shapes, bool uncertainty_head);
+  /// (B, 3) = (z_cm, cos theta, sin theta), or with the uncertainty head (B, 5) with
+  /// (log sigma_z_cm, log kappa) appended, clamped to the ranges above.
   torch::Tensor forward(const Batch& batch);
+  bool has_uncertainty_head() const { return !uncertainty_head_.is_empty(); }
 
   /// Sets the normalization (one mean and std per mel channel).
   void SetNormalization(const std::vector<float>& mean, const std::vector<float>& std);
@@ -180,6 +194,7 @@ class NetworkImpl : public torch::nn::Module {
   torch::nn::LayerNorm input_norm_{nullptr};
   std::vector<TransformerBlock> blocks_;
   torch::nn::Sequential head_{nullptr};
+  torch::nn::Sequential uncertainty_head_{nullptr};
 };
 TORCH_MODULE(Network);
 

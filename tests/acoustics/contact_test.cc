@@ -4,6 +4,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "common/test_util.h"
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -18,6 +20,8 @@
 
 namespace sonicboom::acoustics {
 namespace {
+
+using testing::ThrownMessage;
 
 using ::testing::HasSubstr;
 
@@ -51,17 +55,6 @@ BeamSpec Dowel(double length_m) {
   b.linear_density_kg_m = 700.0 * area;
   b.contact_from_clamp_m = length_m;
   return b;
-}
-
-template <typename E, typename F>
-std::string ThrownMessage(F f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "nothing thrown";
-  return "";
 }
 
 // ---- beam modes ----
@@ -165,7 +158,7 @@ TEST(ContactTest, RigidTargetMatchesHertzClosedForm) {
                                        std::abs(e_impulse), std::abs(e_rebound)});
         double& tally = config.substeps_per_duration == 50 ? worst_coarse : worst_default;
         tally = std::max(tally, worst);
-        SCOPED_TRACE(testing::Message() << "m " << m_kg << " kg, v " << v_m_s << " m/s, "
+        SCOPED_TRACE(::testing::Message() << "m " << m_kg << " kg, v " << v_m_s << " m/s, "
                                         << config.substeps_per_duration << " substeps/t_c");
         EXPECT_LT(std::abs(e_duration), 0.01);
         EXPECT_LT(std::abs(e_peak), 0.01);
@@ -216,7 +209,7 @@ TEST(ContactTest, HuntCrossleyLosesEnergyAndNeverPulls) {
       config.hunt_crossley_s_m = lambda_s_m;
       const ContactForce c = SolveContact(RigidMass(m_kg), kHeld, kWoodOnPvc, v_m_s, 0.001, kFs,
                                           config);
-      SCOPED_TRACE(testing::Message() << "v " << v_m_s << " m/s, lambda " << lambda_s_m);
+      SCOPED_TRACE(::testing::Message() << "v " << v_m_s << " m/s, lambda " << lambda_s_m);
       EXPECT_LT(c.rebound_speed_m_s, v_m_s);
       EXPECT_GT(c.rebound_speed_m_s, 0.0);
       EXPECT_GT(c.impulse_ns, m_kg * v_m_s);

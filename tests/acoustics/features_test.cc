@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "common/test_util.h"
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -21,6 +23,8 @@
 
 namespace sonicboom::acoustics {
 namespace {
+
+using testing::ThrownMessage;
 
 using ::testing::HasSubstr;
 
@@ -77,18 +81,6 @@ Deviation Compare(const Eigen::MatrixXf& actual, const float* reference) {
     }
   }
   return d;
-}
-
-// Message of the E thrown by f, or a test failure.
-template <typename E, typename F>
-std::string ThrownMessage(F f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an exception";
-  return "";
 }
 
 // Deterministic white noise (n samples, standard deviation sigma).
@@ -512,8 +504,11 @@ TEST(FeatureConfigTest, SerializeVisitsEveryMemberByName) {
   for (const auto& f : archive.fields) names.push_back(f.name);
   EXPECT_THAT(names,
               ::testing::ElementsAre("window_s", "n_fft", "hop", "n_mels", "f_min_hz", "f_max_hz",
-                                     "log_mel", "gcc_max_lag", "onset_frame_s", "onset_threshold"));
-  ASSERT_EQ(archive.fields.size(), 10u);
+                                     "log_mel", "gcc_max_lag", "onset_frame_s", "onset_threshold",
+                                     "gating", "gating_n_std", "gating_n_fft", "gating_hop",
+                                     "gating_freq_smooth_hz", "gating_time_smooth_s",
+                                     "gating_prop_decrease", "gating_noise_wav"));
+  ASSERT_EQ(archive.fields.size(), 18u);
   // window_s: (0, inf); hop: (0, inf); log_mel: bool; onset_threshold: (0, 1].
   EXPECT_EQ(archive.fields[0].bounds.lo, 0.0);
   EXPECT_TRUE(archive.fields[0].bounds.lo_open);

@@ -1,6 +1,8 @@
 #pragma once
 // Shared helpers for the test suites: temporary directories and running the CLI.
 
+#include <gtest/gtest.h>
+
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -55,6 +57,18 @@ inline CliRun RunCli(const std::string& args, const std::string& cwd) {
   }
   std::filesystem::remove(err_file);
   return run;
+}
+
+// Message of the E thrown by f, or a test failure.
+template <typename E, typename F>
+std::string ThrownMessage(F f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "expected an exception";
+  return "";
 }
 
 }  // namespace sonicboom::testing

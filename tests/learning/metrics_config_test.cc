@@ -80,6 +80,25 @@ TEST(ComputeMetricsTest, CountMismatchThrows) {
   EXPECT_THROW(ComputeMetrics({{0.0, 0.0}}, Truth({0.0, 0.1}, {0.0, 0.0}), 0.05), SchemaError);
 }
 
+TEST(FeatureSetTest, SelectRowsKeepsUnusedArraysEmpty) {
+  FeatureSet f;
+  f.channels = 1;
+  f.mels = 1;
+  f.frames = 2;
+  f.z_m = {0.0, 0.1, 0.2};
+  f.theta_rad = {0.0, 1.0, 2.0};
+  f.mel = {0, 1, 10, 11, 20, 21};  // gcc and proprio left empty
+  const FeatureSet picked = f.SelectRows({2, 0});
+  EXPECT_EQ(picked.mel, (std::vector<float>{20, 21, 0, 1}));
+  EXPECT_TRUE(picked.gcc.empty());
+  EXPECT_TRUE(picked.proprio.empty());
+  EXPECT_EQ(picked.z_m, (std::vector<double>{0.2, 0.0}));
+  EXPECT_EQ(picked.theta_rad, (std::vector<double>{2.0, 0.0}));
+  // an array of the wrong size is an error, not a read past its end
+  f.mel.pop_back();
+  EXPECT_THROW(f.SelectRows({0}), SchemaError);
+}
+
 // Records the names and kinds an Archive is asked to visit.
 class RecordingArchive : public Archive {
  public:
@@ -145,12 +164,15 @@ TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
   EXPECT_THAT(archive.names,
               ::testing::ElementsAre("epochs", "batch_size", "learning_rate", "lr_step_epochs",
                                      "lr_gamma", "val_fraction", "loss_weight_z",
-                                     "loss_weight_cos", "loss_weight_sin", "augment",
-                                     "time_shift_frames", "time_mask_frames", "freq_mask_bands",
-                                     "normalize", "threads"));
+                                     "loss_weight_cos", "loss_weight_sin",
+                                     "uncertainty_weight", "augment", "time_shift_frames",
+                                     "time_mask_frames", "freq_mask_bands", "normalize",
+                                     "threads"));
   EXPECT_FALSE(archive.bounds[1].Contains(0.0));   // batch_size
   EXPECT_FALSE(archive.bounds[2].Contains(0.0));   // learning_rate
-  EXPECT_TRUE(archive.bounds[14].Contains(0.0));   // threads
+  EXPECT_TRUE(archive.bounds[9].Contains(0.0));    // uncertainty_weight: 0 disables
+  EXPECT_FALSE(archive.bounds[9].Contains(-0.1));
+  EXPECT_TRUE(archive.bounds[15].Contains(0.0));   // threads
 }
 
 // Runs `f` and returns the ConfigError message ("" when nothing was thrown).
@@ -225,6 +247,14 @@ TEST(ConfigTest, TrainFieldsAreChecked) {
   config = TrainConfig();
   config.time_shift_frames = -1;
   EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.time_shift_frames"));
+  config = TrainConfig();
+  EXPECT_EQ(config.uncertainty_weight, 1.0);
+  config.uncertainty_weight = -1.0;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.uncertainty_weight"));
+  config.uncertainty_weight = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("train.uncertainty_weight"));
+  config.uncertainty_weight = 0.0;
+  EXPECT_NO_THROW(config.Validate());
 }
 
 // A config with a list of nested structs, each with a nested group.
@@ -352,6 +382,10 @@ TEST(CountParametersTest, OnlySelectedEncodersAreBuilt) {
   EXPECT_EQ(proprio.at("proprio_encoder"), all.at("proprio_encoder"));
   // Fusion differs only by the two missing modality-embedding rows of width 32.
   EXPECT_EQ(proprio.at("fusion"), all.at("fusion") - 2 * 32);
+  // The uncertainty head (LayerNorm, 32 -> 32 -> 2) is part of the fusion count.
+  const auto point_only = CountParameters(config, shapes, /*uncertainty_head=*/false);
+  EXPECT_EQ(proprio.at("fusion") - point_only.at("fusion"), 2 * 32 + 32 * 32 + 32 + 32 * 2 + 2);
+  EXPECT_EQ(point_only.at("proprio_encoder"), proprio.at("proprio_encoder"));
 }
 
 }  // namespace

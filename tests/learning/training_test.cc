@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -340,6 +341,148 @@ TEST_F(TrainingTest, ModalitySubsetsTrainAndBuildOnlyTheirEncoders) {
     } catch (const SchemaError& e) {
       EXPECT_THAT(e.what(), HasSubstr("gcc"));
     }
+  }
+}
+
+nlohmann::json ReadModelJson(const std::string& run_dir) {
+  nlohmann::json j;
+  std::ifstream(fs::path(run_dir) / "model.json") >> j;
+  return j;
+}
+
+void WriteModelJson(const std::string& run_dir, const nlohmann::json& j) {
+  std::ofstream(fs::path(run_dir) / "model.json") << j.dump(2);
+}
+
+TEST_F(TrainingTest, UncertaintyIsFiniteAndCalibratedOnValidation) {
+  const FeatureSet train = MakeFeatures(32, 21);
+  const FeatureSet val = MakeFeatures(24, 22);
+  const std::string run = Dir("uncertainty");
+  const Metrics m = Train(train, val, TinyModel(), TinyTraining(12), kRadius, 5, run, false, false);
+
+  // Every prediction carries a finite, positive distribution.
+  const Localizer localizer(run);
+  ASSERT_TRUE(localizer.has_uncertainty());
+  const std::vector<Prediction> predictions = localizer.Predict(val);
+  for (const Prediction& p : predictions) {
+    EXPECT_TRUE(std::isfinite(p.z_std_m) && p.z_std_m > 0.0) << p.z_std_m;
+    EXPECT_TRUE(std::isfinite(p.theta_kappa) && p.theta_kappa > 0.0) << p.theta_kappa;
+  }
+  // Calibrated on this split, the 90 % intervals hold most of it (uncalibrated, the tiny model's
+  // intervals hold anything from none to all).
+  std::cout << "validation coverage z " << m.z_coverage_50 << " / " << m.z_coverage_90
+            << ", theta " << m.theta_coverage_50 << " / " << m.theta_coverage_90 << ", NLL "
+            << m.nll << "\n";
+  EXPECT_GE(m.z_coverage_90, 0.7);
+  EXPECT_LE(m.z_coverage_90, 1.0);
+  EXPECT_GE(m.theta_coverage_90, 0.7);
+  EXPECT_LE(m.theta_coverage_90, 1.0);
+  EXPECT_GE(m.z_coverage_50, 0.2);
+  EXPECT_LE(m.z_coverage_50, 0.8);
+  // model.json holds the scales the Localizer applies, and the calibration did not make the
+  // validation NLL worse (it minimizes it).
+  const nlohmann::json j = ReadModelJson(run);
+  ASSERT_TRUE(j.contains("uncertainty")) << j.dump(2);
+  const double z_scale = j["uncertainty"]["z_std_scale"].get<double>();
+  const double kappa_scale = j["uncertainty"]["kappa_scale"].get<double>();
+  std::cout << "scales: sigma_z x " << z_scale << ", kappa x " << kappa_scale
+            << "; uncalibrated " << j["uncertainty"]["uncalibrated_val_metrics"].dump() << "\n";
+  EXPECT_EQ(localizer.calibration().z_std_scale, z_scale);
+  EXPECT_EQ(localizer.calibration().kappa_scale, kappa_scale);
+  EXPECT_LE(m.nll, j["uncertainty"]["uncalibrated_val_metrics"]["nll"].get<double>() + 1e-9);
+  EXPECT_EQ(j["val_metrics"]["z_coverage_90"].get<double>(), m.z_coverage_90);
+  // The loaded model reproduces the returned figures.
+  const Metrics again = ComputeMetrics(predictions, val, kRadius);
+  EXPECT_EQ(again.z_coverage_90, m.z_coverage_90);
+  EXPECT_EQ(again.theta_coverage_50, m.theta_coverage_50);
+  EXPECT_NEAR(again.nll, m.nll, 1e-9);
+  // metrics.jsonl logs the uncertainty loss and the (uncalibrated) validation coverage.
+  const auto lines = ReadMetricsLines(run);
+  ASSERT_EQ(lines.size(), 12u);
+  EXPECT_TRUE(std::isfinite(lines.back()["train_nll"].get<double>()));
+  EXPECT_TRUE(lines.back()["val"]["theta_coverage_90"].is_number());
+  EXPECT_LT(lines.back()["train_nll"].get<double>(), lines.front()["train_nll"].get<double>());
+
+  // A broken calibration (stds 100 times too small, kappas 10^4 times too large) fails the
+  // bounds above: the Localizer applies what model.json says.
+  nlohmann::json broken = j;
+  broken["uncertainty"]["z_std_scale"] = z_scale / 100.0;
+  broken["uncertainty"]["kappa_scale"] = kappa_scale * 1e4;
+  WriteModelJson(run, broken);
+  const Metrics bad = ComputeMetrics(Localizer(run).Predict(val), val, kRadius);
+  EXPECT_LT(bad.z_coverage_90, 0.6);
+  EXPECT_LT(bad.theta_coverage_90, 0.6);
+  EXPECT_GT(bad.nll, m.nll);
+}
+
+TEST_F(TrainingTest, UncertaintyHeadLeavesPointsUnchangedAndOldModelFilesLoad) {
+  const FeatureSet train = MakeFeatures(16, 31);
+  const FeatureSet val = MakeFeatures(8, 32);
+  ModelConfig model = TinyModel();
+  model.dropout = 0.1;  // dropout draws must not depend on the head either
+  const TrainConfig with_head = TinyTraining(3);
+  TrainConfig point_only = with_head;
+  point_only.uncertainty_weight = 0.0;
+  const std::string with_run = Dir("with"), point_run = Dir("point");
+  Train(train, val, model, with_head, kRadius, 9, with_run, false, false);
+  const Metrics point_metrics =
+      Train(train, val, model, point_only, kRadius, 9, point_run, false, false);
+
+  // The uncertainty loss never reaches the point estimate: identical to the paper's network.
+  const Localizer a(with_run), b(point_run);
+  EXPECT_TRUE(a.has_uncertainty());
+  EXPECT_FALSE(b.has_uncertainty());
+  const std::vector<Prediction> pa = a.Predict(val), pb = b.Predict(val);
+  ASSERT_EQ(pa.size(), pb.size());
+  for (size_t i = 0; i < pa.size(); ++i) {
+    EXPECT_EQ(pa[i].z_m, pb[i].z_m) << i;
+    EXPECT_EQ(pa[i].theta_rad, pb[i].theta_rad) << i;
+    EXPECT_TRUE(pa[i].has_uncertainty());
+    EXPECT_FALSE(pb[i].has_uncertainty());
+  }
+  const auto lines_a = ReadMetricsLines(with_run), lines_b = ReadMetricsLines(point_run);
+  for (size_t e = 0; e < lines_a.size(); ++e) {
+    EXPECT_EQ(lines_a[e]["train_loss"], lines_b[e]["train_loss"]) << e;
+  }
+  // Without the head (as before it existed): no "uncertainty" entry, null coverage.
+  EXPECT_TRUE(std::isnan(point_metrics.z_coverage_90));
+  const nlohmann::json point_json = ReadModelJson(point_run);
+  EXPECT_FALSE(point_json.contains("uncertainty"));
+  EXPECT_TRUE(point_json["val_metrics"]["nll"].is_null());
+  EXPECT_EQ(b.calibration().z_std_scale, 1.0);
+  EXPECT_FALSE(lines_b.back().contains("train_nll"));
+  // Its checkpoint resumes only as a run without the head.
+  TrainConfig longer = with_head;
+  longer.epochs = 4;
+  EXPECT_THROW(Train(train, val, model, longer, kRadius, 9, point_run, true, false), SchemaError);
+
+  // A model.json from before calibration existed (no "uncertainty"): scales 1, so the
+  // predictions are the calibrated ones divided by the stored scales.
+  nlohmann::json j = ReadModelJson(with_run);
+  const UncertaintyCalibration scales{j["uncertainty"]["z_std_scale"].get<double>(),
+                                      j["uncertainty"]["kappa_scale"].get<double>()};
+  EXPECT_NE(scales.z_std_scale, 1.0);
+  j.erase("uncertainty");
+  WriteModelJson(with_run, j);
+  const Localizer old(with_run);
+  EXPECT_TRUE(old.has_uncertainty());
+  EXPECT_EQ(old.calibration().z_std_scale, 1.0);
+  EXPECT_EQ(old.calibration().kappa_scale, 1.0);
+  const std::vector<Prediction> raw = old.Predict(val);
+  for (size_t i = 0; i < raw.size(); ++i) {
+    EXPECT_EQ(raw[i].z_m, pa[i].z_m);
+    EXPECT_NEAR(raw[i].z_std_m * scales.z_std_scale, pa[i].z_std_m, 1e-12 * pa[i].z_std_m);
+    EXPECT_NEAR(raw[i].theta_kappa * scales.kappa_scale, pa[i].theta_kappa,
+                1e-12 * pa[i].theta_kappa);
+  }
+  // A malformed calibration is refused, naming the key.
+  j["uncertainty"] = {{"z_std_scale", -1.0}, {"kappa_scale", 1.0}};
+  WriteModelJson(with_run, j);
+  try {
+    Localizer bad(with_run);
+    FAIL() << "expected SchemaError";
+  } catch (const SchemaError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("uncertainty.z_std_scale"));
   }
 }
 

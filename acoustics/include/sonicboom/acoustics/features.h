@@ -1,14 +1,17 @@
 #pragma once
 /// Strike features as the paper computes them, with the published code's faults fixed
 /// (reference_impl.md §2, §7): onset from an all-channel energy envelope, a window around it,
-/// power mel spectrograms and GCC-PHAT without circular wrap-around.
+/// stationary spectral gating against a reference noise clip (spectral_gate.h), power mel
+/// spectrograms and GCC-PHAT without circular wrap-around.
 /// DSP blocks are configured once (FFT plans, filterbanks) and computed many times.
 
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
+#include "sonicboom/acoustics/spectral_gate.h"
 #include "sonicboom/core/archive.h"
 
 namespace sonicboom::acoustics {
@@ -24,6 +27,18 @@ struct FeatureConfig {
   int64_t gcc_max_lag{441};        // lags -max..+max samples (883 values)
   double onset_frame_s{0.0029};    // energy-envelope frame (~128 samples at 44.1 kHz)
   double onset_threshold{0.1};     // fraction of the envelope peak that marks the onset
+  // stationary spectral gating of the window against a reference noise clip (spectral_gate.h),
+  // per channel, before mel and GCC-PHAT; noisereduce's defaults (reference_impl.md §1)
+  bool gating{true};
+  double gating_n_std{2.5};        // threshold: mean + n_std * std of the noise dB, per bin
+  int64_t gating_n_fft{1024};      // gate STFT size (periodic Hann), <= window samples
+  int64_t gating_hop{256};         // in [1, gating_n_fft / 2]
+  double gating_freq_smooth_hz{500.0};  // mask smoothing span (5 bins each side at 44.1 kHz)
+  double gating_time_smooth_s{0.05};    // mask smoothing span (8 frames each side)
+  double gating_prop_decrease{1.0};     // 1: gated bins removed; 0: gate is a no-op
+  // reference noise clip: a WAV (hardware: a no-contact recording at the audio rate, one
+  // channel per mic); empty = rendered from the noise model (experiments ReferenceNoiseClip)
+  std::string gating_noise_wav;
 
   void Serialize(Archive* a);
 };
@@ -36,11 +51,22 @@ struct StrikeFeatures {
   Eigen::MatrixXf gcc;             // (pairs x lags), pairs in itertools.combinations order
 };
 
-/// Computes StrikeFeatures from a (C x T) record. Immutable after construction; Compute is
-/// const and thread-safe (per-call scratch comes from an internal per-thread pool).
+/// The gate parameters of a feature config (the gating_* keys).
+SpectralGateConfig GatingConfig(const FeatureConfig& config);
+
+/// Computes StrikeFeatures from a (C x T) record: onset, window, spectral gating (when enabled),
+/// mel per channel, GCC-PHAT. Immutable after construction; Compute is const and thread-safe
+/// (per-call scratch comes from an internal per-thread pool).
 class FeatureExtractor {
  public:
+  /// Without gating.
   FeatureExtractor(const FeatureConfig& config, double sample_rate_hz, int channels);
+  /// Gates every window against `noise_clip` ((channels x T) reference noise at the same rate,
+  /// T >= gating_n_fft) when config.gating is true and noise_clip is not null; otherwise no
+  /// gating. Throws ConfigError naming the key or the clip's problem (channel count, length,
+  /// non-finite values).
+  FeatureExtractor(const FeatureConfig& config, double sample_rate_hz, int channels,
+                   const Eigen::MatrixXf* noise_clip);
   ~FeatureExtractor();
   FeatureExtractor(const FeatureExtractor&) = delete;
   FeatureExtractor& operator=(const FeatureExtractor&) = delete;
@@ -51,6 +77,8 @@ class FeatureExtractor {
   int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded)
   int64_t gcc_lags() const;        // 2 * gcc_max_lag + 1
   int channels() const;
+  /// The gate applied to each window, or null when gating is off.
+  const SpectralGate* gate() const;
 
  private:
   struct Impl;

@@ -36,6 +36,17 @@ CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool
 /// FD reference on `strikes` test strikes over `window_s` after the onset.
 CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
                           double window_s, bool quick);
+/// Options of `sonicboom ablate`.
+struct AblateOptions {
+  std::string data;                              // training dataset (train/validation split)
+  std::string test;                              // held-out dataset
+  std::string out;                               // one run directory per ablation + table.md
+  std::string configs_dir{"configs/ablations"};  // one YAML layer per ablation
+  std::vector<std::string> only;                 // names to run (empty = all)
+};
+/// Trains and evaluates every ablation of o.configs_dir (each layered after the --config files,
+/// before the --set overrides); finished runs are reused. Writes out/table.md, out/results.json.
+CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o);
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv);
 CommandResult RunTrain(const GlobalOptions& g, const std::string& data, const std::string& out_dir,
@@ -43,7 +54,23 @@ CommandResult RunTrain(const GlobalOptions& g, const std::string& data, const st
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
                       const std::string& data);
 CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
-                          const std::string& wav, const std::string& proprio_csv);
+                          const std::string& wav, const std::string& proprio_csv, int64_t repeat);
+/// Options of `sonicboom baseline` (docs/baselines.md).
+struct BaselineOptions {
+  std::string method;                      // knn | tdoa | constant
+  std::string train;                       // training dataset: knn and constant need it; tdoa
+                                           // fits its speed scale on it when given
+  std::string data;                        // held-out dataset
+  int64_t k{5};                            // knn: neighbours
+  int64_t knn_gcc_lags{0};                 // knn: GCC-PHAT lags each side in the vector (0: none)
+  std::vector<double> bands_hz;            // tdoa: band edges (empty: the default octaves)
+  bool non_dispersive{false};              // tdoa: one speed for every band
+  bool no_fit{false};                      // tdoa: keep the analytic speeds (scale 1)
+  int64_t fit_strikes{300};                // tdoa: training strikes used by the speed fit
+};
+/// A baseline's metrics on `data`, with the keys of `eval --json` plus "method" and the
+/// method's own fields. The config's base layer is the test dataset's own config.
+CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& options);
 CommandResult RunFk(const GlobalOptions& g, const std::string& joints);
 CommandResult RunInspect(const GlobalOptions& g, const std::string& path);
 CommandResult RunConfig(const GlobalOptions& g);

@@ -1,6 +1,7 @@
 #pragma once
 /// The data path wired end to end: sim strike -> acoustics -> dataset file -> features.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -49,6 +50,24 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
                                int64_t count, int64_t first_index, int64_t shard,
                                int64_t num_shards, int threads, bool show_progress);
 
+/// Sample indices reserved for the spectral gate's reference noise clip: record r of the clip
+/// has seed SampleSeed(seed, kReferenceNoiseIndex - r), r < kReferenceNoiseRecords. No dataset
+/// sample has them (indices are stored as int64 >= 0, and dataset.first_index <= 1e15).
+inline constexpr uint64_t kReferenceNoiseIndex = ~uint64_t{0};
+inline constexpr int64_t kReferenceNoiseRecords = 8;
+
+/// The reference noise clip the feature path gates against (features.gating), (mics x samples)
+/// at audio.sample_rate_hz. With features.gating_noise_wav set: that WAV (a no-contact recording,
+/// one channel per mic, at the audio rate, at least features.gating_n_fft frames, finite), errors
+/// naming the key and the file. Otherwise kReferenceNoiseRecords records (audio.record_duration_s
+/// each) of the noise model with no contact, end to end: the DAQ chain (daq.*, noise.*: ambient
+/// and preamp floor, motor tones, recorded noise, converter) on zero strain, the motor held at
+/// the peak joint speed of a minimum-jerk sweep of the mean angle (strike.sweep_min_deg,
+/// sweep_max_deg) over strike.sweep_duration_s, no motor when scene.mode is stationary. Each
+/// record draws its own per-strike channel gains and tone phases, so that the thresholds cover
+/// their spread. Deterministic in the config.
+Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config);
+
 /// Features of the valid samples of a dataset file (rows in file order), with labels.
 /// `sample_indices` (optional) receives the global index of each row.
 learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
@@ -56,10 +75,35 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
                                             bool show_progress,
                                             std::vector<uint64_t>* sample_indices = nullptr);
 
+/// Features of single records, set up once (the gate's reference clip, FFT plans, filterbanks)
+/// for records of `channels` channels at `sample_rate_hz`, then computed many times.
+class RecordFeaturizer {
+ public:
+  RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz, int channels);
+  ~RecordFeaturizer();
+  RecordFeaturizer(const RecordFeaturizer&) = delete;
+  RecordFeaturizer& operator=(const RecordFeaturizer&) = delete;
+  /// audio (C x T), proprio (K x 10, may be empty: zeros) -> one feature row.
+  learning::FeatureSet Compute(const Eigen::MatrixXf& audio, const Eigen::MatrixXf& proprio) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
 /// Features of one record (C x T) and its proprioception (K x 10, may be empty: zeros).
+/// Both feature paths gate against ReferenceNoiseClip(config) when features.gating is on.
 learning::FeatureSet ComputeRecordFeatures(const Eigen::MatrixXf& audio, double sample_rate_hz,
                                            const Eigen::MatrixXf& proprio,
                                            const SonicBoomConfig& config);
+
+/// Splits `all` (rows from `data`, global indices `sample_indices`) into train and validation
+/// with SplitRows and trains config.model with config.train into run_dir. ConfigError naming
+/// `data` when either split would be empty.
+learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning::FeatureSet& all,
+                                  const std::vector<uint64_t>& sample_indices,
+                                  const std::string& data, const std::string& run_dir, bool resume,
+                                  bool quiet);
 
 /// Splits rows into train and validation by a hash of (seed, sample index): stable under any
 /// reordering or sharding. Returns (train rows, validation rows).

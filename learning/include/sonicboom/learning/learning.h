@@ -4,6 +4,7 @@
 /// sonicboom::acoustics::FeatureExtractor plus proprioception windows.
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -40,6 +41,11 @@ struct TrainConfig {
   double loss_weight_z{1.0};               // z in cm
   double loss_weight_cos{5.0};
   double loss_weight_sin{5.0};
+  // Weight of the uncertainty loss: Gaussian NLL of z (cm) plus von Mises NLL of theta around
+  // the detached point estimate, learned by a second head on the detached CLS token. 0 builds
+  // no uncertainty head: the paper's network, point estimates only. Only that head learns from
+  // this term, and Adam ignores a constant gradient scale, so any positive value trains alike.
+  double uncertainty_weight{1.0};
   bool augment{true};                      // time shift + time/frequency masking (train only)
   int64_t time_shift_frames{34};           // +- mel frames, applied to every time-aligned input
   int64_t time_mask_frames{40};
@@ -69,30 +75,81 @@ struct FeatureSet {
   int64_t size() const { return static_cast<int64_t>(z_m.size()); }
   /// The same shapes with no rows.
   FeatureSet ShapesOnly() const;
-  /// Rows `rows` (indices into this set), in that order.
+  /// Rows `rows` (indices into this set), in that order. An empty array (a modality that is
+  /// not used) stays empty; an array of any other size than size() rows is a SchemaError.
   FeatureSet SelectRows(const std::vector<int64_t>& rows) const;
 };
 
-/// Localization errors over a set of strikes.
+/// Localization errors over a set of strikes. The coverage and NLL fields are NaN unless every
+/// labelled prediction carries a predictive distribution (Prediction::has_uncertainty).
 struct Metrics {
   int64_t n{0};
   double med_cm{0.0};                      // mean 3-D distance between surface points, cm
   double height_err_cm{0.0};               // mean |dz|, cm
   double angle_err_deg{0.0};               // mean wrapped |dtheta|, degrees
   double reference_med_cm{0.0};            // published code's mixed-unit MED (z in cm, r in m)
+  // Fractions of records whose truth lies in the central 50 % / 90 % predictive interval:
+  // Gaussian for z, von Mises for theta.
+  double z_coverage_50{std::numeric_limits<double>::quiet_NaN()};
+  double z_coverage_90{std::numeric_limits<double>::quiet_NaN()};
+  double theta_coverage_50{std::numeric_limits<double>::quiet_NaN()};
+  double theta_coverage_90{std::numeric_limits<double>::quiet_NaN()};
+  // Mean joint negative log-likelihood of the truth, nats: -log p(z in cm) - log p(theta in rad).
+  double nll{std::numeric_limits<double>::quiet_NaN()};
 };
 
-/// One prediction.
+/// One prediction: the point estimate and, from a model with an uncertainty head, a predictive
+/// distribution z ~ Normal(z_m, z_std_m^2), theta ~ VonMises(theta_rad, theta_kappa).
 struct Prediction {
   double z_m{0.0};
   double theta_rad{0.0};
+  double z_std_m{std::numeric_limits<double>::quiet_NaN()};      // m; NaN without uncertainty
+  double theta_kappa{std::numeric_limits<double>::quiet_NaN()};  // von Mises concentration
+  bool has_uncertainty() const { return z_std_m > 0.0 && theta_kappa > 0.0; }
 };
 
+/// Post-hoc scales of the predictive distribution, fitted on the validation split after
+/// training and stored in model.json: z_std_m is multiplied by z_std_scale and theta_kappa by
+/// kappa_scale.
+struct UncertaintyCalibration {
+  double z_std_scale{1.0};
+  double kappa_scale{1.0};
+};
+
+/// The scales that minimize the mean NLL of the labelled records of `truth` under `predictions`
+/// (records without uncertainty or label are skipped; with none left both scales are 1). The
+/// z scale is closed form, s^2 = mean((dz / z_std)^2); the kappa scale is the root of the
+/// (monotone) NLL derivative, found by bisection on its logarithm within [1e-4, 1e4].
+UncertaintyCalibration FitUncertaintyCalibration(const std::vector<Prediction>& predictions,
+                                                 const FeatureSet& truth);
+/// `p` with the scales applied (nothing changes for a prediction without uncertainty).
+Prediction ApplyCalibration(const Prediction& p, const UncertaintyCalibration& calibration);
+
+/// Half width, in standard deviations, of the central interval of a normal distribution that
+/// holds `probability` (0.6745 for 0.5, 1.6449 for 0.9). `probability` in (0, 1).
+double GaussianIntervalHalfWidth(double probability);
+/// Probability that a von Mises variable with concentration `kappa` (>= 0) lies within
+/// `half_width` (>= 0, radians) of its mean, by Gauss-Legendre integration of the density.
+double VonMisesCentralProbability(double kappa, double half_width);
+/// Half width h in radians of the central interval [mu - h, mu + h] of a von Mises distribution
+/// with concentration `kappa` (>= 0) that holds `probability` in (0, 1): the inverse of
+/// VonMisesCentralProbability, by Newton's method. kappa -> 0 gives probability * pi (that
+/// fraction of the circle); large kappa approaches the normal value
+/// GaussianIntervalHalfWidth(probability) / sqrt(kappa).
+double VonMisesIntervalHalfWidth(double kappa, double probability);
+/// Circular standard deviation sqrt(-2 ln(I1(kappa) / I0(kappa))) in radians: about
+/// 1 / sqrt(kappa) for large kappa, unbounded as kappa -> 0.
+double VonMisesCircularStd(double kappa);
+/// log I0(kappa), stable for every kappa >= 0.
+double LogBesselI0(double kappa);
+
 /// Trains on `train`, validates on `val` each epoch, writes into run_dir:
-/// model.pt (weights + normalization), model.json (ModelConfig + shapes + tube radius),
-/// metrics.jsonl (one line per epoch), checkpoint.pt (resume). Resumes from run_dir/checkpoint.pt
-/// when it exists and `resume` is set. `surface_radius_m` is used for the 3-D metrics.
-/// Returns the validation metrics of the final model.
+/// model.pt (weights + normalization), model.json (ModelConfig + shapes + tube radius +
+/// uncertainty calibration), metrics.jsonl (one line per epoch, uncalibrated uncertainty),
+/// checkpoint.pt (resume). Resumes from run_dir/checkpoint.pt when it exists and `resume` is
+/// set. After the last epoch the predictive distribution is calibrated on `val`
+/// (FitUncertaintyCalibration). `surface_radius_m` is used for the 3-D metrics.
+/// Returns the validation metrics of the final, calibrated model.
 Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
               const std::string& run_dir, bool resume, bool show_progress);
@@ -105,7 +162,14 @@ class Localizer {
   Localizer(Localizer&&) noexcept;
   Localizer& operator=(Localizer&&) noexcept;
 
+  /// Point estimates and, when the model has an uncertainty head, the calibrated predictive
+  /// distribution (see Prediction).
   std::vector<Prediction> Predict(const FeatureSet& features) const;
+  /// Whether predictions carry a distribution: false for models trained with
+  /// train.uncertainty_weight = 0 or before the uncertainty head existed (their weights lack it).
+  bool has_uncertainty() const;
+  /// The scales from model.json (1 and 1 when the file predates calibration).
+  const UncertaintyCalibration& calibration() const;
   const ModelConfig& model_config() const;
   double surface_radius_m() const;
   /// Trainable parameters of the loaded network per part (see CountParameters).
@@ -118,10 +182,13 @@ class Localizer {
 
 /// Trainable parameters of the network that `config` builds for features shaped like `shapes`
 /// (only the shape fields are read), per part: "audio_encoder", "gcc_encoder", "proprio_encoder"
-/// (present only when the modality is selected) and "fusion" (tokens, transformer, head).
-std::map<std::string, int64_t> CountParameters(const ModelConfig& config, const FeatureSet& shapes);
+/// (present only when the modality is selected) and "fusion" (tokens, transformer, heads;
+/// with `uncertainty_head` the network of a training with train.uncertainty_weight > 0).
+std::map<std::string, int64_t> CountParameters(const ModelConfig& config, const FeatureSet& shapes,
+                                               bool uncertainty_head = true);
 
-/// Metrics of predictions against the labels in `truth`.
+/// Metrics of predictions against the labels in `truth`; coverage and NLL when every labelled
+/// prediction has uncertainty.
 Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const FeatureSet& truth,
                        double surface_radius_m);
 

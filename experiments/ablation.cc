@@ -1,0 +1,186 @@
+// Ablations as configs: every YAML file of a directory is one variant (modality set or
+// preprocessing switch) layered over the run's config; each is trained on one dataset,
+// evaluated on another, and the results become one table.
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/experiments/commands.h"
+#include "sonicboom/experiments/pipeline.h"
+#include "internal/report.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// one ablation: its name (file stem without a leading "NN-"), description and config file
+struct Variant {
+  std::string name, description, path;
+};
+
+// the *.yaml files of `dir` in name order; the description is the file's first comment line
+std::vector<Variant> ListVariants(const std::string& dir, const std::vector<std::string>& only) {
+  if (!fs::is_directory(dir)) throw IoError(fmt::format("{}: no such ablation directory", dir));
+  std::vector<Variant> variants;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.path().extension() != ".yaml") continue;
+    std::string name = entry.path().stem().string();
+    const size_t dash = name.find('-');
+    if (dash != std::string::npos && dash > 0 &&
+        std::all_of(name.begin(), name.begin() + dash, [](char c) { return std::isdigit(c); })) {
+      name = name.substr(dash + 1);
+    }
+    const std::string text = ReadText(entry.path().string());
+    std::string description;
+    if (text.rfind("# ", 0) == 0) description = text.substr(2, text.find('\n') - 2);
+    variants.push_back({name, description, entry.path().string()});
+  }
+  std::sort(variants.begin(), variants.end(),
+            [](const Variant& a, const Variant& b) { return a.path < b.path; });
+  if (!only.empty()) {
+    std::vector<Variant> chosen;
+    for (const std::string& want : only) {
+      auto it = std::find_if(variants.begin(), variants.end(),
+                             [&](const Variant& v) { return v.name == want; });
+      if (it == variants.end()) {
+        throw ConfigError(fmt::format("--only: no ablation named '{}' in {}", want, dir));
+      }
+      chosen.push_back(*it);
+    }
+    variants = chosen;
+  }
+  if (variants.empty()) throw ConfigError(fmt::format("{}: holds no ablation (*.yaml)", dir));
+  return variants;
+}
+
+// features of a dataset, computed once per distinct feature config
+class FeatureCache {
+ public:
+  FeatureCache(std::string path, int threads, bool quiet)
+      : path_(std::move(path)), threads_(threads), quiet_(quiet) {}
+  const learning::FeatureSet& Get(const SonicBoomConfig& config,
+                                  const std::vector<uint64_t>** indices) {
+    // every section but the model and training ones can change the features
+    SonicBoomConfig stripped = config;
+    stripped.model = learning::ModelConfig{};
+    stripped.train = learning::TrainConfig{};
+    const std::string features_key = ConfigToYaml(stripped);
+    auto it = cache_.find(features_key);
+    if (it == cache_.end()) {
+      // keep one feature set in memory at a time: datasets are large
+      cache_.clear();
+      Entry entry;
+      entry.set = ComputeDatasetFeatures(path_, config, threads_, !quiet_, &entry.indices);
+      it = cache_.emplace(features_key, std::move(entry)).first;
+    }
+    if (indices != nullptr) *indices = &it->second.indices;
+    return it->second.set;
+  }
+
+ private:
+  struct Entry {
+    learning::FeatureSet set;
+    std::vector<uint64_t> indices;
+  };
+  std::string path_;
+  int threads_;
+  bool quiet_;
+  std::map<std::string, Entry> cache_;
+};
+
+std::string Join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const std::string& x : v) s += (s.empty() ? "" : "+") + x;
+  return s;
+}
+
+}  // namespace
+
+CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
+  if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
+  if (!fs::exists(o.test)) throw IoError(fmt::format("{}: no such dataset", o.test));
+  const std::vector<Variant> variants = ListVariants(o.configs_dir, o.only);
+  // resolve every variant first: a bad file fails before any training
+  std::vector<SonicBoomConfig> configs;
+  for (const Variant& v : variants) {
+    // the variant goes after the user's --config files, before the --set overrides
+    ConfigSources sources = g.sources;
+    sources.files.push_back(v.path);
+    configs.push_back(ResolveConfig(sources));
+  }
+  MakeDirectories(o.out);
+
+  FeatureCache train_features(o.data, g.threads, g.quiet), test_features(o.test, g.threads, g.quiet);
+  json rows = json::array();
+  std::string table =
+      "| ablation | modalities | gating | shift | masks | norm | 3-D MED (cm) | height (cm) | "
+      "angle (deg) | train (s) | description |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (size_t i = 0; i < variants.size(); ++i) {
+    const Variant& v = variants[i];
+    const SonicBoomConfig& config = configs[i];
+    const std::string run_dir = (fs::path(o.out) / v.name).string();
+    spdlog::info("ablation {}/{}: {} ({})", i + 1, variants.size(), v.name, v.description);
+
+    // train unless a finished run of this variant is there (model.json is written last)
+    double train_s = 0.0;
+    const fs::path timing = fs::path(run_dir) / "ablation_train_s.txt";
+    if (fs::exists(fs::path(run_dir) / "model.json") && fs::exists(timing)) {
+      train_s = std::stod(ReadText(timing.string()));
+    } else {
+      MakeDirectories(run_dir);
+      WriteTextAtomic((fs::path(run_dir) / "config.yaml").string(), ConfigToYaml(config));
+      const std::vector<uint64_t>* indices = nullptr;
+      const learning::FeatureSet& all = train_features.Get(config, &indices);
+      const auto start = std::chrono::steady_clock::now();
+      TrainOnFeatures(config, all, *indices, o.data, run_dir, /*resume=*/true, g.quiet);
+      train_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      WriteTextAtomic(timing.string(), fmt::format("{}\n", train_s));
+    }
+
+    // held-out errors
+    const learning::FeatureSet& test = test_features.Get(config, nullptr);
+    learning::Localizer localizer(run_dir);
+    const learning::Metrics m = learning::ComputeMetrics(localizer.Predict(test), test,
+                                                         localizer.surface_radius_m());
+    const learning::TrainConfig& t = config.train;
+    const bool masks = t.augment && (t.time_mask_frames > 0 || t.freq_mask_bands > 0);
+    const bool shift = t.augment && t.time_shift_frames > 0;
+    json row = {{"name", v.name},
+                {"description", v.description},
+                {"config", v.path},
+                {"modalities", config.model.modalities},
+                {"gating", config.features.gating},
+                {"time_shift", shift},
+                {"masking", masks},
+                {"normalize", t.normalize},
+                {"train_s", train_s},
+                {"test", MetricsJson(m)}};
+    rows.push_back(row);
+    table += fmt::format("| {} | {} | {} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} | {} |\n",
+                         v.name, Join(config.model.modalities), config.features.gating ? "on" : "off",
+                         shift ? "on" : "off", masks ? "on" : "off", t.normalize ? "on" : "off",
+                         m.med_cm, m.height_err_cm, m.angle_err_deg, train_s, v.description);
+  }
+
+  const std::string header = fmt::format(
+      "Ablations: trained on {}, evaluated on {} ({} strikes); configs from {}.\n\n", o.data,
+      o.test, rows.empty() ? 0 : rows[0]["test"]["n"].get<int64_t>(), o.configs_dir);
+  WriteTextAtomic((fs::path(o.out) / "table.md").string(), header + table);
+  const json result = {{"out", o.out}, {"data", o.data}, {"test", o.test}, {"ablations", rows}};
+  WriteTextAtomic((fs::path(o.out) / "results.json").string(), result.dump(2) + "\n");
+  return {result.dump(), header + table};
+}
+
+}  // namespace sonicboom::experiments

@@ -1,0 +1,38 @@
+#pragma once
+/// The baselines on dataset files (`sonicboom baseline`, docs/baselines.md): labels of the valid
+/// samples, and the analytic TDOA locator run over a dataset's raw audio.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sonicboom/acoustics/tdoa.h"
+#include "sonicboom/experiments/config.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::experiments {
+
+/// Labels of the valid samples of a dataset, in file order (the rows ComputeDatasetFeatures
+/// gives), in a FeatureSet with no feature arrays. Throws SchemaError when none is valid.
+learning::FeatureSet DatasetLabels(const std::string& dataset_path);
+
+/// The TDOA locator of a config: its tube, material, microphones and seams.
+acoustics::TdoaGeometry TdoaGeometryOf(const SonicBoomConfig& config);
+
+/// Band GCC envelopes of the valid samples of a dataset around their onsets, the onset being the
+/// one FeatureExtractor finds with config.features (StrikeFeatures::window_start + half the
+/// window). With max_strikes > 0, at most that many rows, evenly spaced in file order. `labels`
+/// (optional) receives their labels. Reading is serial, the rest runs on `threads` workers.
+std::vector<acoustics::TdoaCorrelations> CorrelateDataset(const std::string& dataset_path,
+                                                          const SonicBoomConfig& config,
+                                                          const acoustics::TdoaLocator& locator,
+                                                          int threads, bool show_progress,
+                                                          int64_t max_strikes,
+                                                          learning::FeatureSet* labels);
+
+/// Locates every strike at one speed scale, on `threads` workers; deterministic.
+std::vector<learning::Prediction> LocateAll(const acoustics::TdoaLocator& locator,
+                                            const std::vector<acoustics::TdoaCorrelations>& strikes,
+                                            double speed_scale, int threads);
+
+}  // namespace sonicboom::experiments

@@ -1,0 +1,97 @@
+// `sonicboom ablate`: every config of a directory trained and evaluated into one table;
+// finished runs reused; a bad config refused before any training.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "common/test_util.h"
+
+namespace sonicboom {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+using testing::RunCli;
+using testing::TempDir;
+
+// short records and a tiny model keep the run to seconds
+const std::string kTiny =
+    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 --set model.width=16 "
+    "--set model.blocks=1 --set model.heads=2 --set train.epochs=1 --set train.batch_size=8 ";
+
+void Write(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream(path) << text;
+}
+
+TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
+  TempDir dir;
+  ASSERT_EQ(RunCli(kTiny + "generate --count 24 --out D.h5 -q", dir.path().string()).exit_code, 0);
+  ASSERT_EQ(RunCli(kTiny + "generate --count 8 --first-index 100 --out T.h5 -q",
+                   dir.path().string()).exit_code, 0);
+  Write(dir / "abl/01-all.yaml", "# every modality\n{}\n");
+  Write(dir / "abl/02-proprio.yaml", "# proprioception only\nmodel:\n  modalities: [proprio]\n");
+  Write(dir / "abl/03-no_norm.yaml", "# no normalization\ntrain:\n  normalize: false\n");
+  const std::string cmd =
+      kTiny + "ablate --data D.h5 --test T.h5 --out A --configs abl --json -q";
+  auto run = RunCli(cmd, dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json j = json::parse(run.out);
+  ASSERT_EQ(j["ablations"].size(), 3u);
+  // file order, numeric prefix dropped, layers applied
+  EXPECT_EQ(j["ablations"][0]["name"], "all");
+  EXPECT_EQ(j["ablations"][1]["name"], "proprio");
+  EXPECT_EQ(j["ablations"][1]["modalities"], json({"proprio"}));
+  EXPECT_EQ(j["ablations"][2]["normalize"], false);
+  EXPECT_EQ(j["ablations"][0]["description"], "every modality");
+  for (const json& row : j["ablations"]) {
+    EXPECT_EQ(row["test"]["n"], 8) << row.dump();
+    EXPECT_GT(row["test"]["med_cm"].get<double>(), 0.0) << row.dump();
+    EXPECT_TRUE(fs::exists(dir.path() / "A" / row["name"].get<std::string>() / "model.json"));
+  }
+  // the proprio-only run has no audio encoder: its model differs from the full one
+  std::ifstream full(dir / "A/all/model.json"), prop(dir / "A/proprio/model.json");
+  EXPECT_NE(json::parse(full)["model"].dump(), json::parse(prop)["model"].dump());
+  std::ifstream table(dir / "A/table.md");
+  const std::string text((std::istreambuf_iterator<char>(table)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| proprio | proprio |"), std::string::npos) << text;
+
+  // a second run reuses every finished run: identical rows, training time included
+  run = RunCli(cmd, dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json again = json::parse(run.out);
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(again["ablations"][i]["train_s"], j["ablations"][i]["train_s"]);
+    // the same model files (torch's thread count may differ without training: float reductions)
+    EXPECT_NEAR(again["ablations"][i]["test"]["med_cm"].get<double>(),
+                j["ablations"][i]["test"]["med_cm"].get<double>(), 1e-6);
+  }
+}
+
+TEST(AblateTest, BadConfigIsRefusedBeforeAnyTraining) {
+  TempDir dir;
+  ASSERT_EQ(RunCli(kTiny + "generate --count 4 --out D.h5 -q", dir.path().string()).exit_code, 0);
+  Write(dir / "abl/01-all.yaml", "{}\n");
+  Write(dir / "abl/02-typo.yaml", "model:\n  modalitys: [audio]\n");
+  auto run = RunCli(kTiny + "ablate --data D.h5 --test D.h5 --out A --configs abl",
+                    dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("02-typo.yaml"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("modalitys"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "A/all/model.json"));
+  // an unknown --only name and an empty directory are refused too
+  run = RunCli("ablate --data D.h5 --test D.h5 --out A --configs abl --only nothing",
+               dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("nothing"), std::string::npos) << run.err;
+  fs::create_directories(dir / "empty");
+  run = RunCli("ablate --data D.h5 --test D.h5 --out A --configs empty", dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("no ablation"), std::string::npos) << run.err;
+}
+
+}  // namespace
+}  // namespace sonicboom

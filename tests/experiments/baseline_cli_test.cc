@@ -1,0 +1,95 @@
+// `sonicboom baseline`: the metrics JSON of every method on a tiny dataset, and its error paths.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "common/test_util.h"
+
+namespace sonicboom {
+namespace {
+
+using nlohmann::json;
+using testing::RunCli;
+using testing::TempDir;
+
+// short records keep the end-to-end test fast
+const std::string kShort =
+    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 ";
+
+void ExpectMetricsKeys(const json& j) {
+  for (const char* key : {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm",
+                          "method"}) {
+    EXPECT_TRUE(j.contains(key)) << key << " in " << j.dump();
+  }
+}
+
+TEST(BaselineCliTest, KnnTdoaAndConstantOnATinyDataset) {
+  TempDir dir;
+  auto run = RunCli(kShort + "generate --count 12 --out D.h5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+
+  // kNN with one neighbour on its own training set recovers every label
+  run = RunCli("baseline --method knn --k 1 --train D.h5 --data D.h5 --json -q",
+               dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  json j = json::parse(run.out);
+  ExpectMetricsKeys(j);
+  EXPECT_EQ(j["method"], "knn");
+  EXPECT_EQ(j["n"], 12);
+  EXPECT_LT(j["med_cm"].get<double>(), 1e-6);
+
+  // with five neighbours and GCC lags in the vector, an exact match still takes all the weight
+  run = RunCli("baseline --method knn --gcc-lags 20 --train D.h5 --data D.h5 --json -q",
+               dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  j = json::parse(run.out);
+  EXPECT_EQ(j["dimensions"], 6 * 50 * 23 + 15 * 41);
+  EXPECT_LT(j["med_cm"].get<double>(), 1e-6);
+
+  // the constant predictor
+  run = RunCli("baseline --method constant --train D.h5 --data D.h5 --json -q",
+               dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  j = json::parse(run.out);
+  ExpectMetricsKeys(j);
+  EXPECT_GT(j["med_cm"].get<double>(), 0.5);
+
+  // analytic TDOA without training data: a finite error, scale 1
+  run = RunCli("baseline --method tdoa --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  j = json::parse(run.out);
+  ExpectMetricsKeys(j);
+  EXPECT_EQ(j["n"], 12);
+  EXPECT_TRUE(std::isfinite(j["med_cm"].get<double>()));
+  EXPECT_EQ(j["speed_scale"].get<double>(), 1.0);
+  EXPECT_EQ(j["band_speeds_m_s"].size(), 4u);
+
+  // the human-readable report names the method
+  run = RunCli("baseline --method constant --train D.h5 --data D.h5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find("constant baseline, 12 strikes: MED"), std::string::npos) << run.out;
+}
+
+TEST(BaselineCliTest, ErrorPaths) {
+  TempDir dir;
+  // listed in the help
+  auto help = RunCli("--help", dir.path().string());
+  EXPECT_NE(help.out.find("baseline"), std::string::npos) << help.out;
+  // kNN without training data, an unknown method, a missing dataset
+  auto run = RunCli("baseline --method knn --data nothere.h5", dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("--train"), std::string::npos) << run.err;
+  run = RunCli("baseline --method svm --train a.h5 --data b.h5", dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("svm"), std::string::npos) << run.err;
+  run = RunCli("baseline --method tdoa --data nothere.h5", dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("nothere.h5"), std::string::npos) << run.err;
+  run = RunCli("baseline --method knn --k 0 --train a.h5 --data b.h5", dir.path().string());
+  EXPECT_EQ(run.exit_code, 2);  // a CLI usage error
+}
+
+}  // namespace
+}  // namespace sonicboom

@@ -1,0 +1,277 @@
+// The predictive distribution: von Mises and Gaussian intervals against independent
+// computations, coverage and NLL in ComputeMetrics on synthetic predictions with known errors,
+// and the post-hoc calibration recovering a known mis-scaling.
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <limits>
+#include <numbers>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "internal/uncertainty.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// P(|x| <= h) for a von Mises variable of concentration kappa around 0, from the Fourier series
+// of the density (h + 2 sum_n I_n(kappa) / I0(kappa) sin(n h) / n) / pi: an independent check
+// of the grid integration, valid where std::cyl_bessel_i does not overflow.
+double FourierCentralProbability(double kappa, double h) {
+  const double i0 = std::cyl_bessel_i(0.0, kappa);
+  double sum = h;
+  for (int n = 1; n < 400; ++n) {
+    const double term = 2.0 * std::cyl_bessel_i(double(n), kappa) / i0 * std::sin(n * h) / n;
+    sum += term;
+    if (n > kappa + 40 && std::abs(term) < 1e-17) break;
+  }
+  return sum / kPi;
+}
+
+TEST(UncertaintyMathTest, GaussianHalfWidthsAreTheNormalQuantiles) {
+  EXPECT_NEAR(GaussianIntervalHalfWidth(0.5), 0.6744897501960817, 1e-12);
+  EXPECT_NEAR(GaussianIntervalHalfWidth(0.68268949213708585), 1.0, 1e-12);
+  EXPECT_NEAR(GaussianIntervalHalfWidth(0.9), 1.6448536269514722, 1e-12);
+  EXPECT_NEAR(GaussianIntervalHalfWidth(0.95), 1.959963984540054, 1e-12);
+  EXPECT_NEAR(GaussianIntervalHalfWidth(0.999), 3.2905267314918945, 1e-10);
+}
+
+TEST(UncertaintyMathTest, VonMisesIntervalOfAFlatDensityIsThatFractionOfTheCircle) {
+  for (double kappa : {0.0, 1e-12, 1e-9}) {
+    EXPECT_NEAR(VonMisesIntervalHalfWidth(kappa, 0.9), 0.9 * kPi, 1e-7) << kappa;
+    EXPECT_NEAR(VonMisesIntervalHalfWidth(kappa, 0.5), 0.5 * kPi, 1e-7) << kappa;
+  }
+  // a weak concentration already narrows the interval, but not by much
+  const double weak = VonMisesIntervalHalfWidth(0.05, 0.9);
+  EXPECT_LT(weak, 0.9 * kPi);
+  EXPECT_GT(weak, 0.85 * kPi);
+}
+
+TEST(UncertaintyMathTest, VonMisesIntervalOfAConcentratedDensityIsNormal) {
+  // kappa -> infinity: the density tends to a normal of variance 1 / kappa
+  for (double kappa : {1e4, 1e6, 1e9}) {
+    for (double p : {0.5, 0.9}) {
+      const double normal = GaussianIntervalHalfWidth(p) / std::sqrt(kappa);
+      EXPECT_NEAR(VonMisesIntervalHalfWidth(kappa, p) / normal, 1.0, 1e-3) << kappa << " " << p;
+    }
+  }
+  EXPECT_EQ(VonMisesIntervalHalfWidth(std::numeric_limits<double>::infinity(), 0.9), 0.0);
+}
+
+TEST(UncertaintyMathTest, VonMisesIntervalHoldsItsProbability) {
+  double previous = kPi;
+  for (double kappa : {0.3, 1.0, 2.0, 5.0, 20.0, 80.0, 300.0}) {
+    for (double p : {0.5, 0.9, 0.99}) {
+      const double h = VonMisesIntervalHalfWidth(kappa, p);
+      EXPECT_NEAR(FourierCentralProbability(kappa, h), p, 1e-10) << kappa << " " << p;
+      EXPECT_NEAR(VonMisesCentralProbability(kappa, h), p, 1e-12) << kappa << " " << p;
+    }
+    for (double h : {0.01, 0.3, 1.0, 2.5, 3.1}) {
+      EXPECT_NEAR(VonMisesCentralProbability(kappa, h), FourierCentralProbability(kappa, h), 1e-10)
+          << kappa << " " << h;
+    }
+    // narrower as the concentration grows
+    const double h90 = VonMisesIntervalHalfWidth(kappa, 0.9);
+    EXPECT_LT(h90, previous) << kappa;
+    previous = h90;
+  }
+}
+
+TEST(UncertaintyMathTest, BesselFunctionsAndCircularStd) {
+  for (double k : {0.0, 0.1, 1.0, 5.0, 50.0, 99.9, 100.1, 300.0, 700.0}) {
+    EXPECT_NEAR(LogBesselI0(k), std::log(std::cyl_bessel_i(0.0, k)), 1e-12 * std::max(1.0, k))
+        << k;
+    EXPECT_NEAR(internal::VonMisesMeanResultant(k),
+                k == 0.0 ? 0.0 : std::cyl_bessel_i(1.0, k) / std::cyl_bessel_i(0.0, k), 1e-13)
+        << k;
+  }
+  // beyond double range of I0 itself: log I0(k) ~ k - log(2 pi k) / 2 + 1 / (8k)
+  const double big = 1e6;
+  EXPECT_NEAR(LogBesselI0(big), big - 0.5 * std::log(2.0 * kPi * big) + 1.0 / (8.0 * big), 1e-6);
+  // circular std: sqrt(-2 ln A); about 1 / sqrt(kappa) when concentrated, unbounded when flat
+  const double a1 = std::cyl_bessel_i(1.0, 1.0) / std::cyl_bessel_i(0.0, 1.0);
+  EXPECT_NEAR(VonMisesCircularStd(1.0), std::sqrt(-2.0 * std::log(a1)), 1e-12);
+  EXPECT_NEAR(VonMisesCircularStd(1e6) * 1e3, 1.0, 1e-5);
+  EXPECT_GT(VonMisesCircularStd(1e-6), 5.0);
+  EXPECT_TRUE(std::isinf(VonMisesCircularStd(0.0)));
+}
+
+// A draw from VonMises(0, kappa) (Best and Fisher 1979).
+double SampleVonMises(Rng* rng, double kappa) {
+  const double tau = 1.0 + std::sqrt(1.0 + 4.0 * kappa * kappa);
+  const double rho = (tau - std::sqrt(2.0 * tau)) / (2.0 * kappa);
+  const double r = (1.0 + rho * rho) / (2.0 * rho);
+  while (true) {
+    const double z = std::cos(kPi * rng->Uniform());
+    const double f = (1.0 + r * z) / (r + z);
+    const double c = kappa * (r - f);
+    const double u2 = rng->Uniform();
+    if (c * (2.0 - c) - u2 > 0.0 || std::log(c / u2) + 1.0 - c >= 0.0) {
+      return (rng->Uniform() < 0.5 ? -1.0 : 1.0) * std::acos(std::clamp(f, -1.0, 1.0));
+    }
+  }
+}
+
+// Labels and predictions whose errors follow the predicted distribution exactly: per record a
+// std of z between 2 mm and 3 cm and a concentration between 0.5 and 200.
+struct Synthetic {
+  std::vector<Prediction> predictions;
+  FeatureSet truth;
+};
+Synthetic MakeSynthetic(int64_t n, uint64_t seed) {
+  Synthetic s;
+  Rng rng(seed);
+  for (int64_t i = 0; i < n; ++i) {
+    Prediction p;
+    p.z_m = rng.Uniform(-0.1, 0.1);
+    p.theta_rad = rng.Uniform(-kPi, kPi);
+    p.z_std_m = std::exp(rng.Uniform(std::log(0.002), std::log(0.03)));
+    p.theta_kappa = std::exp(rng.Uniform(std::log(0.5), std::log(200.0)));
+    s.truth.z_m.push_back(p.z_m + rng.Normal(0.0, p.z_std_m));
+    s.truth.theta_rad.push_back(
+        std::remainder(p.theta_rad + SampleVonMises(&rng, p.theta_kappa), 2.0 * kPi));
+    s.predictions.push_back(p);
+  }
+  return s;
+}
+
+std::vector<Prediction> Scaled(std::vector<Prediction> predictions, double z_factor,
+                               double kappa_factor) {
+  for (Prediction& p : predictions) {
+    p.z_std_m *= z_factor;
+    p.theta_kappa *= kappa_factor;
+  }
+  return predictions;
+}
+
+TEST(UncertaintyMetricsTest, CoverageOfTheTrueDistributionIsNominal) {
+  const int64_t n = 4000;
+  const Synthetic s = MakeSynthetic(n, 17);
+  const Metrics m = ComputeMetrics(s.predictions, s.truth, 0.05);
+  ASSERT_EQ(m.n, n);
+  // four standard errors of a binomial fraction: 0.032 at 0.5, 0.019 at 0.9
+  EXPECT_NEAR(m.z_coverage_50, 0.5, 4.0 * std::sqrt(0.25 / n));
+  EXPECT_NEAR(m.z_coverage_90, 0.9, 4.0 * std::sqrt(0.09 / n));
+  EXPECT_NEAR(m.theta_coverage_50, 0.5, 4.0 * std::sqrt(0.25 / n));
+  EXPECT_NEAR(m.theta_coverage_90, 0.9, 4.0 * std::sqrt(0.09 / n));
+  EXPECT_TRUE(std::isfinite(m.nll));
+  std::cout << "true distribution: z " << m.z_coverage_50 << " / " << m.z_coverage_90
+            << ", theta " << m.theta_coverage_50 << " / " << m.theta_coverage_90 << "\n";
+
+  // Stds three times too small, kappas nine times too large: the intervals hold far less.
+  // (A normal within 1.645 / 3 std: 0.42.)
+  const Metrics narrow = ComputeMetrics(Scaled(s.predictions, 1.0 / 3.0, 9.0), s.truth, 0.05);
+  EXPECT_LT(narrow.z_coverage_90, 0.6);
+  EXPECT_NEAR(narrow.z_coverage_90, 0.416, 0.04);
+  EXPECT_LT(narrow.z_coverage_50, 0.3);
+  EXPECT_LT(narrow.theta_coverage_90, 0.7);
+  EXPECT_LT(narrow.theta_coverage_50, 0.3);
+  EXPECT_GT(narrow.nll, m.nll + 1.0);
+  std::cout << "too narrow: z " << narrow.z_coverage_50 << " / " << narrow.z_coverage_90
+            << ", theta " << narrow.theta_coverage_50 << " / " << narrow.theta_coverage_90
+            << ", NLL " << narrow.nll << " against " << m.nll << "\n";
+  // Too wide: everything inside, and a worse likelihood too.
+  const Metrics wide = ComputeMetrics(Scaled(s.predictions, 5.0, 1.0 / 25.0), s.truth, 0.05);
+  EXPECT_GT(wide.z_coverage_90, 0.99);
+  EXPECT_GT(wide.z_coverage_50, 0.85);
+  EXPECT_GT(wide.theta_coverage_50, 0.8);
+  EXPECT_GT(wide.nll, m.nll + 0.5);
+}
+
+TEST(UncertaintyMetricsTest, NllOfOneRecordByHand) {
+  // dz = 1.5 cm with std 2 cm; theta error 0.3 rad with kappa 4
+  Prediction p{0.0, 0.0, 0.02, 4.0};
+  FeatureSet truth;
+  truth.z_m = {0.015};
+  truth.theta_rad = {0.3};
+  const Metrics m = ComputeMetrics({p}, truth, 0.05);
+  const double z_nll = std::log(2.0) + 0.5 * std::log(2.0 * kPi) + 0.5 * 0.75 * 0.75;
+  const double theta_nll =
+      -4.0 * std::cos(0.3) + std::log(2.0 * kPi * std::cyl_bessel_i(0.0, 4.0));
+  EXPECT_NEAR(m.nll, z_nll + theta_nll, 1e-12);
+  EXPECT_EQ(m.z_coverage_50, 0.0);  // 1.5 cm > 0.674 * 2 cm
+  EXPECT_EQ(m.z_coverage_90, 1.0);
+  EXPECT_EQ(m.theta_coverage_90, 1.0);
+}
+
+TEST(UncertaintyMetricsTest, PredictionsWithoutUncertaintyHaveNoCoverage) {
+  const Synthetic s = MakeSynthetic(10, 3);
+  std::vector<Prediction> points;
+  for (const Prediction& p : s.predictions) points.push_back({p.z_m, p.theta_rad});
+  const Metrics m = ComputeMetrics(points, s.truth, 0.05);
+  EXPECT_EQ(m.n, 10);
+  EXPECT_TRUE(std::isfinite(m.med_cm));
+  EXPECT_TRUE(std::isnan(m.z_coverage_90));
+  EXPECT_TRUE(std::isnan(m.theta_coverage_50));
+  EXPECT_TRUE(std::isnan(m.nll));
+  // one record without a distribution is enough to withhold the figures
+  std::vector<Prediction> mixed = s.predictions;
+  mixed[4] = points[4];
+  EXPECT_TRUE(std::isnan(ComputeMetrics(mixed, s.truth, 0.05).z_coverage_90));
+  EXPECT_FALSE(points[0].has_uncertainty());
+  EXPECT_TRUE(s.predictions[0].has_uncertainty());
+}
+
+TEST(UncertaintyCalibrationTest, RecoversAKnownMisScaling) {
+  const Synthetic s = MakeSynthetic(3000, 29);
+  // The model claims stds three times too small and kappas four times too large.
+  const std::vector<Prediction> wrong = Scaled(s.predictions, 1.0 / 3.0, 4.0);
+  const UncertaintyCalibration c = FitUncertaintyCalibration(wrong, s.truth);
+  std::cout << "fitted scales " << c.z_std_scale << " (true 3), " << c.kappa_scale
+            << " (true 0.25)\n";
+  EXPECT_NEAR(c.z_std_scale, 3.0, 0.1);
+  EXPECT_NEAR(c.kappa_scale, 0.25, 0.015);
+  // Applied, the coverage is nominal again and the NLL is back to that of the truth.
+  std::vector<Prediction> fixed;
+  for (const Prediction& p : wrong) fixed.push_back(ApplyCalibration(p, c));
+  const Metrics before = ComputeMetrics(wrong, s.truth, 0.05);
+  const Metrics after = ComputeMetrics(fixed, s.truth, 0.05);
+  const Metrics truth = ComputeMetrics(s.predictions, s.truth, 0.05);
+  EXPECT_LT(before.z_coverage_90, 0.6);
+  EXPECT_NEAR(after.z_coverage_90, 0.9, 0.025);
+  EXPECT_NEAR(after.theta_coverage_90, 0.9, 0.025);
+  EXPECT_NEAR(after.z_coverage_50, 0.5, 0.04);
+  EXPECT_NEAR(after.theta_coverage_50, 0.5, 0.04);
+  EXPECT_LT(after.nll, before.nll);
+  EXPECT_NEAR(after.nll, truth.nll, 0.01);
+  // The fit minimizes the NLL: nudging either scale makes it worse.
+  for (double factor : {0.95, 1.05}) {
+    std::vector<Prediction> z_off, kappa_off;
+    for (const Prediction& p : fixed) {
+      z_off.push_back(ApplyCalibration(p, {factor, 1.0}));
+      kappa_off.push_back(ApplyCalibration(p, {1.0, factor}));
+    }
+    EXPECT_GT(ComputeMetrics(z_off, s.truth, 0.05).nll, after.nll) << factor;
+    EXPECT_GT(ComputeMetrics(kappa_off, s.truth, 0.05).nll, after.nll) << factor;
+  }
+}
+
+TEST(UncertaintyCalibrationTest, DegenerateInputs) {
+  // nothing usable: scales 1
+  FeatureSet truth;
+  truth.z_m = {0.0};
+  truth.theta_rad = {0.0};
+  const UncertaintyCalibration none = FitUncertaintyCalibration({{0.0, 0.0}}, truth);
+  EXPECT_EQ(none.z_std_scale, 1.0);
+  EXPECT_EQ(none.kappa_scale, 1.0);
+  // angle errors of pi everywhere: the best kappa is the smallest allowed
+  truth.theta_rad = {kPi};
+  const UncertaintyCalibration flat = FitUncertaintyCalibration({{0.0, 0.0, 0.01, 5.0}}, truth);
+  EXPECT_LE(flat.kappa_scale, 1e-4 * 1.0001);
+  EXPECT_EQ(flat.z_std_scale, 1e-4);  // a perfect height: clamped at the smallest scale
+  // a count mismatch is an error
+  EXPECT_THROW(FitUncertaintyCalibration({}, truth), SchemaError);
+  // a prediction without uncertainty is left alone by ApplyCalibration
+  const Prediction point = ApplyCalibration({0.1, 0.2}, {2.0, 3.0});
+  EXPECT_TRUE(std::isnan(point.z_std_m));
+}
+
+}  // namespace
+}  // namespace sonicboom::learning
