@@ -505,6 +505,18 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
       if (!last.empty()) j["last_epoch"] = json::parse(last, nullptr, false);
     }
     j["complete"] = fs::exists(fs::path(path) / "model.json") || fs::exists(fs::path(path) / "metrics.json");
+    // trainable parameters per part of a finished model
+    if (fs::exists(fs::path(path) / "model.json") && fs::exists(fs::path(path) / "model.pt")) {
+      const learning::Localizer localizer(path);
+      json parameters;
+      int64_t total = 0;
+      for (const auto& [part, count] : localizer.ParameterCounts()) {
+        parameters[part] = count;
+        total += count;
+      }
+      parameters["total"] = total;
+      j["parameters"] = parameters;
+    }
   } else if (fs::path(path).extension() == ".wav") {
     // a WAV and its label sidecar
     const AudioClip clip = ReadWav(path);

@@ -9,6 +9,8 @@
 # Stages are resumable: a dataset file appears only when complete and is reused; a finished
 # training run (metrics.jsonl complete and model.json present) is reused.
 # Output: OUTDIR/table.md, OUTDIR/results.json (one eval JSON per scenario and baseline).
+# BASELINES="knn tdoa constant" (the default) picks the baselines; kNN uses k = 1 and all GCC lags,
+# the setting docs/baselines.md chose on a validation set. STAGE=generate stops after the data.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 OUT=${1:-runs/med_study}
@@ -43,11 +45,13 @@ fi
 for ts in ts1 ts2 ts3 ts4; do
   "$BIN" --threads "$THREADS" -q eval --model "$OUT/model" --data "$OUT/test_$ts.h5" --json \
     > "$OUT/eval_$ts.json"
-  for method in knn tdoa constant; do
+  for method in ${BASELINES:-knn tdoa constant}; do
+    [ -f "$OUT/baseline_${method}_$ts.json" ] && continue
     "$BIN" --config "$ROOT/configs/ts1.yaml" --config "$MODEL_CONFIG" --threads "$THREADS" -q \
       baseline --method "$method" $([ "$method" = knn ] && echo "--k 1 --gcc-lags 441") \
       --train "$OUT/train.h5" --data "$OUT/test_$ts.h5" --json \
-      > "$OUT/baseline_${method}_$ts.json"
+      > "$OUT/baseline_${method}_$ts.json.partial"
+    mv "$OUT/baseline_${method}_$ts.json.partial" "$OUT/baseline_${method}_$ts.json"
   done
 done
 "$BIN" inspect "$OUT/model" --json > "$OUT/model_inspect.json"
@@ -73,7 +77,8 @@ lines = ["| scenario | n | 3-D MED (cm) | target (cm) | met | published-code MED
          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for ts in ["ts1", "ts2", "ts3", "ts4"]:
     e = load("eval_%s.json" % ts)
-    b = {m: load("baseline_%s_%s.json" % (m, ts)) for m in ["knn", "tdoa", "constant"]}
+    b = {m: (load("baseline_%s_%s.json" % (m, ts)) if os.path.exists(os.path.join(
+        out, "baseline_%s_%s.json" % (m, ts))) else {"med_cm": None}) for m in ["knn", "tdoa", "constant"]}
     results["scenarios"][ts] = {"model": e, **b}
     fmt = lambda v, p=2: "–" if v is None else ("%.*f" % (p, v))
     lines.append("| %s | %d | %s | %.1f | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
@@ -83,6 +88,12 @@ for ts in ["ts1", "ts2", "ts3", "ts4"]:
         fmt(b["tdoa"]["med_cm"]), fmt(b["constant"]["med_cm"])))
 with open(os.path.join(out, "results.json"), "w") as f:
     json.dump(results, f, indent=2)
+cfg = model.get("model", {}).get("model", {})
+lines.append("")
+lines.append("Model: %s audio encoder, width %s, %s blocks, %s heads, %s trainable parameters; "
+             "trained %s epochs in %s s." % (cfg.get("audio_encoder"), cfg.get("width"),
+             cfg.get("blocks"), cfg.get("heads"), model.get("parameters", {}).get("total"),
+             model.get("model", {}).get("epochs_trained"), train_s))
 with open(os.path.join(out, "table.md"), "w") as f:
     f.write("\n".join(lines) + "\n")
 print("\n".join(lines))

@@ -138,24 +138,46 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
   run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json metrics = json::parse(run.out);
-  for (const char* key : {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm"}) {
+  for (const char* key : {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm",
+                          "z_coverage_50", "z_coverage_90", "theta_coverage_50",
+                          "theta_coverage_90", "nll"}) {
     EXPECT_TRUE(metrics.contains(key)) << key;
   }
   EXPECT_EQ(metrics["n"], 30);
+  // coverage is a fraction, and the 90 % interval covers at least what the 50 % one does
+  EXPECT_GE(metrics["z_coverage_90"].get<double>(), metrics["z_coverage_50"].get<double>());
+  EXPECT_LE(metrics["z_coverage_90"].get<double>(), 1.0);
   EXPECT_GT(metrics["med_cm"].get<double>(), 0.0);
   // localize a strike synthesized with the run's own config
   run = RunCli("--config RUN/config.yaml synth --out s.wav --index 100 -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
-  run = RunCli("localize --model RUN --wav s.wav --json -q", dir.path().string());
+  run = RunCli("localize --model RUN --wav s.wav --json -q --repeat 3", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json where = json::parse(run.out);
+  EXPECT_GT(where["latency_ms"].get<double>(), 0.0);
+  EXPECT_GT(where["z_std_m"].get<double>(), 0.0);
+  const double z_lo = where["z_interval_90_m"][0], z_hi = where["z_interval_90_m"][1];
+  EXPECT_LT(z_lo, where["z_m"].get<double>());
+  EXPECT_GT(z_hi, where["z_m"].get<double>());
   const double x = where["point_m"][0], y = where["point_m"][1];
   EXPECT_NEAR(std::hypot(x, y), 0.05355, 1e-9);
   EXPECT_NEAR(where["point_m"][2].get<double>(), where["z_m"].get<double>(), 1e-12);
   // the run directory and its files are inspectable
   run = RunCli("inspect RUN --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
-  EXPECT_EQ(json::parse(run.out)["epochs_logged"], 2);
+  const json card = json::parse(run.out);
+  EXPECT_EQ(card["epochs_logged"], 2);
+  // trainable parameters per part add up to the total
+  int64_t sum = 0;
+  for (const char* part : {"audio_encoder", "gcc_encoder", "proprio_encoder", "fusion"}) {
+    sum += card["parameters"][part].get<int64_t>();
+  }
+  EXPECT_EQ(card["parameters"]["total"].get<int64_t>(), sum);
+  EXPECT_GT(sum, 0);
+  // --repeat must be positive
+  run = RunCli("localize --model RUN --wav s.wav --repeat 0", dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("--repeat"), std::string::npos) << run.err;
   for (const char* file : {"RUN/metrics.jsonl", "RUN/model.json", "RUN/model.pt", "s.json"}) {
     run = RunCli(std::string("inspect ") + file + " --json", dir.path().string());
     EXPECT_EQ(run.exit_code, 0) << file << ": " << run.err;
