@@ -93,7 +93,7 @@ lines.append("")
 lines.append("Model: %s audio encoder, width %s, %s blocks, %s heads, %s trainable parameters; "
              "trained %s epochs in %s s." % (cfg.get("audio_encoder"), cfg.get("width"),
              cfg.get("blocks"), cfg.get("heads"), model.get("parameters", {}).get("total"),
-             model.get("model", {}).get("epochs_trained"), train_s))
+             model.get("model", {}).get("epochs_trained"), "%.0f" % train_s if train_s else None))
 with open(os.path.join(out, "table.md"), "w") as f:
     f.write("\n".join(lines) + "\n")
 print("\n".join(lines))
