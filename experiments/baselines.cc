@@ -1,42 +1,36 @@
 #include "sonicboom/experiments/baselines.h"
 
+#include "internal/records.h"
+
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <cmath>
-#include <mutex>
 
 #include <fmt/format.h>
 
 #include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
-#include "sonicboom/core/progress.h"
 
 namespace sonicboom::experiments {
 namespace {
 
-// the valid rows of a dataset and their metadata
-void ValidRows(const DatasetReader& reader, const std::string& path, std::vector<int64_t>* rows,
-               learning::FeatureSet* labels) {
-  for (int64_t i = 0; i < reader.size(); ++i) {
-    const StrikeSample meta = reader.ReadMeta(i);
-    if (!meta.valid) continue;
-    rows->push_back(i);
-    labels->z_m.push_back(meta.label.z_m);
-    labels->theta_rad.push_back(meta.label.theta_rad);
+// the labels of valid records
+learning::FeatureSet LabelsOf(const ValidRecords& valid) {
+  learning::FeatureSet labels;
+  for (const StrikeSample& meta : valid.metas) {
+    labels.z_m.push_back(meta.label.z_m);
+    labels.theta_rad.push_back(meta.label.theta_rad);
   }
-  if (rows->empty()) throw SchemaError(fmt::format("{}: no valid samples", path));
+  return labels;
 }
 
 }  // namespace
 
 learning::FeatureSet DatasetLabels(const std::string& dataset_path) {
   DatasetReader reader(dataset_path);
-  std::vector<int64_t> rows;
-  learning::FeatureSet labels;
-  ValidRows(reader, dataset_path, &rows, &labels);
-  return labels;
+  return LabelsOf(ReadValidRecords(reader, dataset_path));
 }
 
 acoustics::TdoaGeometry TdoaGeometryOf(const SonicBoomConfig& config) {
@@ -51,47 +45,37 @@ std::vector<acoustics::TdoaCorrelations> CorrelateDataset(const std::string& dat
                                                           learning::FeatureSet* labels) {
   DatasetReader reader(dataset_path);
   const DatasetInfo& info = reader.info();
-  std::vector<int64_t> all_rows;
-  learning::FeatureSet all_labels;
-  ValidRows(reader, dataset_path, &all_rows, &all_labels);
+  const ValidRecords valid = ReadValidRecords(reader, dataset_path);
   if (info.sample_rate_hz != locator.sample_rate_hz()) {
     throw SchemaError(fmt::format("{}: audio at {} Hz, the TDOA locator was made for {} Hz",
                                   dataset_path, info.sample_rate_hz, locator.sample_rate_hz()));
   }
 
   // at most max_strikes rows, evenly spaced
-  std::vector<int64_t> picked;
-  const int64_t total = static_cast<int64_t>(all_rows.size());
+  const learning::FeatureSet all_labels = LabelsOf(valid);
+  std::vector<int64_t> picked_rows;
+  const int64_t total = static_cast<int64_t>(valid.rows.size());
   const int64_t n = max_strikes > 0 ? std::min(max_strikes, total) : total;
-  for (int64_t r = 0; r < n; ++r) picked.push_back(r * total / n);
-  if (labels) {
-    *labels = learning::FeatureSet{};
-    for (int64_t r : picked) {
+  if (labels) *labels = learning::FeatureSet{};
+  for (int64_t i = 0; i < n; ++i) {
+    const int64_t r = i * total / n;
+    picked_rows.push_back(valid.rows[r]);
+    if (labels) {
       labels->z_m.push_back(all_labels.z_m[r]);
       labels->theta_rad.push_back(all_labels.theta_rad[r]);
     }
   }
 
-  // the onset of the feature path, then the locator's band correlations around it
-  const acoustics::FeatureExtractor fx(config.features, info.sample_rate_hz, info.channels);
+  // the onset of the feature path (the all-channel energy envelope), then the locator's band
+  // correlations around it
+  const acoustics::FeatureConfig& fc = config.features;
   std::vector<acoustics::TdoaCorrelations> out(static_cast<size_t>(n));
-  std::mutex read_mutex;
-  Progress progress("tdoa", n, show_progress);
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(int64_t{0}, n, [&](int64_t i) {
-      StrikeSample sample;
-      {
-        std::lock_guard<std::mutex> lock(read_mutex);
-        sample = reader.Read(all_rows[picked[i]]);
-      }
-      const acoustics::StrikeFeatures f = fx.Compute(sample.audio);
-      const int64_t onset = f.window_start + fx.window_samples() / 2;
-      out[i] = locator.Correlate(sample.audio, onset);
-      progress.Add();
-    });
-  });
-  progress.Finish();
+  ForEachRecord(reader, picked_rows, threads, "tdoa", show_progress,
+                [&](int64_t i, const StrikeSample& sample) {
+                  const int64_t onset = acoustics::DetectOnset(
+                      sample.audio, info.sample_rate_hz, fc.onset_frame_s, fc.onset_threshold);
+                  out[i] = locator.Correlate(sample.audio, onset);
+                });
   return out;
 }
 

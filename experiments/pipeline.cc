@@ -1,4 +1,5 @@
 #include "sonicboom/experiments/pipeline.h"
+#include "internal/records.h"
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
@@ -403,16 +404,9 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
                                  noise.size() > 0 ? &noise : nullptr);
 
   // valid rows only
-  std::vector<int64_t> rows;
-  std::vector<StrikeSample> metas;
-  for (int64_t i = 0; i < reader.size(); ++i) {
-    StrikeSample meta = reader.ReadMeta(i);
-    if (!meta.valid) continue;
-    rows.push_back(i);
-    metas.push_back(std::move(meta));
-  }
-  const int64_t n = static_cast<int64_t>(rows.size());
-  if (n == 0) throw SchemaError(fmt::format("{}: no valid samples", dataset_path));
+  const ValidRecords valid = ReadValidRecords(reader, dataset_path);
+  const std::vector<StrikeSample>& metas = valid.metas;
+  const int64_t n = static_cast<int64_t>(valid.rows.size());
   if (info.proprio_rows < config.strike.proprio_rows) {
     throw SchemaError(fmt::format("{}: proprio windows have {} rows, the model needs "
                                   "strike.proprio_rows = {}",
@@ -429,23 +423,44 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
   }
 
   // reading is serial (HDF5), feature extraction parallel
+  ForEachRecord(reader, valid.rows, threads, "features", show_progress,
+                [&](int64_t r, const StrikeSample& sample) {
+                  StoreFeatures(fx.Compute(sample.audio), sample.proprio, r, &set);
+                });
+  return set;
+}
+
+ValidRecords ReadValidRecords(const DatasetReader& reader, const std::string& path) {
+  ValidRecords valid;
+  for (int64_t i = 0; i < reader.size(); ++i) {
+    StrikeSample meta = reader.ReadMeta(i);
+    if (!meta.valid) continue;
+    valid.rows.push_back(i);
+    valid.metas.push_back(std::move(meta));
+  }
+  if (valid.rows.empty()) throw SchemaError(fmt::format("{}: no valid samples", path));
+  return valid;
+}
+
+void ForEachRecord(const DatasetReader& reader, const std::vector<int64_t>& rows, int threads,
+                   const std::string& name, bool show_progress,
+                   const std::function<void(int64_t, const StrikeSample&)>& fn) {
+  const int64_t n = static_cast<int64_t>(rows.size());
   std::mutex read_mutex;
-  Progress progress("features", n, show_progress);
+  Progress progress(name, n, show_progress);
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    tbb::parallel_for(int64_t{0}, n, [&](int64_t r) {
+    tbb::parallel_for(int64_t{0}, n, [&](int64_t i) {
       StrikeSample sample;
       {
         std::lock_guard<std::mutex> lock(read_mutex);
-        sample = reader.Read(rows[r]);
+        sample = reader.Read(rows[i]);
       }
-      const acoustics::StrikeFeatures f = fx.Compute(sample.audio);
-      StoreFeatures(f, sample.proprio, r, &set);
+      fn(i, sample);
       progress.Add();
     });
   });
   progress.Finish();
-  return set;
 }
 
 struct RecordFeaturizer::Impl {

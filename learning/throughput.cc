@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <chrono>
 #include <random>
-#include <thread>
 
 #include <fmt/format.h>
 
@@ -23,10 +22,7 @@ ThroughputResult MeasureTrainThroughput(const ModelConfig& model_config,
   model_config.Validate();
   train_config.Validate();
   if (steps < 1) throw ConfigError(fmt::format("throughput steps must be >= 1, got {}", steps));
-  const int64_t threads = train_config.threads > 0
-                              ? train_config.threads
-                              : std::max<int64_t>(1, std::thread::hardware_concurrency());
-  torch::set_num_threads(static_cast<int>(threads));
+  torch::set_num_threads(static_cast<int>(internal::TrainingThreads(train_config)));
 
   // random features of two batches: mel power in [0, 1), small GCC values, unit proprioception
   const int64_t n = 2 * train_config.batch_size;

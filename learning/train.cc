@@ -9,7 +9,6 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
-#include <thread>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -195,10 +194,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   }
   if (records.empty()) throw SchemaError("training features: no record has a finite label");
 
-  const int64_t threads = train_config.threads > 0
-                              ? train_config.threads
-                              : std::max<int64_t>(1, std::thread::hardware_concurrency());
-  torch::set_num_threads(static_cast<int>(threads));
+  torch::set_num_threads(static_cast<int>(internal::TrainingThreads(train_config)));
   std::error_code ec;
   fs::create_directories(run_dir, ec);
   if (ec || !fs::is_directory(run_dir)) {

@@ -1,8 +1,10 @@
 // The training step: batch assembly with augmentation, forward, loss, backward, optimizer step.
 #include "internal/train_step.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <thread>
 
 #include <torch/special.h>
 
@@ -31,6 +33,11 @@ LossTerms Loss(const torch::Tensor& out, const torch::Tensor& target, const Trai
       kappa * one_minus_cos + log_two_pi + torch::log(torch::special::i0e(kappa));
   terms.nll = (nll_z + nll_theta).mean();
   return terms;
+}
+
+int64_t TrainingThreads(const TrainConfig& train_config) {
+  return train_config.threads > 0 ? train_config.threads
+                                  : std::max<int64_t>(1, std::thread::hardware_concurrency());
 }
 
 StepLoss TrainStep(NetworkImpl& network, torch::optim::Optimizer& optimizer,

@@ -25,6 +25,9 @@ struct LossTerms {
 /// detached: only the uncertainty outputs learn from it.
 LossTerms Loss(const torch::Tensor& out, const torch::Tensor& target, const TrainConfig& c);
 
+/// Intra-op threads for training: train_config.threads, or every core when it is 0.
+int64_t TrainingThreads(const TrainConfig& train_config);
+
 /// Loss values of one step (nll is 0 without the uncertainty head).
 struct StepLoss {
   double point{0.0};
