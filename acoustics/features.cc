@@ -202,10 +202,17 @@ void MelSpectrogram::Compute(const float* x, int64_t n, Eigen::MatrixXf* out) co
     // Frame f covers padded samples [f*hop, f*hop + n_fft), i.e. input samples from
     // f*hop - n_fft/2 (center=True), reflected at both ends, times the Hann window.
     const int64_t first = f * m.hop - half;
-    for (int64_t k = 0; k < m.n_fft; ++k) {
-      const int64_t i = first + k;
-      const double sample = (i >= 0 && i < n) ? x[i] : x[ReflectIndex(i, n)];
-      frame[k] = m.window[k] * sample;
+    const double* w = m.window.data();
+    if (first >= 0 && first + m.n_fft <= n) {
+      // interior frame: no reflection, a straight windowed copy
+      const float* in = x + first;
+      for (int64_t k = 0; k < m.n_fft; ++k) frame[k] = w[k] * in[k];
+    } else {
+      for (int64_t k = 0; k < m.n_fft; ++k) {
+        const int64_t i = first + k;
+        const double sample = (i >= 0 && i < n) ? x[i] : x[ReflectIndex(i, n)];
+        frame[k] = w[k] * sample;
+      }
     }
     fftw_execute_dft_r2c(m.plan.get(), frame, spectrum);
     // Power spectrum |X|^2 (n_freqs), then sparse product with each triangular band.
@@ -319,7 +326,9 @@ void GccPhat::Compute(const Eigen::MatrixXf& window, Eigen::MatrixXf* out) const
     for (int64_t k = 0; k < g.n_bins; ++k) {
       const double re = x[k][0] * y[k][0] + x[k][1] * y[k][1];
       const double im = x[k][1] * y[k][0] - x[k][0] * y[k][1];
-      const double weight = 1.0 / (std::hypot(re, im) + 1e-10);
+      // |G| by sqrt, not hypot: the squares of products of float-born spectra stay far
+      // inside double range, and hypot's scaling cost most of this loop
+      const double weight = 1.0 / (std::sqrt(re * re + im * im) + 1e-10);
       s.cross[k][0] = re * weight;
       s.cross[k][1] = im * weight;
     }

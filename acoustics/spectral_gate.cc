@@ -324,7 +324,9 @@ void SpectralGate::Apply(const float* x, int64_t n, int channel, float* out) con
       // binary mask, zero-padded by nf + 1 bins on both sides: mask[k] at padded[k + nf + 1]
       double* padded = s.line.data();
       for (int64_t k = 0; k < bins; ++k) {
-        const double power = std::norm(spectrum[k]);
+        // |X|^2 written out: std::norm goes through abs (hypot) without -ffast-math
+        const double power =
+            spectrum[k].real() * spectrum[k].real() + spectrum[k].imag() * spectrum[k].imag();
         const bool pass = std::max(power, kAminPower) > s.pass_power[k];
         padded[k + nf + 1] = (pass ? keep : 0.0) + base;
       }

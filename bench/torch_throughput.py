@@ -5,18 +5,20 @@ in PyTorch (Debian's python3-torch), on the same machine, side by side.
 Run from the repository root after building (needs build/bin/train_bench):
 
     /usr/bin/python3 bench/torch_throughput.py [--threads 2] [--steps 8] [--warmup 2]
-        [--models compact,resnet18,resnet50] [--batch 64] [--out docs/throughput.md]
+        [--repeats 3] [--models compact,resnet18,resnet50] [--batch 64] [--out docs/throughput.md]
 
-For each audio encoder it first runs the C++ benchmark (`train_bench`, Google Benchmark, which
+For each audio encoder it runs the C++ benchmark (`train_bench`, Google Benchmark, which
 runs the real training step of learning/train.cc: batch assembly with augmentation, forward,
-the paper's loss, backward, Adam), then the PyTorch mirror below with the same shapes, batch,
-optimizer and thread count. The PyTorch model is written to have exactly the C++ network's
+the paper's loss, backward, Adam) and the PyTorch mirror below with the same shapes, batch,
+optimizer and thread count, alternating, `--repeats` times each, and reports the median of
+each side: on a shared machine one run of either can be 15 % off. The PyTorch model is written to have exactly the C++ network's
 parameter count, which the script checks before timing. Inputs are random features of the
 paper's shapes: mel (6, 50, 517) cropped to 345 frames, GCC (15, 883), proprioception (50, 10).
 """
 
 import argparse
 import json
+import statistics
 import subprocess
 import sys
 import time
@@ -222,20 +224,31 @@ def main():
     ap.add_argument("--steps", type=int, default=8)
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--models", default="compact,resnet18,resnet50")
     ap.add_argument("--out", default="")
     args = ap.parse_args()
+    if args.repeats < 1 or args.steps < 1 or args.warmup < 0:
+        sys.exit("--repeats and --steps must be >= 1 and --warmup >= 0")
     rows = ["| audio encoder | batch | threads | parameters | C++ samples/s | PyTorch samples/s "
-            "| C++ / PyTorch |", "|---|---|---|---|---|---|---|"]
+            "| C++ / PyTorch | runs (C++; PyTorch) |", "|---|---|---|---|---|---|---|---|"]
     for enc in args.models.split(","):
-        cpp_params, cpp = cpp_samples_per_s(enc, args.batch, args.steps, args.warmup, args.threads)
-        py_params, py = python_samples_per_s(enc, args.batch, args.steps, args.warmup,
-                                             args.threads)
-        if cpp_params != py_params:
-            sys.exit("%s: the PyTorch mirror has %d parameters, the C++ network %d: not the same "
-                     "model" % (enc, py_params, cpp_params))
-        rows.append("| %s | %d | %d | %d | %.1f | %.1f | %.2f |" % (
-            enc, args.batch, args.threads, cpp_params, cpp, py, cpp / py))
+        cpp_runs, py_runs = [], []
+        for _ in range(args.repeats):
+            cpp_params, cpp = cpp_samples_per_s(enc, args.batch, args.steps, args.warmup,
+                                                args.threads)
+            py_params, py = python_samples_per_s(enc, args.batch, args.steps, args.warmup,
+                                                 args.threads)
+            if cpp_params != py_params:
+                sys.exit("%s: the PyTorch mirror has %d parameters, the C++ network %d: not the "
+                         "same model" % (enc, py_params, cpp_params))
+            cpp_runs.append(cpp)
+            py_runs.append(py)
+        cpp, py = statistics.median(cpp_runs), statistics.median(py_runs)
+        runs = "%s; %s" % (" ".join("%.1f" % v for v in cpp_runs),
+                           " ".join("%.1f" % v for v in py_runs))
+        rows.append("| %s | %d | %d | %d | %.1f | %.1f | %.2f | %s |" % (
+            enc, args.batch, args.threads, cpp_params, cpp, py, cpp / py, runs))
         print(rows[-1], flush=True)
     text = "\n".join(rows) + "\n"
     print(text)

@@ -2,6 +2,7 @@
 #include "internal/report.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -396,20 +397,35 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
   const double setup_ms = MillisecondsSince(setup_start);
   // per strike: WAV (and robot log) read -> features -> network -> answer; the median of
   // `repeat` runs is the latency
-  std::vector<double> latency_ms;
+  // per run: total, read, features, network (ms)
+  std::array<std::vector<double>, 4> stage_ms;
   learning::Prediction p;
   for (int64_t r = 0; r < repeat; ++r) {
     const auto start = std::chrono::steady_clock::now();
     const hardware::Capture cap =
         hardware::LoadCapture(wav, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
-    p = localizer.Predict(featurizer.Compute(cap.audio, cap.proprio)).front();
-    latency_ms.push_back(MillisecondsSince(start));
+    const auto read = std::chrono::steady_clock::now();
+    const learning::FeatureSet features = featurizer.Compute(cap.audio, cap.proprio);
+    const auto featured = std::chrono::steady_clock::now();
+    p = localizer.Predict(features).front();
+    stage_ms[0].push_back(MillisecondsSince(start));
+    stage_ms[1].push_back(std::chrono::duration<double, std::milli>(read - start).count());
+    stage_ms[2].push_back(std::chrono::duration<double, std::milli>(featured - read).count());
+    stage_ms[3].push_back(MillisecondsSince(featured));
   }
-  std::nth_element(latency_ms.begin(), latency_ms.begin() + repeat / 2, latency_ms.end());
-  const double median_ms = latency_ms[repeat / 2];
+  // medians over the runs, each stage on its own
+  std::array<double, 4> median{};
+  for (size_t i = 0; i < stage_ms.size(); ++i) {
+    std::vector<double>& v = stage_ms[i];
+    std::nth_element(v.begin(), v.begin() + repeat / 2, v.end());
+    median[i] = v[static_cast<size_t>(repeat / 2)];
+  }
+  const double median_ms = median[0];
   const Eigen::Vector3d point = SurfacePoint(config.tube, p.z_m, p.theta_rad);
   json j = {{"z_m", p.z_m}, {"theta_rad", p.theta_rad}, {"point_m", {point.x(), point.y(), point.z()}},
-            {"frame", "tube"}, {"latency_ms", median_ms}, {"setup_ms", setup_ms}};
+            {"frame", "tube"}, {"latency_ms", median_ms}, {"setup_ms", setup_ms},
+            {"latency_breakdown_ms",
+             {{"read", median[1]}, {"features", median[2]}, {"network", median[3]}}}};
   // the predictive distribution (null for a model without one); the theta interval is
   // [theta - h, theta + h], not wrapped, so lo < hi also across +-pi
   std::string text = fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, "
@@ -431,8 +447,9 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
                         p.z_std_m, p.z_m - z_half, p.z_m + z_half, theta_std,
                         p.theta_rad - theta_half, p.theta_rad + theta_half, p.theta_kappa);
   }
-  text += fmt::format("latency {:.1f} ms from WAV read to answer (median of {}); set-up {:.0f} ms\n",
-                      median_ms, repeat, setup_ms);
+  text += fmt::format("latency {:.1f} ms from WAV read to answer (median of {}: read {:.1f}, "
+                      "features {:.1f}, network {:.1f}); set-up {:.0f} ms\n",
+                      median_ms, repeat, median[1], median[2], median[3], setup_ms);
   return {j.dump(), text};
 }
 

@@ -31,6 +31,24 @@ ModalitySet SelectedModalities(const ModelConfig& config) {
 
 namespace {
 
+// seq applied to x (B, features). For one row, each Linear runs as a matrix-vector product:
+// BLAS gemm repacks the whole weight on every call, which for the GCC encoder's 1024 x 13 245
+// weight cost more than the rest of a batch-1 forward pass together.
+torch::Tensor ForwardRows(nn::Sequential& seq, torch::Tensor x) {
+  for (auto& any : *seq) {
+    const auto* linear = any.ptr()->as<nn::Linear>();
+    if (linear != nullptr && x.dim() == 2 && x.size(0) == 1) {
+      const torch::Tensor row = x.select(0, 0);
+      x = (linear->bias.defined() ? torch::addmv(linear->bias, linear->weight, row)
+                                  : torch::mv(linear->weight, row))
+              .unsqueeze(0);
+    } else {
+      x = any.forward(x);
+    }
+  }
+  return x;
+}
+
 nn::Conv2d Conv(int64_t in, int64_t out, int64_t kernel, int64_t stride, int64_t padding) {
   return nn::Conv2d(nn::Conv2dOptions(in, out, kernel).stride(stride).padding(padding).bias(false));
 }
@@ -157,7 +175,7 @@ AudioEncoderImpl::AudioEncoderImpl(const ModelConfig& config, const NetworkShape
 torch::Tensor AudioEncoderImpl::forward(torch::Tensor mel) {
   // (B, C, mels, crop) -> (B, features) -> (B, width)
   torch::Tensor features = compact_ ? compact_->forward(mel) : resnet_->forward(mel);
-  return projection_->forward(features);
+  return ForwardRows(projection_, features);
 }
 
 GccEncoderImpl::GccEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
@@ -172,7 +190,7 @@ GccEncoderImpl::GccEncoderImpl(const ModelConfig& config, const NetworkShapes& s
 
 torch::Tensor GccEncoderImpl::forward(torch::Tensor gcc) {
   // (B, pairs, lags) -> (B, pairs * lags) -> (B, width)
-  return mlp_->forward(gcc.flatten(1));
+  return ForwardRows(mlp_, gcc.flatten(1));
 }
 
 ProprioEncoderImpl::ProprioEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
@@ -312,7 +330,7 @@ torch::Tensor NetworkImpl::forward(const Batch& batch) {
   for (auto& block : blocks_) x = block->forward(x);
   // CLS output (B, w) -> (B, 3)
   const torch::Tensor cls = x.select(1, 0);
-  const torch::Tensor point = head_->forward(cls);
+  const torch::Tensor point = ForwardRows(head_, cls);
   if (!uncertainty_head_) return point;
   // (B, 2) log sigma_z (cm), log kappa from the detached CLS output -> (B, 5)
   const torch::Tensor raw = uncertainty_head_->forward(cls.detach());

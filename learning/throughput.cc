@@ -22,7 +22,7 @@ ThroughputResult MeasureTrainThroughput(const ModelConfig& model_config,
   model_config.Validate();
   train_config.Validate();
   if (steps < 1) throw ConfigError(fmt::format("throughput steps must be >= 1, got {}", steps));
-  torch::set_num_threads(static_cast<int>(internal::TrainingThreads(train_config)));
+  internal::PrepareTrainingProcess(train_config);
 
   // random features of two batches: mel power in [0, 1), small GCC values, unit proprioception
   const int64_t n = 2 * train_config.batch_size;

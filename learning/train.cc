@@ -194,7 +194,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   }
   if (records.empty()) throw SchemaError("training features: no record has a finite label");
 
-  torch::set_num_threads(static_cast<int>(internal::TrainingThreads(train_config)));
+  internal::PrepareTrainingProcess(train_config);
   std::error_code ec;
   fs::create_directories(run_dir, ec);
   if (ec || !fs::is_directory(run_dir)) {

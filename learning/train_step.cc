@@ -6,6 +6,10 @@
 #include <numbers>
 #include <thread>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <torch/special.h>
 
 #include "internal/data.h"
@@ -38,6 +42,14 @@ LossTerms Loss(const torch::Tensor& out, const torch::Tensor& target, const Trai
 int64_t TrainingThreads(const TrainConfig& train_config) {
   return train_config.threads > 0 ? train_config.threads
                                   : std::max<int64_t>(1, std::thread::hardware_concurrency());
+}
+
+void PrepareTrainingProcess(const TrainConfig& train_config) {
+  torch::set_num_threads(static_cast<int>(TrainingThreads(train_config)));
+#ifdef __GLIBC__
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
 }
 
 StepLoss TrainStep(NetworkImpl& network, torch::optim::Optimizer& optimizer,

@@ -155,6 +155,13 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json where = json::parse(run.out);
   EXPECT_GT(where["latency_ms"].get<double>(), 0.0);
+  // each stage's median is positive and not above the whole's (with slack: medians of the
+  // stages need not add up to the median of the sum)
+  for (const char* stage : {"read", "features", "network"}) {
+    const double ms = where["latency_breakdown_ms"][stage].get<double>();
+    EXPECT_GT(ms, 0.0) << stage;
+    EXPECT_LE(ms, where["latency_ms"].get<double>() * 1.5) << stage;
+  }
   EXPECT_GT(where["z_std_m"].get<double>(), 0.0);
   const double z_lo = where["z_interval_90_m"][0], z_hi = where["z_interval_90_m"][1];
   EXPECT_LT(z_lo, where["z_m"].get<double>());

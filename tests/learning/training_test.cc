@@ -166,6 +166,16 @@ TEST_F(TrainingTest, OverfitsTinySetAndLocalizerReproducesFinalMetrics) {
   EXPECT_DOUBLE_EQ(again.med_cm, metrics.med_cm);
   EXPECT_DOUBLE_EQ(again.angle_err_deg, metrics.angle_err_deg);
   EXPECT_DOUBLE_EQ(again.height_err_cm, metrics.height_err_cm);
+  // A strike alone (localize's batch of one: matrix-vector products) is predicted as within
+  // the batch (matrix products), up to float summation order.
+  const std::vector<Prediction> batched = localizer.Predict(val);
+  for (int64_t i = 0; i < val.size(); ++i) {
+    const Prediction alone = localizer.Predict(val.SelectRows({i})).front();
+    EXPECT_NEAR(alone.z_m, batched[i].z_m, 1e-6) << "row " << i;
+    EXPECT_NEAR(alone.theta_rad, batched[i].theta_rad, 1e-5) << "row " << i;
+    EXPECT_NEAR(alone.z_std_m / batched[i].z_std_m, 1.0, 1e-4) << "row " << i;
+    EXPECT_NEAR(alone.theta_kappa / batched[i].theta_kappa, 1.0, 1e-4) << "row " << i;
+  }
   // On its own training data the fit is good.
   const Metrics fit = ComputeMetrics(localizer.Predict(train), train, kRadius);
   EXPECT_LT(fit.height_err_cm, 1.5);
