@@ -240,6 +240,7 @@ struct GccPhat::Impl {
     std::vector<FftwArray<fftw_complex>> spectra;
     FftwArray<fftw_complex> cross;
     FftwArray<double> correlation;
+    Eigen::ArrayXd weight;  // PHAT weight per bin (n_bins)
   };
 
   int64_t n{0};
@@ -258,6 +259,7 @@ struct GccPhat::Impl {
     for (int c = 0; c < channels; ++c) s->spectra.emplace_back(n_bins);
     s->cross = FftwArray<fftw_complex>(n_bins);
     s->correlation = FftwArray<double>(fft_size);
+    s->weight = Eigen::ArrayXd::Zero(n_bins);
     return s;
   }
 };
@@ -323,14 +325,21 @@ void GccPhat::Compute(const Eigen::MatrixXf& window, Eigen::MatrixXf* out) const
   for (size_t p = 0; p < g.pairs.size(); ++p) {
     const fftw_complex* x = s.spectra[g.pairs[p].first].data();
     const fftw_complex* y = s.spectra[g.pairs[p].second].data();
+    // G, and |G|^2 into the weight array
+    double* weight = s.weight.data();
     for (int64_t k = 0; k < g.n_bins; ++k) {
       const double re = x[k][0] * y[k][0] + x[k][1] * y[k][1];
       const double im = x[k][1] * y[k][0] - x[k][0] * y[k][1];
-      // |G| by sqrt, not hypot: the squares of products of float-born spectra stay far
-      // inside double range, and hypot's scaling cost most of this loop
-      const double weight = 1.0 / (std::sqrt(re * re + im * im) + 1e-10);
-      s.cross[k][0] = re * weight;
-      s.cross[k][1] = im * weight;
+      s.cross[k][0] = re;
+      s.cross[k][1] = im;
+      weight[k] = re * re + im * im;
+    }
+    // 1 / (|G| + eps) as one array expression (packed sqrt and division); |G| by sqrt, not
+    // hypot: the squares of products of float-born spectra stay far inside double range
+    s.weight = (s.weight.sqrt() + 1e-10).inverse();
+    for (int64_t k = 0; k < g.n_bins; ++k) {
+      s.cross[k][0] *= weight[k];
+      s.cross[k][1] *= weight[k];
     }
     fftw_execute_dft_c2r(g.inverse.get(), s.cross.data(), s.correlation.data());
     for (int64_t m = 0; m < lags; ++m) {

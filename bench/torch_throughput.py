@@ -11,8 +11,9 @@ For each audio encoder it runs the C++ benchmark (`train_bench`, Google Benchmar
 runs the real training step of learning/train.cc: batch assembly with augmentation, forward,
 the paper's loss, backward, Adam) and the PyTorch mirror below with the same shapes, batch,
 optimizer and thread count, alternating, `--repeats` times each, and reports the median of
-each side: on a shared machine one run of either can be 15 % off. The PyTorch model is written to have exactly the C++ network's
-parameter count, which the script checks before timing. Inputs are random features of the
+each side: on a shared machine one run of either can be 15 % off. Each C++ run is a fresh
+process; the PyTorch runs share this one. The PyTorch model is written to have exactly the C++
+network's parameter count, which the script checks before timing. Inputs are random features of the
 paper's shapes: mel (6, 50, 517) cropped to 345 frames, GCC (15, 883), proprioception (50, 10).
 """
 

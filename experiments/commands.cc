@@ -408,17 +408,22 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
     const learning::FeatureSet features = featurizer.Compute(cap.audio, cap.proprio);
     const auto featured = std::chrono::steady_clock::now();
     p = localizer.Predict(features).front();
-    stage_ms[0].push_back(MillisecondsSince(start));
-    stage_ms[1].push_back(std::chrono::duration<double, std::milli>(read - start).count());
-    stage_ms[2].push_back(std::chrono::duration<double, std::milli>(featured - read).count());
-    stage_ms[3].push_back(MillisecondsSince(featured));
+    const auto done = std::chrono::steady_clock::now();
+    auto ms = [](auto from, auto to) {
+      return std::chrono::duration<double, std::milli>(to - from).count();
+    };
+    stage_ms[0].push_back(ms(start, done));
+    stage_ms[1].push_back(ms(start, read));
+    stage_ms[2].push_back(ms(read, featured));
+    stage_ms[3].push_back(ms(featured, done));
   }
-  // medians over the runs, each stage on its own
+  // medians over the runs, each stage on its own (the mean of the middle two for an even count)
   std::array<double, 4> median{};
   for (size_t i = 0; i < stage_ms.size(); ++i) {
     std::vector<double>& v = stage_ms[i];
-    std::nth_element(v.begin(), v.begin() + repeat / 2, v.end());
-    median[i] = v[static_cast<size_t>(repeat / 2)];
+    const auto upper = v.begin() + repeat / 2;
+    std::nth_element(v.begin(), upper, v.end());
+    median[i] = repeat % 2 == 1 ? *upper : 0.5 * (*upper + *std::max_element(v.begin(), upper));
   }
   const double median_ms = median[0];
   const Eigen::Vector3d point = SurfacePoint(config.tube, p.z_m, p.theta_rad);

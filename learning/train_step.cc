@@ -47,7 +47,9 @@ int64_t TrainingThreads(const TrainConfig& train_config) {
 void PrepareTrainingProcess(const TrainConfig& train_config) {
   torch::set_num_threads(static_cast<int>(TrainingThreads(train_config)));
 #ifdef __GLIBC__
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  // mallopt returns 0 where this glibc refuses a value (older ones cap the mmap threshold at
+  // 32 MiB): then fall back to that cap
+  if (mallopt(M_MMAP_THRESHOLD, 256 << 20) == 0) mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
 #endif
 }

@@ -29,12 +29,12 @@ LossTerms Loss(const torch::Tensor& out, const torch::Tensor& target, const Trai
 int64_t TrainingThreads(const TrainConfig& train_config);
 
 /// Prepares this process for training steps: torch's intra-op threads (TrainingThreads), and,
-/// with glibc, a malloc that keeps freed memory. By default glibc maps every block over its
-/// dynamic threshold fresh and returns the heap's free top to the system, so each step's
-/// activation and gradient buffers (1-30 MB each) are page-faulted and zeroed again; the
-/// settings here (mmap only above 32 MiB, glibc's ceiling; trim only above 1 GiB) measured
-/// +10-20 % samples/s on the compact model (bench/torch_throughput.py). Process-wide and
-/// idempotent.
+/// with glibc, a malloc that keeps freed memory. By default glibc maps blocks above its dynamic
+/// threshold (at most 32 MiB) fresh, and returns the heap's free top to the system, so each
+/// step's large buffers (the GCC encoder's 54 MB weight gradient and Adam's temporaries among
+/// them) are page-faulted and zeroed again. Here blocks up to 256 MiB come from the heap and
+/// the heap is trimmed only above 1 GiB free; resident memory stays near its peak. Measured
+/// with bench/torch_throughput.py (docs/learning.md). Process-wide and idempotent.
 void PrepareTrainingProcess(const TrainConfig& train_config);
 
 /// Loss values of one step (nll is 0 without the uncertainty head).

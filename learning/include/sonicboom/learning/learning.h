@@ -150,6 +150,9 @@ double LogBesselI0(double kappa);
 /// set. After the last epoch the predictive distribution is calibrated on `val`
 /// (FitUncertaintyCalibration). `surface_radius_m` is used for the 3-D metrics.
 /// Returns the validation metrics of the final, calibrated model.
+/// Process-wide side effects, kept after it returns: torch's intra-op thread count
+/// (train_config.threads) and, with glibc, malloc settings that keep freed memory for reuse
+/// (resident memory stays near its peak; see PrepareTrainingProcess in internal/train_step.h).
 Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
               const std::string& run_dir, bool resume, bool show_progress);
