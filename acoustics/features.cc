@@ -6,8 +6,6 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
-#include <mutex>
-#include <numbers>
 #include <utility>
 
 #include "internal/fftw_util.h"
@@ -56,8 +54,6 @@ using FftwArray = internal::fftw::Array<T>;
 using FftwPlan = internal::fftw::Plan;
 template <typename T>
 using ScratchPool = internal::fftw::ScratchPool<T>;
-using internal::fftw::ReflectIndex;
-std::mutex& FftwPlannerMutex() { return internal::fftw::PlannerMutex(); }
 
 // Smallest m >= n whose only prime factors are 2, 3 and 5 (fast FFTW sizes). The golden
 // script scripts/make_goldens.py uses the same rule, since PHAT output depends on the size.
@@ -91,7 +87,7 @@ struct MelSpectrogram::Impl {
   int64_t hop{0};
   int64_t n_mels{0};
   int64_t n_freqs{0};
-  Eigen::VectorXd window;           // periodic Hann (n_fft)
+  std::vector<double> window;       // periodic Hann (n_fft)
   Eigen::MatrixXf filterbank;       // (n_mels x n_freqs), float copy for callers
   Eigen::MatrixXd filterbank_d;     // (n_mels x n_freqs)
   std::vector<int64_t> band_begin;  // per mel band: first non-zero frequency bin
@@ -127,11 +123,7 @@ MelSpectrogram::MelSpectrogram(int64_t n_fft, int64_t hop, int64_t n_mels, doubl
   m.n_mels = n_mels;
   m.n_freqs = n_fft / 2 + 1;
 
-  // Periodic Hann window of length n_fft (torch.hann_window(periodic=True)).
-  m.window.resize(n_fft);
-  for (int64_t k = 0; k < n_fft; ++k) {
-    m.window[k] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(k) / n_fft);
-  }
+  m.window = internal::fftw::PeriodicHann(n_fft);
 
   // HTK triangular filterbank without area normalisation (torchaudio melscale_fbanks): bin
   // centres linspace(0, floor(sr/2), n_freqs) Hz, n_mels+2 corner frequencies equally spaced
@@ -169,16 +161,7 @@ MelSpectrogram::MelSpectrogram(int64_t n_fft, int64_t hop, int64_t n_mels, doubl
   m.filterbank = m.filterbank_d.cast<float>();
 
   // One r2c plan for a single frame; Compute runs it on per-call scratch arrays.
-  {
-    FftwArray<double> in(n_fft);
-    FftwArray<fftw_complex> out(m.n_freqs);
-    fftw_plan plan = nullptr;
-    {
-      std::lock_guard<std::mutex> lock(FftwPlannerMutex());
-      plan = fftw_plan_dft_r2c_1d(static_cast<int>(n_fft), in.data(), out.data(), FFTW_ESTIMATE);
-    }
-    m.plan.Adopt(plan);
-  }
+  internal::fftw::PlanRealTransforms(n_fft, &m.plan, nullptr);
   const Impl* self = impl_.get();
   m.pool = std::make_unique<ScratchPool<Impl::Scratch>>([self] { return self->MakeScratch(); });
 }
@@ -201,19 +184,7 @@ void MelSpectrogram::Compute(const float* x, int64_t n, Eigen::MatrixXf* out) co
   for (int64_t f = 0; f < frames; ++f) {
     // Frame f covers padded samples [f*hop, f*hop + n_fft), i.e. input samples from
     // f*hop - n_fft/2 (center=True), reflected at both ends, times the Hann window.
-    const int64_t first = f * m.hop - half;
-    const double* w = m.window.data();
-    if (first >= 0 && first + m.n_fft <= n) {
-      // interior frame: no reflection, a straight windowed copy
-      const float* in = x + first;
-      for (int64_t k = 0; k < m.n_fft; ++k) frame[k] = w[k] * in[k];
-    } else {
-      for (int64_t k = 0; k < m.n_fft; ++k) {
-        const int64_t i = first + k;
-        const double sample = (i >= 0 && i < n) ? x[i] : x[ReflectIndex(i, n)];
-        frame[k] = w[k] * sample;
-      }
-    }
+    internal::fftw::WindowedFrame(x, n, f * m.hop - half, m.window.data(), m.n_fft, frame);
     fftw_execute_dft_r2c(m.plan.get(), frame, spectrum);
     // Power spectrum |X|^2 (n_freqs), then sparse product with each triangular band.
     for (int64_t k = 0; k < m.n_freqs; ++k) {
@@ -281,20 +252,7 @@ GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels) : impl_(std::make_uni
   for (int i = 0; i < channels; ++i) {
     for (int j = i + 1; j < channels; ++j) g.pairs.emplace_back(i, j);
   }
-  {
-    FftwArray<double> real(g.fft_size);
-    FftwArray<fftw_complex> complex(g.n_bins);
-    fftw_plan forward = nullptr, inverse = nullptr;
-    {
-      std::lock_guard<std::mutex> lock(FftwPlannerMutex());
-      forward = fftw_plan_dft_r2c_1d(static_cast<int>(g.fft_size), real.data(), complex.data(),
-                                     FFTW_ESTIMATE);
-      inverse = fftw_plan_dft_c2r_1d(static_cast<int>(g.fft_size), complex.data(), real.data(),
-                                     FFTW_ESTIMATE);
-    }
-    g.forward.Adopt(forward);
-    g.inverse.Adopt(inverse);
-  }
+  internal::fftw::PlanRealTransforms(g.fft_size, &g.forward, &g.inverse);
   const Impl* self = impl_.get();
   g.pool = std::make_unique<ScratchPool<Impl::Scratch>>([self] { return self->MakeScratch(); });
 }

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <complex>
 #include <limits>
-#include <numbers>
 #include <vector>
 
 #include "internal/fftw_util.h"
@@ -60,7 +59,7 @@ struct SpectralGate::Impl {
   int64_t bins{0};       // n_fft / 2 + 1
   int64_t freq_bins{0};  // kernel half widths
   int64_t time_frames{0};
-  Eigen::VectorXd window;           // periodic Hann (n_fft)
+  std::vector<double> window;       // periodic Hann (n_fft)
   Eigen::MatrixXd threshold_db;     // (channels x bins)
   Eigen::MatrixXd threshold_power;  // (channels x bins): 10^(threshold_db / 10)
   std::vector<double> freq_norm;    // per bin: 1 / sum of the triangle's taps inside [0, bins)
@@ -88,19 +87,8 @@ struct SpectralGate::Impl {
   // Spectrum of frame f of x (n samples) into s.spectrum: padded samples [f hop, f hop + n_fft)
   // of the centred, reflect-padded signal, times the window.
   void Transform(const float* x, int64_t n, int64_t f, Scratch& s) const {
-    const int64_t first = f * hop - half;
     double* frame = s.frame.data();
-    const double* w = window.data();
-    if (first >= 0 && first + n_fft <= n) {
-      const float* in = x + first;
-      for (int64_t k = 0; k < n_fft; ++k) frame[k] = w[k] * in[k];
-    } else {
-      for (int64_t k = 0; k < n_fft; ++k) {
-        const int64_t i = first + k;
-        const double sample = (i >= 0 && i < n) ? x[i] : x[fftw::ReflectIndex(i, n)];
-        frame[k] = w[k] * sample;
-      }
-    }
+    fftw::WindowedFrame(x, n, f * hop - half, window.data(), n_fft, frame);
     fftw_execute_dft_r2c(forward.get(), frame, s.spectrum.data());
   }
 };
@@ -173,25 +161,8 @@ SpectralGate::SpectralGate(const SpectralGateConfig& config, const Eigen::Matrix
     g.freq_norm[static_cast<size_t>(k)] = 1.0 / inside;
   }
 
-  // periodic Hann
-  g.window.resize(g.n_fft);
-  for (int64_t k = 0; k < g.n_fft; ++k) {
-    g.window[k] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(k) / g.n_fft);
-  }
-  {
-    fftw::Array<double> real(g.n_fft);
-    fftw::Array<fftw_complex> complex(g.bins);
-    fftw_plan forward = nullptr, inverse = nullptr;
-    {
-      std::lock_guard<std::mutex> lock(fftw::PlannerMutex());
-      forward = fftw_plan_dft_r2c_1d(static_cast<int>(g.n_fft), real.data(), complex.data(),
-                                     FFTW_ESTIMATE);
-      inverse = fftw_plan_dft_c2r_1d(static_cast<int>(g.n_fft), complex.data(), real.data(),
-                                     FFTW_ESTIMATE);
-    }
-    g.forward.Adopt(forward);
-    g.inverse.Adopt(inverse);
-  }
+  g.window = fftw::PeriodicHann(g.n_fft);
+  fftw::PlanRealTransforms(g.n_fft, &g.forward, &g.inverse);
   const Impl* self = impl_.get();
   g.pool =
       std::make_unique<fftw::ScratchPool<Impl::Scratch>>([self] { return self->MakeScratch(); });

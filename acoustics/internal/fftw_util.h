@@ -69,6 +69,14 @@ class Plan {
   fftw_plan plan_{nullptr};
 };
 
+/// FFTW_ESTIMATE plans of the real transforms of n points: forward r2c (n -> n / 2 + 1 bins) and
+/// inverse c2r, made under the planner lock on scratch Arrays (so they run on any Array of the
+/// same sizes). Either output may be null. Throws NumericalError when FFTW cannot plan.
+void PlanRealTransforms(int64_t n, Plan* forward, Plan* inverse);
+
+/// Periodic Hann window of n points (torch.hann_window(periodic=True), scipy 'hann', sym=False).
+std::vector<double> PeriodicHann(int64_t n);
+
 /// A pool of scratch objects shared by the threads that call one const object. A call leases
 /// one object (created only when every existing one is in use), so in steady state nothing is
 /// allocated and no two concurrent calls share scratch.
@@ -122,6 +130,23 @@ inline int64_t ReflectIndex(int64_t i, int64_t n) {
   int64_t k = i % period;
   if (k < 0) k += period;
   return k < n ? k : period - k;
+}
+
+/// frame[k] = window[k] * x[first + k] for k in [0, n_fft): samples [first, first + n_fft) of x
+/// (n samples), reflect-padded outside [0, n) (ReflectIndex), times the window.
+inline void WindowedFrame(const float* x, int64_t n, int64_t first, const double* window,
+                          int64_t n_fft, double* frame) {
+  if (first >= 0 && first + n_fft <= n) {
+    // inside the signal: a straight windowed copy
+    const float* in = x + first;
+    for (int64_t k = 0; k < n_fft; ++k) frame[k] = window[k] * in[k];
+    return;
+  }
+  for (int64_t k = 0; k < n_fft; ++k) {
+    const int64_t i = first + k;
+    const double sample = (i >= 0 && i < n) ? x[i] : x[ReflectIndex(i, n)];
+    frame[k] = window[k] * sample;
+  }
 }
 
 }  // namespace sonicboom::internal::fftw
