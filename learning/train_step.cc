@@ -39,13 +39,11 @@ LossTerms Loss(const torch::Tensor& out, const torch::Tensor& target, const Trai
   return terms;
 }
 
-int64_t TrainingThreads(const TrainConfig& train_config) {
-  return train_config.threads > 0 ? train_config.threads
-                                  : std::max<int64_t>(1, std::thread::hardware_concurrency());
-}
-
 void PrepareTrainingProcess(const TrainConfig& train_config) {
-  torch::set_num_threads(static_cast<int>(TrainingThreads(train_config)));
+  const int64_t threads = train_config.threads > 0
+                              ? train_config.threads
+                              : std::max<int64_t>(1, std::thread::hardware_concurrency());
+  torch::set_num_threads(static_cast<int>(threads));
 #ifdef __GLIBC__
   // mallopt returns 0 where this glibc refuses a value (older ones cap the mmap threshold at
   // 32 MiB): then fall back to that cap

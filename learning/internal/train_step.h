@@ -25,11 +25,8 @@ struct LossTerms {
 /// detached: only the uncertainty outputs learn from it.
 LossTerms Loss(const torch::Tensor& out, const torch::Tensor& target, const TrainConfig& c);
 
-/// Intra-op threads for training: train_config.threads, or every core when it is 0.
-int64_t TrainingThreads(const TrainConfig& train_config);
-
-/// Prepares this process for training steps: torch's intra-op threads (TrainingThreads), and,
-/// with glibc, a malloc that keeps freed memory. By default glibc maps blocks above its dynamic
+/// Prepares this process for training steps: torch's intra-op threads (train_config.threads,
+/// or every core when it is 0), and, with glibc, a malloc that keeps freed memory. By default glibc maps blocks above its dynamic
 /// threshold (at most 32 MiB) fresh, and returns the heap's free top to the system, so each
 /// step's large buffers (the GCC encoder's 54 MB weight gradient and Adam's temporaries among
 /// them) are page-faulted and zeroed again. Here blocks up to 256 MiB come from the heap and
