@@ -92,6 +92,8 @@ struct MelSpectrogram::Impl {
   Eigen::MatrixXd filterbank_d;     // (n_mels x n_freqs)
   std::vector<int64_t> band_begin;  // per mel band: first non-zero frequency bin
   std::vector<int64_t> band_end;    // per mel band: one past the last non-zero bin
+  std::vector<double> band_weights; // the non-zero weights of band j, contiguous from
+  std::vector<int64_t> band_offset; // band_offset[j] (n_mels + 1 offsets)
   FftwPlan plan;                    // r2c of one frame
   std::unique_ptr<ScratchPool<Scratch>> pool;
 
@@ -158,6 +160,14 @@ MelSpectrogram::MelSpectrogram(int64_t n_fft, int64_t hop, int64_t n_mels, doubl
     m.band_begin[j] = std::min(begin, end);
     m.band_end[j] = end;
   }
+  // each band's weights in one contiguous run, for the per-frame product
+  m.band_offset.assign(n_mels + 1, 0);
+  for (int64_t j = 0; j < n_mels; ++j) {
+    for (int64_t k = m.band_begin[j]; k < m.band_end[j]; ++k) {
+      m.band_weights.push_back(m.filterbank_d(j, k));
+    }
+    m.band_offset[j + 1] = static_cast<int64_t>(m.band_weights.size());
+  }
   m.filterbank = m.filterbank_d.cast<float>();
 
   // One r2c plan for a single frame; Compute runs it on per-call scratch arrays.
@@ -173,29 +183,41 @@ int64_t MelSpectrogram::Frames(int64_t n) const { return 1 + n / impl_->hop; }
 const Eigen::MatrixXf& MelSpectrogram::filterbank() const { return impl_->filterbank; }
 
 void MelSpectrogram::Compute(const float* x, int64_t n, Eigen::MatrixXf* out) const {
+  Compute(x, n, 0, Frames(n), out);
+}
+
+void MelSpectrogram::Compute(const float* x, int64_t n, int64_t first_frame, int64_t frames,
+                             Eigen::MatrixXf* out) const {
   if (n <= 0) throw Error(fmt::format("mel spectrogram of an empty signal (n = {})", n));
+  if (first_frame < 0 || frames < 0 || first_frame + frames > Frames(n)) {
+    throw Error(fmt::format("mel frames [{}, {}) outside the {} frames of {} samples", first_frame,
+                            first_frame + frames, Frames(n), n));
+  }
   const Impl& m = *impl_;
-  const int64_t frames = Frames(n);
   out->resize(m.n_mels, frames);
   auto scratch = m.pool->Acquire();
   double* frame = scratch->frame.data();
   fftw_complex* spectrum = scratch->spectrum.data();
+  double* power = scratch->power.data();
   const int64_t half = m.n_fft / 2;
-  for (int64_t f = 0; f < frames; ++f) {
+  for (int64_t i = 0; i < frames; ++i) {
     // Frame f covers padded samples [f*hop, f*hop + n_fft), i.e. input samples from
     // f*hop - n_fft/2 (center=True), reflected at both ends, times the Hann window.
+    const int64_t f = first_frame + i;
     internal::fftw::WindowedFrame(x, n, f * m.hop - half, m.window.data(), m.n_fft, frame);
     fftw_execute_dft_r2c(m.plan.get(), frame, spectrum);
-    // Power spectrum |X|^2 (n_freqs), then sparse product with each triangular band.
+    // Power spectrum |X|^2 (n_freqs), then each band's weights over its contiguous bins.
     for (int64_t k = 0; k < m.n_freqs; ++k) {
-      scratch->power[k] = spectrum[k][0] * spectrum[k][0] + spectrum[k][1] * spectrum[k][1];
+      power[k] = spectrum[k][0] * spectrum[k][0] + spectrum[k][1] * spectrum[k][1];
     }
+    float* column = out->data() + i * m.n_mels;
     for (int64_t j = 0; j < m.n_mels; ++j) {
+      const double* w = m.band_weights.data() + m.band_offset[j];
+      const double* p = power + m.band_begin[j];
+      const int64_t taps = m.band_offset[j + 1] - m.band_offset[j];
       double sum = 0.0;
-      for (int64_t k = m.band_begin[j]; k < m.band_end[j]; ++k) {
-        sum += m.filterbank_d(j, k) * scratch->power[k];
-      }
-      (*out)(j, f) = static_cast<float>(sum);
+      for (int64_t k = 0; k < taps; ++k) sum += w[k] * p[k];
+      column[j] = static_cast<float>(sum);
     }
   }
 }
@@ -204,14 +226,15 @@ void MelSpectrogram::Compute(const float* x, int64_t n, Eigen::MatrixXf* out) co
 // GccPhat
 
 struct GccPhat::Impl {
-  // Per-call scratch: the zero-padded channel (fft_size), the spectra of all channels
-  // (channels x (fft_size/2+1)), the PHAT-weighted cross spectrum and its inverse (fft_size).
+  // Per-call scratch: the zero-padded channel (fft_size), the spectra and magnitudes of all
+  // channels (channels x (fft_size/2+1)), the PHAT-weighted cross spectrum and its inverse
+  // (fft_size).
   struct Scratch {
     FftwArray<double> signal;
     std::vector<FftwArray<fftw_complex>> spectra;
+    std::vector<std::vector<double>> magnitudes;  // |X_c| per bin
     FftwArray<fftw_complex> cross;
     FftwArray<double> correlation;
-    Eigen::ArrayXd weight;  // PHAT weight per bin (n_bins)
   };
 
   int64_t n{0};
@@ -227,10 +250,12 @@ struct GccPhat::Impl {
   std::unique_ptr<Scratch> MakeScratch() const {
     auto s = std::make_unique<Scratch>();
     s->signal = FftwArray<double>(fft_size);
-    for (int c = 0; c < channels; ++c) s->spectra.emplace_back(n_bins);
+    for (int c = 0; c < channels; ++c) {
+      s->spectra.emplace_back(n_bins);
+      s->magnitudes.emplace_back(static_cast<size_t>(n_bins), 0.0);
+    }
     s->cross = FftwArray<fftw_complex>(n_bins);
     s->correlation = FftwArray<double>(fft_size);
-    s->weight = Eigen::ArrayXd::Zero(n_bins);
     return s;
   }
 };
@@ -259,7 +284,7 @@ GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels) : impl_(std::make_uni
 
 GccPhat::~GccPhat() = default;
 
-void GccPhat::Compute(const Eigen::MatrixXf& window, Eigen::MatrixXf* out) const {
+void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::MatrixXf* out) const {
   const Impl& g = *impl_;
   if (window.rows() != g.channels || window.cols() != g.n) {
     throw Error(fmt::format("GCC-PHAT expects a ({} x {}) window, got ({} x {})", g.channels, g.n,
@@ -270,36 +295,35 @@ void GccPhat::Compute(const Eigen::MatrixXf& window, Eigen::MatrixXf* out) const
   auto scratch = g.pool->Acquire();
   Impl::Scratch& s = *scratch;
 
-  // Spectrum of every channel, zero-padded from n to fft_size samples.
+  // Spectrum X_c of every channel, zero-padded from n to fft_size samples, and its magnitude.
   std::fill(s.signal.data() + g.n, s.signal.data() + g.fft_size, 0.0);
   for (int c = 0; c < g.channels; ++c) {
-    for (int64_t t = 0; t < g.n; ++t) s.signal[t] = window(c, t);
-    fftw_execute_dft_r2c(g.forward.get(), s.signal.data(), s.spectra[c].data());
+    const float* row = window.data() + c * window.outerStride();
+    for (int64_t t = 0; t < g.n; ++t) s.signal[t] = row[t];
+    fftw_complex* x = s.spectra[c].data();
+    fftw_execute_dft_r2c(g.forward.get(), s.signal.data(), x);
+    double* magnitude = s.magnitudes[c].data();
+    for (int64_t k = 0; k < g.n_bins; ++k) {
+      magnitude[k] = std::sqrt(x[k][0] * x[k][0] + x[k][1] * x[k][1]);
+    }
   }
 
-  // Per pair (i, j): G = X_i conj(X_j), PHAT weight G / (|G| + 1e-10), inverse FFT / fft_size.
-  // Output column m is lag m - max_lag; negative lag L sits at index fft_size + L.
+  // Per pair (i, j): G = X_i conj(X_j), PHAT weight G / (|G| + 1e-10) with |G| = |X_i| |X_j|,
+  // inverse FFT / fft_size. Output column m is lag m - max_lag; negative lag L sits at index
+  // fft_size + L.
   const double scale = 1.0 / static_cast<double>(g.fft_size);
   for (size_t p = 0; p < g.pairs.size(); ++p) {
     const fftw_complex* x = s.spectra[g.pairs[p].first].data();
     const fftw_complex* y = s.spectra[g.pairs[p].second].data();
-    // G, and |G|^2 into the weight array
-    double* weight = s.weight.data();
+    const double* mx = s.magnitudes[g.pairs[p].first].data();
+    const double* my = s.magnitudes[g.pairs[p].second].data();
+    fftw_complex* cross = s.cross.data();
     for (int64_t k = 0; k < g.n_bins; ++k) {
-      const double re = x[k][0] * y[k][0] + x[k][1] * y[k][1];
-      const double im = x[k][1] * y[k][0] - x[k][0] * y[k][1];
-      s.cross[k][0] = re;
-      s.cross[k][1] = im;
-      weight[k] = re * re + im * im;
+      const double weight = 1.0 / (mx[k] * my[k] + 1e-10);
+      cross[k][0] = (x[k][0] * y[k][0] + x[k][1] * y[k][1]) * weight;
+      cross[k][1] = (x[k][1] * y[k][0] - x[k][0] * y[k][1]) * weight;
     }
-    // 1 / (|G| + eps) as one array expression (packed sqrt and division); |G| by sqrt, not
-    // hypot: the squares of products of float-born spectra stay far inside double range
-    s.weight = (s.weight.sqrt() + 1e-10).inverse();
-    for (int64_t k = 0; k < g.n_bins; ++k) {
-      s.cross[k][0] *= weight[k];
-      s.cross[k][1] *= weight[k];
-    }
-    fftw_execute_dft_c2r(g.inverse.get(), s.cross.data(), s.correlation.data());
+    fftw_execute_dft_c2r(g.inverse.get(), cross, s.correlation.data());
     for (int64_t m = 0; m < lags; ++m) {
       const int64_t lag = m - g.max_lag;
       const int64_t index = lag >= 0 ? lag : g.fft_size + lag;
@@ -331,11 +355,13 @@ int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double 
     const int64_t len = std::min(frame, total - start);
     return static_cast<double>(audio.middleCols(start, len).cast<double>().squaredNorm());
   };
-  double peak = 0.0;
-  for (int64_t start = 0; start < total; start += frame) peak = std::max(peak, energy(start));
-  const double level = threshold * peak;
-  for (int64_t start = 0; start < total; start += frame) {
-    if (energy(start) >= level) return start;
+  // per frame energies (one pass over the record), then the first at threshold * peak
+  std::vector<double> energies;
+  energies.reserve(static_cast<size_t>((total + frame - 1) / frame));
+  for (int64_t start = 0; start < total; start += frame) energies.push_back(energy(start));
+  const double level = threshold * *std::max_element(energies.begin(), energies.end());
+  for (size_t i = 0; i < energies.size(); ++i) {
+    if (energies[i] >= level) return static_cast<int64_t>(i) * frame;
   }
   return 0;
 }
@@ -344,10 +370,9 @@ int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double 
 // FeatureExtractor
 
 struct FeatureExtractor::Impl {
-  // Per-call scratch: the window (channels x window_samples) and one channel of it.
+  // Per-call scratch: the window (channels x window_samples, one contiguous row per channel).
   struct Scratch {
-    Eigen::MatrixXf window;
-    std::vector<float> row;
+    RowMatrixXf window;
   };
 
   FeatureConfig config;
@@ -474,8 +499,7 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
   const int64_t n = e.window_samples;
   e.pool = std::make_unique<ScratchPool<Impl::Scratch>>([channels, n] {
     auto s = std::make_unique<Impl::Scratch>();
-    s->window = Eigen::MatrixXf::Zero(channels, n);
-    s->row.assign(static_cast<size_t>(n), 0.0f);
+    s->window = RowMatrixXf::Zero(channels, n);
     return s;
   });
 }
@@ -488,21 +512,32 @@ int64_t FeatureExtractor::gcc_lags() const { return 2 * impl_->config.gcc_max_la
 int FeatureExtractor::channels() const { return impl_->channels; }
 const SpectralGate* FeatureExtractor::gate() const { return impl_->gate.get(); }
 
-StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio) const {
+StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
+                                         const FeatureRequest& request) const {
   const Impl& e = *impl_;
   if (audio.rows() != e.channels) {
     throw Error(
         fmt::format("feature extraction expects {} channels, got {}", e.channels, audio.rows()));
+  }
+  const int64_t all_frames = mel_frames();
+  const int64_t first_frame = request.mel_first_frame;
+  const int64_t frames = request.mel_frames < 0 ? all_frames - first_frame : request.mel_frames;
+  if (request.mel && (first_frame < 0 || frames < 0 || first_frame + frames > all_frames)) {
+    throw Error(fmt::format("feature request: mel frames [{}, {}) outside the {} frames of the "
+                            "window",
+                            first_frame, first_frame + frames, all_frames));
   }
   StrikeFeatures features;
   features.onset_sample =
       DetectOnset(audio, e.sample_rate_hz, e.config.onset_frame_s, e.config.onset_threshold);
   const int64_t n = e.window_samples;
   features.window_start = features.onset_sample - n / 2;
+  features.mel_first_frame = first_frame;
+  if (!request.mel && !request.gcc) return features;
 
   // Window (channels x n) centred on the onset; samples outside the record are zero.
   auto scratch = e.pool->Acquire();
-  Eigen::MatrixXf& window = scratch->window;
+  RowMatrixXf& window = scratch->window;
   window.setZero();
   const int64_t lo = std::max<int64_t>(0, features.window_start);
   const int64_t hi = std::min<int64_t>(audio.cols(), features.window_start + n);
@@ -514,25 +549,26 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio) const {
   // mel and GCC-PHAT both see the gated window.
   if (e.gate) {
     for (int c = 0; c < e.channels; ++c) {
-      for (int64_t t = 0; t < n; ++t) scratch->row[t] = window(c, t);
-      e.gate->Apply(scratch->row.data(), n, c, scratch->row.data());
-      for (int64_t t = 0; t < n; ++t) window(c, t) = scratch->row[t];
+      float* row = window.row(c).data();
+      e.gate->Apply(row, n, c, row);
     }
   }
 
   // Power mel (n_mels x frames) per channel, optionally log10(power + 1e-10).
-  features.mel.resize(static_cast<size_t>(e.channels));
-  for (int c = 0; c < e.channels; ++c) {
-    for (int64_t t = 0; t < n; ++t) scratch->row[t] = window(c, t);
-    e.mel->Compute(scratch->row.data(), n, &features.mel[c]);
-    if (e.config.log_mel) {
-      features.mel[c] = features.mel[c].unaryExpr(
-          [](float p) { return static_cast<float>(std::log10(static_cast<double>(p) + 1e-10)); });
+  if (request.mel) {
+    features.mel.resize(static_cast<size_t>(e.channels));
+    for (int c = 0; c < e.channels; ++c) {
+      e.mel->Compute(window.row(c).data(), n, first_frame, frames, &features.mel[c]);
+      if (e.config.log_mel) {
+        features.mel[c] = features.mel[c].unaryExpr([](float p) {
+          return static_cast<float>(std::log10(static_cast<double>(p) + 1e-10));
+        });
+      }
     }
   }
 
   // GCC-PHAT (pairs x lags) on the same window.
-  e.gcc->Compute(window, &features.gcc);
+  if (request.gcc) e.gcc->Compute(window, &features.gcc);
   return features;
 }
 

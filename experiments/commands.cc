@@ -393,7 +393,9 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
   const auto setup_start = std::chrono::steady_clock::now();
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
   learning::Localizer localizer(model_dir);
-  const RecordFeaturizer featurizer(config, config.audio.sample_rate_hz, config.mics.count());
+  // only what the model reads: its modalities, and of the spectrogram only its crop
+  const RecordFeaturizer featurizer(config, config.audio.sample_rate_hz, config.mics.count(),
+                                    localizer.needs());
   const double setup_ms = MillisecondsSince(setup_start);
   // per strike: WAV (and robot log) read -> features -> network -> answer; the median of
   // `repeat` runs is the latency

@@ -265,17 +265,23 @@ void StoreFeatures(const acoustics::StrikeFeatures& f, const Eigen::MatrixXf& pr
   const int64_t mel_size = set->channels * set->mels * set->frames;
   const int64_t gcc_size = set->gcc_pairs * set->gcc_lags;
   const int64_t prop_size = set->proprio_rows * set->proprio_features;
-  float* mel = set->mel.data() + row * mel_size;
-  for (int64_t c = 0; c < set->channels; ++c) {
-    // (mels x frames) row-major per channel
-    const Eigen::MatrixXf& m = f.mel[c];
-    for (int64_t b = 0; b < set->mels; ++b) {
-      for (int64_t t = 0; t < set->frames; ++t) mel[(c * set->mels + b) * set->frames + t] = m(b, t);
+  // (mels x frames) row-major per channel; skipped when the set holds no mel (not asked for)
+  if (!set->mel.empty()) {
+    float* mel = set->mel.data() + row * mel_size;
+    for (int64_t c = 0; c < set->channels; ++c) {
+      const Eigen::MatrixXf& m = f.mel[c];
+      for (int64_t b = 0; b < set->mels; ++b) {
+        for (int64_t t = 0; t < set->frames; ++t) {
+          mel[(c * set->mels + b) * set->frames + t] = m(b, t);
+        }
+      }
     }
   }
-  float* gcc = set->gcc.data() + row * gcc_size;
-  for (int64_t p = 0; p < set->gcc_pairs; ++p) {
-    for (int64_t l = 0; l < set->gcc_lags; ++l) gcc[p * set->gcc_lags + l] = f.gcc(p, l);
+  if (!set->gcc.empty()) {
+    float* gcc = set->gcc.data() + row * gcc_size;
+    for (int64_t p = 0; p < set->gcc_pairs; ++p) {
+      for (int64_t l = 0; l < set->gcc_lags; ++l) gcc[p * set->gcc_lags + l] = f.gcc(p, l);
+    }
   }
   // proprioception: the first proprio_rows rows, zeros where the record has fewer
   float* prop = set->proprio.data() + row * prop_size;
@@ -464,27 +470,46 @@ void ForEachRecord(const DatasetReader& reader, const std::vector<int64_t>& rows
 }
 
 struct RecordFeaturizer::Impl {
-  Impl(const SonicBoomConfig& config, double sample_rate_hz, int channels)
-      : noise(GatingClipFor(config, sample_rate_hz, channels, "record")),
+  Impl(const SonicBoomConfig& config, double sample_rate_hz, int channels,
+       const acoustics::FeatureRequest& request)
+      : noise(request.mel || request.gcc
+                  ? GatingClipFor(config, sample_rate_hz, channels, "record")
+                  : Eigen::MatrixXf()),
         fx(config.features, sample_rate_hz, channels, noise.size() > 0 ? &noise : nullptr),
+        request(request),
         n_mels(config.features.n_mels),
         proprio_rows(config.strike.proprio_rows) {}
   Eigen::MatrixXf noise;  // (C x T) reference clip of the gate, empty without gating
   acoustics::FeatureExtractor fx;
+  acoustics::FeatureRequest request;
   int64_t n_mels, proprio_rows;
 };
 
 RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
                                    int channels)
-    : impl_(std::make_unique<Impl>(config, sample_rate_hz, channels)) {}
+    : impl_(std::make_unique<Impl>(config, sample_rate_hz, channels,
+                                   acoustics::FeatureRequest{})) {}
+
+RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
+                                   int channels, const learning::FeatureNeeds& needs)
+    : impl_(std::make_unique<Impl>(
+          config, sample_rate_hz, channels,
+          acoustics::FeatureRequest{needs.audio, needs.gcc, needs.mel_first_frame,
+                                    needs.audio ? needs.mel_frames : 0})) {}
+
 RecordFeaturizer::~RecordFeaturizer() = default;
 
 learning::FeatureSet RecordFeaturizer::Compute(const Eigen::MatrixXf& audio,
                                                const Eigen::MatrixXf& proprio) const {
+  const acoustics::FeatureRequest& request = impl_->request;
   learning::FeatureSet set = AllocateFeatures(impl_->fx, 1, impl_->proprio_rows);
   set.mels = impl_->n_mels;
+  if (request.mel_frames >= 0) set.frames = request.mel_frames;
   ResizeArrays(1, &set);
-  StoreFeatures(impl_->fx.Compute(audio), proprio, 0, &set);
+  // arrays of parts not asked for stay empty
+  if (!request.mel) set.mel.clear();
+  if (!request.gcc) set.gcc.clear();
+  StoreFeatures(impl_->fx.Compute(audio, request), proprio, 0, &set);
   return set;
 }
 

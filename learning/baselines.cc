@@ -177,7 +177,7 @@ KnnBaseline::KnnBaseline(const FeatureSet& train, const KnnConfig& config)
     throw SchemaError(fmt::format("kNN: knn.gcc_lags = {} exceeds the {} GCC lags each side",
                                   config.gcc_lags, train.gcc_lags / 2));
   }
-  m.crop_start = train.frames / 2 - config.crop_frames / 2;  // as the network's centre crop
+  m.crop_start = CentreCropStart(train.frames, config.crop_frames);
   m.mel_dims = train.channels * train.mels * config.pooled_frames;
   m.gcc_dims = config.gcc_lags > 0 ? train.gcc_pairs * (2 * config.gcc_lags + 1) : 0;
   if (m.mel_dims + m.gcc_dims == 0) throw SchemaError("kNN: the feature vector is empty");

@@ -195,6 +195,10 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
   return metrics;
 }
 
+int64_t CentreCropStart(int64_t frames, int64_t crop_frames) {
+  return frames / 2 - crop_frames / 2;
+}
+
 FeatureSet FeatureSet::ShapesOnly() const {
   FeatureSet shapes;
   shapes.channels = channels;

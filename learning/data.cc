@@ -156,7 +156,7 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
   if (use.audio) batch.mel = torch::empty({b_count, f.channels, f.mels, crop_frames});
   if (use.gcc) batch.gcc = torch::empty({b_count, f.gcc_pairs, f.gcc_lags});
   if (use.proprio) batch.proprio = torch::empty({b_count, f.proprio_rows, f.proprio_features});
-  const int64_t centre_start = f.frames / 2 - crop_frames / 2;
+  const int64_t centre_start = CentreCropStart(f.frames, crop_frames);
   // Each record fills its own slice of the batch tensors.
   tbb::parallel_for(int64_t{0}, b_count, [&](int64_t b) {
     const int64_t r = records[b];

@@ -71,11 +71,20 @@ Localizer& Localizer::operator=(Localizer&&) noexcept = default;
 std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   const internal::ModalitySet use = impl_->network->modalities();
   internal::CheckFeatureSet(features, use, "features to localize");
-  internal::CheckSameShapes(impl_->file.shapes, features, use, "features to localize");
-  std::vector<Prediction> predictions =
-      internal::PredictAll(*impl_->network, features, impl_->file.model_config.crop_frames);
+  // the whole-window spectrogram as trained, or exactly the crop (its centre crop is itself)
+  const int64_t crop = impl_->file.model_config.crop_frames;
+  FeatureSet expected = impl_->file.shapes.ShapesOnly();
+  if (use.audio && features.frames == crop) expected.frames = crop;
+  internal::CheckSameShapes(expected, features, use, "features to localize");
+  std::vector<Prediction> predictions = internal::PredictAll(*impl_->network, features, crop);
   for (Prediction& p : predictions) p = ApplyCalibration(p, impl_->file.calibration);
   return predictions;
+}
+
+FeatureNeeds Localizer::needs() const {
+  const internal::ModalitySet use = impl_->network->modalities();
+  const int64_t frames = impl_->file.shapes.frames, crop = impl_->file.model_config.crop_frames;
+  return FeatureNeeds{use.audio, use.gcc, use.proprio, CentreCropStart(frames, crop), crop};
 }
 
 bool Localizer::has_uncertainty() const { return impl_->network->has_uncertainty_head(); }

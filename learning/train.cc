@@ -303,7 +303,11 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   }
   // Post-hoc calibration of the predictive distribution on the validation split: one scale
   // for sigma_z, one for kappa, each minimizing the mean validation NLL.
-  internal::ModelFile model_file{model_config, train.ShapesOnly(), surface_radius_m, seed};
+  internal::ModelFile model_file;
+  model_file.model_config = model_config;
+  model_file.shapes = train.ShapesOnly();
+  model_file.surface_radius_m = surface_radius_m;
+  model_file.seed = seed;
   std::vector<Prediction> predictions =
       internal::PredictAll(*network, val, model_config.crop_frames);
   if (uncertainty_head) {

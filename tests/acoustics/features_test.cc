@@ -405,6 +405,31 @@ TEST(FeatureExtractorTest, ConcurrentComputeMatchesSerial) {
   }
 }
 
+TEST(FeatureExtractorTest, RequestedPartsEqualThoseOfTheWhole) {
+  const FeatureExtractor extractor(FeatureConfig{}, kFs, 6);
+  const Eigen::MatrixXf audio = StrikeRecord(88200, 30000);
+  const StrikeFeatures whole = extractor.Compute(audio);
+  // the model's centre crop only, no GCC-PHAT
+  const StrikeFeatures crop = extractor.Compute(audio, FeatureRequest{true, false, 86, 345});
+  EXPECT_EQ(crop.onset_sample, whole.onset_sample);
+  EXPECT_EQ(crop.mel_first_frame, 86);
+  ASSERT_EQ(crop.mel.size(), 6u);
+  for (int c = 0; c < 6; ++c) {
+    ASSERT_EQ(crop.mel[c].cols(), 345);
+    EXPECT_TRUE(crop.mel[c] == whole.mel[c].middleCols(86, 345)) << "channel " << c;
+  }
+  EXPECT_EQ(crop.gcc.size(), 0);
+  // GCC-PHAT only
+  const StrikeFeatures gcc = extractor.Compute(audio, FeatureRequest{false, true, 0, -1});
+  EXPECT_TRUE(gcc.mel.empty());
+  EXPECT_TRUE(gcc.gcc == whole.gcc);
+  // frames through the end (-1), and a range past it
+  const StrikeFeatures tail = extractor.Compute(audio, FeatureRequest{true, false, 500, -1});
+  EXPECT_TRUE(tail.mel[0] == whole.mel[0].middleCols(500, 17));
+  EXPECT_THROW(extractor.Compute(audio, FeatureRequest{true, true, 200, 345}), Error);
+  EXPECT_THROW(extractor.Compute(audio, FeatureRequest{true, true, -1, 10}), Error);
+}
+
 TEST(FeatureExtractorTest, RejectsWrongChannelCount) {
   const FeatureExtractor extractor(FeatureConfig{}, kFs, 6);
   EXPECT_THROW(extractor.Compute(Eigen::MatrixXf::Zero(2, 70000)), Error);

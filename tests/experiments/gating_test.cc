@@ -184,6 +184,19 @@ TEST(GatedFeaturesTest, DatasetAndRecordPathsGateAlike) {
         << "sample " << i;
     EXPECT_TRUE(std::equal(one.gcc.begin(), one.gcc.end(), gated.gcc.begin() + row * gcc_size))
         << "sample " << i;
+    // what a model reads (localize): 20 centre frames and no GCC-PHAT, the same gated values
+    const learning::FeatureNeeds needs{true, false, true, 30, 20};
+    const RecordFeaturizer only(config, reader.info().sample_rate_hz, 6, needs);
+    const learning::FeatureSet part = only.Compute(sample.audio, sample.proprio);
+    ASSERT_EQ(part.frames, 20);
+    EXPECT_TRUE(part.gcc.empty());
+    EXPECT_EQ(part.proprio, one.proprio);
+    ASSERT_EQ(part.mel.size(), static_cast<size_t>(6 * one.mels * 20));
+    for (int64_t band = 0; band < 6 * one.mels; ++band) {
+      EXPECT_TRUE(std::equal(part.mel.begin() + band * 20, part.mel.begin() + (band + 1) * 20,
+                             one.mel.begin() + band * one.frames + 30))
+          << "sample " << i << " channel-band " << band;
+    }
     ++row;
   }
   EXPECT_EQ(row, gated.size());

@@ -176,6 +176,28 @@ TEST_F(TrainingTest, OverfitsTinySetAndLocalizerReproducesFinalMetrics) {
     EXPECT_NEAR(alone.z_std_m / batched[i].z_std_m, 1.0, 1e-4) << "row " << i;
     EXPECT_NEAR(alone.theta_kappa / batched[i].theta_kappa, 1.0, 1e-4) << "row " << i;
   }
+  // What the model reads: every modality and the centre 32 of 40 frames. Features holding only
+  // those frames (localize's featurizer) predict exactly what the whole window does.
+  const FeatureNeeds needs = localizer.needs();
+  EXPECT_TRUE(needs.audio && needs.gcc && needs.proprio);
+  EXPECT_EQ(needs.mel_first_frame, 4);
+  EXPECT_EQ(needs.mel_frames, 32);
+  FeatureSet cropped = val;
+  cropped.frames = needs.mel_frames;
+  cropped.mel.clear();
+  for (int64_t row = 0; row < val.size() * val.channels * val.mels; ++row) {
+    const auto first = val.mel.begin() + row * val.frames + needs.mel_first_frame;
+    cropped.mel.insert(cropped.mel.end(), first, first + needs.mel_frames);
+  }
+  const std::vector<Prediction> from_crop = localizer.Predict(cropped);
+  for (int64_t i = 0; i < val.size(); ++i) {
+    EXPECT_EQ(from_crop[i].z_m, batched[i].z_m) << "row " << i;
+    EXPECT_EQ(from_crop[i].theta_rad, batched[i].theta_rad) << "row " << i;
+  }
+  // any other frame count is a shape error naming the key
+  cropped.frames = 33;
+  cropped.mel.resize(val.size() * val.channels * val.mels * 33);
+  EXPECT_THROW(localizer.Predict(cropped), SchemaError);
   // On its own training data the fit is good.
   const Metrics fit = ComputeMetrics(localizer.Predict(train), train, kRadius);
   EXPECT_LT(fit.height_err_cm, 1.5);

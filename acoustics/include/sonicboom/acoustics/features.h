@@ -47,9 +47,25 @@ struct FeatureConfig {
 struct StrikeFeatures {
   int64_t onset_sample{0};         // onset in the input record, samples
   int64_t window_start{0};         // first input sample of the window (may be negative: zero-padded)
-  std::vector<Eigen::MatrixXf> mel;  // per channel (n_mels x frames)
-  Eigen::MatrixXf gcc;             // (pairs x lags), pairs in itertools.combinations order
+  int64_t mel_first_frame{0};      // frame of the whole-window spectrogram that mel[c] starts at
+  std::vector<Eigen::MatrixXf> mel;  // per channel (n_mels x frames); empty when not requested
+  Eigen::MatrixXf gcc;             // (pairs x lags), pairs in itertools.combinations order;
+                                   // 0 x 0 when not requested
 };
+
+/// What one FeatureExtractor::Compute call produces; the rest is not computed. The default is
+/// everything, as datasets store it; a localizer asks only for what its model reads. The gate
+/// runs when mel or GCC-PHAT is asked for, always over the whole window, so that a part equals
+/// the same part of the whole.
+struct FeatureRequest {
+  bool mel{true};
+  bool gcc{true};
+  int64_t mel_first_frame{0};      // first frame of the whole-window spectrogram
+  int64_t mel_frames{-1};          // frames from mel_first_frame; -1: through the last frame
+};
+
+/// Row-major float matrix: one contiguous row per channel.
+using RowMatrixXf = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 /// The gate parameters of a feature config (the gating_* keys).
 SpectralGateConfig GatingConfig(const FeatureConfig& config);
@@ -71,7 +87,9 @@ class FeatureExtractor {
   FeatureExtractor(const FeatureExtractor&) = delete;
   FeatureExtractor& operator=(const FeatureExtractor&) = delete;
 
-  StrikeFeatures Compute(const Eigen::MatrixXf& audio) const;
+  /// Features of a (C x T) record; `request` picks the parts (all by default). Throws Error
+  /// for a wrong channel count or a mel frame range outside [0, mel_frames()].
+  StrikeFeatures Compute(const Eigen::MatrixXf& audio, const FeatureRequest& request = {}) const;
 
   int64_t window_samples() const;  // round(window_s * fs)
   int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded)
@@ -99,6 +117,10 @@ class MelSpectrogram {
   int64_t Frames(int64_t n) const;  // 1 + n / hop
   /// x: n samples; out: (n_mels x Frames(n)), resized if needed.
   void Compute(const float* x, int64_t n, Eigen::MatrixXf* out) const;
+  /// Frames [first_frame, first_frame + frames) of the same spectrogram only; out:
+  /// (n_mels x frames). Throws Error unless 0 <= first_frame <= first_frame + frames <= Frames(n).
+  void Compute(const float* x, int64_t n, int64_t first_frame, int64_t frames,
+               Eigen::MatrixXf* out) const;
   /// (n_mels x n_fft/2+1) triangular filterbank.
   const Eigen::MatrixXf& filterbank() const;
 
@@ -117,7 +139,7 @@ class GccPhat {
   GccPhat(const GccPhat&) = delete;
   GccPhat& operator=(const GccPhat&) = delete;
   /// window: (C x n); out: (pairs x 2*max_lag+1), resized if needed.
-  void Compute(const Eigen::MatrixXf& window, Eigen::MatrixXf* out) const;
+  void Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::MatrixXf* out) const;
 
  private:
   struct Impl;

@@ -79,7 +79,12 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
 /// for records of `channels` channels at `sample_rate_hz`, then computed many times.
 class RecordFeaturizer {
  public:
+  /// Every feature of the whole window, as datasets hold them.
   RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz, int channels);
+  /// Only what a model reads (Localizer::needs()): its modalities, and of the mel spectrogram
+  /// only its crop; the arrays of other modalities stay empty. No gate without mel or GCC.
+  RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz, int channels,
+                   const learning::FeatureNeeds& needs);
   ~RecordFeaturizer();
   RecordFeaturizer(const RecordFeaturizer&) = delete;
   RecordFeaturizer& operator=(const RecordFeaturizer&) = delete;

@@ -158,6 +158,21 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
               const std::string& run_dir, bool resume, bool show_progress);
 
 /// A trained model loaded from a run directory, for evaluation and localization.
+/// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
+/// spectrogram (the un-augmented crop of training, evaluation and localization).
+int64_t CentreCropStart(int64_t frames, int64_t crop_frames);
+
+/// What a model reads of each strike's features: its modalities and, with audio, the frames of
+/// its centre crop in the whole-window spectrogram. A feature set holding only those frames
+/// (FeatureSet.frames == mel_frames) is taken by Localizer::Predict as the crop itself.
+struct FeatureNeeds {
+  bool audio{true};
+  bool gcc{true};
+  bool proprio{true};
+  int64_t mel_first_frame{0};
+  int64_t mel_frames{0};
+};
+
 class Localizer {
  public:
   explicit Localizer(const std::string& run_dir);  // throws IoError/SchemaError naming the file
@@ -166,8 +181,11 @@ class Localizer {
   Localizer& operator=(Localizer&&) noexcept;
 
   /// Point estimates and, when the model has an uncertainty head, the calibrated predictive
-  /// distribution (see Prediction).
+  /// distribution (see Prediction). `features` holds the whole-window spectrogram (as trained)
+  /// or only the crop (needs()); arrays of modalities the model does not read may be empty.
   std::vector<Prediction> Predict(const FeatureSet& features) const;
+  /// The features the model reads (for featurizers that compute only those).
+  FeatureNeeds needs() const;
   /// Whether predictions carry a distribution: false for models trained with
   /// train.uncertainty_weight = 0 or before the uncertainty head existed (their weights lack it).
   bool has_uncertainty() const;
