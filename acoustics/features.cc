@@ -23,6 +23,7 @@ void FeatureConfig::Serialize(Archive* a) {
   a->Visit("f_max_hz", &f_max_hz, Bounds::NonNegative());
   a->Visit("log_mel", &log_mel);
   a->Visit("gcc_max_lag", &gcc_max_lag, Bounds::NonNegative());
+  a->Visit("gcc_window_s", &gcc_window_s, Bounds::NonNegative());
   a->Visit("onset_frame_s", &onset_frame_s, Bounds::Positive());
   a->Visit("onset_threshold", &onset_threshold, Bounds{0.0, 1.0, true, false});
   a->Visit("gating", &gating);
@@ -379,6 +380,7 @@ struct FeatureExtractor::Impl {
   double sample_rate_hz{0.0};
   int channels{0};
   int64_t window_samples{0};
+  int64_t gcc_samples{0};              // GCC-PHAT span, centred in the window
   std::unique_ptr<SpectralGate> gate;  // null: no gating
   std::unique_ptr<MelSpectrogram> mel;
   std::unique_ptr<GccPhat> gcc;
@@ -421,12 +423,20 @@ void ValidateFeatureConfig(const FeatureConfig& c, double fs, int channels) {
     throw ConfigError(
         fmt::format("features.f_min_hz must be < f_max ({} Hz), got {}", f_max, c.f_min_hz));
   }
-  if (c.gcc_max_lag < 0 || c.gcc_max_lag >= window_samples) {
-    throw ConfigError(
-        fmt::format("features.gcc_max_lag must be in [0, window samples = {}), "
-                    "got {}",
-                    window_samples, c.gcc_max_lag));
+  if (!(c.gcc_window_s >= 0.0 && c.gcc_window_s <= c.window_s)) {
+    throw ConfigError(fmt::format("features.gcc_window_s must be in [0, features.window_s = {}] "
+                                  "s (0: the whole window), got {}",
+                                  c.window_s, c.gcc_window_s));
   }
+  const int64_t gcc_samples =
+      c.gcc_window_s > 0.0 ? std::llround(c.gcc_window_s * fs) : window_samples;
+  if (c.gcc_max_lag < 0 || c.gcc_max_lag >= gcc_samples) {
+    throw ConfigError(
+        fmt::format("features.gcc_max_lag must be in [0, GCC-PHAT samples = {}), "
+                    "got {} (features.gcc_window_s sets the span; 0 is the whole window)",
+                    gcc_samples, c.gcc_max_lag));
+  }
+
   if (!(c.onset_frame_s > 0.0)) {
     throw ConfigError(fmt::format("features.onset_frame_s must be > 0, got {}", c.onset_frame_s));
   }
@@ -482,7 +492,9 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
   const double f_max = config.f_max_hz == 0.0 ? sample_rate_hz / 2.0 : config.f_max_hz;
   e.mel = std::make_unique<MelSpectrogram>(config.n_fft, config.hop, config.n_mels, config.f_min_hz,
                                            f_max, sample_rate_hz);
-  e.gcc = std::make_unique<GccPhat>(e.window_samples, config.gcc_max_lag, channels);
+  e.gcc_samples = config.gcc_window_s > 0.0 ? std::llround(config.gcc_window_s * sample_rate_hz)
+                                            : e.window_samples;
+  e.gcc = std::make_unique<GccPhat>(e.gcc_samples, config.gcc_max_lag, channels);
   if (config.gating && noise_clip != nullptr) {
     if (noise_clip->rows() != channels) {
       throw ConfigError(fmt::format("features.gating: the reference noise clip has {} channels, "
@@ -509,6 +521,7 @@ FeatureExtractor::~FeatureExtractor() = default;
 int64_t FeatureExtractor::window_samples() const { return impl_->window_samples; }
 int64_t FeatureExtractor::mel_frames() const { return impl_->mel->Frames(impl_->window_samples); }
 int64_t FeatureExtractor::gcc_lags() const { return 2 * impl_->config.gcc_max_lag + 1; }
+int64_t FeatureExtractor::gcc_samples() const { return impl_->gcc_samples; }
 int FeatureExtractor::channels() const { return impl_->channels; }
 const SpectralGate* FeatureExtractor::gate() const { return impl_->gate.get(); }
 
@@ -567,8 +580,10 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
     }
   }
 
-  // GCC-PHAT (pairs x lags) on the same window.
-  if (request.gcc) e.gcc->Compute(window, &features.gcc);
+  // GCC-PHAT (pairs x lags) on the same window, or on its centre span of gcc_samples
+  if (request.gcc) {
+    e.gcc->Compute(window.middleCols(n / 2 - e.gcc_samples / 2, e.gcc_samples), &features.gcc);
+  }
   return features;
 }
 

@@ -124,9 +124,9 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
   FeatureCache train_features(o.data, g.threads, g.quiet), test_features(o.test, g.threads, g.quiet);
   json rows = json::array();
   std::string table =
-      "| ablation | modalities | gating | shift | masks | norm | 3-D MED (cm) | height (cm) | "
-      "angle (deg) | train (s) | description |\n"
-      "|---|---|---|---|---|---|---|---|---|---|---|\n";
+      "| ablation | modalities | gating | GCC span (s) | shift | masks | norm | 3-D MED (cm) | "
+      "height (cm) | angle (deg) | train (s) | description |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (size_t i = 0; i < variants.size(); ++i) {
     const Variant& v = variants[i];
     const SonicBoomConfig& config = configs[i];
@@ -157,20 +157,25 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     const learning::TrainConfig& t = config.train;
     const bool masks = t.augment && (t.time_mask_frames > 0 || t.freq_mask_bands > 0);
     const bool shift = t.augment && t.time_shift_frames > 0;
+    const double gcc_span_s = config.features.gcc_window_s > 0.0 ? config.features.gcc_window_s
+                                                                 : config.features.window_s;
     json row = {{"name", v.name},
                 {"description", v.description},
                 {"config", v.path},
                 {"modalities", config.model.modalities},
                 {"gating", config.features.gating},
+                {"gcc_span_s", gcc_span_s},
                 {"time_shift", shift},
                 {"masking", masks},
                 {"normalize", t.normalize},
                 {"train_s", train_s},
                 {"test", MetricsJson(m)}};
     rows.push_back(row);
-    table += fmt::format("| {} | {} | {} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} | {} |\n",
+    table += fmt::format("| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} "
+                         "| {} |\n",
                          v.name, Join(config.model.modalities), config.features.gating ? "on" : "off",
-                         shift ? "on" : "off", masks ? "on" : "off", t.normalize ? "on" : "off",
+                         gcc_span_s, shift ? "on" : "off", masks ? "on" : "off",
+                         t.normalize ? "on" : "off",
                          m.med_cm, m.height_err_cm, m.angle_err_deg, train_s, v.description);
   }
 

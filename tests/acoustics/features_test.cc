@@ -430,6 +430,25 @@ TEST(FeatureExtractorTest, RequestedPartsEqualThoseOfTheWhole) {
   EXPECT_THROW(extractor.Compute(audio, FeatureRequest{true, true, -1, 10}), Error);
 }
 
+TEST(FeatureExtractorTest, GccWindowIsTheCentreSpanOfTheWindow) {
+  FeatureConfig config;
+  config.gcc_window_s = 0.2;
+  const FeatureExtractor extractor(config, kFs, 6);
+  EXPECT_EQ(extractor.gcc_samples(), 8820);
+  const Eigen::MatrixXf audio = StrikeRecord(88200, 30000);
+  const StrikeFeatures f = extractor.Compute(audio);
+  // reference: the 8820 samples centred on the window's centre (the onset), by hand
+  const int64_t first = f.window_start + 66150 / 2 - 8820 / 2;
+  GccPhat gcc(8820, 441, 6);
+  Eigen::MatrixXf expected;
+  gcc.Compute(audio.middleCols(first, 8820), &expected);
+  EXPECT_TRUE(f.gcc == expected);
+  // and not the whole window's GCC-PHAT
+  const StrikeFeatures whole = FeatureExtractor(FeatureConfig{}, kFs, 6).Compute(audio);
+  EXPECT_GT((whole.gcc - f.gcc).cwiseAbs().maxCoeff(), 1e-3f);
+  EXPECT_TRUE(whole.mel[0] == f.mel[0]);
+}
+
 TEST(FeatureExtractorTest, RejectsWrongChannelCount) {
   const FeatureExtractor extractor(FeatureConfig{}, kFs, 6);
   EXPECT_THROW(extractor.Compute(Eigen::MatrixXf::Zero(2, 70000)), Error);
@@ -471,6 +490,13 @@ INSTANTIATE_TEST_SUITE_P(
                       [](FeatureConfig* c) { c->gcc_max_lag = 66150; }},
         BadConfigCase{"features.gcc_max_lag", "got -2",
                       [](FeatureConfig* c) { c->gcc_max_lag = -2; }},
+        BadConfigCase{"features.gcc_window_s", "got 2",
+                      [](FeatureConfig* c) { c->gcc_window_s = 2.0; }},
+        BadConfigCase{"features.gcc_window_s", "got -0.1",
+                      [](FeatureConfig* c) { c->gcc_window_s = -0.1; }},
+        // 0.005 s is 221 samples, too few for lags up to 441
+        BadConfigCase{"features.gcc_max_lag", "GCC-PHAT samples = 221",
+                      [](FeatureConfig* c) { c->gcc_window_s = 0.005; }},
         BadConfigCase{"features.onset_frame_s", "got 0",
                       [](FeatureConfig* c) { c->onset_frame_s = 0.0; }},
         BadConfigCase{"features.onset_threshold", "got 1.5",
@@ -529,19 +555,20 @@ TEST(FeatureConfigTest, SerializeVisitsEveryMemberByName) {
   for (const auto& f : archive.fields) names.push_back(f.name);
   EXPECT_THAT(names,
               ::testing::ElementsAre("window_s", "n_fft", "hop", "n_mels", "f_min_hz", "f_max_hz",
-                                     "log_mel", "gcc_max_lag", "onset_frame_s", "onset_threshold",
+                                     "log_mel", "gcc_max_lag", "gcc_window_s", "onset_frame_s",
+                                     "onset_threshold",
                                      "gating", "gating_n_std", "gating_n_fft", "gating_hop",
                                      "gating_freq_smooth_hz", "gating_time_smooth_s",
                                      "gating_prop_decrease", "gating_noise_wav"));
-  ASSERT_EQ(archive.fields.size(), 18u);
+  ASSERT_EQ(archive.fields.size(), 19u);
   // window_s: (0, inf); hop: (0, inf); log_mel: bool; onset_threshold: (0, 1].
   EXPECT_EQ(archive.fields[0].bounds.lo, 0.0);
   EXPECT_TRUE(archive.fields[0].bounds.lo_open);
   EXPECT_EQ(archive.fields[2].kind, "int");
   EXPECT_TRUE(archive.fields[2].bounds.lo_open);
   EXPECT_EQ(archive.fields[6].kind, "bool");
-  EXPECT_EQ(archive.fields[9].bounds.hi, 1.0);
-  EXPECT_FALSE(archive.fields[9].bounds.hi_open);
+  EXPECT_EQ(archive.fields[10].bounds.hi, 1.0);
+  EXPECT_FALSE(archive.fields[10].bounds.hi_open);
 }
 
 }  // namespace

@@ -34,7 +34,8 @@ TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
                    dir.path().string()).exit_code, 0);
   Write(dir / "abl/01-all.yaml", "# every modality\n{}\n");
   Write(dir / "abl/02-proprio.yaml", "# proprioception only\nmodel:\n  modalities: [proprio]\n");
-  Write(dir / "abl/03-no_norm.yaml", "# no normalization\ntrain:\n  normalize: false\n");
+  Write(dir / "abl/03-no_norm.yaml",
+        "# no normalization\ntrain:\n  normalize: false\nfeatures:\n  gcc_window_s: 0.1\n");
   const std::string cmd =
       kTiny + "ablate --data D.h5 --test T.h5 --out A --configs abl --json -q";
   auto run = RunCli(cmd, dir.path().string());
@@ -46,6 +47,8 @@ TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
   EXPECT_EQ(j["ablations"][1]["name"], "proprio");
   EXPECT_EQ(j["ablations"][1]["modalities"], json({"proprio"}));
   EXPECT_EQ(j["ablations"][2]["normalize"], false);
+  EXPECT_EQ(j["ablations"][0]["gcc_span_s"], 1.5);
+  EXPECT_EQ(j["ablations"][2]["gcc_span_s"], 0.1);
   EXPECT_EQ(j["ablations"][0]["description"], "every modality");
   for (const json& row : j["ablations"]) {
     EXPECT_EQ(row["test"]["n"], 8) << row.dump();

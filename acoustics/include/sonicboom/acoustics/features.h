@@ -25,6 +25,8 @@ struct FeatureConfig {
   double f_max_hz{0.0};            // 0 = Nyquist
   bool log_mel{false};             // paper: power mel, no log; log10(power + 1e-10) when true
   int64_t gcc_max_lag{441};        // lags -max..+max samples (883 values)
+  double gcc_window_s{0.0};        // GCC-PHAT over this span centred on the onset (the centre
+                                   // of the window); 0 = the whole window (the paper)
   double onset_frame_s{0.0029};    // energy-envelope frame (~128 samples at 44.1 kHz)
   double onset_threshold{0.1};     // fraction of the envelope peak that marks the onset
   // stationary spectral gating of the window against a reference noise clip (spectral_gate.h),
@@ -94,6 +96,7 @@ class FeatureExtractor {
   int64_t window_samples() const;  // round(window_s * fs)
   int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded)
   int64_t gcc_lags() const;        // 2 * gcc_max_lag + 1
+  int64_t gcc_samples() const;     // GCC-PHAT span: round(gcc_window_s * fs), or the window
   int channels() const;
   /// The gate applied to each window, or null when gating is off.
   const SpectralGate* gate() const;

@@ -1,0 +1,90 @@
+#!/usr/bin/python3
+"""Localize latency of trained runs, one Markdown row per run, beside their accuracy.
+
+Each run is timed by `sonicboom localize --repeat N` on one core (taskset -c CORE, one torch
+thread, OMP_NUM_THREADS=1): WAV read to answer, median of N, with its read / features / network
+split. With --results (the results.json of `sonicboom ablate`), each run's held-out 3-D MED is
+looked up by its directory name.
+
+Usage: /usr/bin/python3 scripts/latency_table.py --wav STRIKE.wav [--repeat 20] [--core 0]
+           [--results RESULTS.json] [--bin build/bin/sonicboom] RUN_DIR...
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def run_json(cmd, env=None):
+    """Runs a sonicboom command with --json and returns its parsed output; exits on failure."""
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if done.returncode != 0:
+        sys.exit(f"latency_table: {' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")
+    return json.loads(done.stdout)
+
+
+def feature_keys(config_yaml):
+    """The `features:` section of a run's config.yaml (as train writes it: one `  key: value`
+    line per key) as strings."""
+    keys, inside = {}, False
+    with open(config_yaml) as f:
+        for line in f:
+            if not line.startswith(" "):
+                inside = line.rstrip() == "features:"
+            elif inside and line.startswith("  ") and ":" in line:
+                key, value = line.strip().split(":", 1)
+                keys[key] = value.strip().strip('"')
+    if "gating" not in keys or "window_s" not in keys:
+        sys.exit(f"latency_table: {config_yaml}: no features.gating / features.window_s")
+    return keys
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", help="run directories (model.json + model.pt)")
+    parser.add_argument("--wav", required=True, help="6-channel strike WAV to localize")
+    parser.add_argument("--repeat", type=int, default=20)
+    parser.add_argument("--core", type=int, default=0, help="CPU the timing runs on")
+    parser.add_argument("--results", help="results.json of `sonicboom ablate` (MED per run)")
+    parser.add_argument("--bin", default=os.environ.get(
+        "SONICBOOM_BIN", os.path.join(ROOT, "build", "bin", "sonicboom")))
+    args = parser.parse_args()
+    if args.repeat < 1:
+        sys.exit(f"latency_table: --repeat must be >= 1, got {args.repeat}")
+    for path in [args.wav, args.bin] + ([args.results] if args.results else []):
+        if not os.path.exists(path):
+            sys.exit(f"latency_table: {path}: not found")
+
+    med = {}
+    if args.results:
+        with open(args.results) as f:
+            med = {row["name"]: row["test"]["med_cm"] for row in json.load(f)["ablations"]}
+
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    print("| run | encoder | width | blocks | modalities | gating | GCC span (s) | parameters "
+          "| 3-D MED (cm) | latency (ms) | read | features | network |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for run in args.runs:
+        name = os.path.basename(os.path.normpath(run))
+        info = run_json([args.bin, "inspect", run, "--json"])
+        model = info["model"]["model"]
+        features = feature_keys(os.path.join(run, "config.yaml"))
+        out = run_json(["taskset", "-c", str(args.core), args.bin, "--threads", "1", "-q",
+                        "localize", "--model", run, "--wav", args.wav, "--repeat",
+                        str(args.repeat), "--json"], env)
+        split = out["latency_breakdown_ms"]
+        # configs written before features.gcc_window_s existed: the whole window
+        span = float(features.get("gcc_window_s", "0")) or float(features["window_s"])
+        med_cell = f"{med[name]:.2f}" if name in med else ""
+        print(f"| {name} | {model['audio_encoder']} | {model['width']} | {model['blocks']} "
+              f"| {'+'.join(model['modalities'])} | {'on' if features['gating'] == 'true' else 'off'} "
+              f"| {span:g} | {info['parameters']['total']:,} | {med_cell} "
+              f"| {out['latency_ms']:.1f} | {split['read']:.1f} | {split['features']:.1f} "
+              f"| {split['network']:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
