@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <complex>
 #include <limits>
 #include <vector>
 
@@ -30,24 +29,35 @@ void CheckRange(const char* name, double value, double lo, double hi) {
 }  // namespace
 
 struct SpectralGate::Impl {
-  // Per-call scratch: one frame and its spectrum (FFTW-aligned), the STFT of the call, the rings
-  // and running sums of the streaming pass, the overlap-add accumulator; and what depends only
-  // on the signal length, kept for the next call of the same length. Grown, never shrunk.
+  // Mask smoothing in exact arithmetic. The binary mask b(k, f) in {0, 1} is smoothed by integer
+  // triangles, C(k, f) = sum_i (n_f + 1 - |i|) b(k + i, f) over frequency, then
+  // T(k, p) = sum_j (n_t + 1 - |j|) C(k, p + j) over time (zero outside the spectrogram), in Count:
+  // int32_t when the whole kernel's sum fits, else double (integers, exact below 2^53).
+  template <typename Count>
+  struct Counts {
+    std::vector<Count> curvature;    // one frame's second difference of C over frequency
+    std::vector<Count> ring;         // C of the last min(2 n_t + 3, frames) frames (bins each)
+    std::vector<Count> zeros;        // C outside the spectrogram (bins)
+    std::vector<Count> step, total;  // per bin: T(k, p) - T(k, p - 1) and T(k, p)
+  };
+
+  // Per-call scratch: one frame and its masked spectrum (FFTW-aligned), the STFT of the call and
+  // its binary mask, the smoothing counts, the overlap-add accumulator; and what depends only on
+  // the signal length, kept for the next call of the same length. Grown, never shrunk.
   struct Scratch {
     fftw::Array<double> frame;
     fftw::Array<fftw_complex> spectrum;
-    std::vector<double> power;                  // |X|^2 of one frame (bins)
-    std::vector<double> pass_power;             // per bin: power to exceed (< 0: all pass)
-    std::vector<std::complex<double>> spectra;  // the STFT (bins x frames, frame-major)
-    std::vector<double> line;                   // one frame's mask, zero-padded
-    std::vector<double> freq_boxes;             // its frequency box sums
-    std::vector<double> smoothed;               // last n_t + 2 frequency-smoothed masks (ring)
-    std::vector<double> boxes;                  // last n_t + 2 time box sums (ring)
-    std::vector<double> box_run, mask_run;      // running sums over time (bins)
-    std::vector<double> overlap_add;            // n_fft samples from the current frame on
-    std::vector<double> time_norm;              // per frame: 1 / triangle taps inside
-    std::vector<double> inverse_window_sum;     // per output sample
-    int64_t cached_n{-1};                       // signal length of the two above
+    fftw::Array<fftw_complex> spectra;       // the STFT: frames columns of `stride` (bins used)
+    std::vector<double> power;               // |X|^2 of one frame (bins)
+    std::vector<double> above;               // 1.0 where it exceeds the threshold, else 0.0
+    std::vector<double> threshold;           // per bin: the power to exceed (< 0: every frame)
+    std::vector<int32_t> mask;               // b: frames rows of mask_stride (MaskRow), padded
+    Counts<int32_t> narrow;                  // the counts, int32_t or double (narrow_counts)
+    Counts<double> wide;
+    std::vector<double> overlap_add;         // padded output samples ((frames - 1) hop + n_fft)
+    std::vector<double> time_norm;           // per frame: 1 / triangle taps inside
+    std::vector<double> inverse_window_sum;  // per output sample
+    int64_t cached_n{-1};                    // signal length of the two above
   };
 
   SpectralGateConfig config;
@@ -55,17 +65,30 @@ struct SpectralGate::Impl {
   int channels{0};
   int64_t n_fft{0};
   int64_t hop{0};
-  int64_t half{0};       // centre padding, n_fft / 2
-  int64_t bins{0};       // n_fft / 2 + 1
-  int64_t freq_bins{0};  // kernel half widths
+  int64_t half{0};         // centre padding, n_fft / 2
+  int64_t bins{0};         // n_fft / 2 + 1
+  int64_t stride{0};       // STFT column stride: bins rounded up to 64 bytes (FFTW alignment kept)
+  int64_t freq_bins{0};    // kernel half widths
   int64_t time_frames{0};
-  std::vector<double> window;       // periodic Hann (n_fft)
-  Eigen::MatrixXd threshold_db;     // (channels x bins)
-  Eigen::MatrixXd threshold_power;  // (channels x bins): 10^(threshold_db / 10)
-  std::vector<double> freq_norm;    // per bin: 1 / sum of the triangle's taps inside [0, bins)
-  fftw::Plan forward;               // r2c, n_fft
-  fftw::Plan inverse;               // c2r, n_fft
+  int64_t mask_stride{0};  // binary mask row: bins, 2 n_f + 2 zeros before and n_f after
+  bool narrow_counts{true};  // the kernel's sum (n_f + 1)^2 (n_t + 1)^2 fits int32_t
+  std::vector<double> window;          // periodic Hann (n_fft)
+  std::vector<double> ola_window;      // window / n_fft: inverse FFT scale and synthesis window
+  Eigen::MatrixXd threshold_db;        // (channels x bins)
+  Eigen::MatrixXd threshold_power;     // (channels x bins): 10^(threshold_db / 10)
+  std::vector<double> keep_freq_norm;  // per bin: prop_decrease / (the triangle's taps inside)
+  fftw::Plan forward;                  // r2c, n_fft
+  fftw::Plan inverse;                  // c2r, n_fft
   std::unique_ptr<fftw::ScratchPool<Scratch>> pool;
+
+  template <typename Count>
+  void MakeCounts(Counts<Count>& c) const {
+    const size_t b = static_cast<size_t>(bins);
+    c.curvature.assign(b + static_cast<size_t>(freq_bins), 0);
+    c.zeros.assign(b, 0);
+    c.step.assign(b, 0);
+    c.total.assign(b, 0);
+  }
 
   std::unique_ptr<Scratch> MakeScratch() const {
     auto s = std::make_unique<Scratch>();
@@ -73,24 +96,31 @@ struct SpectralGate::Impl {
     s->spectrum = fftw::Array<fftw_complex>(bins);
     const size_t b = static_cast<size_t>(bins);
     s->power.assign(b, 0.0);
-    s->pass_power.assign(b, 0.0);
-    s->smoothed.assign(b * static_cast<size_t>(time_frames + 2), 0.0);
-    s->boxes.assign(b * static_cast<size_t>(time_frames + 2), 0.0);
-    s->box_run.assign(b, 0.0);
-    s->mask_run.assign(b, 0.0);
-    s->line.assign(b + 2 * static_cast<size_t>(freq_bins + 1), 0.0);
-    s->freq_boxes.assign(b + static_cast<size_t>(freq_bins + 1), 0.0);
-    s->overlap_add.assign(static_cast<size_t>(n_fft), 0.0);
+    s->above.assign(b, 0.0);
+    s->threshold.assign(b, 0.0);
+    if (narrow_counts) {
+      MakeCounts(s->narrow);
+    } else {
+      MakeCounts(s->wide);
+    }
     return s;
   }
 
-  // Spectrum of frame f of x (n samples) into s.spectrum: padded samples [f hop, f hop + n_fft)
-  // of the centred, reflect-padded signal, times the window.
-  void Transform(const float* x, int64_t n, int64_t f, Scratch& s) const {
+  // Spectrum of frame f of x (n samples) into spectrum (bins, FFTW-aligned): padded samples
+  // [f hop, f hop + n_fft) of the centred, reflect-padded signal, times the window.
+  void Transform(const float* x, int64_t n, int64_t f, fftw_complex* spectrum, Scratch& s) const {
     double* frame = s.frame.data();
     fftw::WindowedFrame(x, n, f * hop - half, window.data(), n_fft, frame);
-    fftw_execute_dft_r2c(forward.get(), frame, s.spectrum.data());
+    fftw_execute_dft_r2c(forward.get(), frame, spectrum);
   }
+
+  // b(0, f): row f of the binary mask, b(k, f) at [k] for k in [-2 n_f - 2, bins + n_f)
+  int32_t* MaskRow(Scratch& s, int64_t f) const {
+    return s.mask.data() + f * mask_stride + 2 * freq_bins + 2;
+  }
+
+  template <typename Count>
+  void Synthesize(Scratch& s, Counts<Count>& c, int64_t n, float* out) const;
 };
 
 SpectralGate::SpectralGate(const SpectralGateConfig& config, const Eigen::MatrixXf& noise_clip,
@@ -152,16 +182,28 @@ SpectralGate::SpectralGate(const SpectralGateConfig& config, const Eigen::Matrix
   g.time_frames = static_cast<int64_t>(
       std::floor((config.time_smooth_s * 1000.0) /
                  ((static_cast<double>(config.hop) / sample_rate_hz) * 1000.0)));
-  // border normalization over frequency: the triangle's taps n + 1 - |i| inside [0, bins)
-  g.freq_norm.assign(static_cast<size_t>(g.bins), 0.0);
+  // border normalization over frequency: the triangle's taps n + 1 - |i| inside [0, bins), with
+  // the mask's share prop_decrease folded in
+  g.keep_freq_norm.assign(static_cast<size_t>(g.bins), 0.0);
   for (int64_t k = 0; k < g.bins; ++k) {
     double inside = 0.0;
     const int64_t lo = std::max(-g.freq_bins, -k), hi = std::min(g.freq_bins, g.bins - 1 - k);
     for (int64_t i = lo; i <= hi; ++i) inside += static_cast<double>(g.freq_bins + 1 - std::abs(i));
-    g.freq_norm[static_cast<size_t>(k)] = 1.0 / inside;
+    g.keep_freq_norm[static_cast<size_t>(k)] = config.prop_decrease * (1.0 / inside);
   }
+  // the smoothed counts are at most the kernel's sum: int32_t when that fits
+  const double taps_f = static_cast<double>(g.freq_bins + 1);
+  const double taps_t = static_cast<double>(g.time_frames + 1);
+  g.narrow_counts = taps_f * taps_f * taps_t * taps_t <=
+                    static_cast<double>(std::numeric_limits<int32_t>::max());
+  g.stride = (g.bins + 3) / 4 * 4;  // 4 complex values = 64 bytes
+  g.mask_stride = g.bins + 3 * g.freq_bins + 2;
 
   g.window = fftw::PeriodicHann(g.n_fft);
+  g.ola_window.resize(g.window.size());
+  for (size_t k = 0; k < g.window.size(); ++k) {
+    g.ola_window[k] = g.window[k] / static_cast<double>(g.n_fft);
+  }
   fftw::PlanRealTransforms(g.n_fft, &g.forward, &g.inverse);
   const Impl* self = impl_.get();
   g.pool =
@@ -180,7 +222,7 @@ SpectralGate::SpectralGate(const SpectralGateConfig& config, const Eigen::Matrix
   for (int c = 0; c < g.channels; ++c) {
     for (int64_t t = 0; t < t_noise; ++t) row[static_cast<size_t>(t)] = noise_clip(c, t);
     for (int64_t f = 0; f < frames; ++f) {
-      g.Transform(row.data(), t_noise, f, s);
+      g.Transform(row.data(), t_noise, f, s.spectrum.data(), s);
       for (int64_t k = 0; k < g.bins; ++k) {
         const double re = s.spectrum[k][0], im = s.spectrum[k][1];
         db(k, f) = 10.0 * std::log10(std::max(re * re + im * im, kAminPower));
@@ -213,16 +255,22 @@ void SpectralGate::Apply(const float* x, int64_t n, int channel, float* out) con
     throw Error(fmt::format("spectral gate: channel {} out of range [0, {})", channel, g.channels));
   }
   if (n < 1) throw Error(fmt::format("spectral gate: empty signal (n = {})", n));
+  // all finite (a vectorized test: NaN fails the comparison), else find the first that is not
+  int non_finite = 0;
   for (int64_t i = 0; i < n; ++i) {
-    if (!std::isfinite(x[i])) {
-      throw Error(fmt::format("spectral gate: non-finite sample ({}) at index {} of channel {}",
-                              x[i], i, channel));
+    non_finite |= !(std::abs(x[i]) <= std::numeric_limits<float>::max());
+  }
+  if (non_finite != 0) {
+    for (int64_t i = 0; i < n; ++i) {
+      if (!std::isfinite(x[i])) {
+        throw Error(fmt::format("spectral gate: non-finite sample ({}) at index {} of channel {}",
+                                x[i], i, channel));
+      }
     }
   }
   auto lease = g.pool->Acquire();
   Impl::Scratch& s = *lease;
-  const int64_t bins = g.bins, hop = g.hop, n_fft = g.n_fft;
-  const int64_t nf = g.freq_bins, nt = g.time_frames;
+  const int64_t bins = g.bins, hop = g.hop, n_fft = g.n_fft, nt = g.time_frames;
   const int64_t frames = 1 + n / hop;
   // what depends on the length only: the time-border normalization of the smoothing and the
   // summed squared window of the overlap-add, per output sample
@@ -247,113 +295,128 @@ void SpectralGate::Apply(const float* x, int64_t n, int channel, float* out) con
     s.cached_n = n;
   }
 
-  // pass 1: the STFT (kept for pass 2, so that x is read completely before out is written) and
-  // its peak power, for the top_db floor of the dB spectrogram
-  const size_t stft_size = static_cast<size_t>(bins * frames);
-  if (s.spectra.size() < stft_size) s.spectra.resize(stft_size);
+  // pass 1: the STFT, straight into s.spectra (kept for pass 2, so that x is read completely
+  // before out is written), and its binary mask. A bin passes when
+  // dB = max(10 log10(max(|X|^2, amin^2)), peak_dB - top_db) > threshold: compared in power
+  // (monotone), first without the top_db floor (which needs the peak power of the whole call):
+  // max(|X|^2, amin^2) > t is |X|^2 > t, or always where t < amin^2 (then -1)
+  if (s.spectra.size() < g.stride * frames) {
+    s.spectra = fftw::Array<fftw_complex>(g.stride * frames);
+  }
+  if (s.mask.size() < static_cast<size_t>(g.mask_stride * frames)) {
+    s.mask.resize(static_cast<size_t>(g.mask_stride * frames), 0);  // the padding stays zero
+  }
+  double* power = s.power.data();
+  double* above = s.above.data();
+  double* threshold = s.threshold.data();
+  for (int64_t k = 0; k < bins; ++k) {
+    const double t = g.threshold_power(channel, k);
+    threshold[k] = t < kAminPower ? -1.0 : t;
+  }
   double peak_power = kAminPower;
   for (int64_t f = 0; f < frames; ++f) {
-    g.Transform(x, n, f, s);
-    std::complex<double>* column = s.spectra.data() + f * bins;
+    fftw_complex* spectrum = s.spectra.data() + f * g.stride;
+    g.Transform(x, n, f, spectrum, s);
+    // |X|^2 written out: std::norm goes through abs (hypot) without -ffast-math
     for (int64_t k = 0; k < bins; ++k) {
-      const double re = s.spectrum[k][0], im = s.spectrum[k][1];
-      column[k] = {re, im};
-      s.power[k] = re * re + im * im;
+      power[k] = spectrum[k][0] * spectrum[k][0] + spectrum[k][1] * spectrum[k][1];
     }
-    peak_power =
-        std::max(peak_power, Eigen::Map<const Eigen::ArrayXd>(s.power.data(), bins).maxCoeff());
+    peak_power = std::max(peak_power, Eigen::Map<const Eigen::ArrayXd>(power, bins).maxCoeff());
+    // through a double 0 / 1, which GCC vectorizes (a comparison into integers it does not)
+    for (int64_t k = 0; k < bins; ++k) above[k] = power[k] > threshold[k] ? 1.0 : 0.0;
+    int32_t* mask = g.MaskRow(s, f);
+    for (int64_t k = 0; k < bins; ++k) mask[k] = static_cast<int32_t>(above[k]);
   }
-  // a bin passes when dB = max(10 log10(max(|X|^2, amin^2)), peak_dB - top_db) > threshold:
-  // compared in power (monotone); where the floor itself exceeds the threshold every frame passes
+  // then the floor: where it exceeds the threshold, every frame passes
   const double floor_db = 10.0 * std::log10(peak_power) - g.config.top_db;
   for (int64_t k = 0; k < bins; ++k) {
-    s.pass_power[k] = floor_db > g.threshold_db(channel, k) ? -1.0 : g.threshold_power(channel, k);
+    if (floor_db > g.threshold_db(channel, k)) {
+      for (int64_t f = 0; f < frames; ++f) g.MaskRow(s, f)[k] = 1;
+    }
   }
-  const double keep = g.config.prop_decrease, base = 1.0 - g.config.prop_decrease;
 
-  // pass 2, streaming over frames. Mask smoothing is separable, and a triangle of half width n
-  // is two running boxes of n + 1 taps: over frequency within a frame, and over time as
-  // box(q) = sum of smoothed(q .. q + n_t), mask(p) = sum of box(p - n_t .. p), updated by one
-  // column entering and one leaving (rings of n_t + 2 columns). Outside the spectrogram the mask
-  // is zero; each output is divided by the same sums over ones (the taps inside). Frame p's mask
-  // is complete once frame p + n_t is in; then its masked spectrum goes through the inverse FFT
-  // into the overlap-add, and the samples no later frame reaches go out.
-  auto spectrum_of = [&](int64_t f) { return s.spectra.data() + f * bins; };
-  auto smoothed_slot = [&](int64_t f) { return s.smoothed.data() + (f % (nt + 2)) * bins; };
-  auto box_slot = [&](int64_t q) { return s.boxes.data() + ((q + nt) % (nt + 2)) * bins; };
-  double* box_run = s.box_run.data();
-  double* mask_run = s.mask_run.data();
-  std::fill(box_run, box_run + bins, 0.0);
-  std::fill(mask_run, mask_run + bins, 0.0);
-  std::fill(s.overlap_add.begin(), s.overlap_add.end(), 0.0);
-  const double scale = 1.0 / static_cast<double>(n_fft);
-  for (int64_t q = -nt; q < frames; ++q) {
-    // frame q + n_t: binary mask, smoothed over frequency, into the ring
-    const int64_t f = q + nt;
+  if (g.narrow_counts) {
+    g.Synthesize(s, s.narrow, n, out);
+  } else {
+    g.Synthesize(s, s.wide, n, out);
+  }
+}
+
+// Pass 2, streaming over frames: the mask of frame p is base + keep T(k, p) freq_norm[k]
+// time_norm[p] (the normalized triangle smoothing of base + keep b, mathematically; with the
+// counts exact, the only rounding is in that product), then the masked spectrum goes through the
+// inverse FFT into the overlap-add, and the samples no later frame reaches go out. A triangle of
+// half width m has second difference +1, -2, +1 at offsets -m - 1, 0, m + 1, so the counts are
+// two running sums over frequency within a frame (C), and two over time per bin (T), with frame
+// p + n_t entering, p - 1 in the middle, p - n_t - 2 leaving (a ring of 2 n_t + 3 columns).
+template <typename Count>
+void SpectralGate::Impl::Synthesize(Scratch& s, Counts<Count>& c, int64_t n, float* out) const {
+  const int64_t nf = freq_bins, nt = time_frames;
+  const int64_t frames = 1 + n / hop;
+  const int64_t ring = std::min(2 * nt + 3, frames);
+  if (c.ring.size() < static_cast<size_t>(ring * bins)) {
+    c.ring.resize(static_cast<size_t>(ring * bins));
+  }
+  // C of frame f (bins): a ring slot inside the spectrogram, zeros outside
+  auto counts_of = [&](int64_t f) {
+    return f >= 0 && f < frames ? c.ring.data() + (f % ring) * bins : c.zeros.data();
+  };
+  Count* step = c.step.data();
+  Count* total = c.total.data();
+  std::fill(step, step + bins, Count{0});
+  std::fill(total, total + bins, Count{0});
+  const int64_t padded_length = (frames - 1) * hop + n_fft;
+  if (s.overlap_add.size() < static_cast<size_t>(padded_length)) {
+    s.overlap_add.resize(static_cast<size_t>(padded_length));
+  }
+  const double base = 1.0 - config.prop_decrease;
+
+  for (int64_t p = -nt; p < frames; ++p) {
+    // frame p + n_t: C over frequency, into the ring
+    const int64_t f = p + nt;
     if (f < frames) {
-      const std::complex<double>* spectrum = spectrum_of(f);
-      // binary mask, zero-padded by nf + 1 bins on both sides: mask[k] at padded[k + nf + 1]
-      double* padded = s.line.data();
-      for (int64_t k = 0; k < bins; ++k) {
-        // |X|^2 written out: std::norm goes through abs (hypot) without -ffast-math
-        const double power =
-            spectrum[k].real() * spectrum[k].real() + spectrum[k].imag() * spectrum[k].imag();
-        const bool pass = std::max(power, kAminPower) > s.pass_power[k];
-        padded[k + nf + 1] = (pass ? keep : 0.0) + base;
+      // C(k) - 2 C(k - 1) + C(k - 2) for k in [-nf, bins), at [k + nf] (C is zero below -nf)
+      const int32_t* b = MaskRow(s, f);
+      Count* curvature = c.curvature.data();
+      for (int64_t k = -nf; k < bins; ++k) {
+        curvature[k + nf] = static_cast<Count>(b[k + nf] - 2 * b[k - 1] + b[k - nf - 2]);
       }
-      // box[b] = sum of mask[b .. b + nf] for b in [-nf - 1, bins), at boxes[b + nf + 1];
-      // then m[k] = sum of box[k - nf .. k] (one add per value on each running chain)
-      double* boxes = s.freq_boxes.data();
-      double run = 0.0;
-      boxes[0] = 0.0;
-      for (int64_t b = -nf; b < bins; ++b) {
-        run += padded[b + 2 * nf + 1] - padded[b + nf];
-        boxes[b + nf + 1] = run;
-      }
-      double* m = smoothed_slot(f);
-      run = 0.0;
-      for (int64_t b = -nf; b < 0; ++b) run += boxes[b + nf + 1];
-      for (int64_t k = 0; k < bins; ++k) {
-        run += boxes[k + nf + 1] - boxes[k];
-        m[k] = run * g.freq_norm[k];
-      }
-      for (int64_t k = 0; k < bins; ++k) box_run[k] += m[k];
+      // two running sums: E(k) = C(k) - C(k - 1), then C(k)
+      Count e = 0, sum = 0;
+      for (int64_t k = 0; k < nf; ++k) sum += e += curvature[k];
+      Count* counts = counts_of(f);
+      for (int64_t k = 0; k < bins; ++k) counts[k] = sum += e += curvature[k + nf];
     }
-    // box(q) = box(q - 1) + smoothed(q + n_t) - smoothed(q - 1)
-    if (q >= 1) {
-      const double* leaving = smoothed_slot(q - 1);
-      for (int64_t k = 0; k < bins; ++k) box_run[k] -= leaving[k];
-    }
-    // mask(q) = mask(q - 1) + box(q) - box(q - n_t - 1); box(q) replaces box(q - n_t - 2)
-    double* box = box_slot(q);
-    if (q >= 1) {
-      const double* leaving = box_slot(q - nt - 1);
-      for (int64_t k = 0; k < bins; ++k) mask_run[k] += box_run[k] - leaving[k];
-    } else {
-      for (int64_t k = 0; k < bins; ++k) mask_run[k] += box_run[k];
-    }
-    std::copy(box_run, box_run + bins, box);
-    if (q < 0) continue;
-
-    // frame q: masked spectrum -> inverse FFT -> windowed overlap-add
-    const std::complex<double>* spectrum = spectrum_of(q);
-    const double norm = s.time_norm[q];
+    // T(k, p) over time, the same recurrence per bin (both zero for p < -nt)
+    const Count* entering = counts_of(p + nt);
+    const Count* centre = counts_of(p - 1);
+    const Count* leaving = counts_of(p - nt - 2);
     for (int64_t k = 0; k < bins; ++k) {
-      const double mask = mask_run[k] * norm;
-      s.spectrum[k][0] = spectrum[k].real() * mask;
-      s.spectrum[k][1] = spectrum[k].imag() * mask;
+      step[k] += entering[k] - 2 * centre[k] + leaving[k];
+      total[k] += step[k];
     }
-    fftw_execute_dft_c2r(g.inverse.get(), s.spectrum.data(), s.frame.data());
-    double* acc = s.overlap_add.data();  // padded samples q hop .. q hop + n_fft
-    for (int64_t k = 0; k < n_fft; ++k) acc[k] += s.frame[k] * g.window[k] * scale;
+    if (p < 0) continue;
+
+    // frame p: masked spectrum -> inverse FFT -> windowed overlap-add (1 / n_fft in the window)
+    const fftw_complex* spectrum = s.spectra.data() + p * stride;
+    const double norm = s.time_norm[p];
+    for (int64_t k = 0; k < bins; ++k) {
+      const double mask = base + keep_freq_norm[k] * norm * static_cast<double>(total[k]);
+      s.spectrum[k][0] = spectrum[k][0] * mask;
+      s.spectrum[k][1] = spectrum[k][1] * mask;
+    }
+    fftw_execute_dft_c2r(inverse.get(), s.spectrum.data(), s.frame.data());
+    // padded samples p hop .. p hop + n_fft; the first n_fft - hop of them earlier frames reached
+    double* acc = s.overlap_add.data() + p * hop;
+    const double* frame = s.frame.data();
+    const int64_t reached = p == 0 ? 0 : n_fft - hop;
+    for (int64_t k = 0; k < reached; ++k) acc[k] += frame[k] * ola_window[k];
+    for (int64_t k = reached; k < n_fft; ++k) acc[k] = frame[k] * ola_window[k];
     // samples no later frame reaches are finished: normalize, trim the centre padding
-    const int64_t done = q + 1 < frames ? hop : n_fft;
-    for (int64_t k = 0; k < done; ++k) {
-      const int64_t i = q * hop + k - g.half;
-      if (i >= 0 && i < n) out[i] = static_cast<float>(acc[k] * s.inverse_window_sum[i]);
+    const int64_t done = p * hop + (p + 1 < frames ? hop : n_fft) - half;
+    for (int64_t i = std::max<int64_t>(p * hop - half, 0); i < std::min(done, n); ++i) {
+      out[i] = static_cast<float>(s.overlap_add[i + half] * s.inverse_window_sum[i]);
     }
-    std::copy(acc + hop, acc + n_fft, acc);
-    std::fill(acc + n_fft - hop, acc + n_fft, 0.0);
   }
 }
 

@@ -10,6 +10,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <complex>
 #include <fstream>
 #include <iostream>
 #include <iomanip>
@@ -190,6 +191,160 @@ TEST(SpectralGateTest, MatchesNumpyGolden) {
     EXPECT_LT(max_err / max_ref, 1e-4) << "channel " << c;
     EXPECT_GT(removed, 0.0) << "the golden must gate something";
     RecordProperty("golden_rel_err_ch" + std::to_string(c), Sci(max_err / max_ref));
+  }
+}
+
+// The gate written out directly, in long double: naive DFT of the centred, reflect-padded,
+// Hann-windowed frames; a bin passes when its dB (floored top_db below the peak) exceeds the
+// gate's threshold; the binary mask convolved with the 2-D triangle, divided by the taps inside
+// the spectrogram; masked spectrum -> inverse DFT -> windowed overlap-add / summed squared window.
+// `margin_db` gets the smallest distance of a bin's dB from its threshold (decisions closer than
+// rounding could go either way).
+std::vector<double> DirectGate(const SpectralGate& gate, const std::vector<float>& x, int channel,
+                               double* margin_db) {
+  const SpectralGateConfig& config = gate.config();
+  const int64_t n = static_cast<int64_t>(x.size()), n_fft = config.n_fft, hop = config.hop;
+  const int64_t half = n_fft / 2, bins = n_fft / 2 + 1, frames = gate.frames(n);
+  const int64_t nf = gate.freq_smooth_bins(), nt = gate.time_smooth_frames();
+  using Real = long double;
+  const Real two_pi = 2 * std::numbers::pi_v<Real>;
+  std::vector<Real> window(static_cast<size_t>(n_fft));
+  for (int64_t m = 0; m < n_fft; ++m) window[m] = 0.5L - 0.5L * std::cos(two_pi * m / n_fft);
+  auto reflect = [n](int64_t i) {
+    if (n == 1) return int64_t{0};
+    const int64_t period = 2 * (n - 1);
+    int64_t k = i % period;
+    if (k < 0) k += period;
+    return k < n ? k : period - k;
+  };
+  // STFT (bins x frames) and its dB
+  std::vector<std::vector<std::complex<Real>>> X(frames, std::vector<std::complex<Real>>(bins));
+  std::vector<std::vector<double>> db(frames, std::vector<double>(bins));
+  double peak_db = -std::numeric_limits<double>::infinity();
+  for (int64_t f = 0; f < frames; ++f) {
+    for (int64_t k = 0; k < bins; ++k) {
+      std::complex<Real> sum = 0;
+      for (int64_t m = 0; m < n_fft; ++m) {
+        const Real sample = window[m] * x[reflect(f * hop + m - half)];
+        sum += sample * std::polar(Real{1}, -two_pi * static_cast<Real>((k * m) % n_fft) / n_fft);
+      }
+      X[f][k] = sum;
+      db[f][k] = 10.0 * std::log10(std::max(static_cast<double>(std::norm(sum)), 1e-40));
+      peak_db = std::max(peak_db, db[f][k]);
+    }
+  }
+  // binary mask
+  std::vector<std::vector<int>> pass(frames, std::vector<int>(bins));
+  *margin_db = std::numeric_limits<double>::infinity();
+  for (int64_t f = 0; f < frames; ++f) {
+    for (int64_t k = 0; k < bins; ++k) {
+      const double value = std::max(db[f][k], peak_db - config.top_db);
+      const double threshold = gate.threshold_db()(channel, k);
+      pass[f][k] = value > threshold;
+      *margin_db = std::min(*margin_db, std::abs(value - threshold));
+    }
+  }
+  // smoothed mask, masked spectrum, inverse DFT, overlap-add
+  std::vector<Real> acc(static_cast<size_t>((frames - 1) * hop + n_fft), 0.0L);
+  std::vector<Real> window_sum(acc.size(), 0.0L);
+  for (int64_t p = 0; p < frames; ++p) {
+    std::vector<std::complex<Real>> Y(bins);
+    for (int64_t k = 0; k < bins; ++k) {
+      Real weighted = 0, taps = 0;  // over the taps inside the spectrogram
+      for (int64_t j = std::max(-nt, -p); j <= std::min(nt, frames - 1 - p); ++j) {
+        for (int64_t i = std::max(-nf, -k); i <= std::min(nf, bins - 1 - k); ++i) {
+          const Real w = static_cast<Real>((nt + 1 - std::abs(j)) * (nf + 1 - std::abs(i)));
+          weighted += w * pass[p + j][k + i];
+          taps += w;
+        }
+      }
+      const Real mask = config.prop_decrease * (weighted / taps) + (1 - config.prop_decrease);
+      Y[k] = X[p][k] * mask;
+    }
+    for (int64_t m = 0; m < n_fft; ++m) {
+      Real y = 0;  // real inverse: DC and Nyquist once (real parts), the others twice
+      for (int64_t k = 0; k < bins; ++k) {
+        const Real weight = (k == 0 || 2 * k == n_fft) ? 1 : 2;
+        const Real angle = two_pi * static_cast<Real>((k * m) % n_fft) / n_fft;
+        y += weight * (Y[k].real() * std::cos(angle) - Y[k].imag() * std::sin(angle));
+      }
+      acc[p * hop + m] += y / n_fft * window[m];
+      window_sum[p * hop + m] += window[m] * window[m];
+    }
+  }
+  std::vector<double> out(static_cast<size_t>(n));
+  for (int64_t i = 0; i < n; ++i) {
+    const Real sum = window_sum[i + half];
+    out[i] = static_cast<double>(sum > 1e-300L ? acc[i + half] / sum : acc[i + half]);
+  }
+  return out;
+}
+
+// Apply against DirectGate on random signals (noise with random bursts) over kernel sizes, border
+// cases (n_f or n_t zero, a signal shorter than a frame, kernels wider than the spectrogram and
+// counts past int32), partial masks (prop_decrease < 1) and the top_db floor.
+TEST(SpectralGateTest, MatchesDirectTriangleSmoothing) {
+  struct Case {
+    double freq_smooth_hz, time_smooth_s, prop_decrease, burst;
+    int64_t n;
+  };
+  constexpr double kRate = 8000.0;  // n_fft 64, hop 16: n_f = floor(hz / 250), n_t = floor(s * 500)
+  const std::vector<Case> cases = {
+      {600.0, 0.007, 1.0, 0.05, 1500},   // n_f 2, n_t 3
+      {900.0, 0.011, 0.7, 0.05, 1500},   // n_f 3, n_t 5, partial
+      {100.0, 0.007, 1.0, 0.05, 1500},   // n_f 0
+      {600.0, 0.001, 0.6, 0.05, 1500},   // n_t 0
+      {0.0, 0.0, 1.0, 0.05, 1500},       // no smoothing
+      {1100.0, 0.02, 1.0, 0.05, 40},     // shorter than a frame, kernel wider than it
+      {4000.0, 6.0, 0.8, 0.05, 600},     // n_f 16, n_t 3000: counts past int32
+      {600.0, 0.007, 1.0, 30.0, 1500},   // a loud burst: the top_db floor passes every bin
+      {600.0, 0.007, 1.0, 6.5, 1500},    // the floor between thresholds: some bins
+  };
+  for (const Case& c : cases) {
+    SpectralGateConfig config;
+    config.n_fft = 64;
+    config.hop = 16;
+    config.n_std = 1.0;  // more passing bins, a richer mask
+    config.freq_smooth_hz = c.freq_smooth_hz;
+    config.time_smooth_s = c.time_smooth_s;
+    config.prop_decrease = c.prop_decrease;
+    config.top_db = 60.0;
+    const SpectralGate gate(config, WhiteNoise(1, 4000, {1e-2}, 71), kRate);
+    // a signal whose decisions are all clear of rounding (another draw otherwise)
+    bool checked = false;
+    for (uint32_t seed = 72; seed < 92 && !checked; ++seed) {
+      std::mt19937 rng(seed);
+      std::uniform_real_distribution<double> uniform(0.0, 1.0);
+      Eigen::MatrixXf noise = WhiteNoise(1, c.n, {1e-2}, seed);
+      std::vector<float> x(noise.data(), noise.data() + c.n);
+      for (int burst = 0; burst < 4; ++burst) {  // decaying tones at random times and pitches
+        const int64_t onset = static_cast<int64_t>(uniform(rng) * static_cast<double>(c.n));
+        const double amplitude = c.burst * (0.5 + 0.5 * uniform(rng));
+        const double f_hz = 200.0 + 3500.0 * uniform(rng), tau_s = 0.002 + 0.02 * uniform(rng);
+        for (int64_t t = onset; t < c.n; ++t) {
+          const double s = static_cast<double>(t - onset) / kRate;
+          x[t] += static_cast<float>(amplitude * std::exp(-s / tau_s) *
+                                     std::sin(2 * kPi * f_hz * s));
+        }
+      }
+      double margin_db = 0.0;
+      const std::vector<double> expected = DirectGate(gate, x, 0, &margin_db);
+      if (margin_db < 1e-6) continue;
+      std::vector<float> y(x.size());
+      gate.Apply(x.data(), c.n, 0, y.data());
+      double max_err = 0.0, max_ref = 0.0, max_in = 0.0;
+      for (int64_t t = 0; t < c.n; ++t) {
+        max_err = std::max(max_err, std::abs(static_cast<double>(y[t]) - expected[t]));
+        max_ref = std::max(max_ref, std::abs(expected[t]));
+        max_in = std::max(max_in, std::abs(static_cast<double>(x[t])));
+      }
+      EXPECT_LT(max_err, 1e-6 * max_in)
+          << "n_f " << gate.freq_smooth_bins() << " n_t " << gate.time_smooth_frames()
+          << " prop " << c.prop_decrease << " n " << c.n << " burst " << c.burst;
+      EXPECT_GT(max_ref, 0.0);
+      checked = true;
+    }
+    EXPECT_TRUE(checked) << "no signal with clear decisions for n_f " << gate.freq_smooth_bins();
   }
 }
 
