@@ -352,9 +352,19 @@ int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double 
   const int64_t frame = std::max<int64_t>(1, std::llround(frame_s * sample_rate_hz));
   // Energy of frame [start, start+frame): sum over channels and samples of x^2 (last frame
   // may be short).
+  // (the frame's columns are contiguous in the column-major record: one flat run of samples)
   auto energy = [&](int64_t start) {
     const int64_t len = std::min(frame, total - start);
-    return static_cast<double>(audio.middleCols(start, len).cast<double>().squaredNorm());
+    const float* x = audio.data() + start * audio.rows();
+    const int64_t count = len * audio.rows();
+    // four interleaved partial sums: independent add chains, in a fixed order
+    double part[4] = {0.0, 0.0, 0.0, 0.0};
+    int64_t i = 0;
+    for (; i + 4 <= count; i += 4) {
+      for (int j = 0; j < 4; ++j) part[j] += static_cast<double>(x[i + j]) * x[i + j];
+    }
+    for (; i < count; ++i) part[0] += static_cast<double>(x[i]) * x[i];
+    return (part[0] + part[1]) + (part[2] + part[3]);
   };
   // per frame energies (one pass over the record), then the first at threshold * peak
   std::vector<double> energies;

@@ -3,11 +3,13 @@
 
 Each run is timed by `sonicboom localize --repeat N` on one core (taskset -c CORE, one torch
 thread, OMP_NUM_THREADS=1): WAV read to answer, median of N, with its read / features / network
-split. With --results (the results.json of `sonicboom ablate`), each run's held-out 3-D MED is
-looked up by its directory name.
+split. The runs are timed in turn, --rounds times over, so that a slow spell of a shared machine
+falls on all of them alike; each row is the round with the median total. With --results (the
+results.json of `sonicboom ablate`), each run's held-out 3-D MED is looked up by its directory
+name.
 
-Usage: /usr/bin/python3 scripts/latency_table.py --wav STRIKE.wav [--repeat 20] [--core 0]
-           [--results RESULTS.json] [--bin build/bin/sonicboom] RUN_DIR...
+Usage: /usr/bin/python3 scripts/latency_table.py --wav STRIKE.wav [--repeat 20] [--rounds 5]
+           [--core 0] [--results RESULTS.json] [--bin build/bin/sonicboom] RUN_DIR...
 """
 import argparse
 import json
@@ -47,13 +49,15 @@ def main():
     parser.add_argument("runs", nargs="+", help="run directories (model.json + model.pt)")
     parser.add_argument("--wav", required=True, help="6-channel strike WAV to localize")
     parser.add_argument("--repeat", type=int, default=20)
+    parser.add_argument("--rounds", type=int, default=5, help="timings of each run, in turn")
     parser.add_argument("--core", type=int, default=0, help="CPU the timing runs on")
     parser.add_argument("--results", help="results.json of `sonicboom ablate` (MED per run)")
     parser.add_argument("--bin", default=os.environ.get(
         "SONICBOOM_BIN", os.path.join(ROOT, "build", "bin", "sonicboom")))
     args = parser.parse_args()
-    if args.repeat < 1:
-        sys.exit(f"latency_table: --repeat must be >= 1, got {args.repeat}")
+    if args.repeat < 1 or args.rounds < 1:
+        sys.exit(f"latency_table: --repeat and --rounds must be >= 1, got {args.repeat} and "
+                 f"{args.rounds}")
     for path in [args.wav, args.bin] + ([args.results] if args.results else []):
         if not os.path.exists(path):
             sys.exit(f"latency_table: {path}: not found")
@@ -64,27 +68,35 @@ def main():
             med = {row["name"]: row["test"]["med_cm"] for row in json.load(f)["ablations"]}
 
     env = dict(os.environ, OMP_NUM_THREADS="1")
+    timings = {run: [] for run in args.runs}
+    for _ in range(args.rounds):
+        for run in args.runs:
+            timings[run].append(run_json(
+                ["taskset", "-c", str(args.core), args.bin, "--threads", "1", "-q", "localize",
+                 "--model", run, "--wav", args.wav, "--repeat", str(args.repeat), "--json"], env))
+
+    print(f"Localize latency: median of {args.repeat} per round, the median of {args.rounds} "
+          f"rounds (ms), one core; {args.wav}\n")
     print("| run | encoder | width | blocks | modalities | gating | GCC span (s) | parameters "
-          "| 3-D MED (cm) | latency (ms) | read | features | network |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| 3-D MED (cm) | latency (ms) | range over rounds | read | features | network |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for run in args.runs:
         name = os.path.basename(os.path.normpath(run))
         info = run_json([args.bin, "inspect", run, "--json"])
         model = info["model"]["model"]
         features = feature_keys(os.path.join(run, "config.yaml"))
-        out = run_json(["taskset", "-c", str(args.core), args.bin, "--threads", "1", "-q",
-                        "localize", "--model", run, "--wav", args.wav, "--repeat",
-                        str(args.repeat), "--json"], env)
-        split = out["latency_breakdown_ms"]
         # configs written before features.gcc_window_s existed: the whole window
         span = float(features.get("gcc_window_s", "0")) or float(features["window_s"])
+        rounds = sorted(timings[run], key=lambda out: out["latency_ms"])
+        out = rounds[(len(rounds) - 1) // 2]
+        split = out["latency_breakdown_ms"]
         med_cell = f"{med[name]:.2f}" if name in med else ""
+        gating = "on" if features["gating"] == "true" else "off"
         print(f"| {name} | {model['audio_encoder']} | {model['width']} | {model['blocks']} "
-              f"| {'+'.join(model['modalities'])} | {'on' if features['gating'] == 'true' else 'off'} "
-              f"| {span:g} | {info['parameters']['total']:,} | {med_cell} "
-              f"| {out['latency_ms']:.1f} | {split['read']:.1f} | {split['features']:.1f} "
-              f"| {split['network']:.1f} |", flush=True)
-
+              f"| {'+'.join(model['modalities'])} | {gating} | {span:g} "
+              f"| {info['parameters']['total']:,} | {med_cell} | {out['latency_ms']:.1f} "
+              f"| {rounds[0]['latency_ms']:.1f}–{rounds[-1]['latency_ms']:.1f} "
+              f"| {split['read']:.1f} | {split['features']:.1f} | {split['network']:.1f} |")
 
 if __name__ == "__main__":
     main()
