@@ -82,6 +82,9 @@ def main():
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for run in args.runs:
         name = os.path.basename(os.path.normpath(run))
+        # a run directory named "model" (scripts/med_study.sh) goes by its study's directory
+        label = name if name != "model" else \
+            os.path.basename(os.path.dirname(os.path.normpath(run))) + "/model"
         info = run_json([args.bin, "inspect", run, "--json"])
         model = info["model"]["model"]
         features = feature_keys(os.path.join(run, "config.yaml"))
@@ -92,7 +95,7 @@ def main():
         split = out["latency_breakdown_ms"]
         med_cell = f"{med[name]:.2f}" if name in med else ""
         gating = "on" if features["gating"] == "true" else "off"
-        print(f"| {name} | {model['audio_encoder']} | {model['width']} | {model['blocks']} "
+        print(f"| {label} | {model['audio_encoder']} | {model['width']} | {model['blocks']} "
               f"| {'+'.join(model['modalities'])} | {gating} | {span:g} "
               f"| {info['parameters']['total']:,} | {med_cell} | {out['latency_ms']:.1f} "
               f"| {rounds[0]['latency_ms']:.1f}–{rounds[-1]['latency_ms']:.1f} "
