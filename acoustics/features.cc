@@ -438,8 +438,7 @@ void ValidateFeatureConfig(const FeatureConfig& c, double fs, int channels) {
                                   "s (0: the whole window), got {}",
                                   c.window_s, c.gcc_window_s));
   }
-  const int64_t gcc_samples =
-      c.gcc_window_s > 0.0 ? std::llround(c.gcc_window_s * fs) : window_samples;
+  const int64_t gcc_samples = std::llround(c.gcc_span_s() * fs);
   if (c.gcc_max_lag < 0 || c.gcc_max_lag >= gcc_samples) {
     throw ConfigError(
         fmt::format("features.gcc_max_lag must be in [0, GCC-PHAT samples = {}), "
@@ -502,8 +501,7 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
   const double f_max = config.f_max_hz == 0.0 ? sample_rate_hz / 2.0 : config.f_max_hz;
   e.mel = std::make_unique<MelSpectrogram>(config.n_fft, config.hop, config.n_mels, config.f_min_hz,
                                            f_max, sample_rate_hz);
-  e.gcc_samples = config.gcc_window_s > 0.0 ? std::llround(config.gcc_window_s * sample_rate_hz)
-                                            : e.window_samples;
+  e.gcc_samples = std::llround(config.gcc_span_s() * sample_rate_hz);
   e.gcc = std::make_unique<GccPhat>(e.gcc_samples, config.gcc_max_lag, channels);
   if (config.gating && noise_clip != nullptr) {
     if (noise_clip->rows() != channels) {

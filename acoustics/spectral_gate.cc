@@ -26,6 +26,15 @@ void CheckRange(const char* name, double value, double lo, double hi) {
   }
 }
 
+// Sum of the taps m + 1 - |j| of a triangle of half width m centred on i that fall inside
+// [0, length): the border normalization of the mask smoothing.
+double TapsInside(int64_t m, int64_t i, int64_t length) {
+  double inside = 0.0;
+  const int64_t lo = std::max(-m, -i), hi = std::min(m, length - 1 - i);
+  for (int64_t j = lo; j <= hi; ++j) inside += static_cast<double>(m + 1 - std::abs(j));
+  return inside;
+}
+
 }  // namespace
 
 struct SpectralGate::Impl {
@@ -186,10 +195,8 @@ SpectralGate::SpectralGate(const SpectralGateConfig& config, const Eigen::Matrix
   // the mask's share prop_decrease folded in
   g.keep_freq_norm.assign(static_cast<size_t>(g.bins), 0.0);
   for (int64_t k = 0; k < g.bins; ++k) {
-    double inside = 0.0;
-    const int64_t lo = std::max(-g.freq_bins, -k), hi = std::min(g.freq_bins, g.bins - 1 - k);
-    for (int64_t i = lo; i <= hi; ++i) inside += static_cast<double>(g.freq_bins + 1 - std::abs(i));
-    g.keep_freq_norm[static_cast<size_t>(k)] = config.prop_decrease * (1.0 / inside);
+    g.keep_freq_norm[static_cast<size_t>(k)] =
+        config.prop_decrease * (1.0 / TapsInside(g.freq_bins, k, g.bins));
   }
   // the smoothed counts are at most the kernel's sum: int32_t when that fits
   const double taps_f = static_cast<double>(g.freq_bins + 1);
@@ -277,10 +284,7 @@ void SpectralGate::Apply(const float* x, int64_t n, int channel, float* out) con
   if (s.cached_n != n) {
     s.time_norm.resize(static_cast<size_t>(frames));
     for (int64_t p = 0; p < frames; ++p) {
-      double inside = 0.0;
-      const int64_t lo = std::max(-nt, -p), hi = std::min(nt, frames - 1 - p);
-      for (int64_t j = lo; j <= hi; ++j) inside += static_cast<double>(nt + 1 - std::abs(j));
-      s.time_norm[static_cast<size_t>(p)] = 1.0 / inside;
+      s.time_norm[static_cast<size_t>(p)] = 1.0 / TapsInside(nt, p, frames);
     }
     s.inverse_window_sum.assign(static_cast<size_t>(n), 0.0);
     for (int64_t f = 0; f < frames; ++f) {

@@ -157,8 +157,7 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     const learning::TrainConfig& t = config.train;
     const bool masks = t.augment && (t.time_mask_frames > 0 || t.freq_mask_bands > 0);
     const bool shift = t.augment && t.time_shift_frames > 0;
-    const double gcc_span_s = config.features.gcc_window_s > 0.0 ? config.features.gcc_window_s
-                                                                 : config.features.window_s;
+    const double gcc_span_s = config.features.gcc_span_s();
     json row = {{"name", v.name},
                 {"description", v.description},
                 {"config", v.path},

@@ -26,12 +26,13 @@ struct LossTerms {
 LossTerms Loss(const torch::Tensor& out, const torch::Tensor& target, const TrainConfig& c);
 
 /// Prepares this process for training steps: torch's intra-op threads (train_config.threads,
-/// or every core when it is 0), and, with glibc, a malloc that keeps freed memory. By default glibc maps blocks above its dynamic
-/// threshold (at most 32 MiB) fresh, and returns the heap's free top to the system, so each
-/// step's large buffers (the GCC encoder's 54 MB weight gradient and Adam's temporaries among
-/// them) are page-faulted and zeroed again. Here blocks up to 256 MiB come from the heap and
-/// the heap is trimmed only above 1 GiB free; resident memory stays near its peak. Measured
-/// with bench/torch_throughput.py (docs/learning.md). Process-wide and idempotent.
+/// or every core when it is 0), and, with glibc, a malloc that keeps freed memory. By default
+/// glibc maps blocks above its dynamic threshold (at most 32 MiB) fresh, and returns the heap's
+/// free top to the system, so each step's large buffers (the GCC encoder's 54 MB weight
+/// gradient and Adam's temporaries among them) are page-faulted and zeroed again. Here blocks
+/// up to 256 MiB come from the heap and the heap is trimmed only above 1 GiB free; resident
+/// memory stays near its peak. Measured with bench/torch_throughput.py (docs/learning.md).
+/// Process-wide and idempotent.
 void PrepareTrainingProcess(const TrainConfig& train_config);
 
 /// Loss values of one step (nll is 0 without the uncertainty head).

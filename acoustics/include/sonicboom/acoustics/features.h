@@ -43,6 +43,8 @@ struct FeatureConfig {
   std::string gating_noise_wav;
 
   void Serialize(Archive* a);
+  /// GCC-PHAT's span in seconds: gcc_window_s, or window_s when that is 0.
+  double gcc_span_s() const { return gcc_window_s > 0.0 ? gcc_window_s : window_s; }
 };
 
 /// Features of one strike. Shapes: mel (C x n_mels x frames), gcc (C(C-1)/2 x 2*max_lag+1).
@@ -96,7 +98,7 @@ class FeatureExtractor {
   int64_t window_samples() const;  // round(window_s * fs)
   int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded)
   int64_t gcc_lags() const;        // 2 * gcc_max_lag + 1
-  int64_t gcc_samples() const;     // GCC-PHAT span: round(gcc_window_s * fs), or the window
+  int64_t gcc_samples() const;     // GCC-PHAT span: round(config.gcc_span_s() * fs)
   int channels() const;
   /// The gate applied to each window, or null when gating is off.
   const SpectralGate* gate() const;

@@ -157,7 +157,6 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
               const std::string& run_dir, bool resume, bool show_progress);
 
-/// A trained model loaded from a run directory, for evaluation and localization.
 /// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
 /// spectrogram (the un-augmented crop of training, evaluation and localization).
 int64_t CentreCropStart(int64_t frames, int64_t crop_frames);
@@ -173,6 +172,7 @@ struct FeatureNeeds {
   int64_t mel_frames{0};
 };
 
+/// A trained model loaded from a run directory, for evaluation and localization.
 class Localizer {
  public:
   explicit Localizer(const std::string& run_dir);  // throws IoError/SchemaError naming the file
