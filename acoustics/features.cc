@@ -56,16 +56,32 @@ using FftwPlan = internal::fftw::Plan;
 template <typename T>
 using ScratchPool = internal::fftw::ScratchPool<T>;
 
-// Smallest m >= n whose only prime factors are 2, 3 and 5 (fast FFTW sizes). The golden
-// script scripts/make_goldens.py uses the same rule, since PHAT output depends on the size.
-int64_t NextFastFftSize(int64_t n) {
-  for (int64_t m = std::max<int64_t>(n, 1);; ++m) {
-    int64_t r = m;
+// GCC-PHAT transform size: the smallest multiple of 512 >= n whose other prime factors are 2, 3
+// and 5. FFTW's estimated plans run fastest on sizes rich in factors of 2: for the 1.5 s window
+// (66 591 points needed) 69 120 = 2^9 * 135 against 67 500 = 2^2 * 16 875, the smallest 5-smooth
+// size (docs/learning.md). PHAT output depends on the size, so scripts/make_goldens.py uses the
+// same rule.
+int64_t GccFftSize(int64_t n) {
+  for (int64_t k = std::max<int64_t>((n + 511) / 512, 1);; ++k) {
+    int64_t r = k;
     for (int64_t p : {2, 3, 5}) {
       while (r % p == 0) r /= p;
     }
-    if (r == 1) return m;
+    if (r == 1) return 512 * k;
   }
+}
+
+// Sum of term(i) for i in [0, count) as four interleaved partial sums (independent add chains
+// the compiler can pipeline and vectorize), combined in a fixed order: deterministic bits.
+template <typename Term>
+double FourChainSum(int64_t count, Term term) {
+  double part[4] = {0.0, 0.0, 0.0, 0.0};
+  int64_t i = 0;
+  for (; i + 4 <= count; i += 4) {
+    for (int q = 0; q < 4; ++q) part[q] += term(i + q);
+  }
+  for (; i < count; ++i) part[0] += term(i);
+  return (part[0] + part[1]) + (part[2] + part[3]);
 }
 
 double HzToMelHtk(double hz) { return 2595.0 * std::log10(1.0 + hz / 700.0); }
@@ -216,9 +232,7 @@ void MelSpectrogram::Compute(const float* x, int64_t n, int64_t first_frame, int
       const double* w = m.band_weights.data() + m.band_offset[j];
       const double* p = power + m.band_begin[j];
       const int64_t taps = m.band_offset[j + 1] - m.band_offset[j];
-      double sum = 0.0;
-      for (int64_t k = 0; k < taps; ++k) sum += w[k] * p[k];
-      column[j] = static_cast<float>(sum);
+      column[j] = static_cast<float>(FourChainSum(taps, [&](int64_t k) { return w[k] * p[k]; }));
     }
   }
 }
@@ -227,15 +241,15 @@ void MelSpectrogram::Compute(const float* x, int64_t n, int64_t first_frame, int
 // GccPhat
 
 struct GccPhat::Impl {
-  // Per-call scratch: the zero-padded channel (fft_size), the spectra and magnitudes of all
-  // channels (channels x (fft_size/2+1)), the PHAT-weighted cross spectrum and its inverse
-  // (fft_size).
+  // Per-call scratch, single precision: the zero-padded channel (fft_size), the spectra and
+  // magnitudes of all channels (channels x (fft_size/2+1)), the PHAT-weighted cross spectrum and
+  // its inverse (fft_size).
   struct Scratch {
-    FftwArray<double> signal;
-    std::vector<FftwArray<fftw_complex>> spectra;
-    std::vector<std::vector<double>> magnitudes;  // |X_c| per bin
-    FftwArray<fftw_complex> cross;
-    FftwArray<double> correlation;
+    FftwArray<float> signal;
+    std::vector<FftwArray<fftwf_complex>> spectra;
+    std::vector<std::vector<float>> magnitudes;  // |X_c| per bin
+    FftwArray<fftwf_complex> cross;
+    FftwArray<float> correlation;
   };
 
   int64_t n{0};
@@ -244,19 +258,19 @@ struct GccPhat::Impl {
   int64_t fft_size{0};
   int64_t n_bins{0};
   std::vector<std::pair<int, int>> pairs;  // itertools.combinations(range(C), 2) order
-  FftwPlan forward;                        // r2c, fft_size
-  FftwPlan inverse;                        // c2r, fft_size
+  internal::fftw::PlanF forward;           // r2c, fft_size, single precision
+  internal::fftw::PlanF inverse;           // c2r, fft_size, single precision
   std::unique_ptr<ScratchPool<Scratch>> pool;
 
   std::unique_ptr<Scratch> MakeScratch() const {
     auto s = std::make_unique<Scratch>();
-    s->signal = FftwArray<double>(fft_size);
+    s->signal = FftwArray<float>(fft_size);
     for (int c = 0; c < channels; ++c) {
       s->spectra.emplace_back(n_bins);
-      s->magnitudes.emplace_back(static_cast<size_t>(n_bins), 0.0);
+      s->magnitudes.emplace_back(static_cast<size_t>(n_bins), 0.0f);
     }
-    s->cross = FftwArray<fftw_complex>(n_bins);
-    s->correlation = FftwArray<double>(fft_size);
+    s->cross = FftwArray<fftwf_complex>(n_bins);
+    s->correlation = FftwArray<float>(fft_size);
     return s;
   }
 };
@@ -273,7 +287,7 @@ GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels) : impl_(std::make_uni
   g.max_lag = max_lag;
   g.channels = channels;
   // Linear (not circular) correlation for |lag| <= max_lag needs fft_size >= n + max_lag.
-  g.fft_size = NextFastFftSize(n + max_lag);
+  g.fft_size = GccFftSize(n + max_lag);
   g.n_bins = g.fft_size / 2 + 1;
   for (int i = 0; i < channels; ++i) {
     for (int j = i + 1; j < channels; ++j) g.pairs.emplace_back(i, j);
@@ -284,6 +298,8 @@ GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels) : impl_(std::make_uni
 }
 
 GccPhat::~GccPhat() = default;
+
+int64_t GccPhat::fft_size() const { return impl_->fft_size; }
 
 void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::MatrixXf* out) const {
   const Impl& g = *impl_;
@@ -296,14 +312,15 @@ void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::Matrix
   auto scratch = g.pool->Acquire();
   Impl::Scratch& s = *scratch;
 
-  // Spectrum X_c of every channel, zero-padded from n to fft_size samples, and its magnitude.
-  std::fill(s.signal.data() + g.n, s.signal.data() + g.fft_size, 0.0);
+  // Spectrum X_c of every channel, zero-padded from n to fft_size samples, and its magnitude
+  // (single precision throughout: the float window in, float features out).
+  std::fill(s.signal.data() + g.n, s.signal.data() + g.fft_size, 0.0f);
   for (int c = 0; c < g.channels; ++c) {
     const float* row = window.data() + c * window.outerStride();
-    for (int64_t t = 0; t < g.n; ++t) s.signal[t] = row[t];
-    fftw_complex* x = s.spectra[c].data();
-    fftw_execute_dft_r2c(g.forward.get(), s.signal.data(), x);
-    double* magnitude = s.magnitudes[c].data();
+    std::copy(row, row + g.n, s.signal.data());
+    fftwf_complex* x = s.spectra[c].data();
+    fftwf_execute_dft_r2c(g.forward.get(), s.signal.data(), x);
+    float* magnitude = s.magnitudes[c].data();
     for (int64_t k = 0; k < g.n_bins; ++k) {
       magnitude[k] = std::sqrt(x[k][0] * x[k][0] + x[k][1] * x[k][1]);
     }
@@ -312,23 +329,23 @@ void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::Matrix
   // Per pair (i, j): G = X_i conj(X_j), PHAT weight G / (|G| + 1e-10) with |G| = |X_i| |X_j|,
   // inverse FFT / fft_size. Output column m is lag m - max_lag; negative lag L sits at index
   // fft_size + L.
-  const double scale = 1.0 / static_cast<double>(g.fft_size);
+  const float scale = 1.0f / static_cast<float>(g.fft_size);
   for (size_t p = 0; p < g.pairs.size(); ++p) {
-    const fftw_complex* x = s.spectra[g.pairs[p].first].data();
-    const fftw_complex* y = s.spectra[g.pairs[p].second].data();
-    const double* mx = s.magnitudes[g.pairs[p].first].data();
-    const double* my = s.magnitudes[g.pairs[p].second].data();
-    fftw_complex* cross = s.cross.data();
+    const fftwf_complex* x = s.spectra[g.pairs[p].first].data();
+    const fftwf_complex* y = s.spectra[g.pairs[p].second].data();
+    const float* mx = s.magnitudes[g.pairs[p].first].data();
+    const float* my = s.magnitudes[g.pairs[p].second].data();
+    fftwf_complex* cross = s.cross.data();
     for (int64_t k = 0; k < g.n_bins; ++k) {
-      const double weight = 1.0 / (mx[k] * my[k] + 1e-10);
+      const float weight = 1.0f / (mx[k] * my[k] + 1e-10f);
       cross[k][0] = (x[k][0] * y[k][0] + x[k][1] * y[k][1]) * weight;
       cross[k][1] = (x[k][1] * y[k][0] - x[k][0] * y[k][1]) * weight;
     }
-    fftw_execute_dft_c2r(g.inverse.get(), cross, s.correlation.data());
+    fftwf_execute_dft_c2r(g.inverse.get(), cross, s.correlation.data());
     for (int64_t m = 0; m < lags; ++m) {
       const int64_t lag = m - g.max_lag;
       const int64_t index = lag >= 0 ? lag : g.fft_size + lag;
-      (*out)(static_cast<int64_t>(p), m) = static_cast<float>(s.correlation[index] * scale);
+      (*out)(static_cast<int64_t>(p), m) = s.correlation[index] * scale;
     }
   }
 }
@@ -357,14 +374,7 @@ int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double 
     const int64_t len = std::min(frame, total - start);
     const float* x = audio.data() + start * audio.rows();
     const int64_t count = len * audio.rows();
-    // four interleaved partial sums: independent add chains, in a fixed order
-    double part[4] = {0.0, 0.0, 0.0, 0.0};
-    int64_t i = 0;
-    for (; i + 4 <= count; i += 4) {
-      for (int j = 0; j < 4; ++j) part[j] += static_cast<double>(x[i + j]) * x[i + j];
-    }
-    for (; i < count; ++i) part[0] += static_cast<double>(x[i]) * x[i];
-    return (part[0] + part[1]) + (part[2] + part[3]);
+    return FourChainSum(count, [x](int64_t i) { return static_cast<double>(x[i]) * x[i]; });
   };
   // per frame energies (one pass over the record), then the first at threshold * peak
   std::vector<double> energies;

@@ -80,23 +80,24 @@ def mel(x, n_fft=512, hop=128, n_mels=50, f_min=0.0, f_max=None):
     return transform(torch.from_numpy(x)).numpy().astype(np.float32)
 
 
-def next_fast_size(n):
-    """Smallest m >= n with prime factors only 2, 3, 5 (same rule as acoustics/features.cc)."""
-    m = max(n, 1)
+def gcc_fft_size(n):
+    """Smallest multiple of 512 >= n whose other prime factors are 2, 3, 5 (same rule as
+    acoustics/features.cc)."""
+    k = max((n + 511) // 512, 1)
     while True:
-        r = m
+        r = k
         for p in (2, 3, 5):
             while r % p == 0:
                 r //= p
         if r == 1:
-            return m
-        m += 1
+            return 512 * k
+        k += 1
 
 
 def gcc_phat(x, max_lag):
     """(pairs, 2*max_lag+1): zero-padded (non-circular) GCC-PHAT, negative lags first."""
     channels, n = x.shape
-    size = next_fast_size(n + max_lag)
+    size = gcc_fft_size(n + max_lag)
     spectra = np.fft.rfft(x.astype(np.float64), n=size, axis=1)
     rows = []
     for i in range(channels):

@@ -52,27 +52,49 @@ class Array {
   int64_t size_{0};
 };
 
-/// Owns an fftw_plan; destroys it under the planner lock.
-class Plan {
+/// fftw_destroy_plan / fftwf_destroy_plan (call under the planner lock), and the error for a
+/// plan FFTW could not make.
+void DestroyPlan(fftw_plan plan);
+void DestroyPlan(fftwf_plan plan);
+[[noreturn]] void ThrowNoPlan();
+
+/// Owns an FFTW plan of either precision (fftw_plan: double, fftwf_plan: float); destroys it
+/// under the planner lock.
+template <typename PlanT>
+class BasicPlan {
  public:
-  Plan() = default;
-  ~Plan() { Destroy(); }
+  BasicPlan() = default;
+  ~BasicPlan() { Destroy(); }
   /// Takes ownership of a plan made under the planner lock (call without holding it). Throws
   /// NumericalError when FFTW could not make the plan (nullptr).
-  void Adopt(fftw_plan plan);
-  Plan(const Plan&) = delete;
-  Plan& operator=(const Plan&) = delete;
-  fftw_plan get() const { return plan_; }
+  void Adopt(PlanT plan) {
+    Destroy();
+    if (plan == nullptr) ThrowNoPlan();
+    plan_ = plan;
+  }
+  BasicPlan(const BasicPlan&) = delete;
+  BasicPlan& operator=(const BasicPlan&) = delete;
+  PlanT get() const { return plan_; }
 
  private:
-  void Destroy();
-  fftw_plan plan_{nullptr};
+  void Destroy() {
+    if (plan_ == nullptr) return;
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    DestroyPlan(plan_);
+    plan_ = nullptr;
+  }
+  PlanT plan_{nullptr};
 };
+
+using Plan = BasicPlan<fftw_plan>;    // double precision
+using PlanF = BasicPlan<fftwf_plan>;  // single precision
 
 /// FFTW_ESTIMATE plans of the real transforms of n points: forward r2c (n -> n / 2 + 1 bins) and
 /// inverse c2r, made under the planner lock on scratch Arrays (so they run on any Array of the
-/// same sizes). Either output may be null. Throws NumericalError when FFTW cannot plan.
+/// same sizes), in double (Plan) or single (PlanF) precision. Either output may be null. Throws
+/// NumericalError when FFTW cannot plan.
 void PlanRealTransforms(int64_t n, Plan* forward, Plan* inverse);
+void PlanRealTransforms(int64_t n, PlanF* forward, PlanF* inverse);
 
 /// Periodic Hann window of n points (torch.hann_window(periodic=True), scipy 'hann', sym=False).
 std::vector<double> PeriodicHann(int64_t n);

@@ -136,7 +136,8 @@ class MelSpectrogram {
 
 /// GCC-PHAT of all channel pairs over a window of n samples, zero-padded to avoid circular
 /// wrap-around. Row p is pair p in combinations order; column j is lag (j - max_lag) samples;
-/// a positive lag means the first channel of the pair receives later.
+/// a positive lag means the first channel of the pair receives later. Computed in single
+/// precision.
 class GccPhat {
  public:
   GccPhat(int64_t n, int64_t max_lag, int channels);
@@ -145,6 +146,9 @@ class GccPhat {
   GccPhat& operator=(const GccPhat&) = delete;
   /// window: (C x n); out: (pairs x 2*max_lag+1), resized if needed.
   void Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::MatrixXf* out) const;
+  /// FFT size: the smallest multiple of 512 >= n + max_lag whose other prime factors are 2, 3
+  /// and 5 (the PHAT weights, and so the output, depend on it).
+  int64_t fft_size() const;
 
  private:
   struct Impl;
