@@ -221,7 +221,8 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
 std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f,
                                    int64_t crop_frames) {
   network.eval();
-  torch::NoGradGuard no_grad;
+  // inference mode: no autograd record and no version counters on the tensors made here
+  c10::InferenceMode inference;
   const std::vector<float> fill = network.MelMean();
   std::vector<Prediction> predictions(f.size());
   for (int64_t first = 0; first < f.size(); first += kPredictBatch) {
