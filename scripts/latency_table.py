@@ -8,8 +8,11 @@ falls on all of them alike; each row is the round with the median total. With --
 results.json of `sonicboom ablate`), each run's held-out 3-D MED is looked up by its directory
 name.
 
+With --bin given more than once (e.g. the build before and after a change), every run is timed
+with every binary within each round, and the table gets one row per run and binary.
+
 Usage: /usr/bin/python3 scripts/latency_table.py --wav STRIKE.wav [--repeat 20] [--rounds 5]
-           [--core 0] [--results RESULTS.json] [--bin build/bin/sonicboom] RUN_DIR...
+           [--core 0] [--results RESULTS.json] [--bin build/bin/sonicboom]... RUN_DIR...
 """
 import argparse
 import json
@@ -52,13 +55,15 @@ def main():
     parser.add_argument("--rounds", type=int, default=5, help="timings of each run, in turn")
     parser.add_argument("--core", type=int, default=0, help="CPU the timing runs on")
     parser.add_argument("--results", help="results.json of `sonicboom ablate` (MED per run)")
-    parser.add_argument("--bin", default=os.environ.get(
-        "SONICBOOM_BIN", os.path.join(ROOT, "build", "bin", "sonicboom")))
+    parser.add_argument("--bin", action="append", help="sonicboom binary (repeatable; default "
+                        "$SONICBOOM_BIN or build/bin/sonicboom)")
     args = parser.parse_args()
+    bins = args.bin or [os.environ.get("SONICBOOM_BIN",
+                                       os.path.join(ROOT, "build", "bin", "sonicboom"))]
     if args.repeat < 1 or args.rounds < 1:
         sys.exit(f"latency_table: --repeat and --rounds must be >= 1, got {args.repeat} and "
                  f"{args.rounds}")
-    for path in [args.wav, args.bin] + ([args.results] if args.results else []):
+    for path in [args.wav] + bins + ([args.results] if args.results else []):
         if not os.path.exists(path):
             sys.exit(f"latency_table: {path}: not found")
 
@@ -68,34 +73,40 @@ def main():
             med = {row["name"]: row["test"]["med_cm"] for row in json.load(f)["ablations"]}
 
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    timings = {run: [] for run in args.runs}
+    timings = {(run, b): [] for run in args.runs for b in bins}
     for _ in range(args.rounds):
         for run in args.runs:
-            timings[run].append(run_json(
-                ["taskset", "-c", str(args.core), args.bin, "--threads", "1", "-q", "localize",
-                 "--model", run, "--wav", args.wav, "--repeat", str(args.repeat), "--json"], env))
+            for b in bins:
+                timings[(run, b)].append(run_json(
+                    ["taskset", "-c", str(args.core), b, "--threads", "1", "-q", "localize",
+                     "--model", run, "--wav", args.wav, "--repeat", str(args.repeat), "--json"],
+                    env))
 
     print(f"Localize latency: median of {args.repeat} per round, the median of {args.rounds} "
           f"rounds (ms), one core; {args.wav}\n")
-    print("| run | encoder | width | blocks | modalities | gating | GCC span (s) | parameters "
-          "| 3-D MED (cm) | latency (ms) | range over rounds | read | features | network |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for run in args.runs:
+    several = len(bins) > 1
+    print("| run |" + (" binary |" if several else "") + " encoder | width | blocks "
+          "| modalities | gating | GCC span (s) | parameters | 3-D MED (cm) | latency (ms) "
+          "| range over rounds | read | features | network |")
+    print("|---|" + ("---|" if several else "") + "---|---|---|---|---|---|---|---|---|---|---|"
+          "---|---|")
+    for run, b in timings:
         name = os.path.basename(os.path.normpath(run))
         # a run directory named "model" (scripts/med_study.sh) goes by its study's directory
         label = name if name != "model" else \
             os.path.basename(os.path.dirname(os.path.normpath(run))) + "/model"
-        info = run_json([args.bin, "inspect", run, "--json"])
+        info = run_json([bins[0], "inspect", run, "--json"])
         model = info["model"]["model"]
         features = feature_keys(os.path.join(run, "config.yaml"))
         # configs written before features.gcc_window_s existed: the whole window
         span = float(features.get("gcc_window_s", "0")) or float(features["window_s"])
-        rounds = sorted(timings[run], key=lambda out: out["latency_ms"])
+        rounds = sorted(timings[(run, b)], key=lambda out: out["latency_ms"])
         out = rounds[(len(rounds) - 1) // 2]
         split = out["latency_breakdown_ms"]
         med_cell = f"{med[name]:.2f}" if name in med else ""
         gating = "on" if features["gating"] == "true" else "off"
-        print(f"| {label} | {model['audio_encoder']} | {model['width']} | {model['blocks']} "
+        print(f"| {label} |" + (f" {b} |" if several else "") +
+              f" {model['audio_encoder']} | {model['width']} | {model['blocks']} "
               f"| {'+'.join(model['modalities'])} | {gating} | {span:g} "
               f"| {info['parameters']['total']:,} | {med_cell} | {out['latency_ms']:.1f} "
               f"| {rounds[0]['latency_ms']:.1f}–{rounds[-1]['latency_ms']:.1f} "
