@@ -45,8 +45,14 @@ void PlanReal(int64_t n, PlanT* forward, PlanT* inverse) {
     if (inverse != nullptr) {
       c2r = Api::c2r(static_cast<int>(n), complex.data(), real.data(), FFTW_ESTIMATE);
     }
+    // a plan FFTW could not make: destroy the other one, which nothing owns yet
+    if ((forward != nullptr && r2c == nullptr) || (inverse != nullptr && c2r == nullptr)) {
+      if (r2c != nullptr) DestroyPlan(r2c);
+      if (c2r != nullptr) DestroyPlan(c2r);
+      ThrowNoPlan();
+    }
   }
-  // Adopt takes the lock itself (to destroy a previous plan) and throws on a null plan
+  // Adopt takes the lock itself (to destroy a previous plan)
   if (forward != nullptr) forward->Adopt(r2c);
   if (inverse != nullptr) inverse->Adopt(c2r);
 }

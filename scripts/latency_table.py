@@ -60,6 +60,8 @@ def main():
     args = parser.parse_args()
     bins = args.bin or [os.environ.get("SONICBOOM_BIN",
                                        os.path.join(ROOT, "build", "bin", "sonicboom"))]
+    # each binary and run once, in the order given
+    bins, args.runs = list(dict.fromkeys(bins)), list(dict.fromkeys(args.runs))
     if args.repeat < 1 or args.rounds < 1:
         sys.exit(f"latency_table: --repeat and --rounds must be >= 1, got {args.repeat} and "
                  f"{args.rounds}")

@@ -211,7 +211,7 @@ def main():
     os.makedirs(OUT_DIR, exist_ok=True)
     multi = multi_channel_input()
     longx = long_input()
-    gcc, gcc_fft_size = gcc_phat(multi, 441)
+    gcc, gcc_size = gcc_phat(multi, 441)
     gate_noise, gate_input = gate_signals()
     gated = []
     for channel in range(gate_input.shape[0]):
@@ -239,7 +239,7 @@ def main():
         "mel": {"n_fft": 512, "hop": 128, "n_mels": 50, "f_min_hz": 0.0, "f_max_hz": 22050.0},
         "band_mel": {"n_fft": 256, "hop": 64, "n_mels": 40, "f_min_hz": 100.0,
                      "f_max_hz": 8000.0, "input": "multi_input[2]"},
-        "gcc": {"max_lag": 441, "fft_size": gcc_fft_size},
+        "gcc": {"max_lag": 441, "fft_size": gcc_size},
         "gate": dict(GATE, freq_smooth_bins=smoothing[0], time_smooth_frames=smoothing[1],
                      scipy=scipy.__version__),
         "arrays": {},

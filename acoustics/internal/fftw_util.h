@@ -12,6 +12,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -21,19 +22,29 @@ namespace sonicboom::internal::fftw {
 /// destroyed by the acoustics module goes through this one lock. Plan execution is thread-safe.
 std::mutex& PlannerMutex();
 
-/// An FFTW-aligned array of T (fftw_malloc), zero-filled, so that every scratch buffer has the
-/// same alignment as the arrays the plans were made with and new-array execution is allowed.
+/// An FFTW-aligned array of T, zero-filled, so that every scratch buffer has the same alignment
+/// as the arrays the plans were made with and new-array execution is allowed. Single-precision
+/// element types (float, fftwf_complex) come from fftwf_malloc, the others from fftw_malloc.
 template <typename T>
 class Array {
+  static constexpr bool kSingle =
+      std::is_same_v<T, float> || std::is_same_v<T, fftwf_complex>;
+
  public:
   Array() = default;
   explicit Array(int64_t size) : size_(size) {
     const size_t bytes = sizeof(T) * static_cast<size_t>(std::max<int64_t>(size, 1));
-    data_ = static_cast<T*>(fftw_malloc(bytes));
+    data_ = static_cast<T*>(kSingle ? fftwf_malloc(bytes) : fftw_malloc(bytes));
     if (data_ == nullptr) throw std::bad_alloc();
     std::memset(static_cast<void*>(data_), 0, bytes);
   }
-  ~Array() { fftw_free(data_); }
+  ~Array() {
+    if constexpr (kSingle) {
+      fftwf_free(data_);
+    } else {
+      fftw_free(data_);
+    }
+  }
   Array(Array&& other) noexcept
       : data_(std::exchange(other.data_, nullptr)), size_(std::exchange(other.size_, 0)) {}
   Array& operator=(Array&& other) noexcept {
