@@ -92,14 +92,16 @@ def main():
           "| range over rounds | read | features | network |")
     print("|---|" + ("---|" if several else "") + "---|---|---|---|---|---|---|---|---|---|---|"
           "---|---|")
+    # each run's model and features, read once (not once per binary)
+    inspected = {run: (run_json([bins[0], "inspect", run, "--json"]),
+                       feature_keys(os.path.join(run, "config.yaml"))) for run in args.runs}
     for run, b in timings:
         name = os.path.basename(os.path.normpath(run))
         # a run directory named "model" (scripts/med_study.sh) goes by its study's directory
         label = name if name != "model" else \
             os.path.basename(os.path.dirname(os.path.normpath(run))) + "/model"
-        info = run_json([bins[0], "inspect", run, "--json"])
+        info, features = inspected[run]
         model = info["model"]["model"]
-        features = feature_keys(os.path.join(run, "config.yaml"))
         # configs written before features.gcc_window_s existed: the whole window
         span = float(features.get("gcc_window_s", "0")) or float(features["window_s"])
         rounds = sorted(timings[(run, b)], key=lambda out: out["latency_ms"])
