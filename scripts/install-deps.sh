@@ -6,8 +6,9 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake pkg-config git ca-certificates
-  # simulation
-  libmujoco-dev libqhull-dev libembree-dev
+  # simulation; MuJoCo's CMake config calls find_dependency(OpenGL), which needs the GLVND
+  # headers and the libOpenGL / libGLX link libraries even though nothing here renders
+  libmujoco-dev libqhull-dev libembree-dev libgl-dev libglx-dev libopengl-dev
   # numerics
   libeigen3-dev libspectra-dev libfftw3-dev libtbb-dev libnanoflann-dev
   # learning (CPU libtorch); OpenBLAS replaces the reference BLAS libtorch would otherwise use
