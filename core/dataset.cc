@@ -14,6 +14,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <tuple>
 #include <unordered_set>
@@ -46,6 +47,7 @@ constexpr const char* kSeedPath = "index/seed";
 constexpr const char* kValidPath = "index/valid";
 constexpr const char* kInvalidReasonPath = "index/invalid_reason";
 constexpr const char* kClippedPath = "index/clipped";
+constexpr const char* kVariationPath = "variation";  // (N, P) f64, attr `names`
 constexpr const char* kContactFirstPath = "index/contact_first";
 constexpr const char* kContactCountPath = "index/contact_count";
 constexpr const char* kContactSampleRowPath = "contacts/sample_row";
@@ -168,6 +170,7 @@ struct Columns {
   h5::Handle contact_first;
   h5::Handle contact_count;
   ContactColumns contacts;
+  h5::Handle variation;  // only in a randomized dataset
 
   // (handle, path) of every per-sample column (N rows), for checks that apply to all of them.
   std::vector<std::pair<hid_t, std::string>> All() const {
@@ -187,6 +190,7 @@ struct Columns {
     }
     if (contact_first.valid()) all.emplace_back(contact_first.get(), kContactFirstPath);
     if (contact_count.valid()) all.emplace_back(contact_count.get(), kContactCountPath);
+    if (variation.valid()) all.emplace_back(variation.get(), kVariationPath);
     return all;
   }
 
@@ -208,6 +212,7 @@ struct Columns {
     contact_first.Close(file, kContactFirstPath);
     contact_count.Close(file, kContactCountPath);
     contacts.CloseAll(file);
+    variation.Close(file, kVariationPath);
   }
 };
 
@@ -366,6 +371,19 @@ class DatasetFile {
     columns_.invalid_reason = h5::OpenDataset(root, kInvalidReasonPath, path);
     columns_.clipped = h5::OpenDataset(root, kClippedPath, path);
     if (has_contacts_) OpenContactColumns();
+    // Randomized draws, when the file has them: (N, P) with P names.
+    if (H5Lexists(root, kVariationPath, H5P_DEFAULT) > 0) {
+      columns_.variation = h5::OpenDataset(root, kVariationPath, path);
+      const std::string names = h5::ReadStringAttr(columns_.variation.get(), "names", path);
+      std::stringstream list(names);
+      for (std::string name; std::getline(list, name, ',');) info_.variation_names.push_back(name);
+      const std::vector<hsize_t> dims = h5::Dims(columns_.variation.get(), path, kVariationPath);
+      if (dims.size() != 2 || dims[1] != info_.variation_names.size()) {
+        throw SchemaError(path + ": /variation must have shape (N, " +
+                          std::to_string(info_.variation_names.size()) +
+                          ") for its names attribute '" + names + "'");
+      }
+    }
 
     // Shapes: audio (N, C, T) int16 or float32 with `scale`, proprio (N, K, 10).
     const std::vector<hsize_t> audio_dims = h5::Dims(columns_.audio.get(), path, kAudioPath);
@@ -447,6 +465,11 @@ class DatasetFile {
         Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
             proprio.data(), k, kProprioFeatures);
     sample->contacts = ReadContacts(i);
+    sample->variation.assign(info_.variation_names.size(), 0.0);
+    if (!sample->variation.empty()) {
+      h5::ReadRows(columns_.variation.get(), H5T_NATIVE_DOUBLE, sample->variation.data(),
+                   static_cast<hsize_t>(i), 1, path_, kVariationPath);
+    }
   }
 
   // Contact episodes of sample i: rows [first, first + count) of the contact table; none in a
@@ -865,6 +888,17 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info, b
   s.columns.clipped =
       h5::CreateExtendable(root, kClippedPath, H5T_STD_U8LE, {{}, kColumnChunkRows, -1}, file);
   if (s.with_contacts) s.CreateContactColumns();
+  // Randomized draws (N, P) f64 with their names.
+  if (!s.info.variation_names.empty()) {
+    const hsize_t p = s.info.variation_names.size();
+    s.columns.variation = h5::CreateExtendable(root, kVariationPath, H5T_IEEE_F64LE,
+                                               {{p}, kColumnChunkRows, -1}, file);
+    std::string names;
+    for (const std::string& name : s.info.variation_names) {
+      names += (names.empty() ? "" : ",") + name;
+    }
+    h5::WriteStringAttr(s.columns.variation.get(), "names", names, file);
+  }
   s.last_flush = std::chrono::steady_clock::now();
 }
 
@@ -918,6 +952,7 @@ DatasetWriter::EncodedSample DatasetWriter::Encode(const StrikeSample& sample) c
   encoded.meta.proprio = sample.proprio;
   encoded.meta.clipped = sample.clipped;
   encoded.meta.contacts = sample.contacts;
+  encoded.meta.variation = sample.variation;
   return encoded;
 }
 
@@ -956,6 +991,18 @@ void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio
   }
   if (!raw_audio && sample.valid && !sample.audio.allFinite()) {
     throw SchemaError(where + ": valid sample has non-finite audio");
+  }
+  // Randomized draws: one finite value per name.
+  if (sample.variation.size() != info.variation_names.size()) {
+    throw SchemaError(where + ": has " + std::to_string(sample.variation.size()) +
+                      " randomized values, the file stores " +
+                      std::to_string(info.variation_names.size()));
+  }
+  for (size_t j = 0; j < sample.variation.size(); ++j) {
+    if (!std::isfinite(sample.variation[j])) {
+      throw SchemaError(where + ": randomized value " + info.variation_names[j] +
+                        " is not finite");
+    }
   }
   // Contacts: only a 1.1 file stores them; kind codes must be known.
   if (!with_contacts && !sample.contacts.empty()) {
@@ -1044,6 +1091,10 @@ void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
   h5::AppendRows(columns.invalid_reason.get(), string_type.get(), &reason, 1, file,
                  kInvalidReasonPath);
   h5::AppendRows(columns.clipped.get(), H5T_NATIVE_UINT8, &clipped, 1, file, kClippedPath);
+  if (columns.variation.valid()) {
+    h5::AppendRows(columns.variation.get(), H5T_NATIVE_DOUBLE, sample.variation.data(), 1, file,
+                   kVariationPath);
+  }
   indices.insert(sample.index);
   ++count;
 

@@ -66,6 +66,7 @@ void AudioConfig::Serialize(Archive* a) {
   a->Visit("sample_rate_hz", &sample_rate_hz, Bounds::Closed(8000.0, 384000.0));
   a->Visit("record_duration_s", &record_duration_s, Bounds::Open(0.0, 60.0));
   a->Visit("onset_time_s", &onset_time_s, Bounds::NonNegative());
+  a->Visit("onset_jitter_s", &onset_jitter_s, Bounds::NonNegative());
 }
 
 int64_t AudioConfig::num_samples() const {

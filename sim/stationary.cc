@@ -166,7 +166,7 @@ RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed
   const double tilt_rad = sc.approach_spread_deg * kDeg * std::sqrt(rng.Uniform());
   const double tilt_azimuth_rad = rng.Uniform(0.0, 2.0 * kPi);
   const double grip_side = rng.Uniform() < 0.5 ? -1.0 : 1.0;
-  const double onset_s = audio_.onset_time_s + rng.Uniform(-0.05, 0.05);
+  const double onset_s = audio_.onset_time_s + rng.Uniform(-audio_.onset_jitter_s, audio_.onset_jitter_s);
   result.target_z_m = z_m;
   result.target_theta_rad = WrapAngle(theta_rad);
   result.target_time_s = onset_s;

@@ -51,7 +51,7 @@ StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& c, const SceneCo
   d.contact_fraction = rng.Uniform(c.contact_fraction_min, c.contact_fraction_max);
   d.z_m = rng.Uniform(tube.contact_z_min_m, tube.contact_z_max_m);
   d.angle_offset_rad = rng.Uniform(-c.contact_angle_spread_deg, c.contact_angle_spread_deg) * kDeg;
-  d.onset_s = audio.onset_time_s + rng.Uniform(-0.05, 0.05);
+  d.onset_s = audio.onset_time_s + rng.Uniform(-audio.onset_jitter_s, audio.onset_jitter_s);
   // the object, its variant and the aim on it
   Rng scene_rng(sample_seed, Stream::kScene);
   d.object = DrawObjectIndex(scene.objects, scene_rng.Uniform());

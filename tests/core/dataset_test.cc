@@ -594,6 +594,51 @@ TEST(MergeTest, JoinsShardsInSampleIndexOrder) {
             (std::vector<float>{0, 0, 0, 2, 3, 3, 3}));
 }
 
+// A randomized dataset stores each sample's draws in /variation, named; merge carries them.
+TEST(DatasetTest, VariationTableRoundTripsAndMerges) {
+  TempDir dir;
+  DatasetInfo info = MakeInfo(true);
+  info.variation_names = {"youngs_modulus_scale", "sensitivity_scale_0", "sensitivity_scale_1"};
+  info.num_shards = 2;
+  const auto write = [&](const std::string& path, int shard, std::vector<uint64_t> indices) {
+    info.shard = shard;
+    DatasetWriter writer(path, info);
+    for (const uint64_t i : indices) {
+      StrikeSample s = MakeSample(i, info, i != 2);
+      s.variation = {1.0 + 0.01 * i, 0.5 + i, 2.0 - 0.1 * i};
+      writer.Append(s);
+    }
+    writer.Finish();
+  };
+  write(dir.File("s0.h5"), 0, {0, 2});
+  write(dir.File("s1.h5"), 1, {1, 3});
+  MergeDatasets({dir.File("s0.h5"), dir.File("s1.h5")}, dir.File("m.h5"));
+  for (const std::string name : {"s1.h5", "m.h5"}) {
+    SCOPED_TRACE(name);
+    DatasetReader reader(dir.File(name));
+    EXPECT_EQ(reader.info().variation_names, info.variation_names);
+    for (int64_t row = 0; row < reader.size(); ++row) {
+      const StrikeSample got = reader.ReadMeta(row);
+      const double i = static_cast<double>(got.index);
+      EXPECT_EQ(got.variation, (std::vector<double>{1.0 + 0.01 * i, 0.5 + i, 2.0 - 0.1 * i}));
+    }
+  }
+  // a sample whose draws do not match the names, or are not finite, is refused
+  DatasetWriter writer(dir.File("bad.h5"), info);
+  StrikeSample s = MakeSample(0, info);
+  s.variation = {1.0};
+  EXPECT_THROW(writer.Append(s), SchemaError);
+  s.variation = {1.0, NAN, 1.0};
+  EXPECT_THROW(writer.Append(s), SchemaError);
+  // a dataset without draws has no /variation and reads back none
+  WriteDataset(dir.File("plain.h5"), MakeInfo(true), {0});
+  DatasetReader plain(dir.File("plain.h5"));
+  EXPECT_TRUE(plain.info().variation_names.empty());
+  EXPECT_TRUE(plain.Read(0).variation.empty());
+  EXPECT_ANY_THROW(ReadArray(dir.File("plain.h5"), "variation"));
+  EXPECT_EQ(ReadArray(dir.File("m.h5"), "variation").data.size(), 12u);
+}
+
 TEST(MergeTest, RefusesDuplicateIndices) {
   TempDir dir;
   const DatasetInfo info = MakeInfo(true);

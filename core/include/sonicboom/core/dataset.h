@@ -16,6 +16,8 @@
 ///   impulse_Ns, peak_force_N (M) f64; /contacts/point_m (M,3) f64, /contacts/normal (M,3) f64,
 ///   tube frame; /contacts/kind (M) u8 (attr `names` = "impact,bounce,press");
 ///   /contacts/object, /contacts/material (M) variable-length UTF-8 strings
+///   /variation (N, P) f64, only when the config randomizes: sample n's drawn values, attr `names`
+///   = the P comma-separated names (randomize.h)
 ///   root attrs: schema, schema_version, software_version, source, config_yaml, sample_rate_hz,
 ///               proprio_rate_hz, global_seed, shard, num_shards, num_samples, created_utc,
 ///               and `complete` = 1, written last.
@@ -53,6 +55,7 @@ struct DatasetInfo {
   int64_t num_samples{0};            // reader: samples in the file
   bool complete{false};              // reader: the `complete` attribute
   std::string schema_version;        // reader: the file's version; the writer writes the current
+  std::vector<std::string> variation_names;  // (P) randomized draws stored per sample; empty: none
 };
 
 /// Appends samples in order. Append, AppendEncoded and Finish run on one thread at a time;

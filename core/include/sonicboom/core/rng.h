@@ -23,7 +23,8 @@ constexpr uint64_t SampleSeed(uint64_t global_seed, uint64_t index) {
 /// Named sub-streams of one sample (geometry, noise, ...), so adding draws to one stage
 /// does not shift the numbers of another.
 enum class Stream : uint64_t { kStrike = 1, kAcoustics = 2, kDaq = 3, kNoise = 4, kSplit = 5, kTrain = 6,
-                             kScene = 7 };  // kScene: object drawn per strike, scene shapes
+                             kScene = 7,       // object drawn per strike, scene shapes
+                             kRandomize = 8 }; // randomized structure and sensor chain
 
 /// xoshiro256** generator with its own uniform and normal draws (no implementation-defined
 /// std distributions, so numbers are identical across standard libraries).

@@ -74,6 +74,7 @@ struct StrikeSample {
   Eigen::MatrixXf proprio;                  // (K x kProprioFeatures) at the proprio rate
   bool clipped{false};                      // any audio sample hit full scale
   std::vector<ContactEpisode> contacts;     // every tube contact, in time order (may be empty)
+  std::vector<double> variation;            // (P) randomized draws (DatasetInfo::variation_names)
 };
 
 }  // namespace sonicboom

@@ -53,6 +53,7 @@ struct AudioConfig {
   double sample_rate_hz{44100.0};
   double record_duration_s{2.0};           // one strike record
   double onset_time_s{0.5};                // nominal time of first contact in the record
+  double onset_jitter_s{0.05};             // first contact drawn uniformly in onset_time_s +- this
 
   void Serialize(Archive* a);
   int64_t num_samples() const;             // record length in samples
