@@ -145,9 +145,39 @@ DaqChain::~DaqChain() = default;
 
 const DaqConfig& DaqChain::daq() const { return impl_->daq; }
 
+namespace {
+
+// mains hum over n samples at fs: harmonics k = 1.. of f0 with amplitudes 1/k and the given
+// phases, scaled to rms_v (harmonics at or above Nyquist left out); volts
+Eigen::ArrayXd HumSignal(int64_t n, double fs, double f0_hz, double rms_v,
+                         const std::vector<double>& phase_rad) {
+  Eigen::ArrayXd hum = Eigen::ArrayXd::Zero(n);
+  double power = 0.0;  // mean square of the unit-scaled sum
+  for (size_t h = 0; h < phase_rad.size(); ++h) {
+    const double k = static_cast<double>(h + 1);
+    if (k * f0_hz >= 0.5 * fs) break;
+    const double amp = 1.0 / k;
+    power += 0.5 * amp * amp;
+    // unit phasor advanced by hand each sample
+    const double w = 2 * kPi * k * f0_hz / fs;
+    const double sr = std::cos(w), si = std::sin(w);
+    double pr = std::cos(phase_rad[h]), pi = std::sin(phase_rad[h]);
+    for (int64_t t = 0; t < n; ++t) {
+      hum[t] += amp * pi;
+      const double r = pr * sr - pi * si;
+      pi = pr * si + pi * sr;
+      pr = r;
+    }
+  }
+  if (power > 0.0) hum *= rms_v / std::sqrt(power);
+  return hum;
+}
+
+}  // namespace
+
 bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> joint_speed_rad_s,
-                       double joint_speed_rate_hz, uint64_t sample_seed,
-                       Eigen::MatrixXf* audio) const {
+                       double joint_speed_rate_hz, uint64_t sample_seed, Eigen::MatrixXf* audio,
+                       const Variation* variation) const {
   const Impl& m = *impl_;
   SONICBOOM_DEMAND(strain.rows() == m.channels);
   const int64_t num_frames = strain.cols();
@@ -201,6 +231,15 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
     rec_offset = static_cast<int64_t>(noise_rng.UniformInt(static_cast<uint64_t>(rec->cols() - rec_span + 1)));
   }
 
+  // this sample's sensor chain: hum, record level and converter full scale
+  const Variation* var = variation;
+  Eigen::ArrayXd hum;
+  if (var != nullptr && var->hum_rms_v > 0.0) {
+    hum = HumSignal(num_frames, m.fs, var->hum_hz, var->hum_rms_v, var->hum_phase_rad);
+  }
+  const double level = var != nullptr ? std::pow(10.0, var->record_level_db / 20.0) : 1.0;
+  const double full_scale_v = m.daq.full_scale_v * (var != nullptr ? var->full_scale_scale : 1.0);
+
   const double adc_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.adc_bits) - 1) - 1);
   const double out_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.output_bits) - 1) - 1);
   audio->resize(m.channels, num_frames);
@@ -208,16 +247,30 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
   Eigen::ArrayXd v(num_frames);  // one channel's volts, contiguous
   for (int i = 0; i < m.channels; ++i) {
     // piezo volts with the channel's gain (a fixed offset, or a mismatch drawn per strike)
-    const double gain_db = m.daq.channel_gain_db.empty() ? rng.Normal() * m.daq.gain_mismatch_db
-                                                         : m.daq.channel_gain_db[static_cast<size_t>(i)];
+    const size_t ci = static_cast<size_t>(i);
+    double gain_db = 0.0;
+    if (var != nullptr && !var->channel_gain_db.empty()) {
+      gain_db = var->channel_gain_db[ci];
+    } else {
+      gain_db = m.daq.channel_gain_db.empty() ? rng.Normal() * m.daq.gain_mismatch_db
+                                              : m.daq.channel_gain_db[ci];
+    }
+    const double bonding = var != nullptr ? var->sensitivity_scale[ci] : 1.0;
     v = strain.row(i).transpose().array() *
-            (m.daq.sensitivity_v_per_strain * std::pow(10.0, gain_db / 20.0)) +
-        channel_gain[static_cast<size_t>(i)] * motor;
+            (m.daq.sensitivity_v_per_strain * bonding * std::pow(10.0, gain_db / 20.0)) +
+        channel_gain[ci] * motor;
     // high-pass of disc capacitance into the preamp input (bilinear); the ambient floor and the
     // preamp noise are white, so they join after it as one draw (the 10 Hz corner removes a
     // negligible part of white noise)
-    const double noise_v = std::hypot(m.noise.ambient_rms_v, m.preamp_noise_v[i]);
-    const double b0 = m.b0[i], a1 = m.a1[i];
+    const double noise_v = var != nullptr && var->noise_floor_v >= 0.0
+                               ? var->noise_floor_v
+                               : std::hypot(m.noise.ambient_rms_v, m.preamp_noise_v[i]);
+    double b0 = m.b0[i], a1 = m.a1[i];
+    if (var != nullptr && !var->highpass_hz.empty()) {
+      const double kk = std::tan(kPi * var->highpass_hz[ci] / m.fs);
+      b0 = 1.0 / (1.0 + kk);
+      a1 = (kk - 1.0) / (kk + 1.0);
+    }
     double x_prev = 0, y_prev = 0;
     for (int64_t k = 0; k < num_frames; ++k) {
       const double x = v[k];
@@ -226,12 +279,15 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
       y_prev = y;
       v[k] = y + noise_v * noise_rng.NoiseSample();
     }
+    // mains hum picked up by the channel's cable, then the record level of the whole channel
+    if (hum.size() > 0) v += var->hum_channel_scale[ci] * hum;
+    if (level != 1.0) v *= level;
     if (rec != nullptr) {
       v.head(rec_span) += rec->row(i).segment(rec_offset, rec_span).transpose().cast<double>().array() *
-                          (m.noise.wav_gain * m.daq.full_scale_v);
+                          (m.noise.wav_gain * full_scale_v);
     }
     // converter: clip at full scale, quantize to the ADC, then to the output word length
-    v /= m.daq.full_scale_v;
+    v /= full_scale_v;
     if (!v.isFinite().all()) {
       Eigen::Index k = 0;
       while (std::isfinite(v[k])) ++k;

@@ -88,6 +88,46 @@ PointWeights SparseWeights(const ShellModel& model, const std::vector<int64_t>& 
   return p;
 }
 
+// the recursion tables of one structure: the bank's own, or a varied one per render
+struct RecursionTables {
+  Eigen::ArrayXf pole_re, pole_im;     // (modes) p = exp((-sigma + i omega_d) T)
+  Eigen::ArrayXf in_re, in_im;         // (modes) p^(1/2): an impulse mid-sample
+  Eigen::ArrayXd decay_per_sample;     // (modes) sigma T
+  Eigen::ArrayXd decay_tail_min;       // (modes) min of sigma T over this mode and every above
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> sensor_gain;
+                                       // (mics x modes) S phi_n / omega_d, rows contiguous
+  double shape_scale{1.0};             // mass-normalized shapes: 1 / sqrt(rho' / rho)
+  double static_scale{1.0};            // residual flexibility: E / E'
+
+  // poles of modes at omega (rad/s) with damping ratios zeta (each < 1) at the audio period T
+  void SetPoles(const Eigen::VectorXd& omega, const Eigen::VectorXd& zeta, double T);
+};
+
+void RecursionTables::SetPoles(const Eigen::VectorXd& omega, const Eigen::VectorXd& zeta,
+                               double T) {
+  const Eigen::Index n = omega.size();
+  pole_re.resize(n);
+  pole_im.resize(n);
+  in_re.resize(n);
+  in_im.resize(n);
+  decay_per_sample.resize(n);
+  decay_tail_min.resize(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double sigma = zeta[k] * omega[k], wd = omega[k] * std::sqrt(1 - zeta[k] * zeta[k]);
+    const std::complex<double> p = std::exp(std::complex<double>(-sigma * T, wd * T));
+    const std::complex<double> half = std::exp(std::complex<double>(-0.5 * sigma * T, 0.5 * wd * T));
+    pole_re[k] = static_cast<float>(p.real());
+    pole_im[k] = static_cast<float>(p.imag());
+    in_re[k] = static_cast<float>(half.real());
+    in_im[k] = static_cast<float>(half.imag());
+    decay_per_sample[k] = sigma * T;
+  }
+  for (Eigen::Index k = n - 1; k >= 0; --k) {
+    decay_tail_min[k] = k + 1 < n ? std::min(decay_per_sample[k], decay_tail_min[k + 1])
+                                  : decay_per_sample[k];
+  }
+}
+
 }  // namespace
 
 struct ShellModalBank::Impl {
@@ -96,18 +136,46 @@ struct ShellModalBank::Impl {
   int64_t n_modes{0};
   Eigen::VectorXd frequency_hz;        // (modes) ascending
   Eigen::VectorXd omega, zeta;         // (modes) rad/s, damping ratio
-  Eigen::ArrayXd pole_re, pole_im;     // (modes) p = exp((-sigma + i omega_d) T)
-  Eigen::ArrayXd in_re, in_im;         // (modes) p^(1/2): an impulse mid-sample
-  Eigen::ArrayXd decay_per_sample;     // (modes) sigma T
-  Eigen::ArrayXf pole_re_f, pole_im_f, in_re_f, in_im_f;  // (modes) the same in float
-  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> sensor_gain;
-                                       // (mics x modes) S phi_n / omega_d, rows contiguous
+  RecursionTables base;                // the structure as solved
+  Eigen::MatrixXd sensor_shape;        // (mics x modes) S phi_n
   Eigen::MatrixXd sensor_static;       // (mics x modes) S phi_n / omega_n^2
   std::vector<int64_t> w_row;          // (dofs) row of a radial DOF in the tables below, or -1
   Eigen::MatrixXf shapes;              // (radial DOFs x modes) mass-normalized shapes, 1/sqrt(kg)
   Eigen::MatrixXd flexibility;         // (radial DOFs x mics) rows of K^-1 S^T, or empty
   double floor_ln{0.0};                // ln of the decay floor ratio
+
+  // the tables of the structure under a variation, for the lowest n modes
+  RecursionTables Varied(const Variation& v, int64_t n) const;
+  // damping ratio of bank mode k at the varied angular frequency omega
+  double VariedDamping(const Variation& v, double omega_rad_s) const;
 };
+
+double ShellModalBank::Impl::VariedDamping(const Variation& v, double omega_rad_s) const {
+  const double zeta = v.loss_factor > 0.0 ? v.DampingRatio(omega_rad_s / (2 * M_PI))
+                                          : model->DampingRatio(omega_rad_s);
+  if (!(zeta < 1.0)) {
+    throw NumericalError(fmt::format("a mode at {:.1f} Hz of the randomized structure has damping "
+                                     "ratio {:.3f} >= 1 (overdamped)",
+                                     omega_rad_s / (2 * M_PI), zeta));
+  }
+  return zeta;
+}
+
+RecursionTables ShellModalBank::Impl::Varied(const Variation& v, int64_t n) const {
+  RecursionTables t;
+  const double s = v.frequency_scale();
+  const Eigen::VectorXd w = omega.head(n) * s;
+  Eigen::VectorXd z(n), out_scale(n);
+  for (int64_t k = 0; k < n; ++k) {
+    z[k] = VariedDamping(v, w[k]);
+    out_scale[k] = 1.0 / (w[k] * std::sqrt(1 - z[k] * z[k]));
+  }
+  t.SetPoles(w, z, 1.0 / fs);
+  t.shape_scale = 1.0 / std::sqrt(v.density_scale);
+  t.static_scale = 1.0 / v.youngs_modulus_scale;
+  t.sensor_gain = (sensor_shape.leftCols(n) * (t.shape_scale * out_scale).asDiagonal()).cast<float>();
+  return t;
+}
 
 ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
                                const MicArrayConfig& mics, double sample_rate_hz,
@@ -129,11 +197,6 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
   m.omega = modes.omega_rad_s.head(n);
   m.frequency_hz = m.omega / (2 * M_PI);
   m.zeta.resize(n);
-  m.pole_re.resize(n);
-  m.pole_im.resize(n);
-  m.in_re.resize(n);
-  m.in_im.resize(n);
-  m.decay_per_sample.resize(n);
   Eigen::VectorXd out_scale(n);  // 1 / omega_d: modal displacement per unit impulse amplitude
   for (int64_t k = 0; k < n; ++k) {
     const double w = m.omega[k];
@@ -144,20 +207,15 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
                                     m.frequency_hz[k], zeta));
     }
     m.zeta[k] = zeta;
-    const double sigma = zeta * w, wd = w * std::sqrt(1 - zeta * zeta);
-    const std::complex<double> p = std::exp(std::complex<double>(-sigma * T, wd * T));
-    const std::complex<double> half = std::exp(std::complex<double>(-0.5 * sigma * T, 0.5 * wd * T));
-    m.pole_re[k] = p.real();
-    m.pole_im[k] = p.imag();
-    m.in_re[k] = half.real();
-    m.in_im[k] = half.imag();
-    m.decay_per_sample[k] = sigma * T;
-    out_scale[k] = 1.0 / wd;
+    out_scale[k] = 1.0 / (w * std::sqrt(1 - zeta * zeta));
   }
-  // Rayleigh decay grows with frequency, so the live modes stay a prefix; check it
+  m.base.SetPoles(m.omega, m.zeta, T);
+  // Rayleigh decay grows with frequency, so the live modes stay a prefix; check it, and stop
+  // modes by their own decay (a varied loss law may not grow: its tables use the tail minimum)
   for (int64_t k = 1; k < n; ++k) {
-    SONICBOOM_DEMAND(m.decay_per_sample[k] >= m.decay_per_sample[k - 1] * (1 - 1e-9));
+    SONICBOOM_DEMAND(m.base.decay_per_sample[k] >= m.base.decay_per_sample[k - 1] * (1 - 1e-9));
   }
+  m.base.decay_tail_min = m.base.decay_per_sample;
   // forces act on radial DOFs only: keep those rows of the shapes
   m.w_row.assign(static_cast<size_t>(model.dofs()), -1);
   std::vector<int64_t> w_dofs;
@@ -174,12 +232,9 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
     m.shapes.row(static_cast<Eigen::Index>(r)) = modes.shapes.row(w_dofs[r]).head(n).cast<float>();
   }
   const Eigen::MatrixXd rows = model.SensorRows(mics);                      // (mics x dofs)
-  const Eigen::MatrixXd gain = rows * modes.shapes.leftCols(n);             // (mics x modes)
-  m.sensor_gain = (gain * out_scale.asDiagonal()).cast<float>();
-  m.pole_re_f = m.pole_re.cast<float>();
-  m.pole_im_f = m.pole_im.cast<float>();
-  m.in_re_f = m.in_re.cast<float>();
-  m.in_im_f = m.in_im.cast<float>();
+  m.sensor_shape = rows * modes.shapes.leftCols(n);                         // (mics x modes)
+  const Eigen::MatrixXd& gain = m.sensor_shape;
+  m.base.sensor_gain = (gain * out_scale.asDiagonal()).cast<float>();
   if (mics.count() > kMaxMics) {
     throw ConfigError(fmt::format("mics: {} microphones; the modal bank renders at most {}",
                                   mics.count(), kMaxMics));
@@ -209,10 +264,15 @@ int64_t ShellModalBank::ModesBelow(double band_hz) const {
   return std::upper_bound(f.data(), f.data() + f.size(), band_hz) - f.data();
 }
 
-DrivingPoint ShellModalBank::WallAt(double z_m, double theta_rad, double band_hz) const {
+int64_t ShellModalBank::ModesBelow(double band_hz, const Variation* variation) const {
+  return ModesBelow(variation != nullptr ? band_hz / variation->frequency_scale() : band_hz);
+}
+
+DrivingPoint ShellModalBank::WallAt(double z_m, double theta_rad, double band_hz,
+                                    const Variation* variation) const {
   const Impl& m = *impl_;
   const PointWeights p = SparseWeights(*m.model, m.w_row, z_m, theta_rad);
-  const int64_t n = ModesBelow(band_hz);
+  const int64_t n = ModesBelow(band_hz, variation);
   DrivingPoint wall;
   wall.omega_rad_s = m.omega.head(n);
   wall.zeta = m.zeta.head(n);
@@ -220,16 +280,30 @@ DrivingPoint ShellModalBank::WallAt(double z_m, double theta_rad, double band_hz
   for (size_t i = 0; i < p.dof.size(); ++i) {
     wall.phi += p.weight[i] * m.shapes.row(p.dof[i]).head(n).transpose().cast<double>();
   }
+  // the varied structure: frequencies and shapes scaled, damping by its law
+  if (variation != nullptr) {
+    wall.omega_rad_s *= variation->frequency_scale();
+    for (int64_t k = 0; k < n; ++k) wall.zeta[k] = m.VariedDamping(*variation, wall.omega_rad_s[k]);
+    wall.phi /= std::sqrt(variation->density_scale);
+  }
   return wall;
 }
 
 Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64_t mode_count,
-                                       int64_t samples) const {
+                                       int64_t samples, const Variation* variation) const {
   const Impl& m = *impl_;
-  const int64_t n = std::clamp<int64_t>(mode_count, 0, m.n_modes);
+  int64_t n = std::clamp<int64_t>(mode_count, 0, m.n_modes);
   const double T = 1.0 / m.fs;
-  const int mics = static_cast<int>(m.sensor_gain.rows());
+  const int mics = static_cast<int>(m.sensor_shape.rows());
   Eigen::MatrixXd strain = Eigen::MatrixXd::Zero(mics, samples);
+  // the recursion tables: the bank's own, or the varied structure's
+  RecursionTables varied;
+  if (variation != nullptr) {
+    // a stiffer varied structure lifts the top modes: keep them below 0.95 Nyquist
+    n = std::min(n, ModesBelow(0.475 * m.fs, variation));
+    varied = m.Varied(*variation, n);
+  }
+  const RecursionTables& tab = variation != nullptr ? varied : m.base;
 
   // each force's modal input b = phi^T w (modes), its static sensor part, and its span
   std::vector<Eigen::ArrayXf> input(forces.size());
@@ -246,11 +320,12 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
     // impulse per newton of sample force; drives 120 dB below the strongest are dropped (a mode
     // with a nodal line through the point would otherwise decay into subnormal floats)
     const double drive_floor = 1e-6 * b.cwiseAbs().maxCoeff();
-    input[e] = (b.array().abs() < drive_floor).select(0.0, b.array() * T).cast<float>();
+    input[e] = (b.array().abs() < drive_floor).select(0.0, b.array() * (T * tab.shape_scale)).cast<float>();
     force_end = std::max<int64_t>(force_end, f.first_sample + static_cast<int64_t>(f.force_n.size()));
     // residual flexibility of the modes left out: (S K^-1 w - sum_n S phi_n b_n / omega_n^2) F
     if (m.flexibility.size() > 0) {
       stat -= m.sensor_static.leftCols(n) * b;
+      stat *= tab.static_scale;
       for (size_t j = 0; j < f.force_n.size(); ++j) {
         const int64_t k = f.first_sample + static_cast<int64_t>(j);
         if (k >= 0 && k < samples) strain.col(k) += stat * f.force_n[j];
@@ -261,14 +336,14 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
 
   // mode recursions in float (their error stays far below the 16-bit output's step), modes in
   // the inner loop so it vectorizes; the live modes shrink to a prefix as they decay
-  const float* pr = m.pole_re_f.data();
-  const float* pim = m.pole_im_f.data();
-  const float* ir = m.in_re_f.data();
-  const float* ii = m.in_im_f.data();
+  const float* pr = tab.pole_re.data();
+  const float* pim = tab.pole_im.data();
+  const float* ir = tab.in_re.data();
+  const float* ii = tab.in_im.data();
   std::vector<float> zr(static_cast<size_t>(n), 0.0f), zi(static_cast<size_t>(n), 0.0f);
   std::vector<float> u(static_cast<size_t>(n), 0.0f);
   std::vector<const float*> gain(static_cast<size_t>(mics));
-  for (int c = 0; c < mics; ++c) gain[static_cast<size_t>(c)] = m.sensor_gain.row(c).data();
+  for (int c = 0; c < mics; ++c) gain[static_cast<size_t>(c)] = tab.sensor_gain.row(c).data();
   float* zr_p = zr.data();
   float* zi_p = zi.data();
   float* u_p = u.data();
@@ -299,7 +374,7 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
     // modes that decayed past the floor since the last force stop (checked once a block)
     const double t_free = static_cast<double>(k + 1 - force_end);
     if (t_free > 0 && (k % kBlock) == 0) {
-      while (live > 0 && m.decay_per_sample[live - 1] * t_free > m.floor_ln) --live;
+      while (live > 0 && tab.decay_tail_min[live - 1] * t_free > m.floor_ln) --live;
     }
   }
   return strain;

@@ -80,6 +80,17 @@ double HertzForce(const HertzImpact& impact, double t_s) {
 struct StrikeSynthesizer::Impl {
   AcousticModelConfig c;
   double widest_band_hz{0.0};
+  double limit_band_hz{0.0};       // the configured limit (max_frequency_hz or 0.95 Nyquist)
+  double mode_band_hz{0.0};        // modes solved to here (modal and fd); 0: closed form
+
+  // the band played for a first closure of t_c s on a structure whose frequencies are scaled by
+  // frequency_scale (a randomized material; 1: as solved), Hz
+  double Band(double contact_duration_s, double frequency_scale) const {
+    const double widest = mode_band_hz > 0 ? std::min(limit_band_hz, mode_band_hz * frequency_scale)
+                                           : limit_band_hz;
+    if (c.synth.max_frequency_hz > 0) return widest;
+    return std::min(widest, c.synth.band_factor * 1.8 / contact_duration_s);
+  }
   // modal-closed-form
   std::vector<ModeBank> modes;     // ascending frequency, up to the widest band
   Eigen::VectorXd mic_theta_rad;   // (mics)
@@ -203,6 +214,7 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   // widest band: the configured limit, never above 0.95 Nyquist
   const double nyquist = 0.5 * audio.sample_rate_hz;
   m.widest_band_hz = synth.max_frequency_hz > 0 ? synth.max_frequency_hz : 0.95 * nyquist;
+  m.limit_band_hz = m.widest_band_hz;
   if (m.widest_band_hz >= nyquist) {
     throw ConfigError(fmt::format(
         "acoustics.max_frequency_hz = {} must be below the Nyquist frequency {} Hz "
@@ -229,6 +241,7 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   const std::string cache = synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : synth.mode_cache_dir;
   const ShellModes modes = CachedShellModes(*m.shell, mode_band, 0, true, cache);
   m.widest_band_hz = std::min(m.widest_band_hz, mode_band);
+  m.mode_band_hz = mode_band;
   m.bank = std::make_unique<ShellModalBank>(*m.shell, modes, config.mics, audio.sample_rate_hz,
                                             synth.decay_floor_db, synth.residual);
   if (synth.model == "fd") {
@@ -244,9 +257,7 @@ int64_t StrikeSynthesizer::mode_count() const {
 }
 
 double StrikeSynthesizer::BandFor(double contact_duration_s) const {
-  const Impl& m = *impl_;
-  if (m.c.synth.max_frequency_hz > 0) return m.widest_band_hz;
-  return std::min(m.widest_band_hz, m.c.synth.band_factor * 1.8 / contact_duration_s);
+  return impl_->Band(contact_duration_s, 1.0);
 }
 
 namespace {
@@ -296,17 +307,44 @@ std::vector<double> PressForce(double duration_s, double mean_force_n, double fs
 
 }  // namespace
 
-RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
+namespace {
+
+// the striker of a contact under a variation: tip radius and modulus replaced, rigid mass and
+// approach speed scaled (a struck rod keeps its beam modes)
+ContactEvent VariedContact(const ContactEvent& contact, const Variation& v) {
+  ContactEvent c = contact;
+  if (v.striker_radius_m > 0) c.striker_radius_m = v.striker_radius_m;
+  if (v.striker_youngs_modulus_pa > 0) c.striker_youngs_modulus_pa = v.striker_youngs_modulus_pa;
+  if (c.beam_length_m <= 0) c.effective_mass_kg *= v.striker_mass_scale;
+  c.normal_speed_m_s *= v.speed_scale;
+  return c;
+}
+
+}  // namespace
+
+RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
                                          std::span<const ContactEpisode> episodes,
                                          std::span<const double> joint_speed_rad_s,
-                                         double joint_speed_rate_hz, uint64_t sample_seed) const {
+                                         double joint_speed_rate_hz, uint64_t sample_seed,
+                                         const Variation* variation) const {
   const Impl& m = *impl_;
   const double fs = m.c.audio.sample_rate_hz;
   const int64_t num_frames = m.c.audio.num_samples();
   RenderedStrike out;
+  const bool varied_structure = variation != nullptr && (variation->frequency_scale() != 1.0 ||
+                                                         variation->density_scale != 1.0 ||
+                                                         variation->loss_factor > 0.0);
+  if (varied_structure && (!m.bank || m.fd)) {
+    throw ConfigError("randomize: material ranges need acoustics.model = modal (the numerical "
+                      "modes scale exactly; the fd and closed-form rungs do not)");
+  }
+  const ContactEvent contact = variation != nullptr ? VariedContact(given_contact, *variation)
+                                                    : given_contact;
+  const MaterialConfig material = variation != nullptr ? VariedMaterial(m.c.material, *variation)
+                                                       : m.c.material;
 
   // the rigid-wall Hertz impact: closed-form rung's pulse, and the contact band's first guess
-  const HertzImpact impact = SolveHertzImpact(contact, m.c.tube, m.c.material);
+  const HertzImpact impact = SolveHertzImpact(contact, m.c.tube, material);
   if (!std::isfinite(impact.duration_s) || impact.duration_s <= 0) {
     throw NumericalError(fmt::format("contact of speed {} m/s and mass {} kg has no finite "
                                      "Hertz duration",
@@ -348,11 +386,13 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
       striker.rigid_mass_kg = contact.effective_mass_kg;
     }
     // the wall at the contact: its modes in the band the rigid-wall pulse suggests
-    const double contact_band = BandFor(impact.duration_s);
+    const double frequency_scale = varied_structure ? variation->frequency_scale() : 1.0;
+    const double contact_band = m.Band(impact.duration_s, frequency_scale);
     std::vector<ForceInput> forces;
     auto play_contact = [&](double time_s, double z_m, double theta_rad, double speed_m_s,
                             double tube_side_kg, const DrivingPoint& other) {
-      DrivingPoint wall = m.bank->WallAt(z_m, theta_rad, contact_band);
+      DrivingPoint wall = m.bank->WallAt(z_m, theta_rad, contact_band,
+                                         varied_structure ? variation : nullptr);
       wall.rigid_mass_kg = tube_side_kg > 0 ? tube_side_kg : std::numeric_limits<double>::infinity();
       ContactForce cf = SolveContact(wall, other, impact.stiffness_n_m15, speed_m_s, time_s, fs,
                                      m.c.synth.contact);
@@ -391,28 +431,33 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& contact,
       if (is_first || !(e.normal_speed_m_s > 1e-4) || !(e.effective_mass_kg > 0)) continue;
       // a bounce or later impact: the same striker, its own speed and point
       DrivingPoint other = striker;
-      if (contact.beam_length_m <= 0) other.rigid_mass_kg = e.effective_mass_kg;
-      play_contact(e.time_s, e.z_m, e.theta_rad, e.normal_speed_m_s, contact.robot_side_mass_kg, other);
+      const double mass_scale = variation != nullptr ? variation->striker_mass_scale : 1.0;
+      const double speed_scale = variation != nullptr ? variation->speed_scale : 1.0;
+      if (contact.beam_length_m <= 0) other.rigid_mass_kg = e.effective_mass_kg * mass_scale;
+      play_contact(e.time_s, e.z_m, e.theta_rad, e.normal_speed_m_s * speed_scale,
+                   contact.robot_side_mass_kg, other);
     }
     out.forces_played = static_cast<int64_t>(forces.size());
 
     // vibration: the band the first contact excites, or the configured count
     // (the first closure sets it: a chatter's later touches are softer and no shorter)
-    out.band_hz = BandFor(first.first_closure_s);
+    out.band_hz = m.Band(first.first_closure_s, frequency_scale);
     if (m.fd) {
       out.modes_used = 0;
       strain = FdRender(*m.shell, *m.fd, forces, m.sensor_rows, num_frames,
                         m.c.synth.decay_floor_db);
     } else {
+      const Variation* structure = varied_structure ? variation : nullptr;
       out.modes_used = m.c.synth.mode_count > 0 ? std::min(m.c.synth.mode_count, m.bank->modes())
-                                                : m.bank->ModesBelow(out.band_hz);
-      strain = m.bank->Render(forces, out.modes_used, num_frames);
+                                                : m.bank->ModesBelow(out.band_hz, structure);
+      strain = m.bank->Render(forces, out.modes_used, num_frames, structure);
     }
   }
   out.vibration_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   // piezo, background, converter
-  out.clipped = m.daq->Convert(strain, joint_speed_rad_s, joint_speed_rate_hz, sample_seed, &out.audio);
+  out.clipped = m.daq->Convert(strain, joint_speed_rad_s, joint_speed_rate_hz, sample_seed,
+                               &out.audio, variation);
   return out;
 }
 

@@ -116,13 +116,22 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   sample.valid = ev.valid;
   sample.invalid_reason = ev.invalid_reason;
 
+  // this sample's randomized structure, striker and sensor chain, stored with it
+  const bool randomized = c.randomize.any();
+  acoustics::Variation variation;
+  if (randomized) {
+    variation = acoustics::DrawVariation(c.randomize, c.material.loss_factor, c.mics.count(),
+                                         sample.seed);
+    sample.variation = variation.values;
+  }
+
   // audio; a numerical failure marks the sample invalid instead of ending the run
   const int64_t frames = c.audio.num_samples();
   try {
     if (!sample.valid) throw NumericalError("no contact to play");
     acoustics::RenderedStrike r = impl_->synth->Render(ev.contact, sample.contacts,
                                                        ev.joint_speed_rad_s, ev.joint_speed_rate_hz,
-                                                       sample.seed);
+                                                       sample.seed, randomized ? &variation : nullptr);
     sample.audio = std::move(r.audio);
     sample.clipped = r.clipped;
     sample.label.impulse_Ns = r.impulse_ns;
@@ -200,6 +209,7 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
   info.global_seed = config.seed;
   info.shard = shard;
   info.num_shards = num_shards;
+  info.variation_names = acoustics::VariationNames(config.randomize, config.mics.count());
   DatasetWriter writer(out_path, info);
 
   // simulate and compress the audio in parallel, write in index order from one thread

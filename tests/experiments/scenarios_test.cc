@@ -1,6 +1,7 @@
 // The shipped scenario configs (configs/*.yaml) generate small datasets through the CLI.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
 #include <ostream>
@@ -10,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "sonicboom/core/dataset.h"
 
 namespace sonicboom {
 namespace {
@@ -105,6 +107,56 @@ INSTANTIATE_TEST_SUITE_P(
       std::string name = info.param.config;
       return name.substr(0, name.find('.'));
     });
+
+// The randomized preset layered over a scenario: every sample stores its draws, inside the
+// preset's ranges, and differs in structure from its neighbours; a bad range writes nothing.
+TEST(RandomizedPresetTest, LayersOverTs4AndStoresTheDraws) {
+  TempDir dir;
+  const std::string out = dir / "R.h5";
+  auto run = RunCli("--config '" + ConfigPath("ts4.yaml") + "' --config '" +
+                        ConfigPath("randomized.yaml") + "' generate --count 6 --out '" + out +
+                        "' -q --json",
+                    dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  DatasetReader reader(out);
+  const std::vector<std::string>& names = reader.info().variation_names;
+  // 14 scalar ranges and 3 per-channel ones over 6 channels
+  ASSERT_EQ(names.size(), 14u + 3u * 6u);
+  const auto column = [&](const std::string& name) {
+    const auto it = std::find(names.begin(), names.end(), name);
+    EXPECT_NE(it, names.end()) << name;
+    return static_cast<size_t>(it - names.begin());
+  };
+  std::vector<double> moduli;
+  for (int64_t row = 0; row < reader.size(); ++row) {
+    const StrikeSample s = reader.ReadMeta(row);
+    ASSERT_EQ(s.variation.size(), names.size());
+    const double t = s.variation[column("temperature_c")];
+    EXPECT_GE(t, 10.0);
+    EXPECT_LE(t, 35.0);
+    // the stored modulus factor includes the temperature shift
+    const double e = s.variation[column("youngs_modulus_scale")];
+    EXPECT_GE(e, 0.85 * (1 - 0.004 * 15) - 1e-12);
+    EXPECT_LE(e, 1.15 * (1 + 0.004 * 10) + 1e-12);
+    moduli.push_back(e);
+    EXPECT_GE(s.variation[column("highpass_hz_5")], 5.0);
+    EXPECT_LE(s.variation[column("highpass_hz_5")], 150.0);
+    // the first contact lies in 0.5 +- 0.25 s
+    EXPECT_GE(s.label.time_s, 0.25);
+    EXPECT_LE(s.label.time_s, 0.75 + 0.01);
+  }
+  std::sort(moduli.begin(), moduli.end());
+  EXPECT_EQ(std::unique(moduli.begin(), moduli.end()), moduli.end());
+
+  // min above max: refused naming the key, nothing written
+  const std::string bad = dir / "bad.h5";
+  run = RunCli("--config '" + ConfigPath("ts4.yaml") + "' --set 'randomize.density_scale=[1.1, 0.9]' "
+               "generate --count 2 --out '" + bad + "' -q",
+               dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("randomize.density_scale"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(bad));
+}
 
 }  // namespace
 }  // namespace sonicboom

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "sonicboom/acoustics/contact.h"
+#include "sonicboom/acoustics/randomize.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/core/tube.h"
@@ -44,11 +45,16 @@ class ShellModalBank {
   /// Number of bank modes with frequency <= band_hz.
   int64_t ModesBelow(double band_hz) const;
   /// The wall seen at (z, theta) by a contact: modes up to band_hz (rigid part: held).
-  DrivingPoint WallAt(double z_m, double theta_rad, double band_hz) const;
+  /// variation: the structure with a scaled modulus and density and its loss law (randomize.h),
+  /// exact for the same geometry and Poisson ratio; null = as solved.
+  DrivingPoint WallAt(double z_m, double theta_rad, double band_hz,
+                      const Variation* variation = nullptr) const;
   /// Sensor strain (mics x samples) of the structure from rest under the forces, using the
   /// lowest `mode_count` modes (plus the residual of the rest when enabled).
-  Eigen::MatrixXd Render(std::span<const ForceInput> forces, int64_t mode_count,
-                         int64_t samples) const;
+  Eigen::MatrixXd Render(std::span<const ForceInput> forces, int64_t mode_count, int64_t samples,
+                         const Variation* variation = nullptr) const;
+  /// ModesBelow for the varied structure (its frequencies scaled).
+  int64_t ModesBelow(double band_hz, const Variation* variation) const;
 
  private:
   struct Impl;

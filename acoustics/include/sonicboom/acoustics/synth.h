@@ -13,6 +13,7 @@
 
 #include "sonicboom/acoustics/contact.h"
 #include "sonicboom/acoustics/daq.h"
+#include "sonicboom/acoustics/randomize.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/sample.h"
@@ -93,10 +94,12 @@ class StrikeSynthesizer {
   /// Renders one record: the first hard contact, plus every other episode of the record
   /// (bounces and impacts by the contact solve, presses as their mean force, foliage brushes as
   /// a rustle force; the episode at the first contact's time is that contact). joint_speed_rad_s
-  /// is sampled at joint_speed_rate_hz from the record start.
+  /// is sampled at joint_speed_rate_hz from the record start. variation: this sample's
+  /// randomized structure, striker and sensor chain (randomize.h); null = as configured. Its
+  /// material part needs the modal rung (ConfigError otherwise).
   RenderedStrike Render(const ContactEvent& contact, std::span<const ContactEpisode> episodes,
                         std::span<const double> joint_speed_rad_s, double joint_speed_rate_hz,
-                        uint64_t sample_seed) const;
+                        uint64_t sample_seed, const Variation* variation = nullptr) const;
   /// The first contact alone.
   RenderedStrike Render(const ContactEvent& contact, std::span<const double> joint_speed_rad_s,
                         double joint_speed_rate_hz, uint64_t sample_seed) const {

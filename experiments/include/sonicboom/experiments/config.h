@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "sonicboom/acoustics/features.h"
+#include "sonicboom/acoustics/randomize.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/archive.h"
@@ -48,6 +49,7 @@ struct SonicBoomConfig {
   acoustics::SynthConfig acoustics;
   acoustics::DaqConfig daq;
   acoustics::NoiseConfig noise;
+  acoustics::RandomizeConfig randomize;    // per-sample structure, striker and sensor draws
   acoustics::FeatureConfig features;
   learning::ModelConfig model;
   learning::TrainConfig train;

@@ -1,0 +1,113 @@
+#pragma once
+/// Randomized structures and sensor chains (docs/randomization.md): per-sample draws of what a
+/// real build varies and that the renderer can apply exactly without a new mode solve.
+///   - material: Young's modulus (with a temperature shift), density, loss factor and the
+///     exponent of its frequency law. At fixed geometry and Poisson ratio K scales with E and M
+///     with rho, so the modes keep their shapes, frequencies scale by sqrt(E'/E / (rho'/rho)),
+///     mass-normalized shapes by 1/sqrt(rho'/rho) and the static flexibility by E/E'.
+///   - the striker: effective mass, tip radius, tip modulus and approach speed, hence the contact
+///     duration and force.
+///   - the sensor chain: per-channel bonding (sensitivity) and preamp gain, per-channel high-pass
+///     corner, noise floor, mains hum and its harmonics, record level and converter full scale.
+/// Every range is a list [min, max]; an empty list leaves that quantity as configured. Every
+/// draw comes from (sample seed, Stream::kRandomize) in a fixed order, whichever ranges are set,
+/// so turning one range on never changes another's numbers. The drawn values are stored with
+/// each sample (Variation::Values, names from VariationNames).
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sonicboom/core/archive.h"
+#include "sonicboom/core/tube.h"
+
+namespace sonicboom::acoustics {
+
+/// Keys under "randomize". Ranges are [min, max] (inclusive); [] = not randomized.
+struct RandomizeConfig {
+  // material of the tube
+  std::vector<double> youngs_modulus_scale;   // x material.youngs_modulus_pa, uniform
+  std::vector<double> density_scale;          // x material.density_kg_m3, uniform
+  std::vector<double> temperature_c;          // uniform; E x (1 + modulus_per_c (T - reference))
+  double modulus_per_c{-0.004};               // relative modulus change per kelvin (rigid PVC)
+  double reference_temperature_c{20.0};       // the temperature material.youngs_modulus_pa holds at
+  // either range replaces the shell's Rayleigh damping by the law
+  // eta(f) = material.loss_factor x scale x (f / loss_reference_hz)^exponent for every mode
+  std::vector<double> loss_factor_scale;      // log-uniform
+  std::vector<double> loss_exponent;          // uniform
+  double loss_reference_hz{2000.0};
+  // the striker at the first contact and every other impact of the record
+  std::vector<double> striker_mass_scale;     // x effective mass (rigid strikers), log-uniform
+  std::vector<double> striker_radius_m;       // tip radius of curvature, log-uniform
+  std::vector<double> striker_youngs_modulus_pa;  // tip modulus, log-uniform
+  std::vector<double> speed_scale;            // x approach speed, uniform
+  // sensor chain, drawn per channel where the name says so
+  std::vector<double> sensitivity_scale;      // per channel: disc bonding, log-uniform
+  std::vector<double> channel_gain_db;        // per channel: preamp gain offset, uniform
+  std::vector<double> highpass_hz;            // per channel: input high-pass corner, log-uniform
+  std::vector<double> noise_floor_v;          // ambient + preamp floor (rms), log-uniform
+  std::vector<double> hum_hz;                 // mains fundamental, uniform (e.g. [49.8, 60.2])
+  std::vector<double> hum_rms_v;              // hum level (rms of all harmonics), log-uniform
+  int64_t hum_harmonics{5};                   // odd and even harmonics 1..N, amplitudes 1/k
+  std::vector<double> record_level_db;        // gain of every channel, uniform
+  std::vector<double> full_scale_scale;       // x daq.full_scale_v (converter scaling), uniform
+
+  void Serialize(Archive* a);
+  /// Ranges have 0 or 2 entries with min <= max, inside physical limits; throws ConfigError
+  /// naming the key (randomize.<name>).
+  void Validate() const;
+  /// Whether any material range is set (they need the numerical-mode rung).
+  bool material() const;
+  /// Refuses a loss law whose damping ratio reaches 1 (overdamped) in [20 Hz, 20 kHz] for
+  /// material.loss_factor = base_loss_factor; names the keys.
+  void CheckLossLaw(double base_loss_factor) const;
+  /// Whether any range is set.
+  bool any() const;
+};
+
+/// The draws of one sample. Fields hold the configured value where a range is not set.
+struct Variation {
+  double youngs_modulus_scale{1.0};          // total, temperature included
+  double density_scale{1.0};
+  double temperature_c{20.0};
+  // loss law eta(f) = loss_factor (f / loss_reference_hz)^loss_exponent for every mode;
+  // loss_factor 0: the shell's own damping (shell.loss_*) at the scaled frequencies
+  double loss_factor{0.0};
+  double loss_exponent{0.0};
+  double loss_reference_hz{2000.0};
+  double striker_mass_scale{1.0};
+  double striker_radius_m{0.0};              // 0 = as the contact says
+  double striker_youngs_modulus_pa{0.0};     // 0 = as the contact says
+  double speed_scale{1.0};
+  std::vector<double> sensitivity_scale;     // (channels)
+  std::vector<double> channel_gain_db;       // (channels); empty = the DAQ's own draw
+  std::vector<double> highpass_hz;           // (channels); empty = daq's R C corner
+  double noise_floor_v{-1.0};                // < 0 = as configured
+  double hum_hz{50.0};
+  double hum_rms_v{0.0};                     // 0 = no hum
+  std::vector<double> hum_phase_rad;         // (hum harmonics) not stored
+  std::vector<double> hum_channel_scale;     // (channels) pickup of each cable, not stored
+  double record_level_db{0.0};
+  double full_scale_scale{1.0};
+
+  /// Frequency factor of every mode: sqrt(E'/E / (rho'/rho)).
+  double frequency_scale() const;
+  /// Damping ratio of a mode at f Hz (the varied frequency) under the loss law; only when
+  /// loss_factor > 0.
+  double DampingRatio(double frequency_hz) const;
+  std::vector<double> values;                // the set ranges' draws, as VariationNames
+};
+
+/// Names of the stored draws: one per set range, per-channel ranges one per channel with the
+/// channel appended ("sensitivity_scale_0"). Empty when nothing is randomized.
+std::vector<std::string> VariationNames(const RandomizeConfig& config, int channels);
+
+/// The draws of the sample with this seed (the same seed gives the same numbers on any thread);
+/// base_loss_factor is material.loss_factor, the loss law's level before its scale.
+Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, int channels,
+                        uint64_t sample_seed);
+
+/// The tube's material under a draw (modulus and density scaled, loss unchanged).
+MaterialConfig VariedMaterial(const MaterialConfig& base, const Variation& v);
+
+}  // namespace sonicboom::acoustics

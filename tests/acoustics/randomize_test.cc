@@ -1,0 +1,256 @@
+// Randomized structures and sensor chains: ranges refused naming the key, draws fixed by the
+// seed, the material scaling exact against a full solve, the sensor chain's hum, level and
+// corners as drawn.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "../common/test_util.h"
+#include "sonicboom/acoustics/daq.h"
+#include "sonicboom/acoustics/randomize.h"
+#include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+using testing::ThrownMessage;
+
+bool Names(const std::string& message, const std::string& key) {
+  return message.find(key) != std::string::npos;
+}
+
+TEST(RandomizeConfigTest, BadRangesAreRefusedNamingTheKey) {
+  RandomizeConfig c;
+  c.youngs_modulus_scale = {1.2, 0.8};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }),
+                    "randomize.youngs_modulus_scale"));
+  c = {};
+  c.channel_gain_db = {-3, 0, 3};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.channel_gain_db"));
+  // a temperature range that drives the modulus to nothing
+  c = {};
+  c.temperature_c = {20, 80};
+  c.modulus_per_c = -0.02;
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.temperature_c"));
+  // a loss law that overdamps the low modes
+  c = {};
+  c.loss_exponent = {-1.0, 0.0};
+  c.loss_factor_scale = {1.0, 20.0};
+  EXPECT_NO_THROW(c.Validate());
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.CheckLossLaw(0.02); }),
+                    "randomize.loss_factor_scale"));
+  c.loss_exponent = {-0.3, 0.3};
+  c.loss_factor_scale = {1.0, 2.0};
+  EXPECT_NO_THROW(c.CheckLossLaw(0.02));
+  EXPECT_TRUE(c.material());
+  EXPECT_TRUE(c.any());
+  EXPECT_FALSE(RandomizeConfig{}.any());
+}
+
+TEST(RandomizeDrawTest, DrawsFollowTheSeedAndStayInRange) {
+  RandomizeConfig c;
+  c.youngs_modulus_scale = {0.9, 1.1};
+  c.sensitivity_scale = {0.5, 2.0};
+  c.hum_rms_v = {1e-5, 1e-3};
+  const Variation a = DrawVariation(c, 0.02, 6, 1234);
+  const Variation b = DrawVariation(c, 0.02, 6, 1234);
+  const Variation other = DrawVariation(c, 0.02, 6, 1235);
+  EXPECT_EQ(a.values, b.values);
+  EXPECT_NE(a.values, other.values);
+  // the stored values line up with the names: one modulus, six sensitivities, one hum level
+  const std::vector<std::string> names = VariationNames(c, 6);
+  ASSERT_EQ(names.size(), 8u);
+  ASSERT_EQ(a.values.size(), 8u);
+  EXPECT_EQ(names[0], "youngs_modulus_scale");
+  EXPECT_EQ(names[1], "sensitivity_scale_0");
+  EXPECT_EQ(names[7], "hum_rms_v");
+  EXPECT_EQ(a.values[0], a.youngs_modulus_scale);
+  EXPECT_EQ(a.values[3], a.sensitivity_scale[2]);
+  EXPECT_EQ(a.hum_phase_rad.size(), 5u);
+  EXPECT_EQ(a.hum_channel_scale.size(), 6u);
+  // over many seeds every draw stays inside its range and spans it
+  double lo = 10, hi = 0;
+  for (uint64_t s = 0; s < 400; ++s) {
+    const Variation v = DrawVariation(c, 0.02, 6, s);
+    ASSERT_GE(v.youngs_modulus_scale, 0.9);
+    ASSERT_LE(v.youngs_modulus_scale, 1.1);
+    for (const double x : v.sensitivity_scale) {
+      lo = std::min(lo, x);
+      hi = std::max(hi, x);
+    }
+  }
+  EXPECT_GE(lo, 0.5);
+  EXPECT_LE(hi, 2.0);
+  EXPECT_LT(lo, 0.55);
+  EXPECT_GT(hi, 1.8);
+}
+
+TEST(RandomizeDrawTest, TurningOneRangeOnKeepsTheOthersNumbers) {
+  RandomizeConfig c;
+  c.speed_scale = {0.5, 1.5};
+  c.record_level_db = {-6, 6};
+  const Variation before = DrawVariation(c, 0.02, 6, 99);
+  c.youngs_modulus_scale = {0.8, 1.2};
+  c.channel_gain_db = {-3, 3};
+  const Variation after = DrawVariation(c, 0.02, 6, 99);
+  EXPECT_EQ(before.speed_scale, after.speed_scale);
+  EXPECT_EQ(before.record_level_db, after.record_level_db);
+  EXPECT_NE(after.youngs_modulus_scale, 1.0);
+  // temperature shifts the modulus by modulus_per_c per kelvin
+  RandomizeConfig t;
+  t.temperature_c = {35, 35};
+  const Variation warm = DrawVariation(t, 0.02, 6, 5);
+  EXPECT_NEAR(warm.youngs_modulus_scale, 1.0 - 0.004 * 15, 1e-12);
+  EXPECT_NEAR(warm.frequency_scale(), std::sqrt(0.94), 1e-12);
+}
+
+// a coarse seamed tube (10 mm grid), modes to 8 kHz, no noise or gain draw, one cache
+const testing::TempDir& Cache() {
+  static const testing::TempDir dir;
+  return dir;
+}
+
+AcousticModelConfig Coarse() {
+  AcousticModelConfig c;
+  c.shell.grid_spacing_m = 0.01;
+  c.shell.axial_spacing_m = 0.01;
+  c.synth.model = "modal";
+  c.synth.mode_band_hz = 8000;
+  c.synth.mode_cache_dir = Cache().path().string();
+  c.noise.ambient_rms_v = 0;
+  c.noise.motor_rms_v_per_rad_s = 0;
+  c.daq.preamp_noise_v = 0;
+  c.daq.gain_mismatch_db = 0;
+  return c;
+}
+
+ContactEvent Ball(double z_m, double theta_rad, double speed_m_s) {
+  ContactEvent e;
+  e.time_s = 0.02;
+  e.z_m = z_m;
+  e.theta_rad = theta_rad;
+  e.normal_speed_m_s = speed_m_s;
+  e.effective_mass_kg = 0.03;
+  e.striker_radius_m = 0.011;
+  e.striker_youngs_modulus_pa = 1e9;
+  e.striker_poisson_ratio = 0.35;
+  return e;
+}
+
+TEST(RandomizeRenderTest, ScaledMaterialMatchesAFullSolveOfThatMaterial) {
+  // E x 1.2 and rho x 0.9 applied to the base modes against modes solved for that material
+  AcousticModelConfig base = Coarse();
+  base.audio.record_duration_s = 0.06;
+  AcousticModelConfig solved = base;
+  solved.material.youngs_modulus_pa *= 1.2;
+  solved.material.density_kg_m3 *= 0.9;
+  // the bolt and mount springs count as part of the material: they scale with E
+  solved.shell.bolt_stiffness_n_m *= 1.2;
+  solved.shell.flange_mount_stiffness_n_m2 *= 1.2;
+  solved.shell.tool_mount_stiffness_n_m2 *= 1.2;
+  // the varied model renders modes below the same band of varied frequencies
+  solved.synth.mode_band_hz = 8000 * std::sqrt(1.2 / 0.9);
+  const StrikeSynthesizer a(base), b(solved);
+  Variation v;
+  v.youngs_modulus_scale = 1.2;
+  v.density_scale = 0.9;
+  v.sensitivity_scale.assign(6, 1.0);
+  const ContactEvent strike = Ball(0.04, 1.0, 0.3);
+  const RenderedStrike va = a.Render(strike, {}, {}, 0.0, 7, &v);
+  const RenderedStrike vb = b.Render(strike, {}, {}, 0.0, 7, nullptr);
+  const RenderedStrike plain = a.Render(strike, {}, {}, 0.0, 7, nullptr);
+  EXPECT_EQ(va.modes_used, vb.modes_used);
+  EXPECT_NEAR(va.duration_s, vb.duration_s, 1e-6 * vb.duration_s);
+  // the signals agree to the 16-bit grid; the unvaried render differs far more
+  const double ref = vb.audio.cast<double>().norm();
+  const double err = (va.audio - vb.audio).cast<double>().norm() / ref;
+  const double change = (plain.audio - vb.audio).cast<double>().norm() / ref;
+  EXPECT_LT(err, 2e-3);
+  EXPECT_GT(change, 0.1);
+}
+
+TEST(RandomizeRenderTest, StrikerDrawsChangeTheContactAsHertzSays) {
+  const StrikeSynthesizer synth(Coarse());
+  Variation v;
+  v.sensitivity_scale.assign(6, 1.0);
+  const ContactEvent strike = Ball(-0.05, 0.3, 0.3);
+  const RenderedStrike base = synth.Render(strike, {}, {}, 0.0, 1, &v);
+  // a soft tip lengthens the contact and lowers its force; a steel one raises the force (the
+  // wall's own compliance, in series, keeps its duration near the wooden one's)
+  v.striker_youngs_modulus_pa = 3e8;
+  const RenderedStrike soft = synth.Render(strike, {}, {}, 0.0, 1, &v);
+  v.striker_youngs_modulus_pa = 200e9;
+  const RenderedStrike steel = synth.Render(strike, {}, {}, 0.0, 1, &v);
+  EXPECT_GT(soft.duration_s, 1.2 * base.duration_s);
+  EXPECT_LT(soft.peak_force_n, 0.9 * base.peak_force_n);
+  EXPECT_GT(steel.peak_force_n, 1.2 * base.peak_force_n);
+  // a heavier striker at the same speed: a longer contact and a larger impulse
+  v.striker_youngs_modulus_pa = 0.0;
+  v.striker_mass_scale = 4.0;
+  const RenderedStrike heavy = synth.Render(strike, {}, {}, 0.0, 1, &v);
+  EXPECT_GT(heavy.duration_s, 1.5 * base.duration_s);
+  EXPECT_GT(heavy.impulse_ns, 2.0 * base.impulse_ns);
+  // a faster one: a shorter contact (Hertz: t_c ~ v^-1/5) and more impulse
+  v.striker_mass_scale = 1.0;
+  v.speed_scale = 3.0;
+  const RenderedStrike fast = synth.Render(strike, {}, {}, 0.0, 1, &v);
+  EXPECT_LT(fast.duration_s, base.duration_s);
+  EXPECT_GT(fast.impulse_ns, 2.0 * base.impulse_ns);
+}
+
+TEST(RandomizeDaqTest, LevelHighPassAndHumAsDrawn) {
+  AcousticModelConfig c = Coarse();
+  const DaqChain chain(c.daq, c.noise, 6, 44100, 44100);
+  // a constant strain step on every channel, converted plain and with a draw
+  const Eigen::MatrixXd strain = Eigen::MatrixXd::Constant(6, 44100, 1e-5);
+  Eigen::MatrixXf plain, varied;
+  chain.Convert(strain, {}, 0.0, 1, &plain);
+  Variation v;
+  v.sensitivity_scale = {1, 2, 1, 1, 1, 1};
+  v.record_level_db = 6.0206;
+  v.highpass_hz = {10, 10, 10, 10, 10, 300};
+  v.noise_floor_v = 0.0;
+  chain.Convert(strain, {}, 0.0, 1, &varied, &v);
+  // record level x2 on every channel, bonding x2 on channel 1
+  EXPECT_NEAR(varied(0, 0) / plain(0, 0), 2.0, 2e-3);
+  EXPECT_NEAR(varied(1, 0) / plain(1, 0), 4.0, 4e-3);
+  // the 300 Hz corner removes the step within 5 ms
+  EXPECT_LT(std::abs(varied(5, 221)), 0.01 * std::abs(varied(5, 0)));
+  // hum alone: 50 Hz and harmonics at the drawn rms, scaled per channel, on no strain
+  Variation hum;
+  hum.sensitivity_scale.assign(6, 1.0);
+  hum.noise_floor_v = 0.0;
+  hum.hum_hz = 50.0;
+  hum.hum_rms_v = 0.01;
+  hum.hum_phase_rad = {0.1, 0.2, 0.3, 0.4, 0.5};
+  hum.hum_channel_scale = {1, 0.5, 1, 1, 1, 1.5};
+  Eigen::MatrixXf out;
+  chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, &hum);
+  const auto rms = [&](int ch) { return std::sqrt(out.row(ch).cast<double>().squaredNorm() / 44100); };
+  EXPECT_NEAR(rms(0), 0.01, 2e-4);
+  EXPECT_NEAR(rms(1), 0.005, 1e-4);
+  EXPECT_NEAR(rms(5), 0.015, 3e-4);
+  // its fundamental: correlation with a 50 Hz sinusoid carries 1 / sum(1/k^2) of the power
+  double s = 0, co = 0;
+  for (int k = 0; k < 44100; ++k) {
+    s += out(0, k) * std::sin(2 * kPi * 50 * k / 44100.0);
+    co += out(0, k) * std::cos(2 * kPi * 50 * k / 44100.0);
+  }
+  const double fundamental_rms = std::sqrt(2.0) * std::hypot(s, co) / 44100;
+  const double share = 1.0 / (1 + 1 / 4.0 + 1 / 9.0 + 1 / 16.0 + 1 / 25.0);
+  EXPECT_NEAR(fundamental_rms * fundamental_rms / (0.01 * 0.01), share, 0.02);
+  // a noise floor leaves no exact zeros in a silent record
+  Variation noisy;
+  noisy.sensitivity_scale.assign(6, 1.0);
+  noisy.noise_floor_v = 1e-3;
+  chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, &noisy);
+  EXPECT_LT((out.array() == 0.0f).cast<double>().mean(), 0.02);
+}
+
+}  // namespace
+}  // namespace sonicboom::acoustics
