@@ -29,6 +29,9 @@ function(sonicboom_add_test name)
   if(ARG_LABELS)
     set(labels ${ARG_LABELS})
   endif()
-  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST PROPERTIES LABELS "${labels}"
+  # the tests (and the CLI runs they start) solve and cache modes under the build tree, never in
+  # the user's home directory
+  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST
+    PROPERTIES LABELS "${labels}" ENVIRONMENT "SONICBOOM_CACHE_DIR=${CMAKE_BINARY_DIR}/test-cache/modes"
     WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR})
 endfunction()
