@@ -79,6 +79,34 @@ std::vector<acoustics::TdoaCorrelations> CorrelateDataset(const std::string& dat
   return out;
 }
 
+std::vector<learning::Prediction> LocateByArrival(const std::string& dataset_path,
+                                                  const SonicBoomConfig& config,
+                                                  const acoustics::ArrivalLocator& locator,
+                                                  int threads, bool show_progress,
+                                                  learning::FeatureSet* labels,
+                                                  std::vector<acoustics::ArrivalEstimate>* estimates) {
+  DatasetReader reader(dataset_path);
+  const DatasetInfo& info = reader.info();
+  const ValidRecords valid = ReadValidRecords(reader, dataset_path);
+  if (labels) *labels = LabelsOf(valid);
+  // the feature path's onset, then the picks and the fit around it
+  const acoustics::FeatureConfig& fc = config.features;
+  std::vector<acoustics::ArrivalEstimate> found(valid.rows.size());
+  ForEachRecord(reader, valid.rows, threads, "arrival", show_progress,
+                [&](int64_t i, const StrikeSample& sample) {
+                  const int64_t onset = acoustics::DetectOnset(
+                      sample.audio, info.sample_rate_hz, fc.onset_frame_s, fc.onset_threshold);
+                  found[static_cast<size_t>(i)] = locator.Locate(sample.audio, onset);
+                });
+  std::vector<learning::Prediction> out(found.size());
+  for (size_t i = 0; i < found.size(); ++i) {
+    out[i].z_m = found[i].z_m;
+    out[i].theta_rad = found[i].theta_rad;
+  }
+  if (estimates) *estimates = std::move(found);
+  return out;
+}
+
 std::vector<learning::Prediction> LocateAll(const acoustics::TdoaLocator& locator,
                                             const std::vector<acoustics::TdoaCorrelations>& strikes,
                                             double speed_scale, int threads) {

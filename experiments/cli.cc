@@ -107,7 +107,7 @@ int RunCli(int argc, char** argv) {
   BaselineOptions baseline_options;
   auto* baseline = app.add_subcommand("baseline", "a baseline's errors on a dataset: kNN on "
                                                   "pooled log-mel, analytic TDOA, or a constant");
-  baseline->add_option("--method", baseline_options.method, "knn | tdoa | constant")->required();
+  baseline->add_option("--method", baseline_options.method, "knn | tdoa | arrival | constant")->required();
   baseline->add_option("--train", baseline_options.train,
                        "training dataset (.h5): knn and constant need it; tdoa fits its speed "
                        "scale on it");

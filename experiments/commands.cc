@@ -625,8 +625,8 @@ SonicBoomConfig ResolveWithDataset(const GlobalOptions& g, const std::string& da
 }  // namespace
 
 CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
-  if (o.method != "knn" && o.method != "tdoa" && o.method != "constant") {
-    throw ConfigError(fmt::format("--method '{}' must be knn, tdoa or constant", o.method));
+  if (o.method != "knn" && o.method != "tdoa" && o.method != "constant" && o.method != "arrival") {
+    throw ConfigError(fmt::format("--method '{}' must be knn, tdoa, arrival or constant", o.method));
   }
   if ((o.method == "knn" || o.method == "constant") && o.train.empty()) {
     throw ConfigError(fmt::format("--method {} needs --train TRAIN.h5", o.method));
@@ -648,6 +648,18 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
     truth = DatasetLabels(o.data);
     predictions.assign(static_cast<size_t>(truth.size()), p);
     extra = {{"train_n", train.size()}, {"z_m", p.z_m}, {"theta_rad", p.theta_rad}};
+  } else if (o.method == "arrival") {
+    // first arrivals per channel, fitted by surface paths and one free wave speed; no training
+    const double fs = DatasetReader(o.data).info().sample_rate_hz;
+    const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival, fs);
+    std::vector<acoustics::ArrivalEstimate> estimates;
+    predictions = LocateByArrival(o.data, config, locator, g.threads, !g.quiet, &truth, &estimates);
+    std::vector<double> speeds;
+    for (const acoustics::ArrivalEstimate& e : estimates) speeds.push_back(e.speed_m_s);
+    std::sort(speeds.begin(), speeds.end());
+    const double median_speed = speeds.empty() ? 0.0 : speeds[speeds.size() / 2];
+    extra = {{"median_speed_m_s", median_speed}};
+    detail = fmt::format(" (no training; median fitted speed {:.0f} m/s)", median_speed);
   } else if (o.method == "knn") {
     // pooled log-mel (+ GCC lags) of the training strikes, k nearest by standardized distance
     const learning::FeatureSet train = ComputeDatasetFeatures(o.train, config, g.threads, !g.quiet);

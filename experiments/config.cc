@@ -34,6 +34,7 @@ void SonicBoomConfig::Serialize(Archive* a) {
   a->Visit("daq", &daq);
   a->Visit("noise", &noise);
   a->Visit("randomize", &randomize);
+  a->Visit("arrival", &arrival);
   a->Visit("features", &features);
   a->Visit("model", &model);
   a->Visit("train", &train);
@@ -78,6 +79,7 @@ void SonicBoomConfig::Validate() const {
   daq.Validate(mics.count());
   noise.Validate();
   randomize.Validate();
+  arrival.Validate(audio.sample_rate_hz);
   randomize.CheckLossLaw(material.loss_factor);
   if (randomize.material() && acoustics.model != "modal") {
     throw ConfigError(fmt::format("randomize: the material ranges (youngs_modulus_scale, "

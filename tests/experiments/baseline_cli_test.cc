@@ -66,6 +66,21 @@ TEST(BaselineCliTest, KnnTdoaAndConstantOnATinyDataset) {
   EXPECT_EQ(j["speed_scale"].get<double>(), 1.0);
   EXPECT_EQ(j["band_speeds_m_s"].size(), 4u);
 
+  // the arrival locator without training: every strike located, a physical speed, and better
+  // than the constant predictor on the same strikes
+  run = RunCli("baseline --method arrival --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  j = json::parse(run.out);
+  ExpectMetricsKeys(j);
+  EXPECT_EQ(j["n"], 12);
+  EXPECT_LT(j["med_cm"].get<double>(), 6.0);
+  EXPECT_GE(j["median_speed_m_s"].get<double>(), 150.0);
+  EXPECT_LE(j["median_speed_m_s"].get<double>(), 3000.0);
+  run = RunCli("baseline --method arrival --set arrival.peak_fraction=1.5 --data D.h5 -q",
+               dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("arrival.peak_fraction"), std::string::npos) << run.err;
+
   // the human-readable report names the method
   run = RunCli("baseline --method constant --train D.h5 --data D.h5 -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;

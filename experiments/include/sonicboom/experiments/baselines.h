@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "sonicboom/acoustics/arrival.h"
 #include "sonicboom/acoustics/tdoa.h"
 #include "sonicboom/experiments/config.h"
 #include "sonicboom/learning/learning.h"
@@ -34,5 +35,15 @@ std::vector<acoustics::TdoaCorrelations> CorrelateDataset(const std::string& dat
 std::vector<learning::Prediction> LocateAll(const acoustics::TdoaLocator& locator,
                                             const std::vector<acoustics::TdoaCorrelations>& strikes,
                                             double speed_scale, int threads);
+
+/// The arrival-time locator over every valid sample of a dataset (onsets as CorrelateDataset
+/// finds them), on `threads` workers; `labels` (optional) receives their labels, `estimates`
+/// (optional) the picks and fitted speeds.
+std::vector<learning::Prediction> LocateByArrival(const std::string& dataset_path,
+                                                  const SonicBoomConfig& config,
+                                                  const acoustics::ArrivalLocator& locator,
+                                                  int threads, bool show_progress,
+                                                  learning::FeatureSet* labels,
+                                                  std::vector<acoustics::ArrivalEstimate>* estimates);
 
 }  // namespace sonicboom::experiments

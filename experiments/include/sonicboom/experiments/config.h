@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "sonicboom/acoustics/arrival.h"
 #include "sonicboom/acoustics/features.h"
 #include "sonicboom/acoustics/randomize.h"
 #include "sonicboom/acoustics/shell.h"
@@ -50,6 +51,7 @@ struct SonicBoomConfig {
   acoustics::DaqConfig daq;
   acoustics::NoiseConfig noise;
   acoustics::RandomizeConfig randomize;    // per-sample structure, striker and sensor draws
+  acoustics::ArrivalConfig arrival;        // the training-free arrival locator (a baseline)
   acoustics::FeatureConfig features;
   learning::ModelConfig model;
   learning::TrainConfig train;
