@@ -115,6 +115,16 @@ for name in ["train_default", "train_rand"]:
                                                    "min": float(d.min()), "max": float(d.max())}
     lines.append("Contact duration, %s: median %.2f ms, 5-95 %% %.2f-%.2f ms (min %.2f, max %.2f)."
                  % (name, p50, p5, p95, d.min(), d.max()))
+# exact zeros in the record before the strike (to 10 ms before the first contact), valid samples
+for name in ["test_in", "test_rand"]:
+    with h5py.File(os.path.join(out, name + ".h5"), "r") as f:
+        rows = np.where(f["index/valid"][:] == 1)[0]
+        fs = f.attrs["sample_rate_hz"]
+        zeros = [float((f["audio"][r][:, :int((f["label/time_s"][r] - 0.01) * fs)] == 0).mean())
+                 for r in rows]
+    results.setdefault("pre_strike_zero_fraction", {})[name] = float(np.mean(zeros))
+    lines.append("Exact zeros before the strike, %s: %.1f %% of the samples (mean over %d records)."
+                 % (name, 100 * np.mean(zeros), len(rows)))
 open(os.path.join(out, "table.md"), "w").write("\n".join(lines) + "\n")
 json.dump(results, open(os.path.join(out, "results.json"), "w"), indent=1)
 print("\n".join(lines))
