@@ -93,11 +93,10 @@ ArrivalLocator::ArrivalLocator(const TdoaGeometry& geometry, const ArrivalConfig
   }
   const Eigen::Index points = static_cast<Eigen::Index>(m.grid_z.size());
   m.distance_m.resize(m.mics, points);
-  for (Eigen::Index p = 0; p < points; ++p) {
-    for (int k = 0; k < m.mics; ++k) {
-      m.distance_m(k, p) = SurfacePathLength(geometry, m.grid_z[p], m.grid_theta[p],
-                                             geometry.mic_z_m[k], geometry.mic_theta_rad[k]);
-    }
+  for (int k = 0; k < m.mics; ++k) {
+    const std::vector<double> d = SurfacePathLengths(geometry, m.grid_z, m.grid_theta,
+                                                     geometry.mic_z_m[k], geometry.mic_theta_rad[k]);
+    m.distance_m.row(k) = Eigen::Map<const Eigen::RowVectorXd>(d.data(), points);
   }
 }
 
@@ -109,6 +108,9 @@ std::vector<double> ArrivalLocator::PickArrivals(const Eigen::MatrixXf& record,
   if (record.rows() != m.mics) {
     throw Error(fmt::format("arrival locator: record has {} channels, the geometry {} microphones",
                             record.rows(), m.mics));
+  }
+  if (!record.allFinite()) {
+    throw NumericalError("arrival locator: the record holds non-finite samples");
   }
   const int64_t T = record.cols();
   const int64_t start = onset_sample - static_cast<int64_t>(std::lround(m.c.pre_onset_s * m.fs));
@@ -143,6 +145,11 @@ std::vector<double> ArrivalLocator::PickArrivals(const Eigen::MatrixXf& record,
       const double frac = a > before ? (threshold - before) / (a - before) : 1.0;
       arrival = (static_cast<double>(k - start) - 1.0 + std::clamp(frac, 0.0, 1.0)) / m.fs;
       break;
+    }
+    if (!(peak > 0.0)) {
+      throw NumericalError(fmt::format("arrival locator: channel {} is silent around the onset "
+                                       "(sample {}): no arrival to pick",
+                                       ch, onset_sample));
     }
     arrivals[static_cast<size_t>(ch)] = arrival;
   }

@@ -208,6 +208,17 @@ double SurfacePathLength(const TdoaGeometry& geometry, double z1_m, double theta
   return SurfacePaths(geometry).Length(z1_m, theta1_rad, z2_m, theta2_rad);
 }
 
+std::vector<double> SurfacePathLengths(const TdoaGeometry& geometry, const std::vector<double>& z_m,
+                                       const std::vector<double>& theta_rad, double z2_m,
+                                       double theta2_rad) {
+  SONICBOOM_DEMAND(z_m.size() == theta_rad.size());
+  geometry.Validate();
+  const SurfacePaths paths(geometry);
+  std::vector<double> out(z_m.size());
+  for (size_t i = 0; i < z_m.size(); ++i) out[i] = paths.Length(z_m[i], theta_rad[i], z2_m, theta2_rad);
+  return out;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Config
 

@@ -139,14 +139,28 @@ int RunCli(int argc, char** argv) {
   ablate->callback([&] { run = [&] { return RunAblate(g, ablate_options); }; });
 
   auto* localize = app.add_subcommand("localize", "locate the contact of one recorded strike");
-  localize->add_option("--model", model, "run directory")->required();
+  std::string localize_method = "network";
+  localize->add_option("--method", localize_method,
+                       "network (a trained run, --model) | arrival (no training: first arrivals)");
+  localize->add_option("--model", model, "run directory (--method network)");
   localize->add_option("--wav", wav, "6-channel WAV")->required();
   localize->add_option("--proprio", proprio, "robot log CSV");
   int64_t localize_repeat = 1;
   localize->add_option("--repeat", localize_repeat,
                        "time the WAV-read-to-answer path this many times (median reported)");
   localize->callback([&] {
-    run = [&] { return RunLocalize(g, model, wav, proprio, localize_repeat); };
+    run = [&] {
+      if (localize_method == "arrival") {
+        if (!model.empty()) throw ConfigError("localize --method arrival uses no --model");
+        return RunLocalizeByArrival(g, wav);
+      }
+      if (localize_method != "network") {
+        throw ConfigError(fmt::format("localize --method '{}' must be network or arrival",
+                                      localize_method));
+      }
+      if (model.empty()) throw ConfigError("localize --method network needs --model RUN");
+      return RunLocalize(g, model, wav, proprio, localize_repeat);
+    };
   });
 
   auto* fk = app.add_subcommand("fk", "flange and tube poses of the Panda for joint angles");

@@ -386,6 +386,34 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
   return {MetricsJson(m).dump(), text};
 }
 
+CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav) {
+  const SonicBoomConfig config = Resolve(g);
+  const auto start = std::chrono::steady_clock::now();
+  const hardware::Capture cap =
+      hardware::LoadCapture(wav, "", config.mics.count(), config.audio.sample_rate_hz);
+  const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival,
+                                          config.audio.sample_rate_hz);
+  const int64_t onset = acoustics::DetectOnset(cap.audio, config.audio.sample_rate_hz,
+                                               config.features.onset_frame_s,
+                                               config.features.onset_threshold);
+  acoustics::ArrivalEstimate e;
+  try {
+    e = locator.Locate(cap.audio, onset);
+  } catch (const NumericalError& err) {
+    throw NumericalError(fmt::format("{}: {}", wav, err.what()));
+  }
+  const double ms = MillisecondsSince(start);
+  const Eigen::Vector3d point = SurfacePoint(config.tube, e.z_m, e.theta_rad);
+  const json j = {{"method", "arrival"}, {"z_m", e.z_m}, {"theta_rad", e.theta_rad},
+                  {"point_m", {point.x(), point.y(), point.z()}}, {"frame", "tube"},
+                  {"onset_s", static_cast<double>(onset) / config.audio.sample_rate_hz},
+                  {"arrival_s", e.arrival_s}, {"speed_m_s", e.speed_m_s},
+                  {"residual_s", e.residual_s}, {"latency_ms", ms}};
+  return {j.dump(), fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad (arrival times, no "
+                                "model; fitted speed {:.0f} m/s, residual {:.2f} ms)\n",
+                                e.z_m, e.theta_rad, e.speed_m_s, 1e3 * e.residual_s)};
+}
+
 CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
                           const std::string& wav, const std::string& proprio_csv, int64_t repeat) {
   if (repeat < 1) throw ConfigError(fmt::format("--repeat must be >= 1, got {}", repeat));

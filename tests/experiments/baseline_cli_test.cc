@@ -1,11 +1,14 @@
-// `sonicboom baseline`: the metrics JSON of every method on a tiny dataset, and its error paths.
+// `sonicboom baseline`: the metrics JSON of every method on a tiny dataset, and its error paths;
+// `localize --method arrival`, the same training-free locator on one WAV.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "sonicboom/core/audio_io.h"
 
 namespace sonicboom {
 namespace {
@@ -104,6 +107,39 @@ TEST(BaselineCliTest, ErrorPaths) {
   EXPECT_NE(run.err.find("nothere.h5"), std::string::npos) << run.err;
   run = RunCli("baseline --method knn --k 0 --train a.h5 --data b.h5", dir.path().string());
   EXPECT_EQ(run.exit_code, 2);  // a CLI usage error
+}
+
+TEST(LocalizeArrivalTest, OneWavWithoutAModelAndItsErrors) {
+  TempDir dir;
+  auto run = RunCli("synth --out s.wav --index 2 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli("localize --method arrival --wav s.wav --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json j = json::parse(run.out);
+  EXPECT_EQ(j["method"], "arrival");
+  EXPECT_EQ(j["arrival_s"].size(), 6u);
+  EXPECT_GE(j["speed_m_s"].get<double>(), 150.0);
+  // the synthesized strike's label: the estimate is on the right part of the tube
+  std::ifstream label_file(dir / "s.json");
+  const json label = json::parse(label_file);
+  EXPECT_LT(std::abs(j["z_m"].get<double>() - label["z_m"].get<double>()), 0.05);
+  // a silent record is refused, naming the file; the method and --model must agree
+  AudioClip silent;
+  silent.sample_rate_hz = 44100;
+  silent.samples = Eigen::MatrixXf::Zero(6, 88200);
+  WriteWav(dir / "silent.wav", silent, false);
+  run = RunCli("localize --method arrival --wav silent.wav -q", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("silent.wav"), std::string::npos) << run.err;
+  run = RunCli("localize --method arrival --model run --wav s.wav -q", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("--model"), std::string::npos) << run.err;
+  run = RunCli("localize --wav s.wav -q", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("--model RUN"), std::string::npos) << run.err;
+  run = RunCli("localize --method psychic --wav s.wav -q", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("psychic"), std::string::npos) << run.err;
 }
 
 }  // namespace

@@ -62,6 +62,12 @@ TdoaGeometry MakeTdoaGeometry(const TubeConfig& tube, const MaterialConfig& mate
 double SurfacePathLength(const TdoaGeometry& geometry, double z1_m, double theta1_rad,
                          double z2_m, double theta2_rad);
 
+/// SurfacePathLength from every point (z_m[i], theta_rad[i]) to one point (z2, theta2), m; the
+/// seam graph built once.
+std::vector<double> SurfacePathLengths(const TdoaGeometry& geometry, const std::vector<double>& z_m,
+                                       const std::vector<double>& theta_rad, double z2_m,
+                                       double theta2_rad);
+
 /// Bands, speeds, analysis window and search grid.
 struct TdoaConfig {
   /// Band b spans [band_edges_hz[b], band_edges_hz[b+1]]: a cos^2 weight in log frequency,

@@ -53,6 +53,9 @@ CommandResult RunTrain(const GlobalOptions& g, const std::string& data, const st
                        bool resume);
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
                       const std::string& data);
+/// `localize --method arrival`: the training-free arrival locator on one WAV, configured by the
+/// global config (tube, microphones, arrival settings); no model.
+CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav);
 CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
                           const std::string& wav, const std::string& proprio_csv, int64_t repeat);
 /// Options of `sonicboom baseline` (docs/baselines.md).
