@@ -8,6 +8,7 @@
 #include <functional>
 #include <utility>
 
+#include "internal/band_weights.h"
 #include "internal/fftw_util.h"
 #include "sonicboom/acoustics/spectral_gate.h"
 #include "sonicboom/core/errors.h"
@@ -24,6 +25,7 @@ void FeatureConfig::Serialize(Archive* a) {
   a->Visit("log_mel", &log_mel);
   a->Visit("gcc_max_lag", &gcc_max_lag, Bounds::NonNegative());
   a->Visit("gcc_window_s", &gcc_window_s, Bounds::NonNegative());
+  a->Visit("gcc_bands_hz", &gcc_bands_hz, Bounds::Positive());
   a->Visit("onset_frame_s", &onset_frame_s, Bounds::Positive());
   a->Visit("onset_threshold", &onset_threshold, Bounds{0.0, 1.0, true, false});
   a->Visit("gating", &gating);
@@ -249,6 +251,7 @@ struct GccPhat::Impl {
     std::vector<FftwArray<fftwf_complex>> spectra;
     std::vector<std::vector<float>> magnitudes;  // |X_c| per bin
     FftwArray<fftwf_complex> cross;
+    FftwArray<fftwf_complex> phat;             // the PHAT cross spectrum before band weights
     FftwArray<float> correlation;
   };
 
@@ -258,6 +261,7 @@ struct GccPhat::Impl {
   int64_t fft_size{0};
   int64_t n_bins{0};
   std::vector<std::pair<int, int>> pairs;  // itertools.combinations(range(C), 2) order
+  std::vector<std::vector<float>> band_weight;  // (bands x bins); empty: the full band
   internal::fftw::PlanF forward;           // r2c, fft_size, single precision
   internal::fftw::PlanF inverse;           // c2r, fft_size, single precision
   std::unique_ptr<ScratchPool<Scratch>> pool;
@@ -270,6 +274,7 @@ struct GccPhat::Impl {
       s->magnitudes.emplace_back(static_cast<size_t>(n_bins), 0.0f);
     }
     s->cross = FftwArray<fftwf_complex>(n_bins);
+    if (!band_weight.empty()) s->phat = FftwArray<fftwf_complex>(n_bins);
     s->correlation = FftwArray<float>(fft_size);
     return s;
   }
@@ -297,9 +302,27 @@ GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels) : impl_(std::make_uni
   g.pool = std::make_unique<ScratchPool<Impl::Scratch>>([self] { return self->MakeScratch(); });
 }
 
+GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels, double sample_rate_hz,
+                 const std::vector<double>& band_edges_hz)
+    : GccPhat(n, max_lag, channels) {
+  if (band_edges_hz.empty()) return;
+  internal::ValidateBandEdges(band_edges_hz, sample_rate_hz, "features.gcc_bands_hz");
+  Impl& g = *impl_;
+  for (size_t b = 0; b + 1 < band_edges_hz.size(); ++b) {
+    const std::vector<double> w = internal::LogBandWeights(
+        band_edges_hz[b], band_edges_hz[b + 1], g.fft_size, sample_rate_hz, "features.gcc_bands_hz");
+    g.band_weight.emplace_back(w.begin(), w.end());
+  }
+}
+
 GccPhat::~GccPhat() = default;
 
 int64_t GccPhat::fft_size() const { return impl_->fft_size; }
+
+int64_t GccPhat::rows() const {
+  const int64_t bands = impl_->band_weight.empty() ? 1 : static_cast<int64_t>(impl_->band_weight.size());
+  return static_cast<int64_t>(impl_->pairs.size()) * bands;
+}
 
 void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::MatrixXf* out) const {
   const Impl& g = *impl_;
@@ -308,7 +331,7 @@ void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::Matrix
                             window.rows(), window.cols()));
   }
   const int64_t lags = 2 * g.max_lag + 1;
-  out->resize(static_cast<int64_t>(g.pairs.size()), lags);
+  out->resize(rows(), lags);
   auto scratch = g.pool->Acquire();
   Impl::Scratch& s = *scratch;
 
@@ -330,22 +353,40 @@ void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::Matrix
   // inverse FFT / fft_size. Output column m is lag m - max_lag; negative lag L sits at index
   // fft_size + L.
   const float scale = 1.0f / static_cast<float>(g.fft_size);
+  // the lags -max_lag..max_lag of the inverse of `spectrum` into output row `row`
+  auto correlate = [&](fftwf_complex* spectrum, int64_t row) {
+    fftwf_execute_dft_c2r(g.inverse.get(), spectrum, s.correlation.data());
+    for (int64_t m = 0; m < lags; ++m) {
+      const int64_t lag = m - g.max_lag;
+      const int64_t index = lag >= 0 ? lag : g.fft_size + lag;
+      (*out)(row, m) = s.correlation[index] * scale;
+    }
+  };
+  const int64_t bands = static_cast<int64_t>(g.band_weight.size());
   for (size_t p = 0; p < g.pairs.size(); ++p) {
     const fftwf_complex* x = s.spectra[g.pairs[p].first].data();
     const fftwf_complex* y = s.spectra[g.pairs[p].second].data();
     const float* mx = s.magnitudes[g.pairs[p].first].data();
     const float* my = s.magnitudes[g.pairs[p].second].data();
-    fftwf_complex* cross = s.cross.data();
+    fftwf_complex* phat = bands > 0 ? s.phat.data() : s.cross.data();
     for (int64_t k = 0; k < g.n_bins; ++k) {
       const float weight = 1.0f / (mx[k] * my[k] + 1e-10f);
-      cross[k][0] = (x[k][0] * y[k][0] + x[k][1] * y[k][1]) * weight;
-      cross[k][1] = (x[k][1] * y[k][0] - x[k][0] * y[k][1]) * weight;
+      phat[k][0] = (x[k][0] * y[k][0] + x[k][1] * y[k][1]) * weight;
+      phat[k][1] = (x[k][1] * y[k][0] - x[k][0] * y[k][1]) * weight;
     }
-    fftwf_execute_dft_c2r(g.inverse.get(), cross, s.correlation.data());
-    for (int64_t m = 0; m < lags; ++m) {
-      const int64_t lag = m - g.max_lag;
-      const int64_t index = lag >= 0 ? lag : g.fft_size + lag;
-      (*out)(static_cast<int64_t>(p), m) = s.correlation[index] * scale;
+    if (bands == 0) {
+      correlate(phat, static_cast<int64_t>(p));
+      continue;
+    }
+    // one band at a time (the c2r transform overwrites its input)
+    for (int64_t b = 0; b < bands; ++b) {
+      const float* w = g.band_weight[static_cast<size_t>(b)].data();
+      fftwf_complex* cross = s.cross.data();
+      for (int64_t k = 0; k < g.n_bins; ++k) {
+        cross[k][0] = phat[k][0] * w[k];
+        cross[k][1] = phat[k][1] * w[k];
+      }
+      correlate(cross, static_cast<int64_t>(p) * bands + b);
     }
   }
 }
@@ -512,7 +553,8 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
   e.mel = std::make_unique<MelSpectrogram>(config.n_fft, config.hop, config.n_mels, config.f_min_hz,
                                            f_max, sample_rate_hz);
   e.gcc_samples = std::llround(config.gcc_span_s() * sample_rate_hz);
-  e.gcc = std::make_unique<GccPhat>(e.gcc_samples, config.gcc_max_lag, channels);
+  e.gcc = std::make_unique<GccPhat>(e.gcc_samples, config.gcc_max_lag, channels, sample_rate_hz,
+                                    config.gcc_bands_hz);
   if (config.gating && noise_clip != nullptr) {
     if (noise_clip->rows() != channels) {
       throw ConfigError(fmt::format("features.gating: the reference noise clip has {} channels, "
@@ -539,6 +581,7 @@ FeatureExtractor::~FeatureExtractor() = default;
 int64_t FeatureExtractor::window_samples() const { return impl_->window_samples; }
 int64_t FeatureExtractor::mel_frames() const { return impl_->mel->Frames(impl_->window_samples); }
 int64_t FeatureExtractor::gcc_lags() const { return 2 * impl_->config.gcc_max_lag + 1; }
+int64_t FeatureExtractor::gcc_rows() const { return impl_->gcc->rows(); }
 int64_t FeatureExtractor::gcc_samples() const { return impl_->gcc_samples; }
 int FeatureExtractor::channels() const { return impl_->channels; }
 const SpectralGate* FeatureExtractor::gate() const { return impl_->gate.get(); }

@@ -1,5 +1,6 @@
 #include "sonicboom/acoustics/randomize.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <functional>
@@ -96,19 +97,68 @@ void RandomizeConfig::Serialize(Archive* a) {
   a->Visit("hum_harmonics", &hum_harmonics, Bounds::Closed(1, 40));
   a->Visit("record_level_db", &record_level_db, Bounds::Closed(-60.0, 60.0));
   a->Visit("full_scale_scale", &full_scale_scale, {0.0, 100.0, true, false});
+  a->Visit("mic_z_offset_m", &mic_z_offset_m, Bounds::Closed(-0.01, 0.01));
+  a->Visit("mic_theta_offset_deg", &mic_theta_offset_deg, Bounds::Closed(-10.0, 10.0));
+  a->Visit("disc_diameter_m", &disc_diameter_m, {0.0, 0.04, true, false});
+  a->Visit("structure_variants", &structure_variants, Bounds::Closed(0, 256));
+  a->Visit("bolt_count", &bolt_count, Bounds::Closed(1, 12));
+  a->Visit("bolt_z_jitter_m", &bolt_z_jitter_m, Bounds::Closed(-0.05, 0.05));
+  a->Visit("bolt_stiffness_scale", &bolt_stiffness_scale, {0.0, 1e4, true, false});
+  a->Visit("flange_mount_scale", &flange_mount_scale, {0.0, 1e4, true, false});
+  a->Visit("tool_mount_scale", &tool_mount_scale, {0.0, 1e4, true, false});
+  a->Visit("poisson_ratio", &poisson_ratio, {0.0, 0.5, true, true});
 }
 
+namespace {
+
+// the ranges drawn apart from Fields: microphone placement per sample, structure per variant
+struct NamedRange {
+  const char* name;
+  const std::vector<double>* range;
+};
+std::vector<NamedRange> PlacementRanges(const RandomizeConfig& c) {
+  return {{"mic_z_offset_m", &c.mic_z_offset_m},
+          {"mic_theta_offset_deg", &c.mic_theta_offset_deg},
+          {"disc_diameter_m", &c.disc_diameter_m}};
+}
+std::vector<NamedRange> StructureRanges(const RandomizeConfig& c) {
+  return {{"bolt_count", &c.bolt_count},
+          {"bolt_z_jitter_m", &c.bolt_z_jitter_m},
+          {"bolt_stiffness_scale", &c.bolt_stiffness_scale},
+          {"flange_mount_scale", &c.flange_mount_scale},
+          {"tool_mount_scale", &c.tool_mount_scale},
+          {"poisson_ratio", &c.poisson_ratio}};
+}
+
+void CheckRange(const char* name, const std::vector<double>& r) {
+  if (r.empty()) return;
+  if (r.size() != 2) {
+    throw ConfigError(fmt::format("randomize.{} has {} entries; a range is [min, max] (or [] for "
+                                  "none)",
+                                  name, r.size()));
+  }
+  if (!(r[0] <= r[1])) {
+    throw ConfigError(fmt::format("randomize.{} = [{}, {}]: min exceeds max", name, r[0], r[1]));
+  }
+}
+
+}  // namespace
+
 void RandomizeConfig::Validate() const {
-  for (const Field& f : Fields(*this)) {
-    const std::vector<double>& r = *f.range;
-    if (r.empty()) continue;
-    if (r.size() != 2) {
-      throw ConfigError(fmt::format("randomize.{} has {} entries; a range is [min, max] (or [] "
-                                    "for none)",
-                                    f.name, r.size()));
+  for (const Field& f : Fields(*this)) CheckRange(f.name, *f.range);
+  for (const NamedRange& r : PlacementRanges(*this)) CheckRange(r.name, *r.range);
+  for (const NamedRange& r : StructureRanges(*this)) {
+    CheckRange(r.name, *r.range);
+    if (!r.range->empty() && structure_variants == 0) {
+      throw ConfigError(fmt::format("randomize.{} is set but randomize.structure_variants is 0: "
+                                    "structure ranges are drawn per variant of the pool",
+                                    r.name));
     }
-    if (!(r[0] <= r[1])) {
-      throw ConfigError(fmt::format("randomize.{} = [{}, {}]: min exceeds max", f.name, r[0], r[1]));
+  }
+  for (const double n : bolt_count) {
+    if (n != std::floor(n)) {
+      throw ConfigError(fmt::format("randomize.bolt_count = {}: a count of bolts is a whole number",
+                                    n));
     }
   }
   // the modulus must stay positive over the temperature range
@@ -154,7 +204,83 @@ bool RandomizeConfig::any() const {
   for (const Field& f : Fields(*this)) {
     if (!f.range->empty()) return true;
   }
+  return mic_placement() || structure();
+}
+
+bool RandomizeConfig::mic_placement() const {
+  for (const NamedRange& r : PlacementRanges(*this)) {
+    if (!r.range->empty()) return true;
+  }
   return false;
+}
+
+std::vector<std::string> StructureValueNames(const RandomizeConfig& config) {
+  std::vector<std::string> names;
+  if (!config.structure()) return names;
+  names.emplace_back("structure_variant");
+  for (const NamedRange& r : StructureRanges(config)) {
+    if (!r.range->empty() && std::string(r.name) != "bolt_z_jitter_m") names.emplace_back(r.name);
+  }
+  return names;
+}
+
+StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig& base_shell,
+                               double base_poisson_ratio, uint64_t global_seed, int64_t variant) {
+  StructureVariant out;
+  out.shell = base_shell;
+  out.poisson_ratio = base_poisson_ratio;
+  out.values.push_back(static_cast<double>(variant));
+  // the variant's own stream: sample seeds count down from the top of the index space
+  Rng rng(SampleSeed(global_seed, ~uint64_t{0} - 1024 - static_cast<uint64_t>(variant)),
+          Stream::kRandomize);
+  const auto draw = [&](const std::vector<double>& r, Law law) {
+    const double u = rng.Uniform();  // drawn whether the range is set or not
+    return r.empty() ? std::nan("") : Draw(r, law, u);
+  };
+  // bolts: count, even spacing between the base's outer bolts, jitter, stiffness each
+  const double u_count = rng.Uniform();
+  std::vector<double>& z = out.shell.bolt_z_m;
+  if (!config.bolt_count.empty() && !base_shell.bolt_z_m.empty()) {
+    // a uniform integer in [min, max]
+    const auto lo_n = static_cast<int64_t>(config.bolt_count[0]);
+    const auto hi_n = static_cast<int64_t>(config.bolt_count[1]);
+    const int64_t n = std::min(hi_n, lo_n + static_cast<int64_t>(u_count * static_cast<double>(hi_n - lo_n + 1)));
+    const auto [lo_it, hi_it] = std::minmax_element(base_shell.bolt_z_m.begin(), base_shell.bolt_z_m.end());
+    const double lo = *lo_it, hi = *hi_it;
+    z.clear();
+    for (int64_t b = 0; b < n; ++b) z.push_back(n == 1 ? 0.5 * (lo + hi) : lo + (hi - lo) * b / (n - 1));
+    out.values.push_back(static_cast<double>(n));
+  }
+  out.shell.bolt_stiffness_scale.assign(z.size(), 1.0);
+  constexpr size_t kMaxBolts = 12;  // draws per bolt, whether the bolt exists or not
+  double log_scale_sum = 0.0;
+  for (size_t b = 0; b < kMaxBolts; ++b) {
+    const double jitter = draw(config.bolt_z_jitter_m, Law::kUniform);
+    const double scale = draw(config.bolt_stiffness_scale, Law::kLogUniform);
+    if (b >= z.size()) continue;
+    if (!config.bolt_z_jitter_m.empty()) z[b] += jitter;
+    if (!config.bolt_stiffness_scale.empty()) out.shell.bolt_stiffness_scale[b] = scale;
+    log_scale_sum += std::log(out.shell.bolt_stiffness_scale[b]);
+  }
+  if (!config.bolt_stiffness_scale.empty()) {
+    out.values.push_back(z.empty() ? 1.0 : std::exp(log_scale_sum / static_cast<double>(z.size())));
+  }
+  const double flange = draw(config.flange_mount_scale, Law::kLogUniform);
+  const double tool = draw(config.tool_mount_scale, Law::kLogUniform);
+  const double nu = draw(config.poisson_ratio, Law::kUniform);
+  if (!config.flange_mount_scale.empty()) {
+    out.shell.flange_mount_stiffness_n_m2 *= flange;
+    out.values.push_back(flange);
+  }
+  if (!config.tool_mount_scale.empty()) {
+    out.shell.tool_mount_stiffness_n_m2 *= tool;
+    out.values.push_back(tool);
+  }
+  if (!config.poisson_ratio.empty()) {
+    out.poisson_ratio = nu;
+    out.values.push_back(nu);
+  }
+  return out;
 }
 
 double Variation::frequency_scale() const { return std::sqrt(youngs_modulus_scale / density_scale); }
@@ -173,6 +299,11 @@ std::vector<std::string> VariationNames(const RandomizeConfig& config, int chann
     }
     for (int c = 0; c < channels; ++c) names.push_back(fmt::format("{}_{}", f.name, c));
   }
+  for (const NamedRange& r : PlacementRanges(config)) {
+    if (r.range->empty()) continue;
+    for (int c = 0; c < channels; ++c) names.push_back(fmt::format("{}_{}", r.name, c));
+  }
+  for (std::string& name : StructureValueNames(config)) names.push_back(std::move(name));
   return names;
 }
 
@@ -208,6 +339,25 @@ Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, 
   for (int c = 0; c < channels; ++c) {
     const double u = rng.Uniform();
     if (!config.hum_rms_v.empty()) v.hum_channel_scale.push_back(0.5 + u);
+  }
+  // microphone placement per channel, then the structure variant
+  for (const auto& [field, name] :
+       {std::pair{&Variation::mic_z_offset_m, &config.mic_z_offset_m},
+        std::pair{&Variation::mic_theta_offset_deg, &config.mic_theta_offset_deg},
+        std::pair{&Variation::disc_diameter_m, &config.disc_diameter_m}}) {
+    for (int c = 0; c < channels; ++c) {
+      const double u = rng.Uniform();
+      if (name->empty()) continue;
+      const double x = Draw(*name, Law::kUniform, u);
+      (v.*field).push_back(x);
+      v.values.push_back(x);
+    }
+  }
+  const double u = rng.Uniform();
+  if (config.structure()) {
+    v.structure_variant = std::min<int64_t>(
+        static_cast<int64_t>(u * static_cast<double>(config.structure_variants)),
+        config.structure_variants - 1);
   }
   return v;
 }

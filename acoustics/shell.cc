@@ -1,6 +1,7 @@
 #include "sonicboom/acoustics/shell.h"
 
 #include <algorithm>
+#include <functional>
 #include <cmath>
 #include <numbers>
 #include <tuple>
@@ -42,11 +43,17 @@ void ShellConfig::Serialize(Archive* a) {
   a->Visit("seam_theta_deg", &seam_theta_deg, Bounds::Closed(-360.0, 360.0));
   a->Visit("bolt_z_m", &bolt_z_m);
   a->Visit("bolt_stiffness_n_m", &bolt_stiffness_n_m, Bounds::Closed(0.0, 1e12));
+  a->Visit("bolt_stiffness_scale", &bolt_stiffness_scale, Bounds::Closed(0.0, 1e6));
+  a->VisitChoice("bolt_model", &bolt_model, {"point", "tie"});
+  a->Visit("bolt_tie_length_m", &bolt_tie_length_m, Bounds::Open(0.0, 1.0));
   a->Visit("hole_z_m", &hole_z_m);
   a->Visit("hole_theta_deg", &hole_theta_deg, Bounds::Closed(-360.0, 360.0));
   a->Visit("hole_diameter_m", &hole_diameter_m, Bounds::Closed(0.0, 0.1));
   a->Visit("flange_mount_stiffness_n_m2", &flange_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
   a->Visit("tool_mount_stiffness_n_m2", &tool_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
+  a->VisitChoice("damping", &damping, {"law", "rayleigh"});
+  a->Visit("loss_exponent", &loss_exponent, Bounds{-1.0, 2.0, false, true});
+  a->Visit("loss_reference_hz", &loss_reference_hz, Bounds::Open(0.0, 1e6));
   a->Visit("loss_low_hz", &loss_low_hz, Bounds::Open(0.0, 1e6));
   a->Visit("loss_high_hz", &loss_high_hz, Bounds::Open(0.0, 1e6));
   a->Visit("loss_factor_high", &loss_factor_high, Bounds::Closed(0.0, 2.0));
@@ -64,6 +71,11 @@ void ShellConfig::Validate(const TubeConfig& tube) const {
           "shell.{} = {} m must be positive and at most a quarter of tube.length_m ({} m)", key,
           value, 0.25 * tube.length_m));
     }
+  }
+  if (!bolt_stiffness_scale.empty() && bolt_stiffness_scale.size() != bolt_z_m.size()) {
+    throw ConfigError(fmt::format("shell.bolt_stiffness_scale has {} entries but shell.bolt_z_m "
+                                  "has {}: one scale per bolt (or none)",
+                                  bolt_stiffness_scale.size(), bolt_z_m.size()));
   }
   for (double z : bolt_z_m) {
     if (!(std::abs(z) <= half_length_m)) {
@@ -281,14 +293,28 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
     if (has_a && has_b) add(a, 1.0, b, 1.0, k);
   };
   if (real) {
+    // one bolt at z: three springs of stiffness k across the cut at row (ib, iu)
+    auto bolt_springs = [&](int js, double z, double k) {
+      const int ib = std::clamp(static_cast<int>(std::lround((z + 0.5 * tube.length_m) / dz)), 0, nz);
+      const int iu = std::clamp(static_cast<int>(std::floor((z + 0.5 * tube.length_m) / dz)), 0, nz - 1);
+      spring(Field::kW, ib, js, Field::kW, ib, js + 1, k);
+      spring(Field::kU, iu, js, Field::kU, iu, js + 1, k);
+      spring(Field::kV, ib, js - 1, Field::kV, ib, js + 1, k);
+    };
     for (int js : seams) {
-      for (double z : shell.bolt_z_m) {
-        const int ib = std::clamp(static_cast<int>(std::lround((z + 0.5 * tube.length_m) / dz)), 0, nz);
-        const int iu = std::clamp(static_cast<int>(std::floor((z + 0.5 * tube.length_m) / dz)), 0, nz - 1);
-        const double k = shell.bolt_stiffness_n_m;
-        spring(Field::kW, ib, js, Field::kW, ib, js + 1, k);
-        spring(Field::kU, iu, js, Field::kU, iu, js + 1, k);
-        spring(Field::kV, ib, js - 1, Field::kV, ib, js + 1, k);
+      for (size_t b = 0; b < shell.bolt_z_m.size(); ++b) {
+        const double z = shell.bolt_z_m[b];
+        const double k = shell.bolt_stiffness_n_m *
+                         (shell.bolt_stiffness_scale.empty() ? 1.0 : shell.bolt_stiffness_scale[b]);
+        if (shell.bolt_model == "point") {
+          bolt_springs(js, z, k);
+          continue;
+        }
+        // a tie: the same total stiffness over the rows within the tie length (at least one)
+        const int rows = std::max(1, static_cast<int>(std::lround(shell.bolt_tie_length_m / dz)));
+        for (int r = 0; r < rows; ++r) {
+          bolt_springs(js, z + (r - 0.5 * (rows - 1)) * dz, k / rows);
+        }
       }
     }
     for (const auto& [i, iu, k_per_m] :
@@ -314,13 +340,27 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   stiffness_ = Eigen::SparseMatrix<double>(B.transpose() * WB);
   stiffness_.makeCompressed();
 
-  // Rayleigh damping through (f_low, eta) and (f_high, eta_high): zeta = alpha/(2 w) + beta w / 2
-  const double eta_low = material.loss_factor;
-  const double eta_high = shell.loss_factor_high > 0.0 ? shell.loss_factor_high : eta_low;
+  // Rayleigh damping through (f_low, eta) and (f_high, eta_high): zeta = alpha/(2 w) + beta w / 2;
+  // under the loss law, through the law's own values there
+  loss_law_ = shell.damping == "law";
+  auto law = [&](double f_hz) {
+    return material.loss_factor * std::pow(f_hz / shell.loss_reference_hz, shell.loss_exponent);
+  };
+  const double eta_low = loss_law_ ? law(shell.loss_low_hz) : material.loss_factor;
+  const double eta_high = loss_law_ ? law(shell.loss_high_hz)
+                          : shell.loss_factor_high > 0.0 ? shell.loss_factor_high
+                                                         : eta_low;
   const double w1 = 2.0 * kPi * shell.loss_low_hz, w2 = 2.0 * kPi * shell.loss_high_hz;
   const double z1 = 0.5 * eta_low, z2 = 0.5 * eta_high;
   beta_ = 2.0 * (z2 * w2 - z1 * w1) / (w2 * w2 - w1 * w1);
   alpha_ = 2.0 * w1 * z1 - beta_ * w1 * w1;
+  if ((alpha_ < 0.0 || beta_ < 0.0) && loss_law_) {
+    throw ConfigError(fmt::format(
+        "shell.loss_exponent = {}: the FD rung's Rayleigh curve through the loss law at {} and {} "
+        "Hz needs a negative coefficient (alpha = {:.4g}, beta = {:.4g}); the law's ratio between "
+        "them must stay within [f_low / f_high, f_high / f_low]",
+        shell.loss_exponent, shell.loss_low_hz, shell.loss_high_hz, alpha_, beta_));
+  }
   if (alpha_ < 0.0 || beta_ < 0.0) {
     throw ConfigError(fmt::format(
         "shell.loss_factor_high = {} with material.loss_factor = {} between {} and {} Hz has no "
@@ -336,6 +376,11 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       shell.ideal, fmt::join(shell.seam_theta_deg, ","), fmt::join(shell.bolt_z_m, ","),
       shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","), fmt::join(shell.hole_theta_deg, ","),
       shell.hole_diameter_m, shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
+  // keys of structures made before per-bolt scales and ties existed stay as they were
+  if (!shell.bolt_stiffness_scale.empty()) {
+    key_ += fmt::format(" kbs={:.17g}", fmt::join(shell.bolt_stiffness_scale, ","));
+  }
+  if (shell.bolt_model != "point") key_ += fmt::format(" tie={:.17g}", shell.bolt_tie_length_m);
 }
 
 Eigen::SparseMatrix<double> ShellModel::MassScaledStiffness() const {
@@ -346,6 +391,13 @@ Eigen::SparseMatrix<double> ShellModel::MassScaledStiffness() const {
 }
 
 double ShellModel::DampingRatio(double omega_rad_s) const {
+  if (!loss_law_) return RayleighDampingRatio(omega_rad_s);
+  const double f_hz = omega_rad_s / (2.0 * kPi);
+  return 0.5 * material_.loss_factor *
+         std::pow(f_hz / shell_.loss_reference_hz, shell_.loss_exponent);
+}
+
+double ShellModel::RayleighDampingRatio(double omega_rad_s) const {
   return alpha_ / (2.0 * omega_rad_s) + 0.5 * beta_ * omega_rad_s;
 }
 
@@ -383,7 +435,8 @@ Eigen::VectorXd ShellModel::RadialForceWeights(double z_m, double theta_rad) con
   return out / (1.0 - absent);
 }
 
-Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diameter_m) const {
+int ShellModel::VisitSensorTerms(double z_m, double theta_rad, double diameter_m,
+                                 const std::function<void(int64_t, double)>& term) const {
   const double R = radius_m_, h = tube_.wall_thickness_m;
   const double dz = dz_m_, dth = dth_rad_;
   auto at = [&](int i, int j, auto field) -> int64_t {
@@ -394,7 +447,7 @@ Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diame
     return i <= nz_ ? v_index_[static_cast<size_t>(i) * nth_ + j] : kAbsent;
   };
   // outer-surface strain at node (i, j): eps_x + eps_th + h/2 (kappa_x + kappa_th)
-  auto node_row = [&](int i, int j, Eigen::VectorXd* row) {
+  auto node_row = [&](int i, int j) {
     const std::initializer_list<std::tuple<int, int, int, double>> terms = {
         {1, i, j, 1.0 / dz}, {1, i - 1, j, -1.0 / dz},
         {2, i, j, 1.0 / (R * dth) + 0.5 * h / (R * R * dth)},
@@ -407,11 +460,10 @@ Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diame
     }
     for (const auto& [f, ii, jj, c] : terms) {
       const int64_t d = at(ii, jj, f);
-      if (d >= 0) (*row)[d] += c;
+      if (d >= 0) term(d, c);
     }
     return true;
   };
-  Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
   const int ic = static_cast<int>(std::lround((z_m + 0.5 * tube_.length_m) / dz));
   double y = WrapAngle(theta_rad) / dth;
   const int jc = static_cast<int>(std::lround(y));
@@ -422,15 +474,30 @@ Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diame
     for (int j = jc - reach_j; j <= jc + reach_j; ++j) {
       const double dzn = NodeZ(i) - z_m, dsn = R * (j * dth - y * dth);
       if (std::hypot(dzn, dsn) > 0.5 * diameter_m) continue;
-      if (node_row(i, j, &out)) ++count;
+      if (node_row(i, j)) ++count;
     }
   }
-  if (count == 0 && node_row(ic, jc, &out)) count = 1;  // disc smaller than the grid
+  if (count == 0 && node_row(ic, jc)) count = 1;  // disc smaller than the grid
   if (count == 0) {
     throw ConfigError(fmt::format("microphone at z = {} m, theta = {} rad has no complete grid node "
                                   "under it (seam, hole or end)", z_m, theta_rad));
   }
+  return count;
+}
+
+Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diameter_m) const {
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
+  const int count = VisitSensorTerms(z_m, theta_rad, diameter_m,
+                                     [&out](int64_t d, double c) { out[d] += c; });
   return out / count;
+}
+
+std::vector<int64_t> ShellModel::SensorDofs(double z_m, double theta_rad, double diameter_m) const {
+  std::vector<int64_t> dofs;
+  VisitSensorTerms(z_m, theta_rad, diameter_m, [&dofs](int64_t d, double) { dofs.push_back(d); });
+  std::sort(dofs.begin(), dofs.end());
+  dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
+  return dofs;
 }
 
 Eigen::MatrixXd ShellModel::SensorRows(const MicArrayConfig& mics) const {

@@ -67,6 +67,24 @@ struct FlushSubnormals {
 #endif
 };
 
+// every DOF a disc of the array moved by up to the margin (and grown by twice it) can read,
+// ascending: those of a disc grown by the margin and two grid steps on every side
+std::vector<int64_t> PlacementDofs(const ShellModel& model, const MicArrayConfig& mics,
+                                   double margin_m) {
+  std::vector<int64_t> dofs;
+  const double step = std::max(model.dz_m(), model.dtheta_rad() * model.tube().outer_radius_m);
+  for (int c = 0; c < mics.count(); ++c) {
+    const double d = mics.disc_diameter_m + 2.0 * margin_m + 2.0 * step;
+    for (const int64_t dof : model.SensorDofs(mics.z_m[static_cast<size_t>(c)],
+                                              mics.theta_deg[static_cast<size_t>(c)] * M_PI / 180.0, d)) {
+      dofs.push_back(dof);
+    }
+  }
+  std::sort(dofs.begin(), dofs.end());
+  dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
+  return dofs;
+}
+
 // the w DOFs a radial point force spreads over, and their weights
 struct PointWeights {
   std::vector<int64_t> dof;
@@ -143,9 +161,15 @@ struct ShellModalBank::Impl {
   Eigen::MatrixXf shapes;              // (radial DOFs x modes) mass-normalized shapes, 1/sqrt(kg)
   Eigen::MatrixXd flexibility;         // (radial DOFs x mics) rows of K^-1 S^T, or empty
   double floor_ln{0.0};                // ln of the decay floor ratio
+  // microphone placement: the configured array, and the shapes of every DOF around the discs
+  MicArrayConfig mics;
+  std::vector<int64_t> placement_row;  // (dofs) row of a DOF in placement_shapes, or -1
+  Eigen::MatrixXf placement_shapes;    // (DOFs around the discs x modes)
 
   // the tables of the structure under a variation, for the lowest n modes
   RecursionTables Varied(const Variation& v, int64_t n) const;
+  // (mics x n) S phi_n of the discs where the variation puts them
+  Eigen::MatrixXd PlacedSensorShape(const Variation& v, int64_t n) const;
   // damping ratio of bank mode k at the varied angular frequency omega
   double VariedDamping(const Variation& v, double omega_rad_s) const;
 };
@@ -173,15 +197,45 @@ RecursionTables ShellModalBank::Impl::Varied(const Variation& v, int64_t n) cons
   t.SetPoles(w, z, 1.0 / fs);
   t.shape_scale = 1.0 / std::sqrt(v.density_scale);
   t.static_scale = 1.0 / v.youngs_modulus_scale;
-  t.sensor_gain = (sensor_shape.leftCols(n) * (t.shape_scale * out_scale).asDiagonal()).cast<float>();
+  const bool placed = !v.mic_z_offset_m.empty() || !v.mic_theta_offset_deg.empty() ||
+                      !v.disc_diameter_m.empty();
+  const Eigen::MatrixXd shape = placed ? PlacedSensorShape(v, n) : sensor_shape.leftCols(n);
+  t.sensor_gain = (shape * (t.shape_scale * out_scale).asDiagonal()).cast<float>();
   return t;
+}
+
+Eigen::MatrixXd ShellModalBank::Impl::PlacedSensorShape(const Variation& v, int64_t n) const {
+  if (placement_shapes.size() == 0) {
+    throw ConfigError("randomize: microphone placement ranges need a modal bank built with a "
+                      "placement margin (acoustics.model = modal)");
+  }
+  const int count = mics.count();
+  Eigen::MatrixXd shape = Eigen::MatrixXd::Zero(count, n);
+  for (int c = 0; c < count; ++c) {
+    const auto at = [c](const std::vector<double>& x) {
+      return x.empty() ? 0.0 : x[static_cast<size_t>(c)];
+    };
+    const double z = mics.z_m[static_cast<size_t>(c)] + at(v.mic_z_offset_m);
+    const double theta = (mics.theta_deg[static_cast<size_t>(c)] + at(v.mic_theta_offset_deg)) *
+                         M_PI / 180.0;
+    const double d = v.disc_diameter_m.empty() ? mics.disc_diameter_m : at(v.disc_diameter_m);
+    const Eigen::VectorXd row = model->SensorRow(z, theta, d);  // (dofs)
+    for (Eigen::Index dof = 0; dof < row.size(); ++dof) {
+      if (row[dof] == 0.0) continue;
+      const int64_t r = placement_row[static_cast<size_t>(dof)];
+      SONICBOOM_DEMAND(r >= 0);  // the margin covers every placement the config can draw
+      shape.row(c) += row[dof] * placement_shapes.row(r).head(n).cast<double>();
+    }
+  }
+  return shape;
 }
 
 ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
                                const MicArrayConfig& mics, double sample_rate_hz,
-                               double decay_floor_db, bool residual)
+                               double decay_floor_db, bool residual, double placement_margin_m)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
+  m.mics = mics;
   SONICBOOM_DEMAND(modes.shapes.rows() == model.dofs() &&
                    modes.shapes.cols() == modes.omega_rad_s.size());
   m.model = &model;
@@ -240,6 +294,18 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
                                   mics.count(), kMaxMics));
   }
   m.sensor_static = gain * m.omega.cwiseAbs2().cwiseInverse().asDiagonal();
+  // every DOF a disc moved by up to the margin (and grown by twice it) can read
+  if (placement_margin_m > 0.0) {
+    m.placement_row.assign(static_cast<size_t>(model.dofs()), -1);
+    const std::vector<int64_t> dofs = PlacementDofs(model, mics, placement_margin_m);
+    for (size_t r = 0; r < dofs.size(); ++r) {
+      m.placement_row[static_cast<size_t>(dofs[r])] = static_cast<int64_t>(r);
+    }
+    m.placement_shapes.resize(static_cast<Eigen::Index>(dofs.size()), n);
+    for (size_t r = 0; r < dofs.size(); ++r) {
+      m.placement_shapes.row(static_cast<Eigen::Index>(r)) = modes.shapes.row(dofs[r]).head(n).cast<float>();
+    }
+  }
   m.floor_ln = std::abs(decay_floor_db) / 20.0 * std::log(10.0);
   // static flexibility at the sensors for the residual: K^-1 S^T (symmetric K)
   if (residual && modes.rigid_body_modes == 0) {
@@ -252,6 +318,29 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
 }
 
 ShellModalBank::~ShellModalBank() = default;
+
+std::vector<int64_t> ShellModalBank::RowsRead(const ShellModel& model, const MicArrayConfig& mics,
+                                              double placement_margin_m) {
+  std::vector<int64_t> rows;
+  for (int i = 0; i < model.axial_points(); ++i) {
+    for (int j = 0; j < model.circumferential_points(); ++j) {
+      if (model.WIndex(i, j) >= 0) rows.push_back(model.WIndex(i, j));
+    }
+  }
+  for (int c = 0; c < mics.count(); ++c) {
+    for (const int64_t d : model.SensorDofs(mics.z_m[static_cast<size_t>(c)],
+                                            mics.theta_deg[static_cast<size_t>(c)] * M_PI / 180.0,
+                                            mics.disc_diameter_m)) {
+      rows.push_back(d);
+    }
+  }
+  if (placement_margin_m > 0.0) {
+    for (const int64_t d : PlacementDofs(model, mics, placement_margin_m)) rows.push_back(d);
+  }
+  std::sort(rows.begin(), rows.end());
+  rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+  return rows;
+}
 
 int64_t ShellModalBank::modes() const { return impl_->n_modes; }
 

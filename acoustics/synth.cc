@@ -8,12 +8,14 @@
 #include <numbers>
 
 #include <fmt/format.h>
+#include <tbb/parallel_for.h>
 
 #include "sonicboom/acoustics/cylinder_modes.h"
 #include "sonicboom/acoustics/fd_render.h"
 #include "sonicboom/acoustics/shell_bank.h"
 #include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/acoustics/shell_ritz.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 
@@ -97,11 +99,20 @@ struct StrikeSynthesizer::Impl {
   // modal and fd: the discretized shell, its modes, and the FD solver
   std::unique_ptr<ShellModel> shell;
   std::unique_ptr<ShellModalBank> bank;
+  // the structure pool: each variant's shell, its Ritz modes' bank and its drawn values
+  struct Variant {
+    std::unique_ptr<ShellModel> shell;
+    std::unique_ptr<ShellModalBank> bank;
+    std::vector<double> values;
+  };
+  std::vector<Variant> pool;
   std::unique_ptr<ShellFd> fd;
   Eigen::MatrixXd sensor_rows;     // (mics x dofs) fd only
   std::unique_ptr<DaqChain> daq;
 
   void BuildClosedForm();
+  // the structure pool from the base modes (with shapes): variants drawn, Ritz modes, banks
+  void BuildPool(const ShellModes& base_modes, double placement_margin_m);
   // the first contact's strain by the closed-form modes, (mics x T)
   Eigen::MatrixXd ClosedFormStrain(const ContactEvent& contact, const HertzImpact& impact,
                                    RenderedStrike* out) const;
@@ -202,6 +213,45 @@ Eigen::MatrixXd StrikeSynthesizer::Impl::ClosedFormStrain(const ContactEvent& co
   return strain;
 }
 
+namespace {
+
+// how far the randomized placement can move a disc's edge (offset plus growth), m
+double PlacementMargin(const AcousticModelConfig& c) {
+  const RandomizeConfig& r = c.randomize;
+  if (!r.mic_placement()) return 0.0;
+  const auto largest = [](const std::vector<double>& range) {
+    return range.empty() ? 0.0 : std::max(std::abs(range[0]), std::abs(range[1]));
+  };
+  const double grow = r.disc_diameter_m.empty()
+                          ? 0.0
+                          : std::max(0.0, 0.5 * (r.disc_diameter_m[1] - c.mics.disc_diameter_m));
+  return largest(r.mic_z_offset_m) +
+         c.tube.outer_radius_m * largest(r.mic_theta_offset_deg) * kPi / 180.0 + grow;
+}
+
+}  // namespace
+
+void StrikeSynthesizer::Impl::BuildPool(const ShellModes& base_modes, double placement_margin_m) {
+  const int64_t count = c.randomize.structure_variants;
+  pool.resize(static_cast<size_t>(count));
+  const ShellRitzProjector projector(*shell, base_modes);
+  const std::vector<int64_t> rows = ShellModalBank::RowsRead(*shell, c.mics, placement_margin_m);
+  // each variant alone: its draws, its shell, Ritz modes to the base band, its bank
+  tbb::parallel_for(int64_t{0}, count, [&](int64_t v) {
+    const StructureVariant draw =
+        DrawStructure(c.randomize, c.shell, c.material.poisson_ratio, c.seed, v);
+    MaterialConfig material = c.material;
+    material.poisson_ratio = draw.poisson_ratio;
+    Variant& out = pool[static_cast<size_t>(v)];
+    out.shell = std::make_unique<ShellModel>(c.tube, material, draw.shell);
+    const ShellModes modes = projector.Project(*out.shell, mode_band_hz, &rows);
+    out.bank = std::make_unique<ShellModalBank>(*out.shell, modes, c.mics, c.audio.sample_rate_hz,
+                                                c.synth.decay_floor_db, c.synth.residual,
+                                                placement_margin_m);
+    out.values = draw.values;
+  });
+}
+
 StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
@@ -242,8 +292,17 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   const ShellModes modes = CachedShellModes(*m.shell, mode_band, 0, true, cache);
   m.widest_band_hz = std::min(m.widest_band_hz, mode_band);
   m.mode_band_hz = mode_band;
+  const double margin = PlacementMargin(config);
   m.bank = std::make_unique<ShellModalBank>(*m.shell, modes, config.mics, audio.sample_rate_hz,
-                                            synth.decay_floor_db, synth.residual);
+                                            synth.decay_floor_db, synth.residual, margin);
+  if (config.randomize.structure()) {
+    if (synth.model != "modal") {
+      throw ConfigError(fmt::format("randomize.structure_variants = {} needs acoustics.model = "
+                                    "modal (the variants are Ritz projections of its modes), not {}",
+                                    config.randomize.structure_variants, synth.model));
+    }
+    m.BuildPool(modes, margin);
+  }
   if (synth.model == "fd") {
     m.fd = std::make_unique<ShellFd>(*m.shell, audio.sample_rate_hz, synth.fd_oversampling);
     m.sensor_rows = m.shell->SensorRows(config.mics);
@@ -251,6 +310,15 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
 }
 
 StrikeSynthesizer::~StrikeSynthesizer() = default;
+
+int64_t StrikeSynthesizer::structure_variants() const {
+  return static_cast<int64_t>(impl_->pool.size());
+}
+
+const std::vector<double>& StrikeSynthesizer::StructureValues(int64_t variant) const {
+  SONICBOOM_DEMAND(variant >= 0 && variant < structure_variants());
+  return impl_->pool[static_cast<size_t>(variant)].values;
+}
 
 int64_t StrikeSynthesizer::mode_count() const {
   return impl_->bank ? impl_->bank->modes() : static_cast<int64_t>(impl_->modes.size());
@@ -331,12 +399,23 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
   const double fs = m.c.audio.sample_rate_hz;
   const int64_t num_frames = m.c.audio.num_samples();
   RenderedStrike out;
+  const bool placed = variation != nullptr && (!variation->mic_z_offset_m.empty() ||
+                                                !variation->mic_theta_offset_deg.empty() ||
+                                                !variation->disc_diameter_m.empty());
   const bool varied_structure = variation != nullptr && (variation->frequency_scale() != 1.0 ||
                                                          variation->density_scale != 1.0 ||
-                                                         variation->loss_factor > 0.0);
+                                                         variation->loss_factor > 0.0 ||
+                                                         variation->structure_variant >= 0 || placed);
   if (varied_structure && (!m.bank || m.fd)) {
-    throw ConfigError("randomize: material ranges need acoustics.model = modal (the numerical "
-                      "modes scale exactly; the fd and closed-form rungs do not)");
+    throw ConfigError("randomize: material, structure and placement ranges need acoustics.model = "
+                      "modal (the numerical modes vary exactly or by projection; the fd and "
+                      "closed-form rungs do not)");
+  }
+  // the structure this sample is played on: the configured one or a variant of the pool
+  const ShellModalBank* bank = m.bank.get();
+  if (variation != nullptr && variation->structure_variant >= 0) {
+    SONICBOOM_DEMAND(variation->structure_variant < static_cast<int64_t>(m.pool.size()));
+    bank = m.pool[static_cast<size_t>(variation->structure_variant)].bank.get();
   }
   const ContactEvent contact = variation != nullptr ? VariedContact(given_contact, *variation)
                                                     : given_contact;
@@ -391,9 +470,13 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
     std::vector<ForceInput> forces;
     auto play_contact = [&](double time_s, double z_m, double theta_rad, double speed_m_s,
                             double tube_side_kg, const DrivingPoint& other) {
-      DrivingPoint wall = m.bank->WallAt(z_m, theta_rad, contact_band,
-                                         varied_structure ? variation : nullptr);
-      wall.rigid_mass_kg = tube_side_kg > 0 ? tube_side_kg : std::numeric_limits<double>::infinity();
+      // a rigid wall is a held half-space: no modes, no rigid motion
+      DrivingPoint wall;
+      if (m.c.synth.contact.wall == "coupled") {
+        wall = bank->WallAt(z_m, theta_rad, contact_band, varied_structure ? variation : nullptr);
+        wall.rigid_mass_kg =
+            tube_side_kg > 0 ? tube_side_kg : std::numeric_limits<double>::infinity();
+      }
       ContactForce cf = SolveContact(wall, other, impact.stiffness_n_m15, speed_m_s, time_s, fs,
                                      m.c.synth.contact);
       forces.push_back({z_m, theta_rad, cf.first_sample, std::move(cf.force_n)});
@@ -448,9 +531,9 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
                         m.c.synth.decay_floor_db);
     } else {
       const Variation* structure = varied_structure ? variation : nullptr;
-      out.modes_used = m.c.synth.mode_count > 0 ? std::min(m.c.synth.mode_count, m.bank->modes())
-                                                : m.bank->ModesBelow(out.band_hz, structure);
-      strain = m.bank->Render(forces, out.modes_used, num_frames, structure);
+      out.modes_used = m.c.synth.mode_count > 0 ? std::min(m.c.synth.mode_count, bank->modes())
+                                                : bank->ModesBelow(out.band_hz, structure);
+      strain = bank->Render(forces, out.modes_used, num_frames, structure);
     }
   }
   out.vibration_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -1,5 +1,7 @@
 #include "sonicboom/acoustics/tdoa.h"
 
+#include "internal/band_weights.h"
+
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -421,26 +423,12 @@ TdoaLocator::TdoaLocator(const TdoaGeometry& geometry, const TdoaConfig& config,
   m.fft_size = NextPowerOfTwo(m.n + m.max_lag);
 
   // per band: cos^2 weight in log2 frequency, half power at the band edges
-  const int64_t bins = m.fft_size / 2 + 1;
   for (size_t b = 0; b < bands; ++b) {
-    const double half_width = std::log2(config.band_edges_hz[b + 1] / config.band_edges_hz[b]);
-    std::vector<double> w(static_cast<size_t>(bins), 0.0);
+    std::vector<double> w = internal::LogBandWeights(
+        config.band_edges_hz[b], config.band_edges_hz[b + 1], m.fft_size, sample_rate_hz,
+        "tdoa.band_edges_hz");
     double sum = 0.0;
-    for (int64_t k = 1; k < bins; ++k) {
-      const double f = k * sample_rate_hz / static_cast<double>(m.fft_size);
-      const double x = std::log2(f / m.band_centre_hz[b]) / half_width;
-      if (std::abs(x) < 1.0) {
-        const double c = std::cos(0.5 * kPi * x);
-        w[k] = c * c;
-        sum += w[k];
-      }
-    }
-    if (!(sum > 0.0)) {
-      throw ConfigError(fmt::format("tdoa.band_edges_hz: band {} ({}-{} Hz) holds no frequency bin "
-                                    "of the {}-sample analysis FFT",
-                                    b, config.band_edges_hz[b], config.band_edges_hz[b + 1],
-                                    m.fft_size));
-    }
+    for (double x : w) sum += x;
     m.bin_weight.push_back(std::move(w));
     m.bin_weight_sum.push_back(sum);
   }

@@ -87,6 +87,14 @@ int RunCli(int argc, char** argv) {
     run = [&] { return RunFidelity(g, fidelity_out, fidelity_strikes, fidelity_window_s, fidelity_quick); };
   });
 
+  int64_t variants_check = 3;
+  std::string variants_out;
+  auto* variants = app.add_subcommand("variants", "the structure pool's Ritz modes against full "
+                                                  "solves: error and time");
+  variants->add_option("--check", variants_check, "variants also solved in full (default 3)");
+  variants->add_option("--out", variants_out, "markdown table (default: print only)");
+  variants->callback([&] { run = [&] { return RunVariants(g, variants_check, variants_out); }; });
+
   auto* features = app.add_subcommand("features", "mel spectrograms and GCC-PHAT of a WAV or dataset");
   features->add_option("--in", in, "WAV file or dataset (.h5)")->required();
   features->add_option("--out", out, "features file (.h5)")->required();

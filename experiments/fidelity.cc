@@ -187,11 +187,22 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   const Grid configured{"configured", quick ? 0.005 : arc, quick ? 0.01 : axial};
   const Grid coarse{"coarse", 2 * configured.arc_m, 2 * configured.axial_m};
   const Grid coarser{"coarser", 0.01, 0.02};
+  // every rung, modal and FD, damps by the FD rung's Rayleigh curve, so that the table measures
+  // discretization and truncation alone; the law's own fit error is the section below the table
+  MaterialConfig rayleigh_material = config.material;
+  acoustics::ShellConfig rayleigh_shell = config.shell;
+  rayleigh_shell.damping = "rayleigh";
+  if (config.shell.damping == "law") {
+    // the Rayleigh curve through the law at the anchors, as the FD rung builds it
+    const acoustics::ShellModel law(config.tube, config.material, config.shell);
+    rayleigh_material.loss_factor = 2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_low_hz);
+    rayleigh_shell.loss_factor_high = 2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_high_hz);
+  }
   auto shell_model = [&](const Grid& grid) {
-    acoustics::ShellConfig sc = config.shell;
+    acoustics::ShellConfig sc = rayleigh_shell;
     sc.grid_spacing_m = grid.arc_m;
     sc.axial_spacing_m = grid.axial_m;
-    return std::make_unique<acoustics::ShellModel>(config.tube, config.material, sc);
+    return std::make_unique<acoustics::ShellModel>(config.tube, rayleigh_material, sc);
   };
   // the modes every modal rung draws from: the production default (20 kHz below Nyquist)
   const double full_band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
@@ -353,7 +364,24 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
       "the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike = "
       "{:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
       config.acoustics.model, whole_ms, 1e3 / whole_ms, 1e3 * vibration_s / reps);
+  // the FD rung's damping against the loss law (shell.damping = law): the Rayleigh curve meets
+  // the law at shell.loss_low_hz and loss_high_hz and departs from it elsewhere
+  json damping_json = json::array();
+  if (config.shell.damping == "law") {
+    const acoustics::ShellModel law(config.tube, config.material, config.shell);
+    md += "\nDamping: the modal rung gives every mode the loss law's eta(f); the FD rung's Rayleigh "
+          "curve (C = alpha M + beta K) meets it at shell.loss_low_hz and shell.loss_high_hz:\n\n"
+          "| f (Hz) | law eta | FD (Rayleigh) eta | ratio |\n|---|---|---|---|\n";
+    for (double f : {100.0, 220.0, 500.0, 1000.0, 2000.0, 5000.0, 10000.0, 20000.0}) {
+      const double w = 2.0 * std::numbers::pi * f;
+      const double eta_law = 2.0 * law.DampingRatio(w), eta_fd = 2.0 * law.RayleighDampingRatio(w);
+      md += fmt::format("| {:.0f} | {:.4f} | {:.4f} | {:.2f} |\n", f, eta_law, eta_fd,
+                        eta_fd / eta_law);
+      damping_json.push_back({{"frequency_hz", f}, {"law_eta", eta_law}, {"fd_eta", eta_fd}});
+    }
+  }
   json j = {{"rungs", rows_json}, {"strikes", strikes}, {"window_s", window_s},
+            {"damping", damping_json},
             {"whole_strike_ms", whole_ms}, {"whole_strike_vibration_ms", 1e3 * vibration_s / reps},
             {"quick", quick}};
   if (!out_md.empty()) WriteTextAtomic(out_md, md);

@@ -71,6 +71,8 @@ acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config) {
   a.synth = config.acoustics;
   a.daq = config.daq;
   a.noise = config.noise;
+  a.randomize = config.randomize;
+  a.seed = config.seed;
   return a;
 }
 
@@ -123,6 +125,10 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
     variation = acoustics::DrawVariation(c.randomize, c.material.loss_factor, c.mics.count(),
                                          sample.seed);
     sample.variation = variation.values;
+    if (variation.structure_variant >= 0) {
+      const std::vector<double>& drawn = impl_->synth->StructureValues(variation.structure_variant);
+      sample.variation.insert(sample.variation.end(), drawn.begin(), drawn.end());
+    }
   }
 
   // audio; a numerical failure marks the sample invalid instead of ending the run
@@ -260,7 +266,7 @@ learning::FeatureSet AllocateFeatures(const acoustics::FeatureExtractor& fx, int
   set.channels = fx.channels();
   set.mels = 0;
   set.frames = fx.mel_frames();
-  set.gcc_pairs = fx.channels() * (fx.channels() - 1) / 2;
+  set.gcc_pairs = fx.gcc_rows();  // pairs x bands
   set.gcc_lags = fx.gcc_lags();
   set.proprio_rows = proprio_rows;
   set.proprio_features = kProprioFeatures;

@@ -19,6 +19,7 @@ namespace {
 
 const std::vector<std::string> kAudioEncoders = {"compact", "resnet18", "resnet50"};
 const std::vector<std::string> kModalities = {"audio", "gcc", "proprio"};
+const std::vector<std::string> kGccEncoders = {"mlp", "conv"};
 
 // Bounds of an integer that must be at least 1.
 Bounds AtLeastOne() { return Bounds::Closed(1.0, std::numeric_limits<double>::infinity()); }
@@ -49,6 +50,7 @@ void ModelConfig::Serialize(Archive* a) {
   a->Visit("dropout", &dropout, Bounds{0.0, 1.0, false, true});
   a->Visit("modalities", &modalities);
   a->Visit("crop_frames", &crop_frames, AtLeastOne());
+  a->VisitChoice("gcc_encoder", &gcc_encoder, kGccEncoders);
 }
 
 void ModelConfig::Validate() const {

@@ -180,6 +180,21 @@ torch::Tensor AudioEncoderImpl::forward(torch::Tensor mel) {
 
 GccEncoderImpl::GccEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
   const int64_t w = config.width, in = shapes.gcc_pairs * shapes.gcc_lags;
+  if (config.gcc_encoder == "conv") {
+    // rows as channels; two stride-2 convolutions quarter the lag axis
+    constexpr int64_t kChannels = 64;
+    auto conv = [](int64_t from, int64_t to, int64_t stride) {
+      return nn::Conv1d(nn::Conv1dOptions(from, to, 5).stride(stride).padding(2));
+    };
+    convs_ = register_module(
+        "convs", nn::Sequential(conv(shapes.gcc_pairs, kChannels, 1), nn::GELU(),
+                                conv(kChannels, kChannels, 2), nn::GELU(),
+                                conv(kChannels, kChannels, 2), nn::GELU()));
+    int64_t lags = shapes.gcc_lags;
+    for (int i = 0; i < 2; ++i) lags = (lags - 1) / 2 + 1;
+    projection_ = register_module("projection", nn::Linear(kChannels * lags, w));
+    return;
+  }
   mlp_ = register_module(
       "mlp", nn::Sequential(nn::LayerNorm(nn::LayerNormOptions({in})), nn::Linear(in, 4 * w),
                             nn::LayerNorm(nn::LayerNormOptions({4 * w})), nn::GELU(),
@@ -189,7 +204,9 @@ GccEncoderImpl::GccEncoderImpl(const ModelConfig& config, const NetworkShapes& s
 }
 
 torch::Tensor GccEncoderImpl::forward(torch::Tensor gcc) {
-  // (B, pairs, lags) -> (B, pairs * lags) -> (B, width)
+  // conv: (B, rows, lags) -> (B, 64, ~lags / 4) -> (B, width)
+  if (convs_) return projection_->forward(convs_->forward(gcc).flatten(1));
+  // mlp: (B, rows, lags) -> (B, rows * lags) -> (B, width)
   return ForwardRows(mlp_, gcc.flatten(1));
 }
 

@@ -131,7 +131,9 @@ class GccEncoderImpl : public torch::nn::Module {
   torch::Tensor forward(torch::Tensor gcc);  // (B, pairs, lags) -> (B, width)
 
  private:
-  torch::nn::Sequential mlp_{nullptr};
+  torch::nn::Sequential mlp_{nullptr};    // "mlp"
+  torch::nn::Sequential convs_{nullptr};  // "conv": (B, rows, lags) -> (B, 64, ~lags / 4)
+  torch::nn::Linear projection_{nullptr};
 };
 TORCH_MODULE(GccEncoder);
 

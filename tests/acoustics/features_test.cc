@@ -280,6 +280,41 @@ TEST(GccPhatTest, FullWindowDelayAtMaxLag) {
   EXPECT_EQ(ArgMax(out, 2), 2 * max_lag);  // lag +441
 }
 
+TEST(GccPhatTest, BandsEachPeakAtTheDelayAndSumToTheFullBand) {
+  // white noise delayed by 37 samples: every band's correlation peaks there, and the bands
+  // (contiguous, spanning 300 Hz .. Nyquist) add up to the full-band PHAT inside their span
+  const int64_t n = 2048, max_lag = 96, delay = 37;
+  const std::vector<double> edges{300.0, 1000.0, 3000.0, 9000.0, 22050.0};
+  const GccPhat full(n, max_lag, 3), banded(n, max_lag, 3, kFs, edges);
+  ASSERT_EQ(banded.rows(), 3 * 4);
+  Eigen::MatrixXf a, b;
+  full.Compute(DelayedNoise(n, delay), &a);
+  banded.Compute(DelayedNoise(n, delay), &b);
+  ASSERT_EQ(b.rows(), 12);
+  for (int band = 0; band < 4; ++band) {
+    EXPECT_EQ(ArgMax(b, 2 * 4 + band) - max_lag, delay) << "band " << band;
+  }
+  // a narrow band's peak is wide: 3 samples off it the lowest band keeps most of its peak,
+  // where the full band's has fallen to nothing
+  const int64_t at = max_lag + delay;
+  EXPECT_GT(b(8, at + 3), 0.8f * b(8, at));
+  EXPECT_LT(std::abs(a(2, at + 3)), 0.1f * a(2, at));
+  // the bands' peaks together stay below the full band's (their weights sum to one only
+  // between the lowest and the highest band centre)
+  EXPECT_LT(b.middleRows(8, 4).col(at).sum(), a(2, at));
+  EXPECT_GT(b.middleRows(8, 4).col(at).sum(), 0.5f * a(2, at));
+  // bad edges are refused naming the key
+  for (const std::vector<double>& bad : {std::vector<double>{1000.0}, {2000.0, 1000.0},
+                                         {1000.0, 30000.0}, {0.0, 1000.0}}) {
+    try {
+      GccPhat g(n, max_lag, 3, kFs, bad);
+      FAIL() << "no ConfigError";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("features.gcc_bands_hz"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(GccPhatTest, RejectsBadArguments) {
   EXPECT_THROW(GccPhat(0, 0, 2), ConfigError);
   EXPECT_THROW(GccPhat(100, 100, 2), ConfigError);
@@ -567,20 +602,21 @@ TEST(FeatureConfigTest, SerializeVisitsEveryMemberByName) {
   for (const auto& f : archive.fields) names.push_back(f.name);
   EXPECT_THAT(names,
               ::testing::ElementsAre("window_s", "n_fft", "hop", "n_mels", "f_min_hz", "f_max_hz",
-                                     "log_mel", "gcc_max_lag", "gcc_window_s", "onset_frame_s",
+                                     "log_mel", "gcc_max_lag", "gcc_window_s", "gcc_bands_hz",
+                                     "onset_frame_s",
                                      "onset_threshold",
                                      "gating", "gating_n_std", "gating_n_fft", "gating_hop",
                                      "gating_freq_smooth_hz", "gating_time_smooth_s",
                                      "gating_prop_decrease", "gating_noise_wav"));
-  ASSERT_EQ(archive.fields.size(), 19u);
+  ASSERT_EQ(archive.fields.size(), 20u);
   // window_s: (0, inf); hop: (0, inf); log_mel: bool; onset_threshold: (0, 1].
   EXPECT_EQ(archive.fields[0].bounds.lo, 0.0);
   EXPECT_TRUE(archive.fields[0].bounds.lo_open);
   EXPECT_EQ(archive.fields[2].kind, "int");
   EXPECT_TRUE(archive.fields[2].bounds.lo_open);
   EXPECT_EQ(archive.fields[6].kind, "bool");
-  EXPECT_EQ(archive.fields[10].bounds.hi, 1.0);
-  EXPECT_FALSE(archive.fields[10].bounds.hi_open);
+  EXPECT_EQ(archive.fields[11].bounds.hi, 1.0);
+  EXPECT_FALSE(archive.fields[11].bounds.hi_open);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -250,6 +251,160 @@ TEST(RandomizeDaqTest, LevelHighPassAndHumAsDrawn) {
   noisy.noise_floor_v = 1e-3;
   chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, &noisy);
   EXPECT_LT((out.array() == 0.0f).cast<double>().mean(), 0.02);
+}
+
+}  // namespace
+}  // namespace sonicboom::acoustics
+
+namespace sonicboom::acoustics {
+namespace {
+
+TEST(RandomizeStructureTest, RangesNeedAPoolAndWholeBoltCounts) {
+  RandomizeConfig c;
+  c.bolt_stiffness_scale = {0.5, 2.0};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }),
+                    "randomize.structure_variants"));
+  c.structure_variants = 4;
+  EXPECT_NO_THROW(c.Validate());
+  c.bolt_count = {2.5, 4};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.bolt_count"));
+  c.bolt_count = {5, 2};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.bolt_count"));
+  c = {};
+  c.mic_z_offset_m = {0.002, -0.002};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.mic_z_offset_m"));
+}
+
+TEST(RandomizeStructureTest, VariantsFollowTheSeedAndTheRanges) {
+  RandomizeConfig c;
+  c.structure_variants = 16;
+  c.bolt_count = {2, 5};
+  c.bolt_z_jitter_m = {-0.01, 0.01};
+  c.bolt_stiffness_scale = {0.1, 10.0};
+  c.flange_mount_scale = {0.2, 5.0};
+  c.poisson_ratio = {0.35, 0.42};
+  const ShellConfig base;
+  std::set<size_t> counts;
+  for (int64_t v = 0; v < c.structure_variants; ++v) {
+    const StructureVariant a = DrawStructure(c, base, 0.38, 7, v);
+    const StructureVariant b = DrawStructure(c, base, 0.38, 7, v);
+    EXPECT_EQ(a.shell.bolt_z_m, b.shell.bolt_z_m);
+    EXPECT_EQ(a.values, b.values);
+    ASSERT_EQ(a.values.size(), StructureValueNames(c).size());
+    EXPECT_EQ(a.values[0], static_cast<double>(v));
+    counts.insert(a.shell.bolt_z_m.size());
+    ASSERT_GE(a.shell.bolt_z_m.size(), 2u);
+    ASSERT_LE(a.shell.bolt_z_m.size(), 5u);
+    ASSERT_EQ(a.shell.bolt_stiffness_scale.size(), a.shell.bolt_z_m.size());
+    for (size_t k = 0; k < a.shell.bolt_z_m.size(); ++k) {
+      // even spacing over the base's outer bolts (-0.1 .. 0.1) plus the jitter
+      EXPECT_LE(std::abs(a.shell.bolt_z_m[k]), 0.1 + 0.01 + 1e-12);
+      EXPECT_GE(a.shell.bolt_stiffness_scale[k], 0.1);
+      EXPECT_LE(a.shell.bolt_stiffness_scale[k], 10.0);
+    }
+    EXPECT_GE(a.poisson_ratio, 0.35);
+    EXPECT_LE(a.poisson_ratio, 0.42);
+    EXPECT_NEAR(a.shell.tool_mount_stiffness_n_m2, base.tool_mount_stiffness_n_m2, 0.0);
+  }
+  EXPECT_GE(counts.size(), 3u);  // the counts spread over the range
+  // another global seed, another pool
+  EXPECT_NE(DrawStructure(c, base, 0.38, 8, 0).values, DrawStructure(c, base, 0.38, 7, 0).values);
+  // a sample picks a variant in range, and the placement draws per channel
+  c.mic_z_offset_m = {-0.002, 0.002};
+  c.disc_diameter_m = {0.015, 0.025};
+  std::set<int64_t> picked;
+  for (uint64_t seed = 0; seed < 200; ++seed) {
+    const Variation v = DrawVariation(c, 0.02, 6, seed);
+    ASSERT_GE(v.structure_variant, 0);
+    ASSERT_LT(v.structure_variant, 16);
+    picked.insert(v.structure_variant);
+    ASSERT_EQ(v.mic_z_offset_m.size(), 6u);
+    ASSERT_EQ(v.disc_diameter_m.size(), 6u);
+    EXPECT_TRUE(v.mic_theta_offset_deg.empty());
+    for (double d : v.disc_diameter_m) EXPECT_TRUE(d >= 0.015 && d <= 0.025);
+  }
+  EXPECT_EQ(picked.size(), 16u);
+  // names: the per-sample draws (placement per channel), then the variant's values
+  const std::vector<std::string> names = VariationNames(c, 6);
+  EXPECT_EQ(names.front(), "mic_z_offset_m_0");
+  EXPECT_EQ(names[12], "structure_variant");
+  EXPECT_EQ(names.size(), 12 + StructureValueNames(c).size());
+}
+
+TEST(RandomizeStructureTest, MovedDiscsRenderAsABankBuiltForThem) {
+  // a disc placement drawn per sample against an array configured at that placement
+  AcousticModelConfig moved = Coarse();
+  moved.audio.record_duration_s = 0.06;
+  moved.synth.residual = false;  // the residual keeps the configured placement
+  AcousticModelConfig drawn = moved;
+  // (offsets of the order of the coarse grid's 10 mm: the disc reads the nodes under it)
+  drawn.randomize.mic_z_offset_m = {-0.008, 0.008};
+  drawn.randomize.mic_theta_offset_deg = {-8, 8};
+  drawn.randomize.disc_diameter_m = {0.012, 0.026};
+  Variation v;
+  v.sensitivity_scale.assign(6, 1.0);
+  v.mic_z_offset_m = {0.006, -0.005, 0.004, 0.007, -0.006, 0.005};
+  v.mic_theta_offset_deg = {-6.0, 5.0, 4.0, 6.0, -4.0, 3.0};
+  v.disc_diameter_m = {0.012, 0.026, 0.02, 0.015, 0.022, 0.018};
+  for (int c = 0; c < 6; ++c) {
+    moved.mics.z_m[c] += v.mic_z_offset_m[c];
+    moved.mics.theta_deg[c] += v.mic_theta_offset_deg[c];
+  }
+  const StrikeSynthesizer a(drawn);
+  const ContactEvent strike = Ball(-0.03, 2.0, 0.4);
+  const RenderedStrike placed = a.Render(strike, {}, {}, 0.0, 7, &v);
+  const RenderedStrike nominal = a.Render(strike, {}, {}, 0.0, 7, nullptr);
+  // the per-channel diameters: one array per channel's diameter, compared channel by channel
+  for (int c = 0; c < 6; ++c) {
+    AcousticModelConfig one = moved;
+    one.mics.disc_diameter_m = v.disc_diameter_m[c];
+    const RenderedStrike ref = StrikeSynthesizer(one).Render(strike, {}, {}, 0.0, 7, nullptr);
+    const double norm = ref.audio.row(c).cast<double>().norm();
+    ASSERT_GT(norm, 0.0);
+    EXPECT_LT((placed.audio.row(c) - ref.audio.row(c)).cast<double>().norm() / norm, 2e-3) << c;
+    EXPECT_GT((nominal.audio.row(c) - ref.audio.row(c)).cast<double>().norm() / norm, 2e-2) << c;
+  }
+}
+
+TEST(RandomizeStructureTest, PoolVariantsAreDrawnStructuresWithTheirOwnModes) {
+  AcousticModelConfig c = Coarse();
+  c.audio.record_duration_s = 0.06;
+  c.randomize.structure_variants = 3;
+  c.randomize.bolt_stiffness_scale = {0.1, 10.0};
+  c.randomize.flange_mount_scale = {0.2, 5.0};
+  c.seed = 11;
+  const StrikeSynthesizer synth(c);
+  ASSERT_EQ(synth.structure_variants(), 3);
+  const ContactEvent strike = Ball(0.05, -1.0, 0.4);
+  Variation v;
+  v.sensitivity_scale.assign(6, 1.0);
+  std::vector<Eigen::MatrixXf> audio;
+  for (int64_t k = 0; k < 3; ++k) {
+    v.structure_variant = k;
+    EXPECT_EQ(synth.StructureValues(k)[0], static_cast<double>(k));
+    audio.push_back(synth.Render(strike, {}, {}, 0.0, 7, &v).audio);
+  }
+  // each variant sounds different from the others
+  for (int a = 0; a < 3; ++a) {
+    for (int b = a + 1; b < 3; ++b) {
+      EXPECT_GT((audio[a] - audio[b]).cast<double>().norm() / audio[a].cast<double>().norm(), 0.05);
+    }
+  }
+  // a variant renders as the same structure solved in full (the Ritz error, to 1 %)
+  const StructureVariant draw = DrawStructure(c.randomize, c.shell, c.material.poisson_ratio, 11, 1);
+  AcousticModelConfig full = Coarse();
+  full.audio.record_duration_s = 0.06;
+  full.shell = draw.shell;
+  v.structure_variant = 1;
+  const RenderedStrike exact = StrikeSynthesizer(full).Render(strike, {}, {}, 0.0, 7, nullptr);
+  const double err = (audio[1] - exact.audio).cast<double>().norm() / exact.audio.cast<double>().norm();
+  std::cout << "Ritz variant against its full solve: " << err << " relative\n";
+  EXPECT_LT(err, 0.05);
+  // the fd rung cannot take a pool
+  AcousticModelConfig fd = c;
+  fd.synth.model = "fd";
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(fd); }),
+                    "randomize.structure_variants"));
 }
 
 }  // namespace

@@ -186,6 +186,7 @@ TEST(ShellModelTest, BadSettingsAreConfigErrors) {
   s.ends = "clamped";
   EXPECT_THROW(ShellModel(tube, material, s), ConfigError);
   s = ShellConfig{};
+  s.damping = "rayleigh";
   s.loss_factor_high = 1.0;  // 50x the low-frequency loss over a 5x band: no Rayleigh fit
   try {
     ShellModel model(tube, material, s);
@@ -205,10 +206,47 @@ TEST(ShellModelTest, RayleighDampingHitsBothAnchors) {
   material.loss_factor = 0.02;
   ShellConfig s;
   s.grid_spacing_m = 0.02;
+  s.damping = "rayleigh";
   s.loss_factor_high = 0.04;
   const ShellModel model(tube, material, s);
   EXPECT_NEAR(2.0 * model.DampingRatio(2.0 * kPi * s.loss_low_hz), 0.02, 1e-12);
   EXPECT_NEAR(2.0 * model.DampingRatio(2.0 * kPi * s.loss_high_hz), 0.04, 1e-12);
+}
+
+TEST(ShellModelTest, LossLawHoldsAtEveryFrequency) {
+  const TubeConfig tube;
+  MaterialConfig material;
+  material.loss_factor = 0.02;
+  ShellConfig s;
+  s.grid_spacing_m = 0.02;
+  // the default: a constant loss factor, as configured, from 20 Hz to 20 kHz
+  const ShellModel flat(tube, material, s);
+  for (double f : {20.0, 220.0, 1000.0, 5000.0, 20000.0}) {
+    EXPECT_NEAR(2.0 * flat.DampingRatio(2.0 * kPi * f), 0.02, 1e-15) << f << " Hz";
+  }
+  // the FD rung's Rayleigh fit through 1 and 5 kHz: 0.077 at the n = 2 ovalling mode (220 Hz),
+  // below the law between the anchors
+  EXPECT_NEAR(2.0 * flat.RayleighDampingRatio(2.0 * kPi * 220.0), 0.077, 0.001);
+  EXPECT_LT(2.0 * flat.RayleighDampingRatio(2.0 * kPi * 2000.0), 0.02);
+  // a power law; the FD rung's Rayleigh curve meets it at both anchors
+  s.loss_exponent = 0.3;
+  s.loss_reference_hz = 2000.0;
+  const ShellModel power(tube, material, s);
+  for (double f : {220.0, 2000.0, 8000.0}) {
+    EXPECT_NEAR(2.0 * power.DampingRatio(2.0 * kPi * f), 0.02 * std::pow(f / 2000.0, 0.3), 1e-15);
+  }
+  for (double f : {s.loss_low_hz, s.loss_high_hz}) {
+    EXPECT_NEAR(power.RayleighDampingRatio(2.0 * kPi * f), power.DampingRatio(2.0 * kPi * f),
+                1e-12);
+  }
+  // a law the Rayleigh curve cannot meet is refused naming the key
+  s.loss_exponent = 1.5;
+  try {
+    ShellModel model(tube, material, s);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("shell.loss_exponent"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ShellFdTest, LosslessSchemeConservesItsEnergy) {
@@ -275,7 +313,9 @@ TEST(ShellFdTest, DampedModeDecaysAtItsConfiguredT60) {
   const ShellModes modes = SolveShellModes(model, 0.0, 1, true);
   const Eigen::VectorXd phi = modes.shapes.col(0);
   const double omega = modes.omega_rad_s[0];
-  const double expected_t60_s = 3.0 * std::log(10.0) / (model.DampingRatio(omega) * omega);
+  // the FD rung realizes the Rayleigh curve (the loss law's fit)
+  const double expected_t60_s =
+      3.0 * std::log(10.0) / (model.RayleighDampingRatio(omega) * omega);
   const ShellFd fd(model, 44100.0, 0);
   ShellFdState state{phi, phi};
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.dofs());
@@ -321,6 +361,7 @@ const ShellModel& SeamedTube10mm() {
     ShellConfig s;
     s.grid_spacing_m = 0.01;
     s.axial_spacing_m = 0.01;
+    s.damping = "rayleigh";  // the damping both rungs realize, so that they compare
     return ShellModel(TubeConfig{}, MaterialConfig{}, s);
   }();
   return model;

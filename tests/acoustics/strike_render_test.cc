@@ -29,6 +29,7 @@ AcousticModelConfig Coarse(const std::string& model = "modal") {
   AcousticModelConfig c;
   c.shell.grid_spacing_m = 0.01;
   c.shell.axial_spacing_m = 0.01;
+  c.shell.damping = "rayleigh";  // the damping the FD rung realizes too, so that rungs compare
   c.synth.model = model;
   c.synth.mode_band_hz = 12000;
   c.synth.mode_cache_dir = Cache().path().string();

@@ -114,14 +114,16 @@ TEST(RandomizedPresetTest, LayersOverTs4AndStoresTheDraws) {
   TempDir dir;
   const std::string out = dir / "R.h5";
   auto run = RunCli("--config '" + ConfigPath("ts4.yaml") + "' --config '" +
-                        ConfigPath("randomized.yaml") + "' generate --count 6 --out '" + out +
+                        ConfigPath("randomized.yaml") +
+                        "' --set randomize.structure_variants=2 generate --count 6 --out '" + out +
                         "' -q --json",
                     dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   DatasetReader reader(out);
   const std::vector<std::string>& names = reader.info().variation_names;
-  // 14 scalar ranges and 3 per-channel ones over 6 channels
-  ASSERT_EQ(names.size(), 14u + 3u * 6u);
+  // 14 scalar ranges, 3 per-channel ones and 3 placement ones over 6 channels, the structure
+  // variant and its 5 stored draws (bolt count, bolt stiffness, two mounts, Poisson's ratio)
+  ASSERT_EQ(names.size(), 14u + 3u * 6u + 3u * 6u + 6u);
   const auto column = [&](const std::string& name) {
     const auto it = std::find(names.begin(), names.end(), name);
     EXPECT_NE(it, names.end()) << name;
@@ -139,6 +141,13 @@ TEST(RandomizedPresetTest, LayersOverTs4AndStoresTheDraws) {
     EXPECT_GE(e, 0.85 * (1 - 0.004 * 15) - 1e-12);
     EXPECT_LE(e, 1.15 * (1 + 0.004 * 10) + 1e-12);
     moduli.push_back(e);
+    // the structure variant of the two-variant pool, its bolts, the discs' placement
+    const double variant = s.variation[column("structure_variant")];
+    EXPECT_TRUE(variant == 0.0 || variant == 1.0) << variant;
+    EXPECT_GE(s.variation[column("bolt_count")], 2.0);
+    EXPECT_LE(s.variation[column("bolt_count")], 5.0);
+    EXPECT_LE(std::abs(s.variation[column("mic_z_offset_m_3")]), 0.002);
+    EXPECT_GE(s.variation[column("disc_diameter_m_1")], 0.015);
     EXPECT_GE(s.variation[column("highpass_hz_5")], 5.0);
     EXPECT_LE(s.variation[column("highpass_hz_5")], 150.0);
     // the first contact lies in 0.5 +- 0.25 s

@@ -145,9 +145,11 @@ TEST(ConfigTest, ModelConfigKeysAreMemberNames) {
   RecordingArchive archive;
   config.Serialize(&archive);
   EXPECT_THAT(archive.names, ::testing::ElementsAre("audio_encoder", "width", "blocks", "heads",
-                                                    "dropout", "modalities", "crop_frames"));
+                                                    "dropout", "modalities", "crop_frames",
+                                                    "gcc_encoder"));
   EXPECT_EQ(archive.kinds[0], "choice");
-  EXPECT_THAT(archive.choices, ::testing::ElementsAre("compact", "resnet18", "resnet50"));
+  EXPECT_EQ(archive.kinds[7], "choice");
+  EXPECT_THAT(archive.choices, ::testing::ElementsAre("mlp", "conv"));  // the last choice visited
   EXPECT_EQ(archive.kinds[5], "strings");
   // width must be positive
   EXPECT_FALSE(archive.bounds[1].Contains(0.0));

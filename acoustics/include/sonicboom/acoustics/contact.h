@@ -24,6 +24,9 @@ struct ContactConfig {
   double separation_window_s{0.002};       // stop once apart this long without re-contact
   double max_duration_s{0.05};             // a contact still closed after this is an error
   double beam_max_frequency_hz{20000.0};   // striker beam modes kept up to here
+  // the tube side of the contact: "coupled" (the wall's modes at the point, so the wall yields)
+  // or "rigid" (a held half-space: the classic Hertz pulse, the wall's modes only listen)
+  std::string wall{"coupled"};
 
   void Serialize(Archive* a);
 };

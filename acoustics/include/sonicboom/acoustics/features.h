@@ -27,6 +27,9 @@ struct FeatureConfig {
   int64_t gcc_max_lag{441};        // lags -max..+max samples (883 values)
   double gcc_window_s{0.0};        // GCC-PHAT over this span centred on the onset (the centre
                                    // of the window); 0 = the whole window (the paper)
+  // band-limited GCC-PHAT: edges of contiguous bands (cos^2 weights in log frequency, half
+  // power at the edges); each pair gives one row per band. Empty = one full-band row per pair
+  std::vector<double> gcc_bands_hz;
   double onset_frame_s{0.0029};    // energy-envelope frame (~128 samples at 44.1 kHz)
   double onset_threshold{0.1};     // fraction of the envelope peak that marks the onset
   // stationary spectral gating of the window against a reference noise clip (spectral_gate.h),
@@ -53,8 +56,8 @@ struct StrikeFeatures {
   int64_t window_start{0};         // first input sample of the window (may be negative: zero-padded)
   int64_t mel_first_frame{0};      // frame of the whole-window spectrogram that mel[c] starts at
   std::vector<Eigen::MatrixXf> mel;  // per channel (n_mels x frames); empty when not requested
-  Eigen::MatrixXf gcc;             // (pairs x lags), pairs in itertools.combinations order;
-                                   // 0 x 0 when not requested
+  Eigen::MatrixXf gcc;             // (pairs x bands, lags), pairs in itertools.combinations
+                                   // order, bands within a pair; 0 x 0 when not requested
 };
 
 /// What one FeatureExtractor::Compute call produces; the rest is not computed. The default is
@@ -98,6 +101,7 @@ class FeatureExtractor {
   int64_t window_samples() const;  // round(window_s * fs)
   int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded)
   int64_t gcc_lags() const;        // 2 * gcc_max_lag + 1
+  int64_t gcc_rows() const;        // pairs x bands (bands = 1 without gcc_bands_hz)
   int64_t gcc_samples() const;     // GCC-PHAT span: round(config.gcc_span_s() * fs)
   int channels() const;
   /// The gate applied to each window, or null when gating is off.
@@ -137,14 +141,21 @@ class MelSpectrogram {
 /// GCC-PHAT of all channel pairs over a window of n samples, zero-padded to avoid circular
 /// wrap-around. Row p is pair p in combinations order; column j is lag (j - max_lag) samples;
 /// a positive lag means the first channel of the pair receives later. Computed in single
-/// precision.
+/// precision. With bands, the PHAT-weighted cross spectrum is weighted by each band in turn
+/// (cos^2 in log frequency): row p * bands + b is pair p in band b.
 class GccPhat {
  public:
   GccPhat(int64_t n, int64_t max_lag, int channels);
+  /// band_edges_hz: contiguous band edges at sample_rate_hz (empty: the full band). Throws
+  /// ConfigError naming features.gcc_bands_hz for bad edges.
+  GccPhat(int64_t n, int64_t max_lag, int channels, double sample_rate_hz,
+          const std::vector<double>& band_edges_hz);
+  /// Rows of the output: pairs x bands.
+  int64_t rows() const;
   ~GccPhat();
   GccPhat(const GccPhat&) = delete;
   GccPhat& operator=(const GccPhat&) = delete;
-  /// window: (C x n); out: (pairs x 2*max_lag+1), resized if needed.
+  /// window: (C x n); out: (rows() x 2*max_lag+1), resized if needed.
   void Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::MatrixXf* out) const;
   /// FFT size: the smallest multiple of 512 >= n + max_lag whose other prime factors are 2, 3
   /// and 5 (the PHAT weights, and so the output, depend on it).

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "sonicboom/acoustics/shell.h"
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/tube.h"
 
@@ -51,6 +52,21 @@ struct RandomizeConfig {
   int64_t hum_harmonics{5};                   // odd and even harmonics 1..N, amplitudes 1/k
   std::vector<double> record_level_db;        // gain of every channel, uniform
   std::vector<double> full_scale_scale;       // x daq.full_scale_v (converter scaling), uniform
+  // microphone placement, drawn per sample and channel (the cheap, exact part of a build's
+  // variation: only the sensor rows change)
+  std::vector<double> mic_z_offset_m;         // per channel: axial offset of the disc, uniform
+  std::vector<double> mic_theta_offset_deg;   // per channel: angular offset, uniform
+  std::vector<double> disc_diameter_m;        // per channel: the bonded disc's diameter, uniform
+  // the structure itself: a pool of `structure_variants` structures, each drawn once from the
+  // global seed and its variant number, their modes by a Ritz projection onto the base modes
+  // (shell_ritz.h); every sample picks one variant. 0 = the configured structure only.
+  int64_t structure_variants{0};
+  std::vector<double> bolt_count;             // bolts per seam, integer, uniform
+  std::vector<double> bolt_z_jitter_m;        // offset of each bolt from even spacing, uniform
+  std::vector<double> bolt_stiffness_scale;   // per bolt: x shell.bolt_stiffness_n_m, log-uniform
+  std::vector<double> flange_mount_scale;     // x shell.flange_mount_stiffness_n_m2, log-uniform
+  std::vector<double> tool_mount_scale;       // x shell.tool_mount_stiffness_n_m2, log-uniform
+  std::vector<double> poisson_ratio;          // material.poisson_ratio, uniform
 
   void Serialize(Archive* a);
   /// Ranges have 0 or 2 entries with min <= max, inside physical limits; throws ConfigError
@@ -63,7 +79,30 @@ struct RandomizeConfig {
   void CheckLossLaw(double base_loss_factor) const;
   /// Whether any range is set.
   bool any() const;
+  /// Whether a structure pool is asked for (structure_variants > 0).
+  bool structure() const { return structure_variants > 0; }
+  /// Whether the microphone placement is drawn.
+  bool mic_placement() const;
 };
+
+/// One structure variant of the pool: the shell and material it was drawn to, and the drawn
+/// values (StructureValueNames' order).
+struct StructureVariant {
+  ShellConfig shell;
+  double poisson_ratio{0.0};
+  std::vector<double> values;
+};
+
+/// Names of a variant's stored values: "structure_variant" (its number), then one per set
+/// structure range (bolt_stiffness_scale: the geometric mean over the bolts).
+std::vector<std::string> StructureValueNames(const RandomizeConfig& config);
+
+/// Variant `variant` of the pool drawn under global_seed from the base shell and Poisson ratio:
+/// bolts evenly spaced between the base's first and last bolt (the centre for one) plus the
+/// jitter, each with its own stiffness scale; mounts scaled. Depends on nothing else, so every
+/// thread, shard and run draws the same pool.
+StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig& base_shell,
+                               double base_poisson_ratio, uint64_t global_seed, int64_t variant);
 
 /// The draws of one sample. Fields hold the configured value where a range is not set.
 struct Variation {
@@ -89,6 +128,10 @@ struct Variation {
   std::vector<double> hum_channel_scale;     // (channels) pickup of each cable, not stored
   double record_level_db{0.0};
   double full_scale_scale{1.0};
+  std::vector<double> mic_z_offset_m;        // (channels); empty = the configured placement
+  std::vector<double> mic_theta_offset_deg;  // (channels)
+  std::vector<double> disc_diameter_m;       // (channels); empty = mics.disc_diameter_m
+  int64_t structure_variant{-1};             // the pool's variant; -1 = the configured structure
 
   /// Frequency factor of every mode: sqrt(E'/E / (rho'/rho)).
   double frequency_scale() const;
@@ -99,11 +142,14 @@ struct Variation {
 };
 
 /// Names of the stored draws: one per set range, per-channel ranges one per channel with the
-/// channel appended ("sensitivity_scale_0"). Empty when nothing is randomized.
+/// channel appended ("sensitivity_scale_0"), then the microphone placement, then the structure
+/// variant's values (StructureValueNames). Empty when nothing is randomized.
 std::vector<std::string> VariationNames(const RandomizeConfig& config, int channels);
 
 /// The draws of the sample with this seed (the same seed gives the same numbers on any thread);
-/// base_loss_factor is material.loss_factor, the loss law's level before its scale.
+/// base_loss_factor is material.loss_factor, the loss law's level before its scale. The
+/// structure variant is picked uniformly; its values are not in `values` (the pool holds them:
+/// the caller appends StructureVariant::values).
 Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, int channels,
                         uint64_t sample_seed);
 

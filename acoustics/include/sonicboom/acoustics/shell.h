@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -38,13 +39,25 @@ struct ShellConfig {
   std::vector<double> seam_theta_deg{90.0, 270.0};  // saw cuts (the tube is split in halves)
   std::vector<double> bolt_z_m{-0.1, 0.0, 0.1};     // bolts along every seam, tube frame
   double bolt_stiffness_n_m{2.0e6};        // per bolt and direction (axial, arc, radial)
+  std::vector<double> bolt_stiffness_scale;  // per bolt_z_m entry: x bolt_stiffness_n_m; [] = 1
+  // "point": each bolt is three springs at one grid row; "tie": its stiffness spread evenly over
+  // the rows within bolt_tie_length_m (a clamped washer, or a glued or riveted seam strip)
+  std::string bolt_model{"point"};
+  double bolt_tie_length_m{0.02};
   std::vector<double> hole_z_m{-0.146, -0.146, -0.146, 0.146, 0.146, 0.146};
   std::vector<double> hole_theta_deg{0.0, 120.0, 240.0, 0.0, 120.0, 240.0};
   double hole_diameter_m{0.006};           // cable holes beside the discs
   double flange_mount_stiffness_n_m2{5.0e6};  // springs to ground per metre of the flange-end rim
   double tool_mount_stiffness_n_m2{1.0e6};    // the same at the tool end (cap)
-  // frequency-dependent loss: Rayleigh damping through material.loss_factor at loss_low_hz and
-  // loss_factor_high (0 = material.loss_factor) at loss_high_hz; eta(f) = 2 zeta(f)
+  // loss, eta(f) = 2 zeta(f). "law": every mode of the modal rung has the loss of the law
+  // eta(f) = material.loss_factor (f / loss_reference_hz)^loss_exponent (0: constant eta, PVC's
+  // nearly flat loss); the FD rung, whose damping matrix is C = alpha M + beta K, uses the
+  // Rayleigh curve through the law at loss_low_hz and loss_high_hz (docs/shell.md gives its
+  // error). "rayleigh": both rungs use the Rayleigh curve through material.loss_factor at
+  // loss_low_hz and loss_factor_high (0 = material.loss_factor) at loss_high_hz.
+  std::string damping{"law"};
+  double loss_exponent{0.0};
+  double loss_reference_hz{2000.0};
   double loss_low_hz{1000.0};
   double loss_high_hz{5000.0};
   double loss_factor_high{0.0};
@@ -72,11 +85,14 @@ class ShellModel {
   Eigen::SparseMatrix<double> MassScaledStiffness() const;
   /// (dofs) lumped mass of every DOF, kg.
   const Eigen::VectorXd& mass_kg() const { return mass_kg_; }
-  /// Rayleigh coefficients: C = alpha M + beta K.
+  /// Rayleigh coefficients: C = alpha M + beta K (the FD rung's damping).
   double rayleigh_alpha_1_s() const { return alpha_; }
   double rayleigh_beta_s() const { return beta_; }
-  /// Modal damping ratio at angular frequency omega (rad/s).
+  /// Modal damping ratio at angular frequency omega (rad/s): the loss law's (shell.damping =
+  /// law) or the Rayleigh curve's.
   double DampingRatio(double omega_rad_s) const;
+  /// The Rayleigh curve's damping ratio alpha / (2 omega) + beta omega / 2.
+  double RayleighDampingRatio(double omega_rad_s) const;
 
   /// (dofs) radial force distribution of a unit outward point force at (z, theta) of the tube
   /// frame (bilinear over the four surrounding w nodes); its transpose interpolates w there.
@@ -88,6 +104,8 @@ class ShellModel {
   Eigen::VectorXd SensorRow(double z_m, double theta_rad, double diameter_m) const;
   /// (mics x dofs) rows of SensorRow for a microphone array.
   Eigen::MatrixXd SensorRows(const MicArrayConfig& mics) const;
+  /// The DOFs SensorRow(z, theta, d) reads, ascending (terms that cancel to zero included).
+  std::vector<int64_t> SensorDofs(double z_m, double theta_rad, double diameter_m) const;
 
   /// Strain energy 1/2 q^T K q, J.
   double StrainEnergy(const Eigen::VectorXd& q_m) const;
@@ -100,8 +118,14 @@ class ShellModel {
   const std::string& key() const { return key_; }
 
   const TubeConfig& tube() const { return tube_; }
+  const MaterialConfig& material() const { return material_; }
+  const ShellConfig& shell() const { return shell_; }
 
  private:
+  // calls term(dof, coefficient) for every term of a disc's strain sum (before the division by
+  // the node count, which it returns); throws ConfigError when no complete node lies under it
+  int VisitSensorTerms(double z_m, double theta_rad, double diameter_m,
+                       const std::function<void(int64_t, double)>& term) const;
   TubeConfig tube_;
   MaterialConfig material_;
   ShellConfig shell_;
@@ -111,6 +135,7 @@ class ShellModel {
   Eigen::VectorXd mass_kg_;
   Eigen::SparseMatrix<double> stiffness_;
   double alpha_{0.0}, beta_{0.0};
+  bool loss_law_{true};                    // shell.damping == "law"
   std::string key_;
 };
 

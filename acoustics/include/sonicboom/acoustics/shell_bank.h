@@ -34,9 +34,17 @@ class ShellModalBank {
  public:
   /// modes: mass-normalized shapes of `model` (with_shapes). residual: restore the static part of
   /// the modes left out (needs a structure without rigid-body modes; ignored otherwise).
+  /// placement_margin_m > 0 keeps the shapes around every disc, so that a variation may move a
+  /// disc by up to that much (arc length or axial; the diameter may grow by twice that) without
+  /// a new bank; the residual keeps the configured placement.
   ShellModalBank(const ShellModel& model, const ShellModes& modes, const MicArrayConfig& mics,
-                 double sample_rate_hz, double decay_floor_db, bool residual);
+                 double sample_rate_hz, double decay_floor_db, bool residual,
+                 double placement_margin_m = 0.0);
   ~ShellModalBank();
+  /// The DOFs whose rows of the mode shapes a bank of this model, array and margin reads
+  /// (radial DOFs, and every DOF a disc reads), ascending: the rest may be left out (zero).
+  static std::vector<int64_t> RowsRead(const ShellModel& model, const MicArrayConfig& mics,
+                                       double placement_margin_m);
   ShellModalBank(const ShellModalBank&) = delete;
   ShellModalBank& operator=(const ShellModalBank&) = delete;
 

@@ -52,6 +52,8 @@ struct AcousticModelConfig {
   SynthConfig synth;
   DaqConfig daq;
   NoiseConfig noise;
+  RandomizeConfig randomize;               // the structure pool and the placement margin
+  uint64_t seed{0};                        // global seed: the structure pool's draws
 };
 
 /// The Hertz impact of a striker on the wall (rigid target): physics.md §1.6.
@@ -108,6 +110,10 @@ class StrikeSynthesizer {
 
   /// Modes in the model's widest band (for inspection).
   int64_t mode_count() const;
+  /// Variants of the structure pool (randomize.structure_variants), and the drawn values of one
+  /// (StructureValueNames' order).
+  int64_t structure_variants() const;
+  const std::vector<double>& StructureValues(int64_t variant) const;
   /// The modal rung's band for a first contact of duration t_c (what Render derives), Hz.
   double BandFor(double contact_duration_s) const;
 

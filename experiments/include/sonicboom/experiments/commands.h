@@ -36,6 +36,10 @@ CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool
 /// FD reference on `strikes` test strikes over `window_s` after the onset.
 CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
                           double window_s, bool quick);
+/// The structure pool's Ritz path against full mode solves: the first `check` variants of the
+/// configured pool are solved in full and compared in frequency, shape and signal; every
+/// variant's projection is timed. Writes out_md when not empty.
+CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::string& out_md);
 /// Options of `sonicboom ablate`.
 struct AblateOptions {
   std::string data;                              // training dataset (train/validation split)

@@ -23,6 +23,10 @@ struct ModelConfig {
   double dropout{0.1};
   std::vector<std::string> modalities{"audio", "gcc", "proprio"};  // any non-empty subset
   int64_t crop_frames{345};                // mel frames seen by the network (centre crop)
+  // GCC-PHAT token: "mlp" (the whole (rows x lags) map flattened into three linear layers) or
+  // "conv" (three 1-D convolutions over the lags, the rows as channels, then one linear layer:
+  // far fewer weights, less room to memorize one structure's correlation details)
+  std::string gcc_encoder{"mlp"};
 
   void Serialize(Archive* a);
   /// Checks every field and the cross-field rules (heads divide width, known modalities);

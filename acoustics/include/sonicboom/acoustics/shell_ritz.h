@@ -1,0 +1,54 @@
+#pragma once
+/// Modes of a varied structure without a new eigensolve: a Rayleigh-Ritz projection of the varied
+/// stiffness onto the base structure's modes, enriched by static corrections. A variant must share
+/// the base's grid, degrees of freedom and mass: bolts (count, positions, stiffness), mounts and
+/// Poisson's ratio may change; holes, seams, grid, density and thickness need a full solve.
+///
+/// Basis: the base modes Phi (dofs x N, mass-normalized) and, for the lowest `enrichment` of
+/// them, the static response K_v^-1 (K_v - K) phi_k of the variant to the stiffness change (the
+/// first-order shape correction in its quasi-static limit), made M-orthonormal and M-orthogonal
+/// to Phi. The reduced problem Q^T K_v Q y = omega^2 y is solved densely; the shapes are Q y.
+///
+/// Cost: the shell's stiffness depends on Poisson's ratio only through three factors,
+/// K_shell(nu) = X1 / (1 - nu) + X2 / (1 + nu) + X3 (membrane and bending pair energies, shear and
+/// twist, free edges), so Phi^T K_shell(nu) Phi is a combination of three projections made once;
+/// a variant adds the projection of its springs (bolts and mounts: a few seam and rim DOFs).
+/// docs/randomization.md gives the error against full solves.
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_modes.h"
+
+namespace sonicboom::acoustics {
+
+/// Immutable: the base structure, its modes and the projections every variant reuses.
+/// Project is const and thread-safe.
+class ShellRitzProjector {
+ public:
+  /// base_modes must carry their shapes. Throws Error when they do not.
+  ShellRitzProjector(const ShellModel& base, const ShellModes& base_modes, int64_t enrichment = 48);
+  ~ShellRitzProjector();
+  ShellRitzProjector(const ShellRitzProjector&) = delete;
+  ShellRitzProjector& operator=(const ShellRitzProjector&) = delete;
+
+  /// The variant's elastic modes up to max_frequency_hz (ascending, mass-normalized shapes,
+  /// dofs x modes). rows (optional): only these DOFs' rows of the shapes are computed (in single
+  /// precision), the others are zero. Throws ConfigError when the variant differs from the base
+  /// in DOFs or mass.
+  ShellModes Project(const ShellModel& varied, double max_frequency_hz,
+                     const std::vector<int64_t>* rows = nullptr) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// One variant's modes by a projector made for it alone.
+ShellModes RitzShellModes(const ShellModel& base, const ShellModes& base_modes,
+                          const ShellModel& varied, double max_frequency_hz,
+                          int64_t enrichment = 48);
+
+}  // namespace sonicboom::acoustics

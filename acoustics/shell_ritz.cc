@@ -1,0 +1,249 @@
+#include "sonicboom/acoustics/shell_ritz.h"
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+using SpMat = Eigen::SparseMatrix<double>;
+
+// the three factors of Poisson's ratio in the shell's stiffness
+std::array<double, 3> PoissonFactors(double nu) { return {1.0 / (1.0 - nu), 1.0 / (1.0 + nu), 1.0}; }
+
+// the shell of a model's structure without its springs (bolts and mounts), at Poisson's ratio nu
+ShellModel SpringFree(const ShellModel& model, const MaterialConfig& material, double nu) {
+  ShellConfig s = model.shell();
+  s.bolt_stiffness_n_m = 0.0;
+  s.flange_mount_stiffness_n_m2 = 0.0;
+  s.tool_mount_stiffness_n_m2 = 0.0;
+  MaterialConfig m = material;
+  m.poisson_ratio = nu;
+  return ShellModel(model.tube(), m, s);
+}
+
+// X (dofs x k) made M-orthogonal to the M-orthonormal columns of phi, in place
+void DeflateAgainst(const Eigen::MatrixXd& phi, const Eigen::VectorXd& mass, Eigen::MatrixXd* x) {
+  const Eigen::MatrixXd mx = mass.asDiagonal() * *x;  // (dofs x k)
+  *x -= phi * (phi.transpose() * mx);
+}
+
+// an M-orthonormal basis of the columns of x (dofs x k); directions whose M-norm is below `drop`
+// of the largest are dropped as dependent
+Eigen::MatrixXd MassOrthonormal(const Eigen::MatrixXd& x, const Eigen::VectorXd& mass, double drop) {
+  const Eigen::MatrixXd gram = x.transpose() * mass.asDiagonal() * x;  // (k x k)
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
+  const Eigen::VectorXd& d = eig.eigenvalues();
+  if (d.size() == 0 || !(d.maxCoeff() > 0.0)) return Eigen::MatrixXd(x.rows(), 0);
+  std::vector<Eigen::Index> keep;
+  for (Eigen::Index i = 0; i < d.size(); ++i) {
+    if (d[i] > drop * d.maxCoeff()) keep.push_back(i);
+  }
+  Eigen::MatrixXd out(x.rows(), static_cast<Eigen::Index>(keep.size()));
+  for (size_t j = 0; j < keep.size(); ++j) {
+    out.col(static_cast<Eigen::Index>(j)) = x * eig.eigenvectors().col(keep[j]) / std::sqrt(d[keep[j]]);
+  }
+  return out;
+}
+
+// Phi^T A Phi for a sparse A whose nonzero rows and columns are few (springs): only those rows
+// of Phi take part
+Eigen::MatrixXd ProjectSparse(const SpMat& a, const Eigen::MatrixXd& phi) {
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index k = 0; k < a.outerSize(); ++k) {
+    if (a.col(k).nonZeros() > 0) rows.push_back(k);
+  }
+  const auto n = static_cast<Eigen::Index>(rows.size());
+  std::vector<Eigen::Index> slot(static_cast<size_t>(a.rows()), -1);
+  Eigen::MatrixXd phi_s(n, phi.cols());
+  for (Eigen::Index r = 0; r < n; ++r) {
+    slot[static_cast<size_t>(rows[static_cast<size_t>(r)])] = r;
+    phi_s.row(r) = phi.row(rows[static_cast<size_t>(r)]);
+  }
+  Eigen::MatrixXd a_s = Eigen::MatrixXd::Zero(n, n);
+  for (Eigen::Index k = 0; k < a.outerSize(); ++k) {
+    for (SpMat::InnerIterator it(a, k); it; ++it) {
+      a_s(slot[static_cast<size_t>(it.row())], slot[static_cast<size_t>(it.col())]) += it.value();
+    }
+  }
+  return phi_s.transpose() * (a_s * phi_s);
+}
+
+}  // namespace
+
+struct ShellRitzProjector::Impl {
+  const ShellModel* base{nullptr};
+  Eigen::MatrixXd phi;                     // (dofs x N) base shapes
+  Eigen::MatrixXf phi_f;                   // the same in float, for the shapes of a variant
+  int64_t enrichment{0};
+  // Phi^T X_i Phi of the three parts of K_shell(nu) = X1 / (1 - nu) + X2 / (1 + nu) + X3, (N x N)
+  std::array<Eigen::MatrixXd, 3> reduced_part;
+};
+
+namespace {
+
+// the parts X_i of the spring-free shell's stiffness from its assemblies at three ratios:
+// K(nu_j) = sum_i f_i(nu_j) X_i
+std::array<SpMat, 3> StiffnessParts(const ShellModel& base) {
+  const double nu0 = base.material().poisson_ratio;
+  const std::array<double, 3> nus{nu0, nu0 > 0.3 ? nu0 - 0.15 : nu0 + 0.15, nu0 > 0.3 ? nu0 - 0.3 : nu0 + 0.3};
+  Eigen::Matrix3d f;  // f(i, j) = f_i(nu_j)
+  std::array<SpMat, 3> k;
+  for (size_t j = 0; j < 3; ++j) {
+    const std::array<double, 3> fj = PoissonFactors(nus[j]);
+    for (size_t i = 0; i < 3; ++i) f(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = fj[i];
+    k[j] = SpringFree(base, base.material(), nus[j]).stiffness();
+  }
+  // X_i = sum_j (f^-1)_{j i} K(nu_j)
+  const Eigen::Matrix3d inv = f.inverse();
+  std::array<SpMat, 3> x;
+  const double tiny = 1e-12 * k[0].coeffs().cwiseAbs().maxCoeff();
+  for (size_t i = 0; i < 3; ++i) {
+    const auto ii = static_cast<Eigen::Index>(i);
+    x[i] = inv(0, ii) * k[0] + inv(1, ii) * k[1] + inv(2, ii) * k[2];
+    x[i].prune(tiny, 1.0);
+  }
+  return x;
+}
+
+}  // namespace
+
+ShellRitzProjector::ShellRitzProjector(const ShellModel& base, const ShellModes& base_modes,
+                                       int64_t enrichment)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  if (base_modes.shapes.cols() != base_modes.omega_rad_s.size() ||
+      base_modes.shapes.rows() != base.dofs()) {
+    throw Error("a Ritz projector needs the base modes with their shapes");
+  }
+  m.base = &base;
+  m.phi = base_modes.shapes;
+  m.phi_f = m.phi.cast<float>();
+  m.enrichment = std::min<int64_t>(enrichment, m.phi.cols());
+  // X3 (free edges) has few rows: projected directly. Phi^T K_base Phi = Lambda gives
+  // X1 / (1 - nu0) + X2 / (1 + nu0) = Lambda - Phi^T (X3 + springs) Phi, so one projection (X2)
+  // is computed in full and X1's follows
+  const std::array<SpMat, 3> x = StiffnessParts(base);
+  const double nu0 = base.material().poisson_ratio;
+  const double tiny = 1e-12 * base.stiffness().coeffs().cwiseAbs().maxCoeff();
+  SpMat springs = base.stiffness() - SpringFree(base, base.material(), nu0).stiffness();
+  springs.prune(tiny, 1.0);
+  m.reduced_part[2] = ProjectSparse(x[2], m.phi);
+  m.reduced_part[1] = m.phi.transpose() * (x[1] * m.phi);
+  const Eigen::MatrixXd lambda = base_modes.omega_rad_s.cwiseAbs2().asDiagonal();
+  m.reduced_part[0] = (1.0 - nu0) * (lambda - ProjectSparse(springs, m.phi) - m.reduced_part[2] -
+                                     m.reduced_part[1] / (1.0 + nu0));
+}
+
+ShellRitzProjector::~ShellRitzProjector() = default;
+
+ShellModes ShellRitzProjector::Project(const ShellModel& varied, double max_frequency_hz,
+                                      const std::vector<int64_t>* rows) const {
+  const Impl& m = *impl_;
+  const ShellModel& base = *m.base;
+  if (varied.dofs() != base.dofs() || !(varied.mass_kg() - base.mass_kg()).isZero(0.0)) {
+    throw ConfigError(fmt::format(
+        "a Ritz structure variant must keep the base grid and mass ({} DOFs against {}): "
+        "holes, seams, grid spacing, density and wall thickness need a full mode solve",
+        varied.dofs(), base.dofs()));
+  }
+  const Eigen::VectorXd& mass = base.mass_kg();
+  const SpMat& kv = varied.stiffness();
+  const double nu = varied.material().poisson_ratio;
+
+  // Phi^T K_v Phi: the shell at nu from its three parts, plus the variant's springs
+  const std::array<double, 3> f = PoissonFactors(nu);
+  Eigen::MatrixXd k_pp = f[0] * m.reduced_part[0] + f[1] * m.reduced_part[1] +
+                         f[2] * m.reduced_part[2];
+  // (the difference of two assemblies: round-off below 1e-12 of the largest entry is dropped)
+  const double tiny = 1e-12 * kv.coeffs().cwiseAbs().maxCoeff();
+  SpMat springs = kv - SpringFree(varied, varied.material(), nu).stiffness();
+  springs.prune(tiny, 1.0);
+  k_pp += ProjectSparse(springs, m.phi);
+
+  // static corrections of the lowest base modes to the stiffness change
+  Eigen::MatrixXd x;
+  SpMat dk = kv - base.stiffness();
+  dk.prune(tiny, 1.0);
+  if (m.enrichment > 0 && dk.norm() > 0.0) {
+    Eigen::SimplicialLDLT<SpMat> ldlt(kv);
+    if (ldlt.info() == Eigen::Success) {
+      x = ldlt.solve(Eigen::MatrixXd(dk * m.phi.leftCols(m.enrichment)));
+      // twice, for round-off: orthogonal to the base modes, then orthonormal among themselves
+      for (int pass = 0; pass < 2; ++pass) {
+        DeflateAgainst(m.phi, mass, &x);
+        x = MassOrthonormal(x, mass, 1e-10);
+      }
+    }
+  }
+  const Eigen::Index n = m.phi.cols(), e = x.cols();
+
+  // the reduced problem on Q = [Phi, X] (M-orthonormal): [K_pp, K_px; K_xp, K_xx]
+  Eigen::MatrixXd reduced(n + e, n + e);
+  reduced.topLeftCorner(n, n) = k_pp;
+  if (e > 0) {
+    const Eigen::MatrixXd kx = kv * x;  // (dofs x e)
+    reduced.topRightCorner(n, e) = m.phi.transpose() * kx;
+    reduced.bottomLeftCorner(e, n) = reduced.topRightCorner(n, e).transpose();
+    reduced.bottomRightCorner(e, e) = x.transpose() * kx;
+  }
+  reduced = 0.5 * (reduced + reduced.transpose()).eval();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(reduced);
+  if (eig.info() != Eigen::Success) {
+    throw NumericalError("the Ritz eigenproblem of a structure variant did not converge");
+  }
+  const Eigen::VectorXd& lambda = eig.eigenvalues();
+
+  // the elastic modes of the band, shapes Q y
+  const double lo = std::pow(2.0 * std::numbers::pi * kRigidBodyHz, 2);
+  const double hi = std::pow(2.0 * std::numbers::pi * max_frequency_hz, 2);
+  std::vector<Eigen::Index> keep;
+  ShellModes out;
+  for (Eigen::Index i = 0; i < lambda.size(); ++i) {
+    if (lambda[i] < lo) {
+      ++out.rigid_body_modes;
+    } else if (lambda[i] <= hi) {
+      keep.push_back(i);
+    }
+  }
+  const auto kept = static_cast<Eigen::Index>(keep.size());
+  Eigen::MatrixXd y(n + e, kept);
+  out.omega_rad_s.resize(kept);
+  for (Eigen::Index j = 0; j < kept; ++j) {
+    y.col(j) = eig.eigenvectors().col(keep[static_cast<size_t>(j)]);
+    out.omega_rad_s[j] = std::sqrt(lambda[keep[static_cast<size_t>(j)]]);
+  }
+  if (rows == nullptr) {
+    out.shapes = m.phi * y.topRows(n);
+    if (e > 0) out.shapes += x * y.bottomRows(e);
+    return out;
+  }
+  // only the rows asked for (in float: the modal bank keeps its shapes in float)
+  const auto r = static_cast<Eigen::Index>(rows->size());
+  Eigen::MatrixXf phi_rows(r, n), x_rows(r, e);
+  for (Eigen::Index i = 0; i < r; ++i) {
+    phi_rows.row(i) = m.phi_f.row((*rows)[static_cast<size_t>(i)]);
+    if (e > 0) x_rows.row(i) = x.row((*rows)[static_cast<size_t>(i)]).cast<float>();
+  }
+  Eigen::MatrixXf part = phi_rows * y.topRows(n).cast<float>();
+  if (e > 0) part += x_rows * y.bottomRows(e).cast<float>();
+  out.shapes = Eigen::MatrixXd::Zero(base.dofs(), kept);
+  for (Eigen::Index i = 0; i < r; ++i) out.shapes.row((*rows)[static_cast<size_t>(i)]) = part.row(i).cast<double>();
+  return out;
+}
+
+ShellModes RitzShellModes(const ShellModel& base, const ShellModes& base_modes,
+                          const ShellModel& varied, double max_frequency_hz, int64_t enrichment) {
+  return ShellRitzProjector(base, base_modes, enrichment).Project(varied, max_frequency_hz);
+}
+
+}  // namespace sonicboom::acoustics

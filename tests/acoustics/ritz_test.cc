@@ -1,0 +1,99 @@
+// Ritz structure variants against full mode solves of the same varied structure.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/acoustics/shell_ritz.h"
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom::acoustics {
+namespace {
+
+ShellConfig Coarse() {
+  ShellConfig s;
+  s.grid_spacing_m = 0.01;
+  s.axial_spacing_m = 0.01;
+  return s;
+}
+
+// largest relative frequency error over the modes below f_hz, matched in order
+double WorstFrequencyError(const ShellModes& a, const ShellModes& b, double f_hz) {
+  double worst = 0.0;
+  const Eigen::Index n = std::min(a.omega_rad_s.size(), b.omega_rad_s.size());
+  for (Eigen::Index k = 0; k < n; ++k) {
+    if (b.omega_rad_s[k] > 2.0 * M_PI * f_hz) break;
+    worst = std::max(worst, std::abs(a.omega_rad_s[k] / b.omega_rad_s[k] - 1.0));
+  }
+  return worst;
+}
+
+// the smallest, over the exact modes below f_hz, of the best mass-weighted MAC with a Ritz mode
+double WorstShapeMatch(const ShellModes& ritz, const ShellModes& exact, const Eigen::VectorXd& mass,
+                       double f_hz) {
+  const Eigen::MatrixXd overlap = exact.shapes.transpose() * mass.asDiagonal() * ritz.shapes;
+  double worst = 1.0;
+  for (Eigen::Index k = 0; k < exact.omega_rad_s.size(); ++k) {
+    if (exact.omega_rad_s[k] > 2.0 * M_PI * f_hz) break;
+    // a degenerate pair may rotate within itself: the captured fraction of the exact shape
+    const double captured = overlap.row(k).squaredNorm();
+    worst = std::min(worst, captured);
+  }
+  return worst;
+}
+
+TEST(RitzTest, BoltsMountsAndPoissonMatchAFullSolve) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  const ShellModel base(tube, material, Coarse());
+  const ShellModes base_modes = SolveShellModes(base, 12000.0, 0, true);
+  // stiffer and moved bolts, one more bolt, a looser flange mount, a stiffer tool mount, nu up
+  ShellConfig s = Coarse();
+  s.bolt_z_m = {-0.11, -0.04, 0.03, 0.09};
+  s.bolt_stiffness_n_m = 1.0e7;
+  s.flange_mount_stiffness_n_m2 = 1.5e6;
+  s.tool_mount_stiffness_n_m2 = 4.0e6;
+  MaterialConfig m2 = material;
+  m2.poisson_ratio = 0.41;
+  const ShellModel varied(tube, m2, s);
+  const ShellModes exact = SolveShellModes(varied, 8000.0, 0, true);
+  const ShellModes ritz = RitzShellModes(base, base_modes, varied, 8000.0);
+  ASSERT_EQ(ritz.shapes.rows(), varied.dofs());
+  // mass-normalized
+  const Eigen::MatrixXd gram = ritz.shapes.transpose() * varied.mass_kg().asDiagonal() * ritz.shapes;
+  EXPECT_LT((gram - Eigen::MatrixXd::Identity(gram.rows(), gram.cols())).cwiseAbs().maxCoeff(), 1e-8);
+  // the variation moved the modes far more than the projection errs
+  const double moved = WorstFrequencyError(base_modes, exact, 5000.0);
+  const double err = WorstFrequencyError(ritz, exact, 5000.0);
+  std::cout << "base vs varied: " << moved << ", Ritz vs varied: " << err << " (modes < 5 kHz)\n";
+  EXPECT_GT(moved, 0.02);
+  EXPECT_LT(err, 0.01);
+  EXPECT_GT(WorstShapeMatch(ritz, exact, varied.mass_kg(), 5000.0), 0.97);
+  // the projection never undershoots the exact frequencies (Rayleigh-Ritz bounds them above)
+  for (Eigen::Index k = 0; k < std::min<Eigen::Index>(20, exact.omega_rad_s.size()); ++k) {
+    EXPECT_GE(ritz.omega_rad_s[k], exact.omega_rad_s[k] * (1.0 - 1e-9)) << k;
+  }
+}
+
+TEST(RitzTest, RefusesAnotherGrid) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  const ShellModel base(tube, material, Coarse());
+  const ShellModes base_modes = SolveShellModes(base, 3000.0, 0, true);
+  ShellConfig s = Coarse();
+  s.hole_z_m = {0.0};
+  s.hole_theta_deg = {45.0};
+  s.hole_diameter_m = 0.02;
+  const ShellModel drilled(tube, material, s);
+  try {
+    RitzShellModes(base, base_modes, drilled, 3000.0);
+    FAIL() << "no ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("full mode solve"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace sonicboom::acoustics
