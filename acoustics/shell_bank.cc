@@ -230,14 +230,41 @@ Eigen::MatrixXd ShellModalBank::Impl::PlacedSensorShape(const Variation& v, int6
   return shape;
 }
 
+ModeRows ModeRows::Of(const ShellModes& modes, std::vector<int64_t> dofs) {
+  SONICBOOM_DEMAND(modes.shapes.cols() == modes.omega_rad_s.size());
+  ModeRows out;
+  out.omega_rad_s = modes.omega_rad_s;
+  out.rigid_body_modes = modes.rigid_body_modes;
+  out.shapes.resize(static_cast<Eigen::Index>(dofs.size()), modes.shapes.cols());
+  for (size_t r = 0; r < dofs.size(); ++r) {
+    out.shapes.row(static_cast<Eigen::Index>(r)) = modes.shapes.row(dofs[r]);
+  }
+  out.dofs = std::move(dofs);
+  return out;
+}
+
 ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
+                               const MicArrayConfig& mics, double sample_rate_hz,
+                               double decay_floor_db, bool residual, double placement_margin_m)
+    : ShellModalBank(model, ModeRows::Of(modes, RowsRead(model, mics, placement_margin_m)), mics,
+                     sample_rate_hz, decay_floor_db, residual, placement_margin_m) {}
+
+ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
                                const MicArrayConfig& mics, double sample_rate_hz,
                                double decay_floor_db, bool residual, double placement_margin_m)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.mics = mics;
-  SONICBOOM_DEMAND(modes.shapes.rows() == model.dofs() &&
+  SONICBOOM_DEMAND(modes.shapes.rows() == static_cast<Eigen::Index>(modes.dofs.size()) &&
                    modes.shapes.cols() == modes.omega_rad_s.size());
+  // a DOF's row in modes.shapes (-1: not given)
+  std::vector<int64_t> row_of(static_cast<size_t>(model.dofs()), -1);
+  for (size_t r = 0; r < modes.dofs.size(); ++r) row_of[static_cast<size_t>(modes.dofs[r])] = static_cast<int64_t>(r);
+  const auto shape_row = [&](int64_t dof) {
+    const int64_t r = row_of[static_cast<size_t>(dof)];
+    if (r < 0) throw Error(fmt::format("modal bank: the mode shapes lack DOF {}", dof));
+    return modes.shapes.row(r);
+  };
   m.model = &model;
   m.fs = sample_rate_hz;
   const double T = 1.0 / sample_rate_hz;
@@ -283,10 +310,15 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
   }
   m.shapes.resize(static_cast<Eigen::Index>(w_dofs.size()), n);
   for (size_t r = 0; r < w_dofs.size(); ++r) {
-    m.shapes.row(static_cast<Eigen::Index>(r)) = modes.shapes.row(w_dofs[r]).head(n).cast<float>();
+    m.shapes.row(static_cast<Eigen::Index>(r)) = shape_row(w_dofs[r]).head(n).cast<float>();
   }
   const Eigen::MatrixXd rows = model.SensorRows(mics);                      // (mics x dofs)
-  m.sensor_shape = rows * modes.shapes.leftCols(n);                         // (mics x modes)
+  m.sensor_shape = Eigen::MatrixXd::Zero(mics.count(), n);                  // (mics x modes)
+  for (int c = 0; c < mics.count(); ++c) {
+    for (Eigen::Index d = 0; d < rows.cols(); ++d) {
+      if (rows(c, d) != 0.0) m.sensor_shape.row(c) += rows(c, d) * shape_row(d).head(n);
+    }
+  }
   const Eigen::MatrixXd& gain = m.sensor_shape;
   m.base.sensor_gain = (gain * out_scale.asDiagonal()).cast<float>();
   if (mics.count() > kMaxMics) {
@@ -303,7 +335,7 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
     }
     m.placement_shapes.resize(static_cast<Eigen::Index>(dofs.size()), n);
     for (size_t r = 0; r < dofs.size(); ++r) {
-      m.placement_shapes.row(static_cast<Eigen::Index>(r)) = modes.shapes.row(dofs[r]).head(n).cast<float>();
+      m.placement_shapes.row(static_cast<Eigen::Index>(r)) = shape_row(dofs[r]).head(n).cast<float>();
     }
   }
   m.floor_ln = std::abs(decay_floor_db) / 20.0 * std::log(10.0);

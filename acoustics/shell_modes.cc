@@ -728,14 +728,6 @@ namespace {
 
 constexpr char kCacheMagic[8] = {'S', 'B', 'M', 'O', 'D', 'E', 'S', '1'};
 
-uint64_t Fnv1a(const std::string& text) {
-  uint64_t h = 1469598103934665603ull;
-  for (unsigned char c : text) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return h;
-}
 
 // file layout: magic, key length, key, rigid, modes, rows, omega (modes), shapes (rows x modes)
 bool ReadModes(const std::string& path, const std::string& key, ShellModes* out) {
@@ -789,6 +781,15 @@ void WriteModes(const std::string& path, const std::string& key, const ShellMode
 
 }  // namespace
 
+uint64_t CacheKeyHash(const std::string& key) {
+  uint64_t h = 1469598103934665603ull;  // FNV-1a
+  for (unsigned char c : key) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
 std::string DefaultModeCacheDir() {
   if (const char* dir = std::getenv("SONICBOOM_CACHE_DIR"); dir != nullptr && *dir != '\0') return dir;
   if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0') {
@@ -804,7 +805,7 @@ ShellModes CachedShellModes(const ShellModel& model, double max_frequency_hz, in
   const std::string key = fmt::format("{} | band={:.17g} count={} shapes={}", model.key(),
                                       max_frequency_hz, max_count, with_shapes);
   const std::string path =
-      (std::filesystem::path(cache_dir) / fmt::format("modes-{:016x}.bin", Fnv1a(key))).string();
+      (std::filesystem::path(cache_dir) / fmt::format("modes-{:016x}.bin", CacheKeyHash(key))).string();
   ShellModes modes;
   if (ReadModes(path, key, &modes)) {
     if (hit != nullptr) *hit = true;

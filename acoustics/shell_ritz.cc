@@ -1,6 +1,9 @@
 #include "sonicboom/acoustics/shell_ritz.h"
 
 #include <Eigen/Dense>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <array>
@@ -9,6 +12,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "sonicboom/core/errors.h"
 
@@ -146,9 +150,51 @@ ShellRitzProjector::ShellRitzProjector(const ShellModel& base, const ShellModes&
 
 ShellRitzProjector::~ShellRitzProjector() = default;
 
-ShellModes ShellRitzProjector::Project(const ShellModel& varied, double max_frequency_hz,
-                                      const std::vector<int64_t>* rows) const {
-  const Impl& m = *impl_;
+// the reduced solution of a variant: kept eigenvalues and coefficients on [Phi, X]
+struct RitzSolution {
+  Eigen::VectorXd omega_rad_s;   // (kept)
+  Eigen::MatrixXd y;             // (N + e, kept)
+  Eigen::MatrixXd x;             // (dofs, e) the static corrections
+  int64_t rigid_body_modes{0};
+};
+
+RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& varied,
+                       double max_frequency_hz);
+
+ShellModes ShellRitzProjector::Project(const ShellModel& varied, double max_frequency_hz) const {
+  const RitzSolution r = SolveRitz(*impl_, varied, max_frequency_hz);
+  const Eigen::Index n = impl_->phi.cols(), e = r.x.cols();
+  ShellModes out;
+  out.omega_rad_s = r.omega_rad_s;
+  out.rigid_body_modes = r.rigid_body_modes;
+  out.shapes = impl_->phi * r.y.topRows(n);
+  if (e > 0) out.shapes += r.x * r.y.bottomRows(e);
+  return out;
+}
+
+ModeRows ShellRitzProjector::Project(const ShellModel& varied, double max_frequency_hz,
+                                    const std::vector<int64_t>& rows) const {
+  const RitzSolution r = SolveRitz(*impl_, varied, max_frequency_hz);
+  const Eigen::Index n = impl_->phi.cols(), e = r.x.cols();
+  const auto count = static_cast<Eigen::Index>(rows.size());
+  // the rows asked for, in single precision (the modal bank keeps its shapes in float)
+  Eigen::MatrixXf phi_rows(count, n), x_rows(count, e);
+  for (Eigen::Index i = 0; i < count; ++i) {
+    phi_rows.row(i) = impl_->phi_f.row(rows[static_cast<size_t>(i)]);
+    if (e > 0) x_rows.row(i) = r.x.row(rows[static_cast<size_t>(i)]).cast<float>();
+  }
+  Eigen::MatrixXf part = phi_rows * r.y.topRows(n).cast<float>();
+  if (e > 0) part += x_rows * r.y.bottomRows(e).cast<float>();
+  ModeRows out;
+  out.omega_rad_s = r.omega_rad_s;
+  out.rigid_body_modes = r.rigid_body_modes;
+  out.dofs = rows;
+  out.shapes = part.cast<double>();
+  return out;
+}
+
+RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& varied,
+                       double max_frequency_hz) {
   const ShellModel& base = *m.base;
   if (varied.dofs() != base.dofs() || !(varied.mass_kg() - base.mass_kg()).isZero(0.0)) {
     throw ConfigError(fmt::format(
@@ -203,11 +249,11 @@ ShellModes ShellRitzProjector::Project(const ShellModel& varied, double max_freq
   }
   const Eigen::VectorXd& lambda = eig.eigenvalues();
 
-  // the elastic modes of the band, shapes Q y
+  // the elastic modes of the band
   const double lo = std::pow(2.0 * std::numbers::pi * kRigidBodyHz, 2);
   const double hi = std::pow(2.0 * std::numbers::pi * max_frequency_hz, 2);
   std::vector<Eigen::Index> keep;
-  ShellModes out;
+  RitzSolution out;
   for (Eigen::Index i = 0; i < lambda.size(); ++i) {
     if (lambda[i] < lo) {
       ++out.rigid_body_modes;
@@ -216,29 +262,107 @@ ShellModes ShellRitzProjector::Project(const ShellModel& varied, double max_freq
     }
   }
   const auto kept = static_cast<Eigen::Index>(keep.size());
-  Eigen::MatrixXd y(n + e, kept);
+  out.y.resize(n + e, kept);
   out.omega_rad_s.resize(kept);
   for (Eigen::Index j = 0; j < kept; ++j) {
-    y.col(j) = eig.eigenvectors().col(keep[static_cast<size_t>(j)]);
+    out.y.col(j) = eig.eigenvectors().col(keep[static_cast<size_t>(j)]);
     out.omega_rad_s[j] = std::sqrt(lambda[keep[static_cast<size_t>(j)]]);
   }
-  if (rows == nullptr) {
-    out.shapes = m.phi * y.topRows(n);
-    if (e > 0) out.shapes += x * y.bottomRows(e);
-    return out;
-  }
-  // only the rows asked for (in float: the modal bank keeps its shapes in float)
-  const auto r = static_cast<Eigen::Index>(rows->size());
-  Eigen::MatrixXf phi_rows(r, n), x_rows(r, e);
-  for (Eigen::Index i = 0; i < r; ++i) {
-    phi_rows.row(i) = m.phi_f.row((*rows)[static_cast<size_t>(i)]);
-    if (e > 0) x_rows.row(i) = x.row((*rows)[static_cast<size_t>(i)]).cast<float>();
-  }
-  Eigen::MatrixXf part = phi_rows * y.topRows(n).cast<float>();
-  if (e > 0) part += x_rows * y.bottomRows(e).cast<float>();
-  out.shapes = Eigen::MatrixXd::Zero(base.dofs(), kept);
-  for (Eigen::Index i = 0; i < r; ++i) out.shapes.row((*rows)[static_cast<size_t>(i)]) = part.row(i).cast<double>();
+  out.x = std::move(x);
   return out;
+}
+
+namespace {
+
+constexpr char kRitzMagic[8] = {'S', 'B', 'R', 'I', 'T', 'Z', '0', '1'};
+
+// file layout: magic, key length, key, modes, rows, omega (modes), shapes at the rows (rows x
+// modes, float)
+bool ReadRitz(const std::string& path, const std::string& key, const std::vector<int64_t>& rows,
+              ModeRows* out) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  char magic[8];
+  uint64_t key_size = 0;
+  in.read(magic, 8);
+  in.read(reinterpret_cast<char*>(&key_size), sizeof key_size);
+  if (!in || std::memcmp(magic, kRitzMagic, 8) != 0 || key_size != key.size()) return false;
+  std::string stored(key_size, '\0');
+  in.read(stored.data(), static_cast<std::streamsize>(key_size));
+  int64_t header[2];
+  in.read(reinterpret_cast<char*>(header), sizeof header);
+  if (!in || stored != key || header[0] < 0 || header[1] != static_cast<int64_t>(rows.size())) {
+    return false;
+  }
+  out->rigid_body_modes = 0;
+  out->omega_rad_s.resize(header[0]);
+  Eigen::MatrixXf part(header[1], header[0]);
+  in.read(reinterpret_cast<char*>(out->omega_rad_s.data()),
+          static_cast<std::streamsize>(sizeof(double) * out->omega_rad_s.size()));
+  in.read(reinterpret_cast<char*>(part.data()), static_cast<std::streamsize>(sizeof(float) * part.size()));
+  if (!in || in.peek() != std::char_traits<char>::eof()) return false;
+  out->dofs = rows;
+  out->shapes = part.cast<double>();
+  return true;
+}
+
+void WriteRitz(const std::string& path, const std::string& key, const ModeRows& modes) {
+  const Eigen::MatrixXf part = modes.shapes.cast<float>();
+  const std::string partial = path + ".partial";
+  {
+    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+    const uint64_t key_size = key.size();
+    const int64_t header[2] = {modes.omega_rad_s.size(), part.rows()};
+    out.write(kRitzMagic, 8);
+    out.write(reinterpret_cast<const char*>(&key_size), sizeof key_size);
+    out.write(key.data(), static_cast<std::streamsize>(key.size()));
+    out.write(reinterpret_cast<const char*>(header), sizeof header);
+    out.write(reinterpret_cast<const char*>(modes.omega_rad_s.data()),
+              static_cast<std::streamsize>(sizeof(double) * modes.omega_rad_s.size()));
+    out.write(reinterpret_cast<const char*>(part.data()),
+              static_cast<std::streamsize>(sizeof(float) * part.size()));
+    if (!out) {
+      spdlog::warn("mode cache: cannot write {}; continuing without it", partial);
+      std::error_code ec;
+      std::filesystem::remove(partial, ec);
+      return;
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) spdlog::warn("mode cache: cannot rename {} to {}: {}", partial, path, ec.message());
+}
+
+}  // namespace
+
+ModeRows CachedRitzModes(const std::function<const ShellRitzProjector&()>& projector,
+                         const ShellModel& base, const ShellModel& varied,
+                         double max_frequency_hz, const std::vector<int64_t>& rows,
+                         const std::string& cache_dir, bool* hit) {
+  if (hit != nullptr) *hit = false;
+  if (cache_dir.empty()) return projector().Project(varied, max_frequency_hz, rows);
+  std::string row_text;
+  for (const int64_t r : rows) row_text += fmt::format("{},", r);
+  const std::string key = fmt::format("ritz-v1 | base: {} | variant: {} | band={:.17g} "
+                                      "enrichment={} rows={}:{:016x}",
+                                      base.key(), varied.key(), max_frequency_hz, kRitzEnrichment,
+                                      rows.size(), CacheKeyHash(row_text));
+  const std::string path =
+      (std::filesystem::path(cache_dir) / fmt::format("ritz-{:016x}.bin", CacheKeyHash(key))).string();
+  ModeRows modes;
+  if (ReadRitz(path, key, rows, &modes)) {
+    if (hit != nullptr) *hit = true;
+    return modes;
+  }
+  modes = projector().Project(varied, max_frequency_hz, rows);
+  std::error_code ec;
+  std::filesystem::create_directories(cache_dir, ec);
+  if (ec) {
+    spdlog::warn("mode cache: cannot create {}: {}; continuing without it", cache_dir, ec.message());
+  } else {
+    WriteRitz(path, key, modes);
+  }
+  return modes;
 }
 
 ShellModes RitzShellModes(const ShellModel& base, const ShellModes& base_modes,

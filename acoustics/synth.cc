@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <limits>
+#include <mutex>
 #include <cmath>
 #include <complex>
 #include <numbers>
@@ -234,8 +235,15 @@ double PlacementMargin(const AcousticModelConfig& c) {
 void StrikeSynthesizer::Impl::BuildPool(const ShellModes& base_modes, double placement_margin_m) {
   const int64_t count = c.randomize.structure_variants;
   pool.resize(static_cast<size_t>(count));
-  const ShellRitzProjector projector(*shell, base_modes);
+  // the projector is made only when some variant is not in the cache
+  std::once_flag made;
+  std::unique_ptr<ShellRitzProjector> projector;
+  const auto get_projector = [&]() -> const ShellRitzProjector& {
+    std::call_once(made, [&] { projector = std::make_unique<ShellRitzProjector>(*shell, base_modes); });
+    return *projector;
+  };
   const std::vector<int64_t> rows = ShellModalBank::RowsRead(*shell, c.mics, placement_margin_m);
+  const std::string cache = c.synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : c.synth.mode_cache_dir;
   // each variant alone: its draws, its shell, Ritz modes to the base band, its bank
   tbb::parallel_for(int64_t{0}, count, [&](int64_t v) {
     const StructureVariant draw =
@@ -244,7 +252,8 @@ void StrikeSynthesizer::Impl::BuildPool(const ShellModes& base_modes, double pla
     material.poisson_ratio = draw.poisson_ratio;
     Variant& out = pool[static_cast<size_t>(v)];
     out.shell = std::make_unique<ShellModel>(c.tube, material, draw.shell);
-    const ShellModes modes = projector.Project(*out.shell, mode_band_hz, &rows);
+    const ModeRows modes =
+        CachedRitzModes(get_projector, *shell, *out.shell, mode_band_hz, rows, cache);
     out.bank = std::make_unique<ShellModalBank>(*out.shell, modes, c.mics, c.audio.sample_rate_hz,
                                                 c.synth.decay_floor_db, c.synth.residual,
                                                 placement_margin_m);

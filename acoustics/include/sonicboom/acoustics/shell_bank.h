@@ -30,6 +30,17 @@ struct ForceInput {
   std::vector<double> force_n;
 };
 
+/// Mode shapes at a subset of the DOFs: what a bank reads (ShellModalBank::RowsRead), so that a
+/// structure variant never needs its shapes at every DOF.
+struct ModeRows {
+  Eigen::VectorXd omega_rad_s;   // (modes) ascending
+  int64_t rigid_body_modes{0};
+  std::vector<int64_t> dofs;     // ascending DOF of every row
+  Eigen::MatrixXd shapes;        // (rows x modes) mass-normalized
+  /// The rows of full modes (with shapes) at `dofs`.
+  static ModeRows Of(const ShellModes& modes, std::vector<int64_t> dofs);
+};
+
 class ShellModalBank {
  public:
   /// modes: mass-normalized shapes of `model` (with_shapes). residual: restore the static part of
@@ -38,6 +49,11 @@ class ShellModalBank {
   /// disc by up to that much (arc length or axial; the diameter may grow by twice that) without
   /// a new bank; the residual keeps the configured placement.
   ShellModalBank(const ShellModel& model, const ShellModes& modes, const MicArrayConfig& mics,
+                 double sample_rate_hz, double decay_floor_db, bool residual,
+                 double placement_margin_m = 0.0);
+  /// The same from the shapes at the rows it reads (RowsRead of the same model, mics and margin,
+  /// or a superset); a missing row is an Error.
+  ShellModalBank(const ShellModel& model, const ModeRows& modes, const MicArrayConfig& mics,
                  double sample_rate_hz, double decay_floor_db, bool residual,
                  double placement_margin_m = 0.0);
   ~ShellModalBank();

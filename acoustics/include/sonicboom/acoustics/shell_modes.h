@@ -40,6 +40,9 @@ ShellModes CachedShellModes(const ShellModel& model, double max_frequency_hz, in
 /// The default mode cache: $SONICBOOM_CACHE_DIR, else $HOME/.cache/sonicboom/modes, else "".
 std::string DefaultModeCacheDir();
 
+/// The hash that names a cache file (FNV-1a of its full key; the file stores the key too).
+uint64_t CacheKeyHash(const std::string& key);
+
 /// The number of modes (rigid-body ones included) with frequency below f_hz, by inertia.
 int64_t CountModesBelow(const ShellModel& model, double f_hz);
 

@@ -16,39 +16,56 @@
 /// docs/randomization.md gives the error against full solves.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_bank.h"
 #include "sonicboom/acoustics/shell_modes.h"
 
 namespace sonicboom::acoustics {
+
+/// Static corrections in the basis (of the lowest base modes).
+constexpr int64_t kRitzEnrichment = 48;
 
 /// Immutable: the base structure, its modes and the projections every variant reuses.
 /// Project is const and thread-safe.
 class ShellRitzProjector {
  public:
   /// base_modes must carry their shapes. Throws Error when they do not.
-  ShellRitzProjector(const ShellModel& base, const ShellModes& base_modes, int64_t enrichment = 48);
+  ShellRitzProjector(const ShellModel& base, const ShellModes& base_modes,
+                     int64_t enrichment = kRitzEnrichment);
   ~ShellRitzProjector();
   ShellRitzProjector(const ShellRitzProjector&) = delete;
   ShellRitzProjector& operator=(const ShellRitzProjector&) = delete;
 
   /// The variant's elastic modes up to max_frequency_hz (ascending, mass-normalized shapes,
-  /// dofs x modes). rows (optional): only these DOFs' rows of the shapes are computed (in single
-  /// precision), the others are zero. Throws ConfigError when the variant differs from the base
-  /// in DOFs or mass.
-  ShellModes Project(const ShellModel& varied, double max_frequency_hz,
-                     const std::vector<int64_t>* rows = nullptr) const;
+  /// dofs x modes). Throws ConfigError when the variant differs from the base in DOFs or mass.
+  ShellModes Project(const ShellModel& varied, double max_frequency_hz) const;
+  /// The same with the shapes at `rows` only (computed in single precision).
+  ModeRows Project(const ShellModel& varied, double max_frequency_hz,
+                   const std::vector<int64_t>& rows) const;
+
+  struct Impl;  // opaque: the base and the projections
 
  private:
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// Project(varied, max_frequency_hz, rows) through an on-disk cache in cache_dir ("" = none):
+/// the modes are stored in single precision under a hash of the base's and the variant's keys,
+/// the band, the enrichment and the rows, and read back as they were computed. `projector` is
+/// called (once, from any thread) only when the file is missing or does not match.
+ModeRows CachedRitzModes(const std::function<const ShellRitzProjector&()>& projector,
+                         const ShellModel& base, const ShellModel& varied,
+                         double max_frequency_hz, const std::vector<int64_t>& rows,
+                         const std::string& cache_dir, bool* hit = nullptr);
 
 /// One variant's modes by a projector made for it alone.
 ShellModes RitzShellModes(const ShellModel& base, const ShellModes& base_modes,
                           const ShellModel& varied, double max_frequency_hz,
-                          int64_t enrichment = 48);
+                          int64_t enrichment = kRitzEnrichment);
 
 }  // namespace sonicboom::acoustics
