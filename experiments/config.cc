@@ -103,6 +103,7 @@ SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
   // layers: struct defaults, embedded layer, files in order, --set overrides, --seed
   ConfigLayers layers;
   if (!sources.embedded_yaml.empty()) layers.AddText(sources.embedded_yaml, sources.embedded_name);
+  for (const auto& [name, yaml] : sources.embedded_layers) layers.AddText(yaml, name);
   for (const auto& file : sources.files) layers.AddFile(file);
   for (const auto& assignment : sources.overrides) layers.AddOverride(assignment);
   if (sources.seed >= 0) layers.AddOverride(fmt::format("seed={}", sources.seed));

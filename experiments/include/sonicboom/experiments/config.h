@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sonicboom/acoustics/arrival.h"
@@ -69,6 +70,8 @@ struct ConfigSources {
   std::vector<std::string> overrides;      // --set key=value
   std::string embedded_yaml;               // e.g. the demo's defaults, applied before files
   std::string embedded_name{"embedded defaults"};
+  // further embedded layers (name, YAML), after embedded_yaml and before the files
+  std::vector<std::pair<std::string, std::string>> embedded_layers;
   int64_t seed{-1};                        // --seed, >= 0 overrides `seed`
 };
 
