@@ -492,6 +492,15 @@ Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diame
   return out / count;
 }
 
+std::vector<std::pair<int64_t, double>> ShellModel::SensorTerms(double z_m, double theta_rad,
+                                                                double diameter_m) const {
+  std::vector<std::pair<int64_t, double>> terms;
+  const int count = VisitSensorTerms(z_m, theta_rad, diameter_m,
+                                     [&terms](int64_t d, double c) { terms.emplace_back(d, c); });
+  for (auto& t : terms) t.second /= count;
+  return terms;
+}
+
 std::vector<int64_t> ShellModel::SensorDofs(double z_m, double theta_rad, double diameter_m) const {
   std::vector<int64_t> dofs;
   VisitSensorTerms(z_m, theta_rad, diameter_m, [&dofs](int64_t d, double) { dofs.push_back(d); });

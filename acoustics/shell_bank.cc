@@ -219,12 +219,10 @@ Eigen::MatrixXd ShellModalBank::Impl::PlacedSensorShape(const Variation& v, int6
     const double theta = (mics.theta_deg[static_cast<size_t>(c)] + at(v.mic_theta_offset_deg)) *
                          M_PI / 180.0;
     const double d = v.disc_diameter_m.empty() ? mics.disc_diameter_m : at(v.disc_diameter_m);
-    const Eigen::VectorXd row = model->SensorRow(z, theta, d);  // (dofs)
-    for (Eigen::Index dof = 0; dof < row.size(); ++dof) {
-      if (row[dof] == 0.0) continue;
+    for (const auto& [dof, coefficient] : model->SensorTerms(z, theta, d)) {
       const int64_t r = placement_row[static_cast<size_t>(dof)];
       SONICBOOM_DEMAND(r >= 0);  // the margin covers every placement the config can draw
-      shape.row(c) += row[dof] * placement_shapes.row(r).head(n).cast<double>();
+      shape.row(c) += coefficient * placement_shapes.row(r).head(n).cast<double>();
     }
   }
   return shape;

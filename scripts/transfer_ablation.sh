@@ -96,21 +96,17 @@ def load(name):
     with open(os.path.join(out, name)) as f:
         return json.load(f)
 lines = ["| variant | " + " | ".join(s + " MED (cm)" for s in sets) +
-         " | mean of the first three | z / θ cover 90 % (val_struct) | training (s) |",
-         "|---|" + "---|" * (len(sets) + 3)]
+         " | mean of the first three | z / θ cover 90 % (val_struct) |",
+         "|---|" + "---|" * (len(sets) + 2)]
 results = {}
 for v in variants + ["arrival"]:
     e = {s: load("%s_%s.json" % (s, v)) for s in sets}
     mean3 = sum(e[s]["med_cm"] for s in sets[:3]) / 3
-    secs = "-"
-    if v != "arrival":
-        with open(os.path.join(out, v, "metrics.jsonl")) as f:
-            secs = str(round(sum(json.loads(l)["epoch_seconds"] for l in f if l.strip())))
     cover = "-" if e["val_struct"].get("z_coverage_90") is None else "%.2f / %.2f" % (
         e["val_struct"]["z_coverage_90"], e["val_struct"]["theta_coverage_90"])
     name = v if v != "arrival" else "arrival locator (no training)"
-    lines.append("| %s | %s | %.2f | %s | %s |" % (
-        name, " | ".join("%.2f" % e[s]["med_cm"] for s in sets), mean3, cover, secs))
+    lines.append("| %s | %s | %.2f | %s |" % (
+        name, " | ".join("%.2f" % e[s]["med_cm"] for s in sets), mean3, cover))
     results[v] = {"med_cm": {s: e[s]["med_cm"] for s in sets}, "mean3_cm": mean3}
 best = min(variants, key=lambda v: results[v]["mean3_cm"])
 lines += ["", "Lowest mean of val_in, val_struct and val_contact: %s (%.2f cm)." % (

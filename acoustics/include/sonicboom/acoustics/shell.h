@@ -23,6 +23,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sonicboom/core/archive.h"
@@ -106,6 +107,10 @@ class ShellModel {
   Eigen::MatrixXd SensorRows(const MicArrayConfig& mics) const;
   /// The DOFs SensorRow(z, theta, d) reads, ascending (terms that cancel to zero included).
   std::vector<int64_t> SensorDofs(double z_m, double theta_rad, double diameter_m) const;
+  /// SensorRow as (DOF, coefficient) terms, unmerged (a DOF may appear more than once; the sum
+  /// of its terms is its entry of SensorRow).
+  std::vector<std::pair<int64_t, double>> SensorTerms(double z_m, double theta_rad,
+                                                      double diameter_m) const;
 
   /// Strain energy 1/2 q^T K q, J.
   double StrainEnergy(const Eigen::VectorXd& q_m) const;
