@@ -27,6 +27,7 @@
 #include <spdlog/spdlog.h>
 
 #include "sonicboom/core/errors.h"
+#include "internal/cache_file.h"
 
 namespace sonicboom::acoustics {
 namespace {
@@ -729,54 +730,29 @@ namespace {
 constexpr char kCacheMagic[8] = {'S', 'B', 'M', 'O', 'D', 'E', 'S', '1'};
 
 
-// file layout: magic, key length, key, rigid, modes, rows, omega (modes), shapes (rows x modes)
+// file layout (internal/cache_file.h): header {rigid, modes, rows}, omega (modes), shapes
+// (rows x modes)
 bool ReadModes(const std::string& path, const std::string& key, ShellModes* out) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return false;
-  char magic[8];
-  uint64_t key_size = 0;
-  in.read(magic, 8);
-  in.read(reinterpret_cast<char*>(&key_size), sizeof key_size);
-  if (!in || std::memcmp(magic, kCacheMagic, 8) != 0 || key_size != key.size()) return false;
-  std::string stored(key_size, '\0');
-  in.read(stored.data(), static_cast<std::streamsize>(key_size));
+  std::ifstream in;
   int64_t header[3];
-  in.read(reinterpret_cast<char*>(header), sizeof header);
-  if (!in || stored != key || header[1] < 0 || header[2] < 0) return false;
+  if (!internal::OpenCacheFile(path, kCacheMagic, key, header, 3, &in) || header[1] < 0 ||
+      header[2] < 0) {
+    return false;
+  }
   out->rigid_body_modes = header[0];
   out->omega_rad_s.resize(header[1]);
   out->shapes.resize(header[2], header[2] > 0 ? header[1] : 0);
-  in.read(reinterpret_cast<char*>(out->omega_rad_s.data()),
-          static_cast<std::streamsize>(sizeof(double) * out->omega_rad_s.size()));
-  in.read(reinterpret_cast<char*>(out->shapes.data()),
-          static_cast<std::streamsize>(sizeof(double) * out->shapes.size()));
-  return static_cast<bool>(in) && in.peek() == std::char_traits<char>::eof();
+  const size_t omega_bytes = sizeof(double) * out->omega_rad_s.size();
+  return internal::ReadCacheBlock(in, out->omega_rad_s.data(), omega_bytes, false) &&
+         internal::ReadCacheBlock(in, out->shapes.data(), sizeof(double) * out->shapes.size(), true);
 }
 
-void WriteModes(const std::string& path, const std::string& key, const ShellModes& modes) {
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-    const uint64_t key_size = key.size();
-    const int64_t header[3] = {modes.rigid_body_modes, modes.omega_rad_s.size(), modes.shapes.rows()};
-    out.write(kCacheMagic, 8);
-    out.write(reinterpret_cast<const char*>(&key_size), sizeof key_size);
-    out.write(key.data(), static_cast<std::streamsize>(key.size()));
-    out.write(reinterpret_cast<const char*>(header), sizeof header);
-    out.write(reinterpret_cast<const char*>(modes.omega_rad_s.data()),
-              static_cast<std::streamsize>(sizeof(double) * modes.omega_rad_s.size()));
-    out.write(reinterpret_cast<const char*>(modes.shapes.data()),
-              static_cast<std::streamsize>(sizeof(double) * modes.shapes.size()));
-    if (!out) {
-      spdlog::warn("mode cache: cannot write {}; continuing without it", partial);
-      std::error_code ec;
-      std::filesystem::remove(partial, ec);
-      return;
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(partial, path, ec);
-  if (ec) spdlog::warn("mode cache: cannot rename {} to {}: {}", partial, path, ec.message());
+void WriteModes(const std::string& cache_dir, const std::string& path, const std::string& key,
+                const ShellModes& modes) {
+  internal::WriteCacheFile(cache_dir, path, kCacheMagic, key,
+                           {modes.rigid_body_modes, modes.omega_rad_s.size(), modes.shapes.rows()},
+                           {{modes.omega_rad_s.data(), sizeof(double) * modes.omega_rad_s.size()},
+                            {modes.shapes.data(), sizeof(double) * modes.shapes.size()}});
 }
 
 }  // namespace
@@ -812,13 +788,7 @@ ShellModes CachedShellModes(const ShellModel& model, double max_frequency_hz, in
     return modes;
   }
   modes = SolveShellModes(model, max_frequency_hz, max_count, with_shapes);
-  std::error_code ec;
-  std::filesystem::create_directories(cache_dir, ec);
-  if (ec) {
-    spdlog::warn("mode cache: cannot create {}: {}; continuing without it", cache_dir, ec.message());
-  } else {
-    WriteModes(path, key, modes);
-  }
+  WriteModes(cache_dir, path, key, modes);
   return modes;
 }
 

@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "sonicboom/core/errors.h"
+#include "internal/cache_file.h"
 
 namespace sonicboom::acoustics {
 namespace {
@@ -276,61 +277,35 @@ namespace {
 
 constexpr char kRitzMagic[8] = {'S', 'B', 'R', 'I', 'T', 'Z', '0', '1'};
 
-// file layout: magic, key length, key, modes, rows, omega (modes), shapes at the rows (rows x
-// modes, float)
+// file layout (internal/cache_file.h): header {modes, rows}, omega (modes), shapes at the rows
+// (rows x modes, float)
 bool ReadRitz(const std::string& path, const std::string& key, const std::vector<int64_t>& rows,
               ModeRows* out) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return false;
-  char magic[8];
-  uint64_t key_size = 0;
-  in.read(magic, 8);
-  in.read(reinterpret_cast<char*>(&key_size), sizeof key_size);
-  if (!in || std::memcmp(magic, kRitzMagic, 8) != 0 || key_size != key.size()) return false;
-  std::string stored(key_size, '\0');
-  in.read(stored.data(), static_cast<std::streamsize>(key_size));
+  std::ifstream in;
   int64_t header[2];
-  in.read(reinterpret_cast<char*>(header), sizeof header);
-  if (!in || stored != key || header[0] < 0 || header[1] != static_cast<int64_t>(rows.size())) {
+  if (!internal::OpenCacheFile(path, kRitzMagic, key, header, 2, &in) || header[0] < 0 ||
+      header[1] != static_cast<int64_t>(rows.size())) {
     return false;
   }
   out->rigid_body_modes = 0;
   out->omega_rad_s.resize(header[0]);
   Eigen::MatrixXf part(header[1], header[0]);
-  in.read(reinterpret_cast<char*>(out->omega_rad_s.data()),
-          static_cast<std::streamsize>(sizeof(double) * out->omega_rad_s.size()));
-  in.read(reinterpret_cast<char*>(part.data()), static_cast<std::streamsize>(sizeof(float) * part.size()));
-  if (!in || in.peek() != std::char_traits<char>::eof()) return false;
+  const size_t omega_bytes = sizeof(double) * out->omega_rad_s.size();
+  if (!internal::ReadCacheBlock(in, out->omega_rad_s.data(), omega_bytes, false) ||
+      !internal::ReadCacheBlock(in, part.data(), sizeof(float) * part.size(), true)) {
+    return false;
+  }
   out->dofs = rows;
   out->shapes = part.cast<double>();
   return true;
 }
 
-void WriteRitz(const std::string& path, const std::string& key, const ModeRows& modes) {
+void WriteRitz(const std::string& cache_dir, const std::string& path, const std::string& key,
+               const ModeRows& modes) {
   const Eigen::MatrixXf part = modes.shapes.cast<float>();
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-    const uint64_t key_size = key.size();
-    const int64_t header[2] = {modes.omega_rad_s.size(), part.rows()};
-    out.write(kRitzMagic, 8);
-    out.write(reinterpret_cast<const char*>(&key_size), sizeof key_size);
-    out.write(key.data(), static_cast<std::streamsize>(key.size()));
-    out.write(reinterpret_cast<const char*>(header), sizeof header);
-    out.write(reinterpret_cast<const char*>(modes.omega_rad_s.data()),
-              static_cast<std::streamsize>(sizeof(double) * modes.omega_rad_s.size()));
-    out.write(reinterpret_cast<const char*>(part.data()),
-              static_cast<std::streamsize>(sizeof(float) * part.size()));
-    if (!out) {
-      spdlog::warn("mode cache: cannot write {}; continuing without it", partial);
-      std::error_code ec;
-      std::filesystem::remove(partial, ec);
-      return;
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(partial, path, ec);
-  if (ec) spdlog::warn("mode cache: cannot rename {} to {}: {}", partial, path, ec.message());
+  internal::WriteCacheFile(cache_dir, path, kRitzMagic, key, {modes.omega_rad_s.size(), part.rows()},
+                           {{modes.omega_rad_s.data(), sizeof(double) * modes.omega_rad_s.size()},
+                            {part.data(), sizeof(float) * part.size()}});
 }
 
 }  // namespace
@@ -355,13 +330,7 @@ ModeRows CachedRitzModes(const std::function<const ShellRitzProjector&()>& proje
     return modes;
   }
   modes = projector().Project(varied, max_frequency_hz, rows);
-  std::error_code ec;
-  std::filesystem::create_directories(cache_dir, ec);
-  if (ec) {
-    spdlog::warn("mode cache: cannot create {}: {}; continuing without it", cache_dir, ec.message());
-  } else {
-    WriteRitz(path, key, modes);
-  }
+  WriteRitz(cache_dir, path, key, modes);
   return modes;
 }
 

@@ -3,11 +3,14 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <filesystem>
+#include <vector>
 
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/shell_ritz.h"
 #include "sonicboom/core/errors.h"
+#include "common/test_util.h"
 
 namespace sonicboom::acoustics {
 namespace {
@@ -93,6 +96,39 @@ TEST(RitzTest, RefusesAnotherGrid) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("full mode solve"), std::string::npos) << e.what();
   }
+}
+
+TEST(RitzTest, CacheReadsBackWhatItWrote) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  const ShellModel base(tube, material, Coarse());
+  const ShellModes base_modes = SolveShellModes(base, 3000.0, 0, true);
+  const ShellRitzProjector projector(base, base_modes);
+  ShellConfig s = Coarse();
+  s.bolt_stiffness_n_m *= 3.0;
+  const ShellModel varied(tube, material, s);
+  const std::vector<int64_t> rows = {0, 7, 100, 2001};
+  const testing::TempDir dir;
+  const auto get = [&projector]() -> const ShellRitzProjector& { return projector; };
+  bool hit = true;
+  const ModeRows first = CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
+  EXPECT_FALSE(hit);
+  const ModeRows second = CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
+  EXPECT_TRUE(hit);
+  // frequencies exact, shapes stored in single precision
+  EXPECT_TRUE(first.omega_rad_s == second.omega_rad_s);
+  EXPECT_TRUE(second.dofs == rows);
+  EXPECT_TRUE(first.shapes.cast<float>().cast<double>() == second.shapes);
+  // other rows are another entry
+  CachedRitzModes(get, base, varied, 3000.0, {0, 7}, dir.path().string(), &hit);
+  EXPECT_FALSE(hit);
+  // a damaged file is recomputed
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    std::filesystem::resize_file(entry.path(), 100);
+  }
+  const ModeRows third = CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
+  EXPECT_FALSE(hit);
+  EXPECT_TRUE(third.omega_rad_s == first.omega_rad_s);
 }
 
 }  // namespace
