@@ -23,17 +23,8 @@ THREADS=${4:-2}
 BIN=${SONICBOOM_BIN:-$ROOT/build/bin/sonicboom}
 mkdir -p "$OUT"
 
-TS4=(--config "$ROOT/configs/ts4.yaml" --set scene.stationary.z_grid_m=0)
-RAND=(--config "$ROOT/configs/randomized.yaml")
-ONE=(--set randomize.structure_variants=0 --set 'randomize.bolt_count=[]'
-     --set 'randomize.bolt_z_jitter_m=[]' --set 'randomize.bolt_stiffness_scale=[]'
-     --set 'randomize.flange_mount_scale=[]' --set 'randomize.tool_mount_scale=[]'
-     --set 'randomize.poisson_ratio=[]')
-gen() {  # name first_index count config-args...
-  local name=$1 first=$2 count=$3; shift 3
-  [ -f "$OUT/$name.h5" ] || "$BIN" "${TS4[@]}" "$@" --threads "$THREADS" -q generate \
-    --count "$count" --first-index "$first" --out "$OUT/$name.h5"
-}
+# shellcheck source=scripts/transfer_common.sh
+source "$ROOT/scripts/transfer_common.sh"
 gen train 0 "$TRAIN" "${RAND[@]}"
 gen val_in 220000 "$VAL" "${RAND[@]}"
 gen val_struct 200000 "$VAL" "${RAND[@]}" "${ONE[@]}" --set shell.bolt_stiffness_n_m=5.0e5 \

@@ -41,13 +41,8 @@ LARGE=${5:-0}
 BIN=${SONICBOOM_BIN:-$ROOT/build/bin/sonicboom}
 mkdir -p "$OUT"
 
-TS4=(--config "$ROOT/configs/ts4.yaml" --set scene.stationary.z_grid_m=0)
-RAND=(--config "$ROOT/configs/randomized.yaml")
-# a family keeps the preset's strikers and sensor chain but has one structure of its own
-ONE=(--set randomize.structure_variants=0 --set 'randomize.bolt_count=[]'
-     --set 'randomize.bolt_z_jitter_m=[]' --set 'randomize.bolt_stiffness_scale=[]'
-     --set 'randomize.flange_mount_scale=[]' --set 'randomize.tool_mount_scale=[]'
-     --set 'randomize.poisson_ratio=[]')
+# shellcheck source=scripts/transfer_common.sh
+source "$ROOT/scripts/transfer_common.sh"
 family_args() {
   case $1 in
     in) echo "" ;;
@@ -63,14 +58,6 @@ family_args() {
 }
 FAMILIES="bolts stiff loose modulus mics fine chain halfspace"
 
-gen() {  # name first_index count config-args...
-  local name=$1 first=$2 count=$3; shift 3
-  [ -f "$OUT/$name.h5" ] && return
-  local start=$(date +%s)
-  "$BIN" "${TS4[@]}" "$@" --threads "$THREADS" -q generate --count "$count" \
-    --first-index "$first" --out "$OUT/$name.h5" --json > "$OUT/$name.generate.json"
-  echo $(( $(date +%s) - start )) > "$OUT/$name.generate_wall_s"
-}
 gen train_default 0 "$TRAIN"
 gen train_rand 0 "$TRAIN" "${RAND[@]}"
 [ "$LARGE" -gt 0 ] && gen train_rand_large 0 "$LARGE" "${RAND[@]}"
