@@ -47,6 +47,7 @@ constexpr const char* kSeedPath = "index/seed";
 constexpr const char* kValidPath = "index/valid";
 constexpr const char* kInvalidReasonPath = "index/invalid_reason";
 constexpr const char* kClippedPath = "index/clipped";
+constexpr const char* kProvenancePath = "index/provenance";  // recorded datasets only
 constexpr const char* kVariationPath = "variation";  // (N, P) f64, attr `names`
 constexpr const char* kContactFirstPath = "index/contact_first";
 constexpr const char* kContactCountPath = "index/contact_count";
@@ -171,6 +172,7 @@ struct Columns {
   h5::Handle contact_count;
   ContactColumns contacts;
   h5::Handle variation;  // only in a randomized dataset
+  h5::Handle provenance;  // only in a recorded dataset
 
   // (handle, path) of every per-sample column (N rows), for checks that apply to all of them.
   std::vector<std::pair<hid_t, std::string>> All() const {
@@ -191,6 +193,7 @@ struct Columns {
     if (contact_first.valid()) all.emplace_back(contact_first.get(), kContactFirstPath);
     if (contact_count.valid()) all.emplace_back(contact_count.get(), kContactCountPath);
     if (variation.valid()) all.emplace_back(variation.get(), kVariationPath);
+    if (provenance.valid()) all.emplace_back(provenance.get(), kProvenancePath);
     return all;
   }
 
@@ -213,6 +216,7 @@ struct Columns {
     contact_count.Close(file, kContactCountPath);
     contacts.CloseAll(file);
     variation.Close(file, kVariationPath);
+    provenance.Close(file, kProvenancePath);
   }
 };
 
@@ -371,6 +375,10 @@ class DatasetFile {
     columns_.invalid_reason = h5::OpenDataset(root, kInvalidReasonPath, path);
     columns_.clipped = h5::OpenDataset(root, kClippedPath, path);
     if (has_contacts_) OpenContactColumns();
+    if (H5Lexists(root, "index", H5P_DEFAULT) > 0 &&
+        H5Lexists(root, kProvenancePath, H5P_DEFAULT) > 0) {
+      columns_.provenance = h5::OpenDataset(root, kProvenancePath, path);
+    }
     // Randomized draws, when the file has them: (N, P) with P names.
     if (H5Lexists(root, kVariationPath, H5P_DEFAULT) > 0) {
       columns_.variation = h5::OpenDataset(root, kVariationPath, path);
@@ -465,6 +473,11 @@ class DatasetFile {
         Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
             proprio.data(), k, kProprioFeatures);
     sample->contacts = ReadContacts(i);
+    if (columns_.provenance.valid()) {
+      sample->provenance = h5::ReadStringRows(columns_.provenance.get(), static_cast<hsize_t>(i),
+                                              1, path_, kProvenancePath)
+                               .at(0);
+    }
     sample->variation.assign(info_.variation_names.size(), 0.0);
     if (!sample->variation.empty()) {
       h5::ReadRows(columns_.variation.get(), H5T_NATIVE_DOUBLE, sample->variation.data(),
@@ -888,6 +901,11 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info, b
   s.columns.clipped =
       h5::CreateExtendable(root, kClippedPath, H5T_STD_U8LE, {{}, kColumnChunkRows, -1}, file);
   if (s.with_contacts) s.CreateContactColumns();
+  // Where each recorded sample came from.
+  if (s.info.source == "hardware") {
+    s.columns.provenance = h5::CreateExtendable(root, kProvenancePath, s.string_type.get(),
+                                                {{}, kColumnChunkRows, -1}, file);
+  }
   // Randomized draws (N, P) f64 with their names.
   if (!s.info.variation_names.empty()) {
     const hsize_t p = s.info.variation_names.size();
@@ -953,6 +971,7 @@ DatasetWriter::EncodedSample DatasetWriter::Encode(const StrikeSample& sample) c
   encoded.meta.clipped = sample.clipped;
   encoded.meta.contacts = sample.contacts;
   encoded.meta.variation = sample.variation;
+  encoded.meta.provenance = sample.provenance;
   return encoded;
 }
 
@@ -1094,6 +1113,11 @@ void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
   if (columns.variation.valid()) {
     h5::AppendRows(columns.variation.get(), H5T_NATIVE_DOUBLE, sample.variation.data(), 1, file,
                    kVariationPath);
+  }
+  if (columns.provenance.valid()) {
+    const char* origin = sample.provenance.c_str();
+    h5::AppendRows(columns.provenance.get(), string_type.get(), &origin, 1, file,
+                   kProvenancePath);
   }
   indices.insert(sample.index);
   ++count;

@@ -171,6 +171,31 @@ int RunCli(int argc, char** argv) {
     };
   });
 
+  ImportOptions import_options;
+  auto* import = app.add_subcommand("import", "recorded strikes (published trial layout or our "
+                                              "capture layout) into a dataset");
+  import->add_option("--layout", import_options.layout, "trial | capture")->required();
+  import->add_option("--in", import_options.in, "capture directory")->required();
+  import->add_option("--out", import_options.out, "dataset file (.h5)")->required();
+  import->add_option("--angle-convention", import_options.angle_convention,
+                     "tube (docs/conventions.md) | j7 (published joint-7 angle)");
+  import->add_option("--min-duration-s", import_options.min_duration_s,
+                     "shorter captures are bad (default 1.5)");
+  import->add_flag("--skip-bad", import_options.skip_bad,
+                   "import the good captures when some are bad (they are listed)");
+  import->add_flag("--force", import_options.force, "replace an existing output");
+  import->callback([&] { run = [&] { return RunImport(g, import_options); }; });
+
+  std::string export_layout = "trial", angle_convention = "tube";
+  auto* export_cmd = app.add_subcommand("export", "a dataset in the published trial layout");
+  export_cmd->add_option("--layout", export_layout, "trial");
+  export_cmd->add_option("--in", in, "dataset (.h5)")->required();
+  export_cmd->add_option("--out", out, "new directory")->required();
+  export_cmd->add_option("--angle-convention", angle_convention, "tube | j7");
+  export_cmd->callback([&] {
+    run = [&] { return RunExport(g, export_layout, in, out, angle_convention); };
+  });
+
   auto* fk = app.add_subcommand("fk", "flange and tube poses of the Panda for joint angles");
   fk->add_option("--joints", joints, "q1,...,q7 in rad")->required();
   fk->callback([&] { run = [&] { return RunFk(g, joints); }; });

@@ -16,6 +16,8 @@
 ///   impulse_Ns, peak_force_N (M) f64; /contacts/point_m (M,3) f64, /contacts/normal (M,3) f64,
 ///   tube frame; /contacts/kind (M) u8 (attr `names` = "impact,bounce,press");
 ///   /contacts/object, /contacts/material (M) variable-length UTF-8 strings
+///   /index/provenance (N) variable-length string, only in a recorded dataset (source
+///   "hardware"): the file each sample was imported from
 ///   /variation (N, P) f64, only when the config randomizes: sample n's drawn values, attr `names`
 ///   = the P comma-separated names (randomize.h)
 ///   root attrs: schema, schema_version, software_version, source, config_yaml, sample_rate_hz,

@@ -75,6 +75,8 @@ struct StrikeSample {
   bool clipped{false};                      // any audio sample hit full scale
   std::vector<ContactEpisode> contacts;     // every tube contact, in time order (may be empty)
   std::vector<double> variation;            // (P) randomized draws (DatasetInfo::variation_names)
+  std::string provenance;                   // a recorded sample's origin (file it was read
+                                            // from); empty for simulated samples
 };
 
 }  // namespace sonicboom

@@ -79,6 +79,21 @@ struct BaselineOptions {
 /// method's own fields. The config's base layer is the test dataset's own config.
 CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& options);
 CommandResult RunFk(const GlobalOptions& g, const std::string& joints);
+
+/// `import`: recorded strikes (a published trial directory or our capture layout) into a
+/// dataset; `export`: a dataset into the published trial layout (docs/captures.md).
+struct ImportOptions {
+  std::string layout{"trial"};           // trial | capture
+  std::string in;                        // directory
+  std::string out;                       // dataset (.h5)
+  std::string angle_convention{"tube"};  // tube | j7
+  double min_duration_s{1.5};
+  bool skip_bad{false};
+  bool force{false};                     // replace an existing output
+};
+CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o);
+CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
+                        const std::string& out, const std::string& angle_convention);
 CommandResult RunInspect(const GlobalOptions& g, const std::string& path);
 CommandResult RunConfig(const GlobalOptions& g);
 

@@ -1,0 +1,110 @@
+// `import` and `export`: recorded strikes in and datasets out (docs/captures.md).
+#include <cmath>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/experiments/commands.h"
+#include "sonicboom/hardware/import.h"
+#include "sonicboom/sim/franka.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// The rig as an import sees it, from the resolved config.
+hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const ImportOptions& o,
+                                     int threads) {
+  hardware::ImportSettings s;
+  s.layout = hardware::ParseLayout(o.layout);
+  s.angle = hardware::ParseAngleConvention(o.angle_convention);
+  s.sample_rate_hz = config.audio.sample_rate_hz;
+  s.channels = config.mics.count();
+  s.record_frames = std::llround(config.audio.record_duration_s * config.audio.sample_rate_hz);
+  if (!(o.min_duration_s > 0.0) || !std::isfinite(o.min_duration_s)) {
+    throw ConfigError(fmt::format("--min-duration-s {} must be positive", o.min_duration_s));
+  }
+  s.min_duration_s = o.min_duration_s;
+  s.proprio_rows = config.strike.proprio_rows;
+  s.outer_radius_m = config.tube.outer_radius_m;
+  s.z_limit_m = 0.5 * config.tube.length_m;
+  s.skip_bad = o.skip_bad;
+  s.threads = threads;
+  // the tube's orientation from the joint log where x_t.npy has none
+  const double center_m = config.tube.center_from_flange_m;
+  s.tube_pose_from_joints = [center_m](const std::array<double, 7>& q) {
+    return sim::PandaForwardKinematics(sim::JointVector(q.data()), center_m).tube;
+  };
+  return s;
+}
+
+}  // namespace
+
+CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
+  const hardware::Layout layout = hardware::ParseLayout(o.layout);
+  if (!fs::is_directory(o.in)) throw IoError(fmt::format("{}: no such directory (--in)", o.in));
+  if (fs::exists(o.out) && !o.force) {
+    throw IoError(fmt::format("{}: exists; --force replaces it once the new one is complete", o.out));
+  }
+  const fs::path parent = fs::path(o.out).parent_path();
+  if (!parent.empty() && !fs::is_directory(parent)) {
+    throw IoError(fmt::format("{}: directory {} does not exist", o.out, parent.string()));
+  }
+
+  // a capture directory's capture.yaml is the first layer over the defaults
+  ConfigSources sources = g.sources;
+  const fs::path rig = fs::path(o.in) / "capture.yaml";
+  if (layout == hardware::Layout::kCapture) {
+    if (!fs::exists(rig)) {
+      throw IoError(fmt::format("{}: missing (a capture directory states its rig: sample rate, "
+                                "mics, tube)",
+                                rig.string()));
+    }
+    sources.files.insert(sources.files.begin(), rig.string());
+  }
+  SonicBoomConfig config = ResolveConfig(sources);
+  if (layout == hardware::Layout::kCapture && fs::exists(fs::path(o.in) / "noise.wav")) {
+    config.features.gating_noise_wav = fs::absolute(o.out + ".noise.wav").string();
+  }
+  const hardware::ImportSettings settings = SettingsFor(config, o, g.threads);
+
+  DatasetInfo info;
+  info.config_yaml = ConfigToYaml(config);
+  const hardware::ImportReport report = hardware::ImportCaptures(o.in, o.out, settings, info);
+  WriteTextAtomic(o.out + ".config.yaml", info.config_yaml);
+
+  // the result, bad captures listed
+  json bad = json::array();
+  std::string text = fmt::format("imported {} captures from {} into {}", report.imported, o.in, o.out);
+  text += report.bad.empty() ? "\n" : fmt::format(", {} bad ones skipped:\n", report.bad.size());
+  for (const hardware::BadCapture& b : report.bad) {
+    bad.push_back({{"file", b.file}, {"reason", b.reason}});
+    text += "  " + b.reason + "\n";
+  }
+  if (!report.noise_wav.empty()) {
+    text += fmt::format("no-contact clip copied to {} (features.gating_noise_wav in {}.config.yaml)\n",
+                        report.noise_wav, o.out);
+  }
+  const json j = {{"out", o.out}, {"imported", report.imported}, {"bad", bad},
+                  {"noise_wav", report.noise_wav}};
+  return {j.dump(), text};
+}
+
+CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
+                        const std::string& out, const std::string& angle_convention) {
+  if (hardware::ParseLayout(layout) != hardware::Layout::kTrial) {
+    throw ConfigError(fmt::format("export --layout '{}': only trial is written", layout));
+  }
+  const hardware::AngleConvention angle = hardware::ParseAngleConvention(angle_convention);
+  if (!fs::exists(in)) throw IoError(fmt::format("{}: no such dataset (--in)", in));
+  const int64_t n = hardware::ExportTrials(in, out, angle);
+  const json j = {{"out", out}, {"trials", n}};
+  return {j.dump(), fmt::format("wrote {} trials of {} to {}\n", n, in, out)};
+}
+
+}  // namespace sonicboom::experiments

@@ -1,0 +1,78 @@
+#pragma once
+/// Recorded strikes into datasets and datasets out to the published trial layout
+/// (docs/captures.md). An import writes the same HDF5 schema as `generate`, with source
+/// "hardware" and each sample's origin in /index/provenance, so every command that reads a
+/// dataset reads an import unchanged.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "sonicboom/core/dataset.h"
+
+namespace sonicboom::hardware {
+
+/// Directory layouts: `trial` is the published code's (trial{N}/mic2.wav, gt_label.npy, x_t.npy,
+/// xdot_t.npy, optional q_t.npy); `capture` is ours (WAVs, labels.csv, optional robot logs and
+/// noise.wav, capture.yaml).
+enum class Layout { kTrial, kCapture };
+/// Angle of a trial's gt_label: `tube` is docs/conventions.md's θ; `j7` is the published joint-7
+/// angle θ_j7 with θ_tube = −θ_j7 − 50°.
+enum class AngleConvention { kTube, kJ7 };
+
+Layout ParseLayout(const std::string& name);                   // ConfigError naming the value
+AngleConvention ParseAngleConvention(const std::string& name);  // ConfigError naming the value
+/// θ_tube from a stored angle and back (wrapped to (−π, π]).
+double TubeAngleFrom(double stored_rad, AngleConvention convention);
+double StoredAngleFrom(double tube_rad, AngleConvention convention);
+
+/// What an import needs to know about the rig (from the resolved config).
+struct ImportSettings {
+  Layout layout{Layout::kTrial};
+  AngleConvention angle{AngleConvention::kTube};
+  double sample_rate_hz{44100.0};
+  int channels{6};
+  int64_t record_frames{88200};     // every record padded (last value repeated) or trimmed to this
+  double min_duration_s{1.5};       // shorter captures are bad
+  int64_t proprio_rows{50};         // rows kept from a pose log (at least this many needed)
+  double outer_radius_m{0.05355};   // label point on the surface
+  double z_limit_m{0.1524};         // |z| beyond this (half the tube length) is not on the tube
+  bool skip_bad{false};             // import the good captures when some are bad
+  int threads{1};                   // reading and compression workers (0: all cores)
+  /// Tube pose (base frame) for a joint vector, used when x_t.npy has no orientation
+  /// (3 columns) and q_t.npy is present; unset: such trials are bad.
+  std::function<Eigen::Isometry3d(const std::array<double, 7>&)> tube_pose_from_joints;
+};
+
+/// One capture that could not be imported, and why.
+struct BadCapture {
+  std::string file;
+  std::string reason;
+};
+
+struct ImportReport {
+  int64_t imported{0};
+  std::vector<BadCapture> bad;       // listed in input order
+  std::string noise_wav;             // the copied no-contact clip, "" when the layout had none
+};
+
+/// Imports `in_dir` into `out_path` with `info` as the file's metadata (config_yaml, rates; its
+/// source is set to "hardware"). Without skip_bad, any bad capture fails the whole import
+/// (IoError listing every bad file and its reason) and nothing is written; with it, the rest are
+/// imported and the bad ones reported. A capture layout's noise.wav is checked and copied to
+/// "<out_path>.noise.wav". Throws IoError / ConfigError for a missing or malformed directory.
+ImportReport ImportCaptures(const std::string& in_dir, const std::string& out_path,
+                            const ImportSettings& settings, DatasetInfo info);
+
+/// Writes every valid sample of `dataset_path` in the published trial layout under `out_dir`
+/// (trial0 ... trial{M-1} in sample-index order; mic2.wav 16-bit PCM; gt_label.npy [z_m, angle];
+/// x_t.npy (K, 7) position + quaternion x y z w; xdot_t.npy (K, 3)). The directory is built as
+/// "<out_dir>.partial" and renamed when whole. Returns the number of trials written.
+int64_t ExportTrials(const std::string& dataset_path, const std::string& out_dir,
+                     AngleConvention angle);
+
+}  // namespace sonicboom::hardware

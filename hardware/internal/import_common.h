@@ -1,0 +1,40 @@
+#pragma once
+/// Pieces shared by the trial and capture layouts: checked audio records, labels, poses.
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "sonicboom/core/sample.h"
+#include "sonicboom/hardware/import.h"
+
+namespace sonicboom::hardware::internal {
+
+/// One capture to import: `file` names it in reports; `load` reads it into a sample (its
+/// index set by the caller) or throws IoError with the reason it is bad.
+struct ImportEntry {
+  std::string file;
+  uint64_t index{0};
+  std::function<StrikeSample(const ImportSettings&)> load;
+};
+
+/// The entries of a published trial directory (trial{N}, by N) and of a capture directory
+/// (labels.csv rows, in order). Throw IoError for a missing directory or malformed labels.csv.
+std::vector<ImportEntry> ListTrials(const std::string& dir);
+std::vector<ImportEntry> ListCaptures(const std::string& dir);
+
+/// A multichannel WAV checked against the rig (rate, channels, length, finite, not clipped) and
+/// padded (last frame repeated) or trimmed to the record length: (channels x record_frames).
+/// Throws IoError with the reason.
+Eigen::MatrixXf CheckedRecord(const std::string& wav, const ImportSettings& settings);
+
+/// Fills the label and one impact contact episode from (z, θ_tube); IoError when z is off the
+/// tube or either value is not finite.
+void SetLabel(double z_m, double theta_rad, const ImportSettings& settings,
+              const std::string& where, StrikeSample* sample);
+
+/// `rows` copies of the identity pose at rest: position 0, quaternion (1, 0, 0, 0), velocity 0.
+Eigen::MatrixXf HeldProprio(int64_t rows);
+
+}  // namespace sonicboom::hardware::internal

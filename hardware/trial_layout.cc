@@ -1,0 +1,166 @@
+// The published trial layout: trial{N}/mic2.wav, gt_label.npy, x_t.npy, xdot_t.npy, q_t.npy.
+#include <algorithm>
+#include <cmath>
+#include <array>
+#include <filesystem>
+#include <optional>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/dataset.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/hardware/import.h"
+#include "sonicboom/hardware/npy.h"
+#include "internal/import_common.h"
+
+namespace fs = std::filesystem;
+
+namespace sonicboom::hardware {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A (rows x cols) array with at least `min_rows` rows and one of the allowed column counts.
+NpyArray ReadTable(const fs::path& file, int64_t min_rows, std::initializer_list<int64_t> cols) {
+  NpyArray a = ReadNpy(file.string());
+  const bool cols_ok = std::find(cols.begin(), cols.end(), a.cols()) != cols.end();
+  if (a.shape.size() != 2 || !cols_ok || a.rows() < min_rows) {
+    std::string shape;
+    for (int64_t d : a.shape) shape += (shape.empty() ? "" : ", ") + std::to_string(d);
+    std::string allowed;
+    for (int64_t c : cols) allowed += (allowed.empty() ? "" : " or ") + std::to_string(c);
+    throw IoError(fmt::format("{}: shape ({}), expected (rows >= {}, {})", file.string(), shape,
+                              min_rows, allowed));
+  }
+  return a;
+}
+
+// Rows of the published pose logs as proprio rows: position, quaternion w x y z, velocity.
+Eigen::MatrixXf TrialProprio(const fs::path& dir, const ImportSettings& s) {
+  const int64_t k = s.proprio_rows;
+  const NpyArray x = ReadTable(dir / "x_t.npy", k, {3, 7});
+  const NpyArray v = ReadTable(dir / "xdot_t.npy", k, {3});
+  Eigen::MatrixXf p(k, kProprioFeatures);
+  // orientation: x_t's own quaternion (x y z w), or forward kinematics of q_t
+  std::optional<NpyArray> q;
+  if (x.cols() == 3) {
+    if (!fs::exists(dir / "q_t.npy") || !s.tube_pose_from_joints) {
+      throw IoError(fmt::format("{}: x_t.npy has no orientation (3 columns) and there is no "
+                                "q_t.npy to compute it",
+                                dir.string()));
+    }
+    q = ReadTable(dir / "q_t.npy", k, {7});
+  }
+  for (int64_t r = 0; r < k; ++r) {
+    const double* xr = &x.data[r * x.cols()];
+    Eigen::Quaterniond quat;
+    if (q) {
+      std::array<double, 7> joints;
+      std::copy_n(&q->data[r * 7], 7, joints.begin());
+      quat = Eigen::Quaterniond(s.tube_pose_from_joints(joints).linear());
+    } else {
+      quat = Eigen::Quaterniond(xr[6], xr[3], xr[4], xr[5]);
+      const double norm = quat.norm();
+      if (std::abs(norm - 1.0) > 0.05) {
+        throw IoError(fmt::format("{}: row {} has a quaternion of norm {:.3f}, not a rotation",
+                                  (dir / "x_t.npy").string(), r, norm));
+      }
+      if (std::abs(norm - 1.0) > 1e-6) quat.normalize();  // a stored unit quaternion stays as is
+    }
+    p.row(r) << xr[0], xr[1], xr[2], quat.w(), quat.x(), quat.y(), quat.z(), v.data[r * 3],
+        v.data[r * 3 + 1], v.data[r * 3 + 2];
+  }
+  return p;
+}
+
+StrikeSample LoadTrial(const fs::path& dir, const ImportSettings& s) {
+  StrikeSample sample;
+  sample.audio = internal::CheckedRecord((dir / "mic2.wav").string(), s);
+  const fs::path label_file = dir / "gt_label.npy";
+  const NpyArray label = ReadNpy(label_file.string());
+  if (label.data.size() != 2) {
+    throw IoError(fmt::format("{}: {} values, expected 2 ([h_m, theta_rad])", label_file.string(),
+                              label.data.size()));
+  }
+  if (std::abs(label.data[1]) > kPi + 1e-6) {
+    throw IoError(fmt::format("{}: angle {} rad is outside [-pi, pi]", label_file.string(),
+                              label.data[1]));
+  }
+  internal::SetLabel(label.data[0], TubeAngleFrom(label.data[1], s.angle), s,
+                     label_file.string(), &sample);
+  sample.proprio = TrialProprio(dir, s);
+  return sample;
+}
+
+}  // namespace
+
+namespace internal {
+
+std::vector<ImportEntry> ListTrials(const std::string& dir) {
+  std::vector<std::pair<uint64_t, fs::path>> trials;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (!e.is_directory() || name.rfind("trial", 0) != 0 || name.size() == 5 || name.size() > 24 ||
+        name.find_first_not_of("0123456789", 5) != std::string::npos) {
+      continue;
+    }
+    trials.emplace_back(std::stoull(name.substr(5)), e.path());
+  }
+  std::sort(trials.begin(), trials.end());
+  std::vector<ImportEntry> entries;
+  for (const auto& [n, path] : trials) {
+    entries.push_back({(path / "mic2.wav").string(), n,
+                       [path = path](const ImportSettings& s) { return LoadTrial(path, s); }});
+  }
+  return entries;
+}
+
+}  // namespace internal
+
+int64_t ExportTrials(const std::string& dataset_path, const std::string& out_dir,
+                     AngleConvention angle) {
+  if (fs::exists(out_dir)) {
+    throw IoError(fmt::format("{}: already exists; export writes a new directory", out_dir));
+  }
+  DatasetReader reader(dataset_path);
+  const DatasetInfo& info = reader.info();
+  const std::string partial = out_dir + ".partial";
+  std::error_code ignored;
+  fs::remove_all(partial, ignored);
+  fs::create_directories(partial);
+
+  // one trial directory per valid sample, in file order
+  int64_t written = 0;
+  for (int64_t i = 0; i < reader.size(); ++i) {
+    const StrikeSample s = reader.Read(i);
+    if (!s.valid) continue;
+    const fs::path trial = fs::path(partial) / fmt::format("trial{}", written++);
+    fs::create_directory(trial);
+    AudioClip clip;
+    clip.samples = s.audio;
+    clip.sample_rate_hz = info.sample_rate_hz;
+    WriteWav((trial / "mic2.wav").string(), clip, /*pcm16=*/true);
+    WriteNpy((trial / "gt_label.npy").string(), {2},
+             {s.label.z_m, StoredAngleFrom(s.label.theta_rad, angle)});
+    // x_t: position, quaternion x y z w; xdot_t: velocity
+    const int64_t k = s.proprio.rows();
+    std::vector<double> x(k * 7), v(k * 3);
+    for (int64_t r = 0; r < k; ++r) {
+      const auto row = s.proprio.row(r);
+      const int order[7] = {0, 1, 2, 4, 5, 6, 3};
+      for (int j = 0; j < 7; ++j) x[r * 7 + j] = row(order[j]);
+      for (int j = 0; j < 3; ++j) v[r * 3 + j] = row(7 + j);
+    }
+    WriteNpy((trial / "x_t.npy").string(), {k, 7}, x);
+    WriteNpy((trial / "xdot_t.npy").string(), {k, 3}, v);
+  }
+  if (written == 0) {
+    fs::remove_all(partial, ignored);
+    throw IoError(fmt::format("{}: no valid sample to export", dataset_path));
+  }
+  fs::rename(partial, out_dir);
+  return written;
+}
+
+}  // namespace sonicboom::hardware
