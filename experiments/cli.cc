@@ -101,11 +101,29 @@ int RunCli(int argc, char** argv) {
   features->add_option("--proprio", proprio, "robot log CSV for a WAV input");
   features->callback([&] { run = [&] { return RunFeatures(g, in, out, proprio); }; });
 
-  auto* train = app.add_subcommand("train", "train a localizer on a dataset");
-  train->add_option("--data", data, "training dataset (.h5)")->required();
-  train->add_option("--out", out, "run directory")->required();
-  train->add_flag("--resume", resume, "continue from the run directory's checkpoint");
-  train->callback([&] { run = [&] { return RunTrain(g, data, out, resume); }; });
+  TrainOptions train_options;
+  double train_lr = 0.0;
+  int64_t train_epochs = 0;
+  auto* train = app.add_subcommand("train", "train a localizer on a dataset, or fine-tune a "
+                                            "pretrained one (--init-from)");
+  train->add_option("--data", train_options.data, "training dataset (.h5)")->required();
+  train->add_option("--out", train_options.out, "run directory")->required();
+  train->add_flag("--resume", train_options.resume, "continue from the run directory's checkpoint");
+  train->add_option("--init-from", train_options.init_from,
+                    "pretrained run directory: start from its weights and config");
+  train->add_option("--freeze", train_options.freeze,
+                    "none | encoders | all-but-head (with --init-from)");
+  train->add_option("--norm", train_options.norm,
+                    "keep | refit the per-mic mel statistics (with --init-from; default keep)");
+  train->add_option("--lr", train_lr, "learning rate (sets train.learning_rate)")
+      ->check(CLI::PositiveNumber);
+  train->add_option("--epochs", train_epochs, "epochs (sets train.epochs)")
+      ->check(CLI::PositiveNumber);
+  train->callback([&] {
+    if (train_lr > 0.0) g.sources.overrides.push_back(fmt::format("train.learning_rate={}", train_lr));
+    if (train_epochs > 0) g.sources.overrides.push_back(fmt::format("train.epochs={}", train_epochs));
+    run = [&] { return RunTrain(g, train_options); };
+  });
 
   auto* eval = app.add_subcommand("eval", "evaluate a trained localizer on a dataset");
   eval->add_option("--model", model, "run directory")->required();

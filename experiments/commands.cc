@@ -81,10 +81,11 @@ SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_di
 
 // features -> train/val split -> training, writing into run_dir
 learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::string& data,
-                                 const std::string& run_dir, bool resume, int threads, bool quiet) {
+                                 const std::string& run_dir, bool resume, int threads, bool quiet,
+                                 const learning::FineTune& fine_tune = {}) {
   std::vector<uint64_t> indices;
   const learning::FeatureSet all = ComputeDatasetFeatures(data, config, threads, !quiet, &indices);
-  return TrainOnFeatures(config, all, indices, data, run_dir, resume, quiet);
+  return TrainOnFeatures(config, all, indices, data, run_dir, resume, quiet, fine_tune);
 }
 
 std::string MetricsRow(const std::string& name, const learning::Metrics& m) {
@@ -352,18 +353,37 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
                                 n == 1 ? "" : "s")};
 }
 
-CommandResult RunTrain(const GlobalOptions& g, const std::string& data, const std::string& out_dir,
-                       bool resume) {
-  const SonicBoomConfig config = Resolve(g);
-  if (!fs::exists(data)) throw IoError(fmt::format("{}: no such dataset", data));
-  MakeDirectories(out_dir);
-  WriteTextAtomic((fs::path(out_dir) / "config.yaml").string(), ConfigToYaml(config));
-  const learning::Metrics m = TrainOnDataset(config, data, out_dir, resume, g.threads, g.quiet);
+CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
+  // a fine-tune starts from the pretrained run's config (its model and features), then the
+  // user's layers; a fresh run from the defaults
+  learning::FineTune fine_tune;
+  fine_tune.init_from = o.init_from;
+  fine_tune.freeze = learning::ParseFreeze(o.freeze);
+  if (o.norm != "keep" && o.norm != "refit") {
+    throw ConfigError(fmt::format("--norm '{}' must be keep or refit", o.norm));
+  }
+  fine_tune.refit_normalization = o.norm == "refit";
+  if (o.init_from.empty() && (o.freeze != "none" || o.norm != "keep")) {
+    throw ConfigError("--freeze and --norm apply to a fine-tune: give --init-from RUN");
+  }
+  if (!o.init_from.empty() && fs::absolute(o.init_from) == fs::absolute(o.out)) {
+    throw ConfigError(fmt::format("--init-from {} is the output run; fine-tune into another directory", o.init_from));
+  }
+  const SonicBoomConfig config = o.init_from.empty() ? Resolve(g) : ResolveWithRun(g, o.init_from);
+  if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
+  MakeDirectories(o.out);
+  WriteTextAtomic((fs::path(o.out) / "config.yaml").string(), ConfigToYaml(config));
+  if (!o.init_from.empty()) {
+    const json init{{"init_from", o.init_from}, {"freeze", o.freeze}, {"norm", o.norm}};
+    WriteTextAtomic((fs::path(o.out) / "fine_tune.json").string(), init.dump(2) + "\n");
+  }
+  const learning::Metrics m =
+      TrainOnDataset(config, o.data, o.out, o.resume, g.threads, g.quiet, fine_tune);
   json j = MetricsJson(m);
-  j["run_dir"] = out_dir;
+  j["run_dir"] = o.out;
   return {j.dump(), fmt::format("trained {}: validation MED {:.2f} cm, height {:.2f} cm, angle "
                                 "{:.1f} deg ({} strikes)\n",
-                                out_dir, m.med_cm, m.height_err_cm, m.angle_err_deg, m.n)};
+                                o.out, m.med_cm, m.height_err_cm, m.angle_err_deg, m.n)};
 }
 
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,

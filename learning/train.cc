@@ -130,12 +130,67 @@ int64_t LoadCheckpoint(internal::NetworkImpl* network, torch::optim::Adam* optim
 // Identity of a run, stored in checkpoint.json and compared on resume. The uncertainty head is
 // named only when present, so runs without it keep the identity they had before it existed.
 json RunIdentity(const ModelConfig& model_config, const FeatureSet& shapes, uint64_t seed,
-                 bool uncertainty_head) {
+                 bool uncertainty_head, const FineTune& fine_tune) {
   json identity{{"model", internal::ConfigToJson(model_config)},
                 {"shapes", internal::ShapesToJson(shapes)},
                 {"seed", seed}};
   if (uncertainty_head) identity["uncertainty_head"] = true;
+  if (!fine_tune.init_from.empty()) {
+    identity["init_from"] = fs::absolute(fine_tune.init_from).lexically_normal().string();
+    identity["freeze"] = static_cast<int>(fine_tune.freeze);
+    identity["refit_normalization"] = fine_tune.refit_normalization;
+  }
   return identity;
+}
+
+// Whether a top-level part of the network (its child module name) stays as pretrained.
+bool IsFrozen(const std::string& part, FineTune::Freeze freeze) {
+  switch (freeze) {
+    case FineTune::Freeze::kNone:
+      return false;
+    case FineTune::Freeze::kEncoders:
+      return part == "audio_encoder" || part == "gcc_encoder" || part == "proprio_encoder";
+    case FineTune::Freeze::kAllButHead:
+      return part != "head" && part != "uncertainty_head";
+  }
+  return false;
+}
+
+// Loads the pretrained weights of `fine_tune.init_from` into `network` and fixes the frozen
+// parts; returns the parameters left to train.
+std::vector<torch::Tensor> StartFromPretrained(internal::NetworkImpl* network,
+                                               const FineTune& fine_tune) {
+  const std::string weights = (fs::path(fine_tune.init_from) / "model.pt").string();
+  if (!fs::exists(weights)) {
+    throw IoError(fmt::format("{}: missing; --init-from needs a trained run directory", weights));
+  }
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(weights);
+  } catch (const c10::Error& e) {
+    throw SchemaError(fmt::format("{}: unreadable: {}", weights, e.what_without_backtrace()));
+  }
+  internal::LoadModuleChecked(*network, archive, weights);
+  // parameters of frozen parts stop learning; parameters directly on the network (CLS token,
+  // modality embeddings) train unless only the heads do
+  std::vector<torch::Tensor> trainable;
+  for (const auto& item : network->named_parameters()) {
+    const std::string& name = item.key();
+    const std::string part = name.substr(0, name.find('.'));
+    const bool frozen = name.find('.') == std::string::npos
+                            ? fine_tune.freeze == FineTune::Freeze::kAllButHead
+                            : IsFrozen(part, fine_tune.freeze);
+    item.value().set_requires_grad(!frozen);
+    if (!frozen) trainable.push_back(item.value());
+  }
+  return trainable;
+}
+
+// Puts the frozen parts in eval mode (fixed BatchNorm statistics, no dropout) after train().
+void HoldFrozenParts(internal::NetworkImpl* network, FineTune::Freeze freeze) {
+  for (const auto& child : network->named_children()) {
+    if (IsFrozen(child.key(), freeze)) child.value()->eval();
+  }
 }
 
 // Keeps the metrics lines of epochs 1..epochs_done (a crash may have left later ones).
@@ -169,9 +224,17 @@ std::string FormatDuration(double seconds) {
 
 }  // namespace
 
+FineTune::Freeze ParseFreeze(const std::string& name) {
+  if (name == "none") return FineTune::Freeze::kNone;
+  if (name == "encoders") return FineTune::Freeze::kEncoders;
+  if (name == "all-but-head") return FineTune::Freeze::kAllButHead;
+  throw ConfigError(fmt::format("--freeze '{}' must be none, encoders or all-but-head", name));
+}
+
 Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
-              const std::string& run_dir, bool resume, bool show_progress) {
+              const std::string& run_dir, bool resume, bool show_progress,
+              const FineTune& fine_tune) {
   // Configs and features.
   model_config.Validate();
   train_config.Validate();
@@ -207,15 +270,18 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   const bool uncertainty_head = train_config.uncertainty_weight > 0.0;
   internal::Network network(model_config, internal::ShapesOf(train, model_config),
                             uncertainty_head);
-  if (use.audio && train_config.normalize) {
+  std::vector<torch::Tensor> trainable = network->parameters();
+  if (!fine_tune.init_from.empty()) trainable = StartFromPretrained(network.get(), fine_tune);
+  const bool fit_normalization = fine_tune.init_from.empty() || fine_tune.refit_normalization;
+  if (use.audio && train_config.normalize && fit_normalization) {
     const internal::MelStats stats = internal::ComputeMelStats(train, records);
     network->SetNormalization(stats.mean, stats.std);
   }
-  torch::optim::Adam optimizer(network->parameters(),
-                               torch::optim::AdamOptions(train_config.learning_rate));
+  if (trainable.empty()) throw ConfigError("fine-tuning: every weight is frozen; nothing to train");
+  torch::optim::Adam optimizer(trainable, torch::optim::AdamOptions(train_config.learning_rate));
 
   // Resume: weights, optimizer state and epoch count from the checkpoint of the same run.
-  const json identity = RunIdentity(model_config, train, seed, uncertainty_head);
+  const json identity = RunIdentity(model_config, train, seed, uncertainty_head, fine_tune);
   int64_t epochs_done = 0;
   if (resume && fs::exists(files.checkpoint_pt)) {
     const json saved = internal::ReadJsonFile(files.checkpoint_json);
@@ -247,6 +313,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
     Shuffle(&order, seed, epoch);
 
     network->train();
+    HoldFrozenParts(network.get(), fine_tune.freeze);
     const std::vector<float> fill = network->MelMean();
     double loss_sum = 0.0, nll_sum = 0.0;
     for (const std::vector<int64_t>& batch_records : MakeBatches(order, train_config.batch_size)) {

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -15,9 +16,12 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "common/test_util.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/learning/learning.h"
+#include "internal/data.h"
+#include "internal/network.h"
 
 namespace sonicboom::learning {
 namespace {
@@ -531,6 +535,89 @@ TEST_F(TrainingTest, ResNetEncodersTrainOneEpoch) {
     const Metrics m = Train(train, val, model, config, kRadius, 1, Dir(encoder), false, false);
     EXPECT_TRUE(std::isfinite(m.med_cm)) << encoder;
   }
+}
+
+// Every parameter and buffer of a run's model.pt, by name.
+std::map<std::string, torch::Tensor> RunWeights(const std::string& run, const FeatureSet& shapes,
+                                                const ModelConfig& model) {
+  internal::Network network(model, internal::ShapesOf(shapes, model), /*uncertainty_head=*/true);
+  torch::serialize::InputArchive archive;
+  archive.load_from(run + "/model.pt");
+  internal::LoadModuleChecked(*network, archive, run);
+  std::map<std::string, torch::Tensor> weights;
+  for (const auto& p : network->named_parameters()) weights[p.key()] = p.value().clone();
+  for (const auto& b : network->named_buffers()) weights[b.key()] = b.value().clone();
+  return weights;
+}
+
+// Names of the weights that a fine-tune changed.
+std::vector<std::string> Changed(const std::map<std::string, torch::Tensor>& before,
+                                 const std::map<std::string, torch::Tensor>& after) {
+  std::vector<std::string> changed;
+  for (const auto& [name, tensor] : before) {
+    if (!torch::equal(tensor, after.at(name))) changed.push_back(name);
+  }
+  return changed;
+}
+
+TEST_F(TrainingTest, FineTuneTrainsOnlyWhatIsNotFrozen) {
+  const FeatureSet train = MakeFeatures(32, 41), val = MakeFeatures(16, 42);
+  Train(train, val, TinyModel(), TinyTraining(2), kRadius, 3, Dir("pre"), false, false);
+  const auto pre = RunWeights(Dir("pre"), train, TinyModel());
+  // a target whose mel levels differ, so refitted statistics differ from the pretrained ones
+  FeatureSet target = MakeFeatures(24, 43);
+  for (float& v : target.mel) v = 2.0f * v + 1.0f;
+  const FeatureSet target_val = MakeFeatures(12, 44);
+
+  auto tune = [&](const std::string& name, FineTune::Freeze freeze, bool refit) {
+    Train(target, target_val, TinyModel(), TinyTraining(2), kRadius, 5, Dir(name), false, false,
+          FineTune{Dir("pre"), freeze, refit});
+    return Changed(pre, RunWeights(Dir(name), train, TinyModel()));
+  };
+  auto starts = [](const std::string& name, const std::string& prefix) {
+    return name.rfind(prefix, 0) == 0;
+  };
+  // encoders frozen: their weights and BatchNorm statistics stay, the rest learns
+  const std::vector<std::string> encoders = tune("enc", FineTune::Freeze::kEncoders, false);
+  ASSERT_FALSE(encoders.empty());
+  for (const std::string& name : encoders) {
+    EXPECT_FALSE(starts(name, "audio_encoder") || starts(name, "gcc_encoder") ||
+                 starts(name, "proprio_encoder") || name == "mel_mean" || name == "mel_std")
+        << name;
+  }
+  EXPECT_TRUE(std::count_if(encoders.begin(), encoders.end(),
+                            [&](const std::string& n) { return starts(n, "head."); }) > 0);
+  // only the heads learn
+  const std::vector<std::string> heads = tune("head", FineTune::Freeze::kAllButHead, false);
+  ASSERT_FALSE(heads.empty());
+  for (const std::string& name : heads) {
+    EXPECT_TRUE(starts(name, "head.") || starts(name, "uncertainty_head.")) << name;
+  }
+  // nothing frozen, statistics refitted on the target: every part moves, mel_mean included
+  const std::vector<std::string> all = tune("all", FineTune::Freeze::kNone, true);
+  for (const char* part : {"audio_encoder", "block0", "mel_mean", "cls_token"}) {
+    EXPECT_TRUE(std::count_if(all.begin(), all.end(),
+                              [&](const std::string& n) { return starts(n, part); }) > 0)
+        << part;
+  }
+}
+
+TEST_F(TrainingTest, FineTuneRefusesAMissingOrMismatchedPretrainedRun) {
+  const FeatureSet train = MakeFeatures(16, 51), val = MakeFeatures(8, 52);
+  EXPECT_THAT(sonicboom::testing::ThrownMessage<IoError>([&] {
+                Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, Dir("a"), false,
+                      false, FineTune{Dir("none"), FineTune::Freeze::kNone, false});
+              }),
+              HasSubstr("none/model.pt: missing"));
+  Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, Dir("pre"), false, false);
+  ModelConfig wider = TinyModel();
+  wider.width = 48;
+  EXPECT_THAT(sonicboom::testing::ThrownMessage<SchemaError>([&] {
+                Train(train, val, wider, TinyTraining(1), kRadius, 1, Dir("b"), false, false,
+                      FineTune{Dir("pre"), FineTune::Freeze::kNone, false});
+              }),
+              HasSubstr("pre/model.pt: tensor"));
+  EXPECT_THROW(ParseFreeze("all"), ConfigError);
 }
 
 }  // namespace

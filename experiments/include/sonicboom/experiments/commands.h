@@ -53,8 +53,16 @@ struct AblateOptions {
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o);
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv);
-CommandResult RunTrain(const GlobalOptions& g, const std::string& data, const std::string& out_dir,
-                       bool resume);
+/// `train`: a fresh run, or a fine-tune of a pretrained run (--init-from).
+struct TrainOptions {
+  std::string data;           // dataset (.h5)
+  std::string out;            // run directory
+  bool resume{false};
+  std::string init_from;      // pretrained run directory; empty: from scratch
+  std::string freeze{"none"}; // none | encoders | all-but-head
+  std::string norm{"keep"};   // keep | refit: the per-mic mel statistics of a fine-tune
+};
+CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
                       const std::string& data);
 /// `localize --method arrival`: the training-free arrival locator on one WAV, configured by the

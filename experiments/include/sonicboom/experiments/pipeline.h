@@ -104,11 +104,11 @@ learning::FeatureSet ComputeRecordFeatures(const Eigen::MatrixXf& audio, double 
 
 /// Splits `all` (rows from `data`, global indices `sample_indices`) into train and validation
 /// with SplitRows and trains config.model with config.train into run_dir. ConfigError naming
-/// `data` when either split would be empty.
+/// `data` when either split would be empty. `fine_tune` starts from a pretrained run.
 learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning::FeatureSet& all,
                                   const std::vector<uint64_t>& sample_indices,
                                   const std::string& data, const std::string& run_dir, bool resume,
-                                  bool quiet);
+                                  bool quiet, const learning::FineTune& fine_tune = {});
 
 /// Splits rows into train and validation by a hash of (seed, sample index): stable under any
 /// reordering or sharding. Returns (train rows, validation rows).

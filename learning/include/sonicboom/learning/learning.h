@@ -147,19 +147,38 @@ double VonMisesCircularStd(double kappa);
 /// log I0(kappa), stable for every kappa >= 0.
 double LogBesselI0(double kappa);
 
+/// Fine-tuning: start from a trained run's weights instead of a fresh initialization.
+struct FineTune {
+  enum class Freeze {
+    kNone,        // every weight trains
+    kEncoders,    // the modality encoders stay as pretrained (their BatchNorm statistics too)
+    kAllButHead,  // only the output heads (point and uncertainty) train
+  };
+  std::string init_from;              // run directory; empty: train from scratch
+  Freeze freeze{Freeze::kNone};
+  bool refit_normalization{false};    // false: keep the pretrained per-mic mel statistics;
+                                      // true: recompute them on the target's training split
+};
+/// "none" | "encoders" | "all-but-head"; ConfigError naming the value otherwise.
+FineTune::Freeze ParseFreeze(const std::string& name);
+
 /// Trains on `train`, validates on `val` each epoch, writes into run_dir:
 /// model.pt (weights + normalization), model.json (ModelConfig + shapes + tube radius +
 /// uncertainty calibration), metrics.jsonl (one line per epoch, uncalibrated uncertainty),
 /// checkpoint.pt (resume). Resumes from run_dir/checkpoint.pt when it exists and `resume` is
 /// set. After the last epoch the predictive distribution is calibrated on `val`
 /// (FitUncertaintyCalibration). `surface_radius_m` is used for the 3-D metrics.
-/// Returns the validation metrics of the final, calibrated model.
+/// Returns the validation metrics of the final, calibrated model. With `fine_tune.init_from`
+/// the network starts from that run's model.pt (same model config and feature shapes, else
+/// SchemaError naming the file), frozen and normalized as `fine_tune` says; the calibration is
+/// refitted on `val` as always.
 /// Process-wide side effects, kept after it returns: torch's intra-op thread count
 /// (train_config.threads) and, with glibc, malloc settings that keep freed memory for reuse
 /// (resident memory stays near its peak; see PrepareTrainingProcess in internal/train_step.h).
 Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
-              const std::string& run_dir, bool resume, bool show_progress);
+              const std::string& run_dir, bool resume, bool show_progress,
+              const FineTune& fine_tune = {});
 
 /// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
 /// spectrogram (the un-augmented crop of training, evaluation and localization).
