@@ -10,6 +10,7 @@ find_package(TBB REQUIRED)
 find_package(HDF5 REQUIRED COMPONENTS C)
 pkg_check_modules(FFTW3 REQUIRED IMPORTED_TARGET fftw3 fftw3f)
 pkg_check_modules(SNDFILE REQUIRED IMPORTED_TARGET sndfile)
+pkg_check_modules(PORTAUDIO REQUIRED IMPORTED_TARGET portaudio-2.0)
 find_package(Torch REQUIRED)
 
 # yaml-cpp 0.7 exports a plain target name

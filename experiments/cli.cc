@@ -214,6 +214,20 @@ int RunCli(int argc, char** argv) {
     run = [&] { return RunExport(g, export_layout, in, out, angle_convention); };
   });
 
+  ListenOptions listen_options;
+  auto* listen = app.add_subcommand("listen", "live localization: strikes from a sound device (or "
+                                              "a WAV read as one), one JSON line each");
+  listen->add_option("--model", listen_options.model, "run directory")->required();
+  listen->add_option("--device", listen_options.device,
+                     "input device, part of its name (ALSA, e.g. hw:1,0); default input if empty");
+  listen->add_option("--wav", listen_options.wav, "read this WAV as the device stream");
+  listen->add_flag("--realtime", listen_options.realtime, "pace the WAV at its sample rate");
+  listen->add_option("--save", listen_options.save, "session directory (capture layout)");
+  listen->add_option("--max-events", listen_options.max_events, "stop after N strikes (0: never)");
+  listen->add_option("--threshold-db", listen_options.threshold_db,
+                     "onset threshold above the noise floor (default 20)");
+  listen->callback([&] { run = [&] { return RunListen(g, listen_options); }; });
+
   auto* fk = app.add_subcommand("fk", "flange and tube poses of the Panda for joint angles");
   fk->add_option("--joints", joints, "q1,...,q7 in rad")->required();
   fk->callback([&] { run = [&] { return RunFk(g, joints); }; });

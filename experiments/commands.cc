@@ -69,15 +69,6 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
   return 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// a run directory's own config: the base layer for eval and localize
-SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_dir) {
-  ConfigSources sources = g.sources;
-  const std::string path = (fs::path(run_dir) / "config.yaml").string();
-  if (!fs::is_directory(run_dir)) throw IoError(fmt::format("{}: no such run directory", run_dir));
-  sources.embedded_yaml = ReadText(path);
-  sources.embedded_name = path;
-  return ResolveConfig(sources);
-}
 
 // features -> train/val split -> training, writing into run_dir
 learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::string& data,
@@ -95,6 +86,15 @@ std::string MetricsRow(const std::string& name, const learning::Metrics& m) {
 
 }  // namespace
 
+SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_dir) {
+  ConfigSources sources = g.sources;
+  const std::string path = (fs::path(run_dir) / "config.yaml").string();
+  if (!fs::is_directory(run_dir)) throw IoError(fmt::format("{}: no such run directory", run_dir));
+  sources.embedded_yaml = ReadText(path);
+  sources.embedded_name = path;
+  return ResolveConfig(sources);
+}
+
 json MetricsJson(const learning::Metrics& m) {
   return {{"n", m.n},
           {"med_cm", m.med_cm},
@@ -106,6 +106,34 @@ json MetricsJson(const learning::Metrics& m) {
           {"theta_coverage_50", m.theta_coverage_50},
           {"theta_coverage_90", m.theta_coverage_90},
           {"nll", m.nll}};
+}
+
+json PredictionJson(const learning::Prediction& p, const TubeConfig& tube, std::string* text) {
+  const Eigen::Vector3d point = SurfacePoint(tube, p.z_m, p.theta_rad);
+  json j = {{"z_m", p.z_m}, {"theta_rad", p.theta_rad}, {"point_m", {point.x(), point.y(), point.z()}},
+            {"frame", "tube"}};
+  *text += fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, {:.4f}, "
+                       "{:.4f}) m in the tube frame\n",
+                       p.z_m, p.theta_rad, point.x(), point.y(), point.z());
+  // the predictive distribution (null for a model without one); the theta interval is
+  // [theta - h, theta + h], not wrapped, so lo < hi also across +-pi
+  j["z_std_m"] = j["theta_std_rad"] = j["theta_kappa"] = nullptr;
+  j["z_interval_90_m"] = j["theta_interval_90_rad"] = nullptr;
+  if (p.has_uncertainty()) {
+    const double z_half = learning::GaussianIntervalHalfWidth(0.9) * p.z_std_m;
+    const double theta_half = learning::VonMisesIntervalHalfWidth(p.theta_kappa, 0.9);
+    const double theta_std = learning::VonMisesCircularStd(p.theta_kappa);
+    j["z_std_m"] = p.z_std_m;
+    j["theta_std_rad"] = theta_std;
+    j["theta_kappa"] = p.theta_kappa;
+    j["z_interval_90_m"] = {p.z_m - z_half, p.z_m + z_half};
+    j["theta_interval_90_rad"] = {p.theta_rad - theta_half, p.theta_rad + theta_half};
+    *text += fmt::format("uncertainty: z std {:.4f} m (90 %: [{:.4f}, {:.4f}] m), theta circular "
+                         "std {:.4f} rad (90 %: [{:.4f}, {:.4f}] rad, kappa {:.3g})\n",
+                         p.z_std_m, p.z_m - z_half, p.z_m + z_half, theta_std,
+                         p.theta_rad - theta_half, p.theta_rad + theta_half, p.theta_kappa);
+  }
+  return j;
 }
 
 const std::string& DemoConfigYaml() {
@@ -476,32 +504,11 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
     median[i] = repeat % 2 == 1 ? *upper : 0.5 * (*upper + *std::max_element(v.begin(), upper));
   }
   const double median_ms = median[0];
-  const Eigen::Vector3d point = SurfacePoint(config.tube, p.z_m, p.theta_rad);
-  json j = {{"z_m", p.z_m}, {"theta_rad", p.theta_rad}, {"point_m", {point.x(), point.y(), point.z()}},
-            {"frame", "tube"}, {"latency_ms", median_ms}, {"setup_ms", setup_ms},
-            {"latency_breakdown_ms",
-             {{"read", median[1]}, {"features", median[2]}, {"network", median[3]}}}};
-  // the predictive distribution (null for a model without one); the theta interval is
-  // [theta - h, theta + h], not wrapped, so lo < hi also across +-pi
-  std::string text = fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, "
-                                 "{:.4f}, {:.4f}) m in the tube frame\n",
-                                 p.z_m, p.theta_rad, point.x(), point.y(), point.z());
-  j["z_std_m"] = j["theta_std_rad"] = j["theta_kappa"] = nullptr;
-  j["z_interval_90_m"] = j["theta_interval_90_rad"] = nullptr;
-  if (p.has_uncertainty()) {
-    const double z_half = learning::GaussianIntervalHalfWidth(0.9) * p.z_std_m;
-    const double theta_half = learning::VonMisesIntervalHalfWidth(p.theta_kappa, 0.9);
-    const double theta_std = learning::VonMisesCircularStd(p.theta_kappa);
-    j["z_std_m"] = p.z_std_m;
-    j["theta_std_rad"] = theta_std;
-    j["theta_kappa"] = p.theta_kappa;
-    j["z_interval_90_m"] = {p.z_m - z_half, p.z_m + z_half};
-    j["theta_interval_90_rad"] = {p.theta_rad - theta_half, p.theta_rad + theta_half};
-    text += fmt::format("uncertainty: z std {:.4f} m (90 %: [{:.4f}, {:.4f}] m), theta circular "
-                        "std {:.4f} rad (90 %: [{:.4f}, {:.4f}] rad, kappa {:.3g})\n",
-                        p.z_std_m, p.z_m - z_half, p.z_m + z_half, theta_std,
-                        p.theta_rad - theta_half, p.theta_rad + theta_half, p.theta_kappa);
-  }
+  std::string text;
+  json j = PredictionJson(p, config.tube, &text);
+  j["latency_ms"] = median_ms;
+  j["setup_ms"] = setup_ms;
+  j["latency_breakdown_ms"] = {{"read", median[1]}, {"features", median[2]}, {"network", median[3]}};
   text += fmt::format("latency {:.1f} ms from WAV read to answer (median of {}: read {:.1f}, "
                       "features {:.1f}, network {:.1f}); set-up {:.0f} ms\n",
                       median_ms, repeat, median[1], median[2], median[3], setup_ms);

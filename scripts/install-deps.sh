@@ -16,6 +16,8 @@ packages=(
   # I/O and CLI
   libsndfile1-dev libhdf5-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
   libspdlog-dev libfmt-dev
+  # live capture (sonicboom listen): PortAudio over ALSA
+  portaudio19-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # plots and reference values (Debian's python, /usr/bin/python3)

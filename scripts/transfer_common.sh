@@ -1,6 +1,7 @@
-# Shared by scripts/transfer_ablation.sh and scripts/transfer_benchmark.sh (sourced, after ROOT,
-# OUT, BIN and THREADS are set): the stationary ts4 scene, the randomized preset, the switch that
-# turns its structure pool off, and a resumable dataset generator.
+# Shared by scripts/transfer_ablation.sh, scripts/transfer_benchmark.sh and
+# scripts/fewshot_study.sh (sourced, after ROOT, OUT, BIN and THREADS are set): the stationary ts4
+# scene, the randomized preset, the switch that turns its structure pool off, the held-out
+# families' settings (transfer_benchmark.sh describes them), and a resumable dataset generator.
 TS4=(--config "$ROOT/configs/ts4.yaml" --set scene.stationary.z_grid_m=0)
 RAND=(--config "$ROOT/configs/randomized.yaml")
 # a family keeps the preset's strikers and sensor chain but has one structure of its own
@@ -8,6 +9,21 @@ ONE=(--set randomize.structure_variants=0 --set 'randomize.bolt_count=[]'
      --set 'randomize.bolt_z_jitter_m=[]' --set 'randomize.bolt_stiffness_scale=[]'
      --set 'randomize.flange_mount_scale=[]' --set 'randomize.tool_mount_scale=[]'
      --set 'randomize.poisson_ratio=[]')
+
+# the config arguments of a held-out family (with RAND and ONE)
+family_args() {
+  case $1 in
+    in) echo "" ;;
+    bolts) echo "--set shell.bolt_z_m=[-0.13,-0.0867,-0.0433,0,0.0433,0.0867,0.13] --set shell.bolt_stiffness_n_m=6.0e6" ;;
+    stiff) echo "--set shell.flange_mount_stiffness_n_m2=1.0e8 --set shell.tool_mount_stiffness_n_m2=2.0e7" ;;
+    loose) echo "--set shell.flange_mount_stiffness_n_m2=2.5e5 --set shell.tool_mount_stiffness_n_m2=5.0e4" ;;
+    modulus) echo "--set material.youngs_modulus_pa=2.1e9 --set randomize.youngs_modulus_scale=[] --set randomize.temperature_c=[]" ;;
+    mics) echo "--set mics.z_m=[-0.1345,-0.1255,-0.1340,0.1255,0.1345,0.1260] --set mics.theta_deg=[4.5,115.5,244.5,-4.0,124.5,235.5] --set randomize.mic_z_offset_m=[] --set randomize.mic_theta_offset_deg=[]" ;;
+    fine) echo "--set shell.axial_spacing_m=0.0025" ;;
+    chain) echo "--set shell.bolt_model=tie --set daq.input_resistance_ohm=99500 --set randomize.highpass_hz=[] --set randomize.hum_hz=[50,50] --set randomize.hum_rms_v=[3.0e-3,3.0e-3] --set randomize.hum_harmonics=9" ;;
+    halfspace) echo "--set acoustics.contact.wall=rigid" ;;
+  esac
+}
 
 gen() {  # name first_index count config-args...: OUT/name.h5 unless it exists, with its wall time
   local name=$1 first=$2 count=$3; shift 3

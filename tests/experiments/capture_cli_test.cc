@@ -4,10 +4,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/dataset.h"
 
 namespace sonicboom {
 namespace {
@@ -56,6 +59,40 @@ TEST(CaptureCliTest, ExportImportRoundTripServesEveryDatasetCommand) {
   ASSERT_EQ(a.exit_code, 0) << a.err;
   ASSERT_EQ(b.exit_code, 0) << b.err;
   EXPECT_EQ(json::parse(a.out), json::parse(b.out));
+
+  // a session: three strikes in one stream are heard at their onsets, localized and saved in
+  // the capture layout, which imports once the measured labels are filled in
+  Eigen::MatrixXf stream(6, 0);
+  for (int k = 0; k < 3; ++k) {
+    const AudioClip clip = ReadWav(dir / ("trials/trial" + std::to_string(k) + "/mic2.wav"));
+    stream.conservativeResize(Eigen::NoChange, stream.cols() + clip.frames());
+    stream.rightCols(clip.frames()) = clip.samples;
+  }
+  WriteWav(dir / "stream.wav", AudioClip{stream, 44100.0});
+  run = RunCli("listen --model RUN --wav stream.wav --save sess --json -q", cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  std::vector<json> lines;
+  std::istringstream out(run.out);
+  for (std::string line; std::getline(out, line);) lines.push_back(json::parse(line));
+  ASSERT_EQ(lines.size(), 4u) << run.out;
+  EXPECT_EQ(lines[3]["events"], 3);
+  DatasetReader original(dir / "D.h5");
+  std::ofstream labels(dir / "sess/labels.csv");
+  labels << "file,z_m,theta_rad\n";
+  for (int k = 0; k < 3; ++k) {
+    const ContactLabel truth = original.ReadMeta(k).label;
+    EXPECT_NEAR(lines[k]["onset_s"].get<double>(), 0.6 * k + truth.time_s, 0.002) << k;
+    EXPECT_GT(lines[k]["latency_ms"].get<double>(), 0.0);
+    labels << lines[k]["file"].get<std::string>() << "," << truth.z_m << "," << truth.theta_rad << "\n";
+  }
+  labels.close();
+  run = RunCli("import --layout capture --in sess --out S.h5 --min-duration-s 0.5 --json -q", cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json::parse(run.out)["imported"], 3);
+  // the saved session is a listener's own record: saving into it again is refused
+  run = RunCli("listen --model RUN --wav stream.wav --save sess -q", cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("already holds a session"), std::string::npos) << run.err;
 }
 
 TEST(CaptureCliTest, RefusesToOverwriteAndNamesBadInput) {

@@ -100,6 +100,20 @@ struct ImportOptions {
   bool force{false};                     // replace an existing output
 };
 CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o);
+/// `listen`: live localization. Strikes are cut from a device stream (or a WAV read as one) by
+/// an energy-onset trigger, localized by a trained run, printed one JSON line each as they
+/// happen (with the latency from the onset's arrival to the answer) and, with `save`, written
+/// in the capture layout (docs/captures.md).
+struct ListenOptions {
+  std::string model;          // run directory
+  std::string device;         // input device (part of its name); empty: the default input
+  std::string wav;            // read this WAV as the stream instead of a device
+  bool realtime{false};       // pace a WAV stream at its sample rate, as a device delivers it
+  std::string save;           // session directory; empty: save nothing
+  int64_t max_events{0};      // stop after this many strikes; 0: at the end of the stream
+  double threshold_db{20.0};  // onset: frame energy this far above the noise floor
+};
+CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o);
 CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
                         const std::string& out, const std::string& angle_convention);
 CommandResult RunInspect(const GlobalOptions& g, const std::string& path);
