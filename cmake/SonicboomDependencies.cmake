@@ -12,6 +12,7 @@ pkg_check_modules(FFTW3 REQUIRED IMPORTED_TARGET fftw3 fftw3f)
 pkg_check_modules(SNDFILE REQUIRED IMPORTED_TARGET sndfile)
 pkg_check_modules(PORTAUDIO REQUIRED IMPORTED_TARGET portaudio-2.0)
 find_package(Torch REQUIRED)
+find_package(embree 3 REQUIRED)
 
 # yaml-cpp 0.7 exports a plain target name
 if(TARGET yaml-cpp AND NOT TARGET yaml-cpp::yaml-cpp)

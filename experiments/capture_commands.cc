@@ -40,6 +40,18 @@ hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const Import
   s.tube_pose_from_joints = [center_m](const std::array<double, 7>& q) {
     return sim::PandaForwardKinematics(sim::JointVector(q.data()), center_m).tube;
   };
+  // labels from geometry: the object prepared once for every trial
+  if (!o.object.empty()) {
+    if (s.layout != hardware::Layout::kTrial) {
+      throw ConfigError("--object labels trials from their joint logs: it needs --layout trial");
+    }
+    hardware::ContactRule rule;
+    rule.outer_radius_m = config.tube.outer_radius_m;
+    rule.length_m = config.tube.length_m;
+    rule.tolerance_m = o.contact_tolerance_m;
+    s.labeler = std::make_shared<const hardware::ContactLabeler>(
+        hardware::ReadObjectGeometry(o.object, o.object_scale), rule);
+  }
   return s;
 }
 

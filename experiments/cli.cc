@@ -199,6 +199,13 @@ int RunCli(int argc, char** argv) {
                      "tube (docs/conventions.md) | j7 (published joint-7 angle)");
   import->add_option("--min-duration-s", import_options.min_duration_s,
                      "shorter captures are bad (default 1.5)");
+  import->add_option("--object", import_options.object,
+                     "label trials from geometry: the object (ply, obj, stl, pts, xyz, robot base "
+                     "frame) met by the tube placed from each trial's q_t.npy");
+  import->add_option("--object-scale", import_options.object_scale,
+                     "object units to metres (0.001 for millimetres)");
+  import->add_option("--contact-tolerance-m", import_options.contact_tolerance_m,
+                     "contact when the object comes this close (default 0.002)");
   import->add_flag("--skip-bad", import_options.skip_bad,
                    "import the good captures when some are bad (they are listed)");
   import->add_flag("--force", import_options.force, "replace an existing output");

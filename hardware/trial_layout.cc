@@ -10,6 +10,7 @@
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/hardware/geometry.h"
 #include "sonicboom/hardware/import.h"
 #include "sonicboom/hardware/npy.h"
 #include "internal/import_common.h"
@@ -74,9 +75,35 @@ Eigen::MatrixXf TrialProprio(const fs::path& dir, const ImportSettings& s) {
   return p;
 }
 
+// The label where the tube, placed by the joint log, first meets the object.
+void LabelFromGeometry(const fs::path& dir, const ImportSettings& s, StrikeSample* sample) {
+  const fs::path q_file = dir / "q_t.npy";
+  if (!fs::exists(q_file) || !s.tube_pose_from_joints) {
+    throw IoError(fmt::format("{}: missing; labels from geometry need the joint log", q_file.string()));
+  }
+  const NpyArray q = ReadTable(q_file, 1, {7});
+  std::vector<Eigen::Isometry3d> poses;
+  for (int64_t r = 0; r < q.rows(); ++r) {
+    std::array<double, 7> joints;
+    std::copy_n(&q.data[r * 7], 7, joints.begin());
+    poses.push_back(s.tube_pose_from_joints(joints));
+  }
+  try {
+    const GeometryLabel label = s.labeler->Label(poses);
+    internal::SetLabel(label.z_m, label.theta_rad, s, q_file.string(), sample);
+  } catch (const IoError& e) {
+    throw IoError(fmt::format("{}: {}", q_file.string(), e.what()));
+  }
+}
+
 StrikeSample LoadTrial(const fs::path& dir, const ImportSettings& s) {
   StrikeSample sample;
   sample.audio = internal::CheckedRecord((dir / "mic2.wav").string(), s);
+  sample.proprio = TrialProprio(dir, s);
+  if (s.labeler) {
+    LabelFromGeometry(dir, s, &sample);
+    return sample;
+  }
   const fs::path label_file = dir / "gt_label.npy";
   const NpyArray label = ReadNpy(label_file.string());
   if (label.data.size() != 2) {
@@ -89,7 +116,6 @@ StrikeSample LoadTrial(const fs::path& dir, const ImportSettings& s) {
   }
   internal::SetLabel(label.data[0], TubeAngleFrom(label.data[1], s.angle), s,
                      label_file.string(), &sample);
-  sample.proprio = TrialProprio(dir, s);
   return sample;
 }
 

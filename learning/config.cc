@@ -103,6 +103,7 @@ void TrainConfig::Serialize(Archive* a) {
   a->Visit("time_mask_frames", &time_mask_frames, Bounds::NonNegative());
   a->Visit("freq_mask_bands", &freq_mask_bands, Bounds::NonNegative());
   a->Visit("normalize", &normalize);
+  a->Visit("keep_best", &keep_best);
   a->Visit("threads", &threads, Bounds::NonNegative());
 }
 

@@ -38,7 +38,10 @@ struct RunFiles {
         model_json((dir / "model.json").string()),
         checkpoint_pt((dir / "checkpoint.pt").string()),
         checkpoint_json((dir / "checkpoint.json").string()),
-        metrics((dir / "metrics.jsonl").string()) {}
+        metrics((dir / "metrics.jsonl").string()),
+        best_pt((dir / "best.pt").string()),
+        best_json((dir / "best.json").string()) {}
+  std::string best_pt, best_json;  // train.keep_best: the best epoch so far and its loss
 };
 
 // Fisher-Yates shuffle of `order` driven by the epoch's own generator.
@@ -295,11 +298,20 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
     TrimMetrics(files.metrics, epochs_done);
     if (show_progress) spdlog::info("resuming {} after epoch {}", run_dir, epochs_done);
   } else {
-    for (const std::string& stale : {files.checkpoint_pt, files.checkpoint_json, files.metrics}) {
+    for (const std::string& stale : {files.checkpoint_pt, files.checkpoint_json, files.metrics,
+                                     files.best_pt, files.best_json}) {
       fs::remove(stale, ec);
     }
   }
 
+  // train.keep_best: the lowest validation loss so far (from best.json on resume)
+  double best_loss = std::numeric_limits<double>::infinity();
+  int64_t best_epoch = 0;
+  if (train_config.keep_best && epochs_done > 0 && fs::exists(files.best_json)) {
+    const json best = internal::ReadJsonFile(files.best_json);
+    best_loss = best.at("val_loss").get<double>();
+    best_epoch = best.at("epoch").get<int64_t>();
+  }
   Metrics val_metrics;
   double seconds_sum = 0.0;
   for (int64_t epoch = epochs_done; epoch < train_config.epochs; ++epoch) {
@@ -353,6 +365,13 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
               {"epoch_seconds", seconds}};
     if (uncertainty_head) line["train_nll"] = train_nll;
     AppendLine(files.metrics, line.dump());
+    if (train_config.keep_best && std::isfinite(val_loss) && val_loss < best_loss) {
+      best_loss = val_loss;
+      best_epoch = epoch + 1;
+      internal::SaveModuleAtomically(*network, files.best_pt);
+      internal::WriteFileAtomically(
+          files.best_json, json{{"epoch", best_epoch}, {"val_loss", best_loss}}.dump() + "\n");
+    }
     internal::WriteFileAtomically(
         files.checkpoint_json,
         json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
@@ -367,6 +386,17 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
           epoch + 1, train_config.epochs, train_loss, val_loss, val_metrics.med_cm,
           val_metrics.height_err_cm, val_metrics.angle_err_deg, lr, seconds, FormatDuration(eta));
     }
+  }
+  // train.keep_best: the best epoch's weights are the model
+  if (train_config.keep_best && best_epoch > 0) {
+    torch::serialize::InputArchive archive;
+    try {
+      archive.load_from(files.best_pt);
+    } catch (const c10::Error& e) {
+      throw SchemaError(fmt::format("{}: unreadable: {}", files.best_pt, e.what_without_backtrace()));
+    }
+    internal::LoadModuleChecked(*network, archive, files.best_pt);
+    if (show_progress) spdlog::info("keeping epoch {} (lowest validation loss {:.4g})", best_epoch, best_loss);
   }
   // Post-hoc calibration of the predictive distribution on the validation split: one scale
   // for sigma_z, one for kappa, each minimizing the mean validation NLL.

@@ -10,6 +10,9 @@
 # Families (scripts/transfer_common.sh): the preset's strikers and sensor chain on one structure
 # outside the training ranges. Each family gets a pool (sample indices 300000 on; the first n are
 # the n target strikes) and a held-out test part (200 strikes from index 310000).
+# Both train on 80 % of the n strikes and calibrate their intervals on the other 20 %; with
+# KEEP_BEST=true (environment) both also keep the epoch with the lowest loss on those 20 %
+# (train.keep_best).
 # Selection: the freeze mode and learning rate of the fine-tune are chosen at n = 50 on the
 # `loose` family's held-out part (a validation family, never reported as a test); the test
 # families are evaluated once per cell, with that setting. Resumable. Output: OUT/table.md,
@@ -28,6 +31,7 @@ SHOTS="10 25 50 100 400"
 FREEZES="none encoders all-but-head"
 RATES="0.0001 0.0003 0.001"
 EPOCHS=40
+KEEP_BEST=${KEEP_BEST:-false}
 
 data() {  # family: its pool prefixes and held-out part
   local f=$1 n
@@ -44,13 +48,13 @@ evaluate() {  # run family: OUT/eval_<run>.json once
 }
 tune() {  # name family n freeze lr
   [ -f "$OUT/$1/model.pt" ] || "$BIN" --threads "$THREADS" -q train --init-from "$PRE" \
-    --freeze "$4" --lr "$5" --epochs "$EPOCHS" --data "$OUT/pool_$2_$3.h5" --out "$OUT/$1" \
+    --freeze "$4" --lr "$5" --epochs "$EPOCHS" --set train.keep_best=$KEEP_BEST --data "$OUT/pool_$2_$3.h5" --out "$OUT/$1" \
     --resume --json > "$OUT/train_$1.json"
   evaluate "$1" "$OUT/$1" "$2"
 }
 scratch() {  # name family n
   [ -f "$OUT/$1/model.pt" ] || "$BIN" "${TS4[@]}" "${RAND[@]}" --config "$ROOT/configs/transfer.yaml" \
-    --threads "$THREADS" -q train --data "$OUT/pool_$2_$3.h5" --out "$OUT/$1" --resume \
+    --set train.keep_best=$KEEP_BEST --threads "$THREADS" -q train --data "$OUT/pool_$2_$3.h5" --out "$OUT/$1" --resume \
     --json > "$OUT/train_$1.json"
   evaluate "$1" "$OUT/$1" "$2"
 }

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <array>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -11,6 +13,8 @@
 #include "common/test_util.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
+#include "sonicboom/hardware/npy.h"
+#include "sonicboom/sim/franka.h"
 
 namespace sonicboom {
 namespace {
@@ -116,6 +120,64 @@ TEST(CaptureCliTest, RefusesToOverwriteAndNamesBadInput) {
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(kept), {}), "keep");
   EXPECT_FALSE(fs::exists(dir / "C.h5"));
   EXPECT_FALSE(fs::exists(dir / "T"));
+}
+
+// A closed 24-sided rod mesh as binary STL: radius r, length l, along unit u through c.
+void WriteRodStl(const std::string& path, const Eigen::Vector3d& c, const Eigen::Vector3d& u,
+                 double r, double l) {
+  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+  std::vector<std::array<Eigen::Vector3f, 3>> triangles;
+  const int sides = 24;
+  auto at = [&](int k, double s) {
+    const double t = 2 * M_PI * k / sides;
+    return Eigen::Vector3f((c + s * 0.5 * l * u + r * (std::cos(t) * a + std::sin(t) * b)).cast<float>());
+  };
+  for (int k = 0; k < sides; ++k) {
+    triangles.push_back({at(k, -1), at(k + 1, -1), at(k, 1)});
+    triangles.push_back({at(k + 1, -1), at(k + 1, 1), at(k, 1)});
+  }
+  std::ofstream out(path, std::ios::binary);
+  out << std::string(80, ' ');
+  const uint32_t n = static_cast<uint32_t>(triangles.size());
+  out.write(reinterpret_cast<const char*>(&n), 4);
+  for (const auto& t : triangles) {
+    const float zero[3] = {0, 0, 0};
+    out.write(reinterpret_cast<const char*>(zero), 12);
+    for (const Eigen::Vector3f& v : t) out.write(reinterpret_cast<const char*>(v.data()), 12);
+    out.write("\0\0", 2);
+  }
+}
+
+TEST(CaptureCliTest, ImportLabelsTrialsFromTheJointLogAndAnObjectMesh) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  ASSERT_EQ(RunCli(kTiny + "generate --count 2 --out D.h5 -q", cwd).exit_code, 0);
+  ASSERT_EQ(RunCli("export --in D.h5 --out trials -q", cwd).exit_code, 0);
+  // the arm holds still at q; a rod touches the tube at (z0, theta0) = (0.04 m, 1.0 rad) in
+  // trial 0; in trial 1 the base is turned and the tube never comes near it
+  const double q[7] = {0.1, -0.3, 0.05, -2.0, 0.02, 1.9, 0.7};
+  const Eigen::Isometry3d tube =
+      sim::PandaForwardKinematics(sim::JointVector(q), 0.155).tube;
+  const Eigen::Vector3d n(std::cos(1.0), std::sin(1.0), 0.0), t(-std::sin(1.0), std::cos(1.0), 0.0);
+  WriteRodStl(dir / "rod.stl", tube * ((0.05355 + 0.011) * n + Eigen::Vector3d(0, 0, 0.04)),
+              tube.linear() * (0.8 * t + 0.6 * Eigen::Vector3d::UnitZ()), 0.011, 0.4);
+  std::vector<double> log;
+  for (int r = 0; r < 200; ++r) log.insert(log.end(), q, q + 7);
+  hardware::WriteNpy(dir / "trials/trial0/q_t.npy", {200, 7}, log);
+  for (int r = 0; r < 200; ++r) log[r * 7] = 1.6;  // the base turned: the tube far from the rod
+  hardware::WriteNpy(dir / "trials/trial1/q_t.npy", {200, 7}, log);
+  auto run = RunCli(kTiny + "import --layout trial --in trials --out G.h5 --object rod.stl "
+                            "--min-duration-s 0.5 --skip-bad --json -q",
+                    cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json report = json::parse(run.out);
+  EXPECT_EQ(report["imported"], 1);
+  ASSERT_EQ(report["bad"].size(), 1u);
+  EXPECT_NE(report["bad"][0]["reason"].get<std::string>().find("trial1/q_t.npy: no contact"),
+            std::string::npos) << run.out;
+  const ContactLabel label = DatasetReader(dir / "G.h5").ReadMeta(0).label;
+  EXPECT_NEAR(label.z_m, 0.04, 5e-4);
+  EXPECT_NEAR(label.theta_rad, 1.0, 5e-4 / 0.05355);
 }
 
 }  // namespace

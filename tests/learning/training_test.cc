@@ -620,5 +620,36 @@ TEST_F(TrainingTest, FineTuneRefusesAMissingOrMismatchedPretrainedRun) {
   EXPECT_THROW(ParseFreeze("all"), ConfigError);
 }
 
+TEST_F(TrainingTest, KeepBestSavesTheEpochWithTheLowestValidationLoss) {
+  const FeatureSet train = MakeFeatures(24, 61), val = MakeFeatures(12, 62);
+  TrainConfig config = TinyTraining(6);
+  config.keep_best = true;
+  config.learning_rate = 2e-2;  // a rate that makes the validation loss jump about
+  Train(train, val, TinyModel(), config, kRadius, 9, Dir("best"), false, false);
+  // best.json names the minimum of metrics.jsonl's validation losses
+  double lowest = std::numeric_limits<double>::infinity();
+  int64_t lowest_epoch = 0;
+  for (const nlohmann::json& line : ReadMetricsLines(Dir("best"))) {
+    if (line["val_loss"].get<double>() < lowest) {
+      lowest = line["val_loss"].get<double>();
+      lowest_epoch = line["epoch"].get<int64_t>();
+    }
+  }
+  std::ifstream in(fs::path(Dir("best")) / "best.json");
+  const nlohmann::json best = nlohmann::json::parse(in);
+  EXPECT_EQ(best["epoch"].get<int64_t>(), lowest_epoch);
+  EXPECT_LT(lowest_epoch, 6) << "this check needs a best epoch before the last";
+  EXPECT_DOUBLE_EQ(best["val_loss"].get<double>(), lowest);
+  // the model is that epoch's network
+  internal::Network network(TinyModel(), internal::ShapesOf(train, TinyModel()), true);
+  torch::serialize::InputArchive archive;
+  archive.load_from(Dir("best") + "/best.pt");
+  internal::LoadModuleChecked(*network, archive, "best.pt");
+  std::map<std::string, torch::Tensor> at_best;
+  for (const auto& p : network->named_parameters()) at_best[p.key()] = p.value();
+  for (const auto& b : network->named_buffers()) at_best[b.key()] = b.value();
+  EXPECT_TRUE(Changed(at_best, RunWeights(Dir("best"), train, TinyModel())).empty());
+}
+
 }  // namespace
 }  // namespace sonicboom::learning

@@ -96,6 +96,9 @@ struct ImportOptions {
   std::string out;                       // dataset (.h5)
   std::string angle_convention{"tube"};  // tube | j7
   double min_duration_s{1.5};
+  std::string object;                    // labels from geometry: mesh or point cloud (trial layout)
+  double object_scale{1.0};              // object file units to metres (0.001: millimetres)
+  double contact_tolerance_m{0.002};     // contact when the object comes this close
   bool skip_bad{false};
   bool force{false};                     // replace an existing output
 };

@@ -9,10 +9,12 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "sonicboom/core/dataset.h"
+#include "sonicboom/hardware/geometry.h"
 
 namespace sonicboom::hardware {
 
@@ -46,6 +48,10 @@ struct ImportSettings {
   /// Tube pose (base frame) for a joint vector, used when x_t.npy has no orientation
   /// (3 columns) and q_t.npy is present; unset: such trials are bad.
   std::function<Eigen::Isometry3d(const std::array<double, 7>&)> tube_pose_from_joints;
+  /// Labels from geometry (trial layout): when set, each trial's label is where the tube, placed
+  /// by forward kinematics of every row of its q_t.npy, first meets this object; gt_label.npy is
+  /// not read, and a trial without q_t.npy or without a contact is bad.
+  std::shared_ptr<const ContactLabeler> labeler;
 };
 
 /// One capture that could not be imported, and why.

@@ -55,6 +55,9 @@ struct TrainConfig {
   int64_t time_mask_frames{40};
   int64_t freq_mask_bands{5};
   bool normalize{true};                    // per-mic normalization, train-split statistics
+  // Save the epoch with the lowest validation loss instead of the last (early stopping without
+  // stopping: every epoch still runs). Meant for fine-tuning on few strikes.
+  bool keep_best{false};
   int64_t threads{0};                      // intra-op threads, 0 = all cores
 
   void Serialize(Archive* a);
