@@ -169,12 +169,12 @@ TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
                                      "loss_weight_cos", "loss_weight_sin",
                                      "uncertainty_weight", "augment", "time_shift_frames",
                                      "time_mask_frames", "freq_mask_bands", "normalize",
-                                     "threads"));
+                                     "keep_best", "threads"));
   EXPECT_FALSE(archive.bounds[1].Contains(0.0));   // batch_size
   EXPECT_FALSE(archive.bounds[2].Contains(0.0));   // learning_rate
   EXPECT_TRUE(archive.bounds[9].Contains(0.0));    // uncertainty_weight: 0 disables
   EXPECT_FALSE(archive.bounds[9].Contains(-0.1));
-  EXPECT_TRUE(archive.bounds[15].Contains(0.0));   // threads
+  EXPECT_TRUE(archive.bounds[16].Contains(0.0));   // threads
 }
 
 // Runs `f` and returns the ConfigError message ("" when nothing was thrown).
