@@ -11,6 +11,13 @@
 
 namespace sonicboom::testing {
 
+// CLI arguments of the end-to-end tests: short records (0.6 s, the onset at 0.25 s) and a tiny
+// network (width 16, one block, two heads, batches of 8) keep each run to seconds.
+inline const std::string kShortRecordArgs =
+    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 ";
+inline const std::string kTinyModelArgs =
+    "--set model.width=16 --set model.blocks=1 --set model.heads=2 --set train.batch_size=8 ";
+
 // A fresh directory under the system temp dir, removed with the object.
 class TempDir {
  public:

@@ -17,10 +17,8 @@ namespace fs = std::filesystem;
 using testing::RunCli;
 using testing::TempDir;
 
-// short records and a tiny model keep the run to seconds
 const std::string kTiny =
-    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 --set model.width=16 "
-    "--set model.blocks=1 --set model.heads=2 --set train.epochs=1 --set train.batch_size=8 ";
+    testing::kShortRecordArgs + testing::kTinyModelArgs + "--set train.epochs=1 ";
 
 void Write(const fs::path& path, const std::string& text) {
   fs::create_directories(path.parent_path());

@@ -18,8 +18,7 @@ using testing::RunCli;
 using testing::TempDir;
 
 // short records keep the end-to-end test fast
-const std::string kShort =
-    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 ";
+const std::string kShort = testing::kShortRecordArgs;
 
 void ExpectMetricsKeys(const json& j) {
   for (const char* key : {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm",

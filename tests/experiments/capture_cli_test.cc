@@ -24,10 +24,8 @@ namespace fs = std::filesystem;
 using testing::RunCli;
 using testing::TempDir;
 
-// short records and a tiny network keep this fast
 const std::string kTiny =
-    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 --set model.width=16 "
-    "--set model.blocks=1 --set model.heads=2 --set train.epochs=2 --set train.batch_size=8 ";
+    testing::kShortRecordArgs + testing::kTinyModelArgs + "--set train.epochs=2 ";
 
 TEST(CaptureCliTest, ExportImportRoundTripServesEveryDatasetCommand) {
   TempDir dir;

@@ -20,8 +20,7 @@ using testing::RunCli;
 using testing::TempDir;
 
 // a short record keeps the end-to-end tests fast
-const std::string kShort =
-    "--set audio.record_duration_s=0.6 --set audio.onset_time_s=0.25 ";
+const std::string kShort = testing::kShortRecordArgs;
 
 TEST(CliTest, HelpListsEverySubcommand) {
   TempDir dir;
@@ -126,9 +125,7 @@ TEST(CliTest, FeaturesOfSynthWav) {
 
 TEST(CliTest, TrainEvalLocalizeTinyModel) {
   TempDir dir;
-  const std::string tiny = kShort +
-      "--set model.width=16 --set model.blocks=1 --set model.heads=2 --set train.epochs=2 "
-      "--set train.batch_size=8 ";
+  const std::string tiny = kShort + testing::kTinyModelArgs + "--set train.epochs=2 ";
   auto run = RunCli(tiny + "generate --count 30 --out D.h5 -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
