@@ -235,6 +235,14 @@ int RunCli(int argc, char** argv) {
                      "onset threshold above the noise floor (default 20)");
   listen->callback([&] { run = [&] { return RunListen(g, listen_options); }; });
 
+  int64_t check_count = 100;
+  std::string check_out;
+  auto* geometry_check = app.add_subcommand(
+      "geometry-check", "labels from geometry against the simulator's labels on MuJoCo strikes");
+  geometry_check->add_option("--count", check_count, "strikes (default 100)");
+  geometry_check->add_option("--out", check_out, "write the result line to this file");
+  geometry_check->callback([&] { run = [&] { return RunGeometryCheck(g, check_count, check_out); }; });
+
   auto* fk = app.add_subcommand("fk", "flange and tube poses of the Panda for joint angles");
   fk->add_option("--joints", joints, "q1,...,q7 in rad")->required();
   fk->callback([&] { run = [&] { return RunFk(g, joints); }; });

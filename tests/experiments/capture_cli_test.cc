@@ -178,5 +178,21 @@ TEST(CaptureCliTest, ImportLabelsTrialsFromTheJointLogAndAnObjectMesh) {
   EXPECT_NEAR(label.theta_rad, 1.0, 5e-4 / 0.05355);
 }
 
+TEST(CaptureCliTest, GeometryLabelsAgreeWithTheSimulatorOnMuJoCoStrikes) {
+  TempDir dir;
+  const auto run = RunCli("geometry-check --count 12 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json j = json::parse(run.out);
+  EXPECT_GE(j["labelled"].get<int>(), 10);
+  EXPECT_EQ(j["failures"], 0);
+  EXPECT_LT(j["median_mm"].get<double>(), 1.0);
+  EXPECT_LT(j["worst_mm"].get<double>(), 3.0);
+  const auto bad = RunCli("--config " + std::string(SONICBOOM_SOURCE_DIR) +
+                              "/configs/ts4.yaml geometry-check --count 2",
+                          dir.path().string());
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("needs scene.mode strike or guided"), std::string::npos) << bad.err;
+}
+
 }  // namespace
 }  // namespace sonicboom

@@ -116,6 +116,10 @@ struct ListenOptions {
   int64_t max_events{0};      // stop after this many strikes; 0: at the end of the stream
   double threshold_db{20.0};  // onset: frame energy this far above the noise floor
 };
+/// `geometry-check`: the first `count` strikes of the scene (mode strike or guided) relabelled
+/// from geometry (each strike's object as a mesh, its logged tube poses) against the simulator's
+/// labels: median, p95 and worst surface error, failures (docs/captures.md).
+CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std::string& out_md);
 CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o);
 CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
                         const std::string& out, const std::string& angle_convention);
