@@ -25,7 +25,7 @@ hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const Import
   s.angle = hardware::ParseAngleConvention(o.angle_convention);
   s.sample_rate_hz = config.audio.sample_rate_hz;
   s.channels = config.mics.count();
-  s.record_frames = std::llround(config.audio.record_duration_s * config.audio.sample_rate_hz);
+  s.record_frames = config.audio.num_samples();
   if (!(o.min_duration_s > 0.0) || !std::isfinite(o.min_duration_s)) {
     throw ConfigError(fmt::format("--min-duration-s {} must be positive", o.min_duration_s));
   }

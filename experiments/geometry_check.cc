@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <numbers>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -12,6 +11,7 @@
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
+#include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/hardware/geometry.h"
 #include "sonicboom/sim/rollout.h"
@@ -20,37 +20,13 @@ namespace sonicboom::experiments {
 namespace {
 
 using nlohmann::json;
-constexpr double kPi = std::numbers::pi;
 
-// The object's cylinders as 24-sided prisms with end caps, in the base frame.
+// The object's cylinders as 24-sided capped prisms, in the base frame.
 hardware::ObjectGeometry ObjectMesh(const sim::ObjectGeometry& object, const Eigen::Isometry3d& pose) {
-  constexpr int kSides = 24;
-  std::vector<Eigen::Vector3f> v;
-  std::vector<Eigen::Vector3i> f;
-  for (const sim::ObjectSegment& s : object.segments) {
-    const Eigen::Vector3d p0 = pose * s.p0, p1 = pose * s.p1, u = (p1 - p0).normalized();
-    const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-    const int first = static_cast<int>(v.size());
-    for (const Eigen::Vector3d& end : {p0, p1}) {
-      for (int k = 0; k < kSides; ++k) {
-        const double t = 2 * kPi * k / kSides;
-        v.push_back((end + s.radius_m * (std::cos(t) * a + std::sin(t) * b)).cast<float>());
-      }
-      v.push_back(end.cast<float>());  // cap centre
-    }
-    for (int k = 0; k < kSides; ++k) {
-      const int n = (k + 1) % kSides, top = first + kSides + 1;
-      f.emplace_back(first + k, first + n, top + k);
-      f.emplace_back(first + n, top + n, top + k);
-      f.emplace_back(first + kSides, first + n, first + k);  // caps
-      f.emplace_back(top + kSides, top + k, top + n);
-    }
-  }
   hardware::ObjectGeometry mesh;
-  mesh.vertices.resize(3, static_cast<Eigen::Index>(v.size()));
-  for (size_t i = 0; i < v.size(); ++i) mesh.vertices.col(static_cast<Eigen::Index>(i)) = v[i];
-  mesh.triangles.resize(3, static_cast<Eigen::Index>(f.size()));
-  for (size_t i = 0; i < f.size(); ++i) mesh.triangles.col(static_cast<Eigen::Index>(i)) = f[i];
+  for (const sim::ObjectSegment& s : object.segments) {
+    hardware::AppendCylinder(pose * s.p0, pose * s.p1, s.radius_m, 24, &mesh);
+  }
   return mesh;
 }
 
@@ -105,8 +81,8 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
         ObjectMesh(sim::BuildObjectGeometry(config.scene.objects[r.object], r.variant), r.object_pose);
     try {
       const hardware::GeometryLabel label = hardware::ContactLabeler(mesh, rule).Label(TubePoses(r.proprio));
-      const double dtheta = std::remainder(label.theta_rad - truth.theta_rad, 2 * kPi);
-      errors_mm.push_back(1e3 * std::hypot(label.z_m - truth.z_m, rule.outer_radius_m * dtheta));
+      errors_mm.push_back(1e3 * SurfaceDistance(config.tube, label.z_m, label.theta_rad,
+                                                truth.z_m, truth.theta_rad));
       step_lag.push_back(label.step / config.strike.proprio_rate_hz - truth.time_s);
     } catch (const IoError& e) {
       ++failures;

@@ -84,7 +84,7 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
   hardware::TriggerConfig trigger_config;
   trigger_config.sample_rate_hz = rate;
   trigger_config.channels = channels;
-  trigger_config.record_frames = std::llround(config.audio.record_duration_s * rate);
+  trigger_config.record_frames = config.audio.num_samples();
   trigger_config.pre_trigger_frames = std::llround(config.audio.onset_time_s * rate);
   trigger_config.threshold_db = o.threshold_db;
   hardware::OnsetTrigger trigger(trigger_config);
@@ -97,7 +97,6 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
   Eigen::MatrixXf block(channels, 1024);  // 23 ms at 44.1 kHz
   std::vector<hardware::TriggeredRecord> records;
   int64_t events = 0;
-  std::vector<double> latencies;
   bool more = true;
   while (more && (o.max_events == 0 || events < o.max_events)) {
     const int64_t n = source->Read(&block);
@@ -124,17 +123,21 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
       std::cout << (g.json ? line.dump() + "\n"
                            : fmt::format("[{}] onset {:.3f} s: {}", events, r.onset_frame / rate, text));
       std::cout.flush();
-      latencies.push_back(line["latency_ms"].get<double>());
       ++events;
     }
     records.clear();
   }
   const double seconds = trigger.frames_seen() / rate;
   const json summary = {{"summary", true}, {"events", events}, {"stream_s", seconds},
-                        {"source", source->name()}, {"saved_to", o.save}};
-  return {summary.dump(), fmt::format("{} strikes in {:.1f} s of {}{}\n", events, seconds,
-                                      source->name(),
-                                      o.save.empty() ? "" : ", saved to " + o.save)};
+                        {"source", source->name()}, {"saved_to", o.save},
+                        {"input_overflows", source->overflows()}};
+  return {summary.dump(),
+          fmt::format("{} strikes in {:.1f} s of {}{}{}\n", events, seconds, source->name(),
+                      o.save.empty() ? "" : ", saved to " + o.save,
+                      source->overflows() == 0
+                          ? ""
+                          : fmt::format("; input overflowed {} times (frames lost)",
+                                        source->overflows()))};
 }
 
 }  // namespace sonicboom::experiments

@@ -75,11 +75,12 @@ class DeviceSource final : public AudioSource {
   int channels() const override { return channels_; }
   double sample_rate_hz() const override { return rate_; }
   std::string name() const override { return name_; }
+  int64_t overflows() const override { return overflows_; }
 
   int64_t Read(Eigen::MatrixXf* block) override {
     interleaved_.resize(static_cast<size_t>(block->size()));
     const PaError e = Pa_ReadStream(stream_, interleaved_.data(), static_cast<unsigned long>(block->cols()));
-    // an overflow lost frames: said, then the stream goes on
+    // an overflow lost frames: counted (listen reports it), and the stream goes on
     if (e == paInputOverflowed) {
       ++overflows_;
     } else if (e != paNoError) {

@@ -50,7 +50,8 @@ struct ContactLabeler::Impl {
   RTCDevice device{nullptr};
   RTCScene scene{nullptr};
   Eigen::AlignedBox3f bounds;          // the object's, base frame
-  Eigen::Matrix3Xf samples;            // (3 x S) tube-frame surface samples
+  Eigen::Matrix3Xf samples;            // (3 x rows*ring) tube-frame surface samples, row-major
+  int64_t rows{0}, ring{0};            // axial rows (z ascending) of `ring` samples each
   std::vector<float> sample_theta;     // (S)
 
   // one point query: the squared distance from p to the object, kept below the query radius
@@ -137,6 +138,8 @@ ContactLabeler::ContactLabeler(const ObjectGeometry& object, const ContactRule& 
   // samples of the outer surface, tube frame: axial rows by rings
   const int64_t rows = static_cast<int64_t>(std::ceil(rule.length_m / rule.surface_spacing_m)) + 1;
   const int64_t ring = static_cast<int64_t>(std::ceil(2 * kPi * rule.outer_radius_m / rule.surface_spacing_m));
+  s.rows = rows;
+  s.ring = ring;
   s.samples.resize(3, rows * ring);
   s.sample_theta.resize(rows * ring);
   for (int64_t r = 0; r < rows; ++r) {
@@ -163,7 +166,8 @@ GeometryLabel ContactLabeler::Label(const std::vector<Eigen::Isometry3d>& tube_p
     const Eigen::Isometry3f pose = tube_poses[step].cast<float>();
     // the object's bounds in the tube frame, grown by the reach: samples outside cannot touch
     Eigen::AlignedBox3f box;
-    for (int c = 0; c < 8; ++c) box.extend(pose.inverse() * s.bounds.corner(Eigen::AlignedBox3f::CornerType(c)));
+    const Eigen::Isometry3f to_tube = pose.inverse();
+    for (int c = 0; c < 8; ++c) box.extend(to_tube * s.bounds.corner(Eigen::AlignedBox3f::CornerType(c)));
     box.min().array() -= reach;
     box.max().array() += reach;
     // where along the axis the object comes near: points of the axis every `h` whose distance
@@ -179,7 +183,12 @@ GeometryLabel ContactLabeler::Label(const std::vector<Eigen::Isometry3d>& tube_p
     // distance of every nearby sample to the object
     std::vector<std::pair<float, Eigen::Index>> near;
     float best = std::numeric_limits<float>::infinity();
-    for (Eigen::Index i = 0; z_lo <= z_hi && i < s.samples.cols(); ++i) {
+    // only the rows in [z_lo, z_hi] (one row of slack each side; the test below decides)
+    const double row_pitch = s.rule.length_m / double(s.rows - 1);
+    const auto row_of = [&](float z) { return (z + 0.5 * s.rule.length_m) / row_pitch; };
+    const int64_t first = z_lo <= z_hi ? std::max<int64_t>(0, int64_t(std::floor(row_of(z_lo))) - 1) : 0;
+    const int64_t last = z_lo <= z_hi ? std::min<int64_t>(s.rows - 1, int64_t(std::ceil(row_of(z_hi))) + 1) : -1;
+    for (Eigen::Index i = first * s.ring; i < (last + 1) * s.ring; ++i) {
       const float z = s.samples(2, i);
       if (z < z_lo || z > z_hi || !box.contains(s.samples.col(i))) continue;
       const float d = s.Distance(pose * Vec(s.samples.col(i)), reach);

@@ -12,6 +12,7 @@
 
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/tube.h"
 #include "internal/import_common.h"
 
 namespace fs = std::filesystem;
@@ -23,11 +24,6 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kJ7OffsetRad = 50.0 * kPi / 180.0;  // θ_tube = −θ_j7 − 50°
 // An int16 converter's positive full scale as libsndfile reads it (32767 / 32768).
 constexpr float kFullScale = 32767.0f / 32768.0f;
-
-double Wrap(double a) {
-  a = std::remainder(a, 2.0 * kPi);
-  return a <= -kPi ? a + 2.0 * kPi : a;
-}
 
 // Loads, checks and encodes one entry: the encoded sample, or the reason it is bad.
 struct Loaded {
@@ -71,11 +67,11 @@ AngleConvention ParseAngleConvention(const std::string& name) {
 }
 
 double TubeAngleFrom(double stored_rad, AngleConvention convention) {
-  return Wrap(convention == AngleConvention::kTube ? stored_rad : -stored_rad - kJ7OffsetRad);
+  return WrapAngle(convention == AngleConvention::kTube ? stored_rad : -stored_rad - kJ7OffsetRad);
 }
 
 double StoredAngleFrom(double tube_rad, AngleConvention convention) {
-  return Wrap(convention == AngleConvention::kTube ? tube_rad : -tube_rad - kJ7OffsetRad);
+  return WrapAngle(convention == AngleConvention::kTube ? tube_rad : -tube_rad - kJ7OffsetRad);
 }
 
 namespace internal {
@@ -139,8 +135,8 @@ void SetLabel(double z_m, double theta_rad, const ImportSettings& settings,
   }
   ContactLabel& l = sample->label;
   l.z_m = z_m;
-  l.theta_rad = Wrap(theta_rad);
-  l.normal = Eigen::Vector3d(std::cos(l.theta_rad), std::sin(l.theta_rad), 0.0);
+  l.theta_rad = WrapAngle(theta_rad);
+  l.normal = SurfaceNormal(l.theta_rad);
   l.point_m = settings.outer_radius_m * l.normal + Eigen::Vector3d(0.0, 0.0, z_m);
   ContactEpisode episode;
   episode.z_m = l.z_m;

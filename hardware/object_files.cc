@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <numbers>
 #include <sstream>
 #include <vector>
 
@@ -202,6 +203,34 @@ ObjectGeometry ReadPly(Builder b, const std::string& bytes) {
 }
 
 }  // namespace
+
+void AppendCylinder(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double radius_m,
+                    int sides, ObjectGeometry* mesh) {
+  SONICBOOM_DEMAND(sides >= 3 && radius_m > 0.0 && (p1 - p0).norm() > 0.0);
+  const Eigen::Vector3d u = (p1 - p0).normalized(), a = u.unitOrthogonal(), b = u.cross(a);
+  // vertices: a ring and its centre at each end, (2 sides + 2) in all
+  const Eigen::Index first = mesh->vertices.cols();
+  mesh->vertices.conservativeResize(3, first + 2 * (sides + 1));
+  Eigen::Index at = first;
+  for (const Eigen::Vector3d& end : {p0, p1}) {
+    for (int k = 0; k < sides; ++k) {
+      const double t = 2 * std::numbers::pi * k / sides;
+      mesh->vertices.col(at++) = (end + radius_m * (std::cos(t) * a + std::sin(t) * b)).cast<float>();
+    }
+    mesh->vertices.col(at++) = end.cast<float>();  // cap centre
+  }
+  // triangles: two per side face, one per side on each cap
+  const Eigen::Index faces = mesh->triangles.cols();
+  mesh->triangles.conservativeResize(3, faces + 4 * sides);
+  const int base = static_cast<int>(first), top = base + sides + 1;
+  for (int k = 0; k < sides; ++k) {
+    const int n = (k + 1) % sides;
+    mesh->triangles.col(faces + 4 * k) << base + k, base + n, top + k;
+    mesh->triangles.col(faces + 4 * k + 1) << base + n, top + n, top + k;
+    mesh->triangles.col(faces + 4 * k + 2) << base + sides, base + n, base + k;
+    mesh->triangles.col(faces + 4 * k + 3) << top + sides, top + k, top + n;
+  }
+}
 
 ObjectGeometry ReadObjectGeometry(const std::string& path, double scale) {
   if (!(scale > 0.0) || !std::isfinite(scale)) throw ConfigError(fmt::format("object scale {} must be positive", scale));

@@ -37,6 +37,13 @@ NpyArray ReadTable(const fs::path& file, int64_t min_rows, std::initializer_list
   return a;
 }
 
+// The tube pose (base frame) at row r of a joint log q_t (rows x 7).
+Eigen::Isometry3d TubePoseAt(const NpyArray& q, int64_t r, const ImportSettings& s) {
+  std::array<double, 7> joints;
+  std::copy_n(&q.data[r * 7], 7, joints.begin());
+  return s.tube_pose_from_joints(joints);
+}
+
 // Rows of the published pose logs as proprio rows: position, quaternion w x y z, velocity.
 Eigen::MatrixXf TrialProprio(const fs::path& dir, const ImportSettings& s) {
   const int64_t k = s.proprio_rows;
@@ -57,9 +64,7 @@ Eigen::MatrixXf TrialProprio(const fs::path& dir, const ImportSettings& s) {
     const double* xr = &x.data[r * x.cols()];
     Eigen::Quaterniond quat;
     if (q) {
-      std::array<double, 7> joints;
-      std::copy_n(&q->data[r * 7], 7, joints.begin());
-      quat = Eigen::Quaterniond(s.tube_pose_from_joints(joints).linear());
+      quat = Eigen::Quaterniond(TubePoseAt(*q, r, s).linear());
     } else {
       quat = Eigen::Quaterniond(xr[6], xr[3], xr[4], xr[5]);
       const double norm = quat.norm();
@@ -83,11 +88,7 @@ void LabelFromGeometry(const fs::path& dir, const ImportSettings& s, StrikeSampl
   }
   const NpyArray q = ReadTable(q_file, 1, {7});
   std::vector<Eigen::Isometry3d> poses;
-  for (int64_t r = 0; r < q.rows(); ++r) {
-    std::array<double, 7> joints;
-    std::copy_n(&q.data[r * 7], 7, joints.begin());
-    poses.push_back(s.tube_pose_from_joints(joints));
-  }
+  for (int64_t r = 0; r < q.rows(); ++r) poses.push_back(TubePoseAt(q, r, s));
   try {
     const GeometryLabel label = s.labeler->Label(poses);
     internal::SetLabel(label.z_m, label.theta_rad, s, q_file.string(), sample);

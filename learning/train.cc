@@ -159,6 +159,17 @@ bool IsFrozen(const std::string& part, FineTune::Freeze freeze) {
   return false;
 }
 
+// Weights saved by SaveModuleAtomically (model.pt, best.pt) into `network`, shapes checked.
+void LoadWeights(internal::NetworkImpl* network, const std::string& path) {
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const c10::Error& e) {
+    throw SchemaError(fmt::format("{}: unreadable: {}", path, e.what_without_backtrace()));
+  }
+  internal::LoadModuleChecked(*network, archive, path);
+}
+
 // Loads the pretrained weights of `fine_tune.init_from` into `network` and fixes the frozen
 // parts; returns the parameters left to train.
 std::vector<torch::Tensor> StartFromPretrained(internal::NetworkImpl* network,
@@ -167,13 +178,7 @@ std::vector<torch::Tensor> StartFromPretrained(internal::NetworkImpl* network,
   if (!fs::exists(weights)) {
     throw IoError(fmt::format("{}: missing; --init-from needs a trained run directory", weights));
   }
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(weights);
-  } catch (const c10::Error& e) {
-    throw SchemaError(fmt::format("{}: unreadable: {}", weights, e.what_without_backtrace()));
-  }
-  internal::LoadModuleChecked(*network, archive, weights);
+  LoadWeights(network, weights);
   // parameters of frozen parts stop learning; parameters directly on the network (CLS token,
   // modality embeddings) train unless only the heads do
   std::vector<torch::Tensor> trainable;
@@ -389,13 +394,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   }
   // train.keep_best: the best epoch's weights are the model
   if (train_config.keep_best && best_epoch > 0) {
-    torch::serialize::InputArchive archive;
-    try {
-      archive.load_from(files.best_pt);
-    } catch (const c10::Error& e) {
-      throw SchemaError(fmt::format("{}: unreadable: {}", files.best_pt, e.what_without_backtrace()));
-    }
-    internal::LoadModuleChecked(*network, archive, files.best_pt);
+    LoadWeights(network.get(), files.best_pt);
     if (show_progress) spdlog::info("keeping epoch {} (lowest validation loss {:.4g})", best_epoch, best_loss);
   }
   // Post-hoc calibration of the predictive distribution on the validation split: one scale

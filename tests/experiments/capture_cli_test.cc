@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <array>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -13,6 +12,7 @@
 #include "common/test_util.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
+#include "sonicboom/hardware/geometry.h"
 #include "sonicboom/hardware/npy.h"
 #include "sonicboom/sim/franka.h"
 
@@ -123,25 +123,19 @@ TEST(CaptureCliTest, RefusesToOverwriteAndNamesBadInput) {
 // A closed 24-sided rod mesh as binary STL: radius r, length l, along unit u through c.
 void WriteRodStl(const std::string& path, const Eigen::Vector3d& c, const Eigen::Vector3d& u,
                  double r, double l) {
-  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-  std::vector<std::array<Eigen::Vector3f, 3>> triangles;
-  const int sides = 24;
-  auto at = [&](int k, double s) {
-    const double t = 2 * M_PI * k / sides;
-    return Eigen::Vector3f((c + s * 0.5 * l * u + r * (std::cos(t) * a + std::sin(t) * b)).cast<float>());
-  };
-  for (int k = 0; k < sides; ++k) {
-    triangles.push_back({at(k, -1), at(k + 1, -1), at(k, 1)});
-    triangles.push_back({at(k + 1, -1), at(k + 1, 1), at(k, 1)});
-  }
+  hardware::ObjectGeometry rod;
+  hardware::AppendCylinder(c - 0.5 * l * u, c + 0.5 * l * u, r, 24, &rod);
   std::ofstream out(path, std::ios::binary);
   out << std::string(80, ' ');
-  const uint32_t n = static_cast<uint32_t>(triangles.size());
+  const auto n = static_cast<uint32_t>(rod.triangles.cols());
   out.write(reinterpret_cast<const char*>(&n), 4);
-  for (const auto& t : triangles) {
-    const float zero[3] = {0, 0, 0};
-    out.write(reinterpret_cast<const char*>(zero), 12);
-    for (const Eigen::Vector3f& v : t) out.write(reinterpret_cast<const char*>(v.data()), 12);
+  for (Eigen::Index t = 0; t < rod.triangles.cols(); ++t) {
+    const float normal[3] = {0, 0, 0};  // readers recompute it
+    out.write(reinterpret_cast<const char*>(normal), 12);
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3f v = rod.vertices.col(rod.triangles(k, t));
+      out.write(reinterpret_cast<const char*>(v.data()), 12);
+    }
     out.write("\0\0", 2);
   }
 }

@@ -11,6 +11,7 @@
 
 #include "common/test_util.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/tube.h"
 #include "sonicboom/hardware/geometry.h"
 
 namespace sonicboom::hardware {
@@ -80,20 +81,8 @@ ObjectGeometry SphereCloud(const Eigen::Vector3d& c, double r, int n) {
 
 // A rod of radius r and length l along unit u through c, as a closed 32-sided prism mesh.
 ObjectGeometry RodMesh(const Eigen::Vector3d& c, const Eigen::Vector3d& u, double r, double l) {
-  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
   ObjectGeometry g;
-  const int sides = 32;
-  g.vertices.resize(3, 2 * sides);
-  g.triangles.resize(3, 2 * sides);
-  for (int k = 0; k < sides; ++k) {
-    const double t = 2 * kPi * k / sides;
-    const Eigen::Vector3d ring = r * (std::cos(t) * a + std::sin(t) * b);
-    g.vertices.col(k) = (c - 0.5 * l * u + ring).cast<float>();
-    g.vertices.col(sides + k) = (c + 0.5 * l * u + ring).cast<float>();
-    const int n = (k + 1) % sides;
-    g.triangles.col(2 * k) << k, n, sides + k;
-    g.triangles.col(2 * k + 1) << n, sides + n, sides + k;
-  }
+  AppendCylinder(c - 0.5 * l * u, c + 0.5 * l * u, r, 32, &g);
   return g;
 }
 
@@ -127,8 +116,7 @@ TEST(GeometryTest, LabelsKnownContactsOfSphereScansAndRodMeshes) {
       poses.push_back(pose);
     }
     const GeometryLabel label = ContactLabeler(object, ContactRule{}).Label(poses);
-    const double dtheta = std::remainder(label.theta_rad - theta0, 2 * kPi);
-    errors_mm.push_back(1e3 * std::hypot(label.z_m - z0, kR * dtheta));
+    errors_mm.push_back(1e3 * SurfaceDistance(TubeConfig{}, label.z_m, label.theta_rad, z0, theta0));
   }
   std::sort(errors_mm.begin(), errors_mm.end());
   const double median = errors_mm[50], p95 = errors_mm[95];

@@ -24,6 +24,11 @@ struct ObjectGeometry {
 /// index out of range or a non-finite coordinate.
 ObjectGeometry ReadObjectGeometry(const std::string& path, double scale = 1.0);
 
+/// Appends a cylinder from p0 to p1 (m) of `radius_m` to `mesh` as a closed prism of `sides`
+/// faces with capped ends (for objects known as cylinders: simulated rods and branches).
+void AppendCylinder(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double radius_m,
+                    int sides, ObjectGeometry* mesh);
+
 /// The tube surface and the contact rule.
 struct ContactRule {
   double outer_radius_m{0.05355};

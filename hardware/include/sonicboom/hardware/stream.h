@@ -22,6 +22,8 @@ class AudioSource {
   /// Fills `block` (channels x frames, resized by the caller) and returns the frames read, fewer
   /// than asked only at the end of a file; 0 when the stream has ended. Throws IoError.
   virtual int64_t Read(Eigen::MatrixXf* block) = 0;
+  /// Reads in which the device dropped input because it was not read in time (0 for a file).
+  virtual int64_t overflows() const { return 0; }
 };
 
 /// A WAV file as a stream. With `realtime`, Read() paces itself to the sample rate, as a device
