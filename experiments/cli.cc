@@ -236,12 +236,16 @@ int RunCli(int argc, char** argv) {
   listen->callback([&] { run = [&] { return RunListen(g, listen_options); }; });
 
   int64_t check_count = 100;
-  std::string check_out;
+  std::string check_out, check_scenes;
   auto* geometry_check = app.add_subcommand(
       "geometry-check", "labels from geometry against the simulator's labels on MuJoCo strikes");
   geometry_check->add_option("--count", check_count, "strikes (default 100)");
   geometry_check->add_option("--out", check_out, "write the result line to this file");
-  geometry_check->callback([&] { run = [&] { return RunGeometryCheck(g, check_count, check_out); }; });
+  geometry_check->add_option("--scenes", check_scenes,
+                             "keep each strike's exported scene here (object.ply, q_t.npy); "
+                             "default: a temporary directory, removed");
+  geometry_check->callback(
+      [&] { run = [&] { return RunGeometryCheck(g, check_count, check_out, check_scenes); }; });
 
   auto* fk = app.add_subcommand("fk", "flange and tube poses of the Panda for joint angles");
   fk->add_option("--joints", joints, "q1,...,q7 in rad")->required();

@@ -1,9 +1,14 @@
 // `geometry-check`: labels from geometry against the simulator's own labels. Each MuJoCo strike's
-// object (its cylinders as meshes, placed where the rollout put them) and its logged tube poses
-// at the proprio rate are handed to the geometry labeller, as a recorded trial's would be.
+// scene is exported as a recorded trial's would be (its object's cylinders as a PLY mesh placed
+// where the rollout put them, the arm's joint log at the proprio rate as q_t.npy), read back, and
+// labelled by the same path as `import --object`: forward kinematics of the joint log, then the
+// geometry labeller.
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -14,6 +19,8 @@
 #include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/hardware/geometry.h"
+#include "sonicboom/hardware/npy.h"
+#include "sonicboom/sim/franka.h"
 #include "sonicboom/sim/rollout.h"
 
 namespace sonicboom::experiments {
@@ -30,19 +37,62 @@ hardware::ObjectGeometry ObjectMesh(const sim::ObjectGeometry& object, const Eig
   return mesh;
 }
 
-// The logged tube poses (proprio rows: position, quaternion w x y z).
-std::vector<Eigen::Isometry3d> TubePoses(const Eigen::MatrixXf& proprio) {
+// A strike's scene as files: DIR/object.ply (base frame) and DIR/q_t.npy (rows x 7, rad).
+void ExportScene(const std::filesystem::path& dir, const hardware::ObjectGeometry& mesh,
+                 const Eigen::MatrixXd& joints) {
+  std::filesystem::create_directories(dir);
+  hardware::WriteObjectPly((dir / "object.ply").string(), mesh);
+  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = joints;
+  hardware::WriteNpy((dir / "q_t.npy").string(), {rows.rows(), rows.cols()},
+                     std::vector<double>(rows.data(), rows.data() + rows.size()));
+}
+
+// The tube poses of a joint log file by forward kinematics, as `import --object` places them.
+std::vector<Eigen::Isometry3d> PosesFromJointLog(const std::filesystem::path& file,
+                                                 double tube_center_from_flange_m) {
+  const hardware::NpyArray q = hardware::ReadNpy(file.string());
+  SONICBOOM_DEMAND(q.cols() == sim::kPandaJoints);
   std::vector<Eigen::Isometry3d> poses;
-  for (Eigen::Index r = 0; r < proprio.rows(); ++r) {
-    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-    t.translation() = proprio.row(r).head<3>().transpose().cast<double>();
-    t.linear() = Eigen::Quaterniond(proprio(r, 3), proprio(r, 4), proprio(r, 5), proprio(r, 6))
-                     .normalized()
-                     .toRotationMatrix();
-    poses.push_back(t);
+  for (int64_t r = 0; r < q.rows(); ++r) {
+    const sim::JointVector joints(&q.data[static_cast<size_t>(r * sim::kPandaJoints)]);
+    poses.push_back(sim::PandaForwardKinematics(joints, tube_center_from_flange_m).tube);
   }
   return poses;
 }
+
+// Largest distance (m) between the logged tube origins (proprio rows) and the poses from FK.
+double KinematicsGap(const Eigen::MatrixXf& proprio, const std::vector<Eigen::Isometry3d>& poses) {
+  double gap = 0.0;
+  for (size_t r = 0; r < poses.size(); ++r) {
+    const Eigen::Vector3d logged = proprio.row(Eigen::Index(r)).head<3>().transpose().cast<double>();
+    gap = std::max(gap, (logged - poses[r].translation()).norm());
+  }
+  return gap;
+}
+
+// The scenes' directory: the user's, kept; or a temporary one, removed on the way out.
+class SceneDirectory {
+ public:
+  explicit SceneDirectory(const std::string& user) : keep_(!user.empty()) {
+    namespace fs = std::filesystem;
+    path_ = keep_ ? fs::path(user)
+                  : fs::temp_directory_path() / fmt::format("sonicboom-geometry-check-{}", getpid());
+    if (fs::exists(path_) && !(fs::is_directory(path_) && fs::is_empty(path_))) {
+      throw IoError(fmt::format("{}: exists and is not an empty directory (--scenes)", path_.string()));
+    }
+  }
+  ~SceneDirectory() {
+    std::error_code ec;
+    if (!keep_) std::filesystem::remove_all(path_, ec);
+  }
+  SceneDirectory(const SceneDirectory&) = delete;
+  SceneDirectory& operator=(const SceneDirectory&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  bool keep_;
+  std::filesystem::path path_;
+};
 
 double Percentile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
@@ -51,7 +101,8 @@ double Percentile(std::vector<double> v, double q) {
 
 }  // namespace
 
-CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std::string& out_md) {
+CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std::string& out_md,
+                               const std::string& scenes_dir) {
   if (count < 1) throw ConfigError(fmt::format("--count {} must be >= 1", count));
   SonicBoomConfig config = ResolveConfig(g.sources);
   if (config.scene.mode != "strike" && config.scene.mode != "guided") {
@@ -67,7 +118,9 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
   rule.length_m = config.tube.length_m;
 
   // every valid strike with a hard contact: the simulator's label against the geometry's
+  const SceneDirectory scenes(scenes_dir);
   std::vector<double> errors_mm, step_lag;
+  double kinematics_gap_m = 0.0;
   int64_t strikes = 0, failures = 0;
   std::vector<std::string> failed;
   const auto start = std::chrono::steady_clock::now();
@@ -77,10 +130,17 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
     ContactLabel truth;
     if (!r.valid || !sim::FirstHardContact(r, config.scene, &event, &truth)) continue;
     ++strikes;
-    const hardware::ObjectGeometry mesh =
-        ObjectMesh(sim::BuildObjectGeometry(config.scene.objects[r.object], r.variant), r.object_pose);
+    // the scene out to files and back, as a recorded trial comes in
+    const std::filesystem::path dir = scenes.path() / fmt::format("strike{:06d}", i);
+    ExportScene(dir, ObjectMesh(sim::BuildObjectGeometry(config.scene.objects[r.object], r.variant),
+                                r.object_pose),
+                r.joints);
+    const hardware::ObjectGeometry mesh = hardware::ReadObjectGeometry((dir / "object.ply").string());
+    const std::vector<Eigen::Isometry3d> poses =
+        PosesFromJointLog(dir / "q_t.npy", config.tube.center_from_flange_m);
+    kinematics_gap_m = std::max(kinematics_gap_m, KinematicsGap(r.proprio, poses));
     try {
-      const hardware::GeometryLabel label = hardware::ContactLabeler(mesh, rule).Label(TubePoses(r.proprio));
+      const hardware::GeometryLabel label = hardware::ContactLabeler(mesh, rule).Label(poses);
       errors_mm.push_back(1e3 * SurfaceDistance(config.tube, label.z_m, label.theta_rad,
                                                 truth.z_m, truth.theta_rad));
       step_lag.push_back(label.step / config.strike.proprio_rate_hz - truth.time_s);
@@ -96,12 +156,17 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
   const json j = {{"strikes", strikes}, {"labelled", errors_mm.size()}, {"failures", failures},
                   {"median_mm", median}, {"p95_mm", p95}, {"worst_mm", worst},
                   {"median_pose_after_contact_s", Percentile(step_lag, 0.5)}, {"seconds", seconds},
+                  {"kinematics_gap_max_mm", 1e3 * kinematics_gap_m},
+                  {"scenes", scenes_dir.empty() ? json(nullptr) : json(scenes_dir)},
                   {"failed", failed}};
+  const double lag_ms = 1e3 * Percentile(step_lag, 0.5);
   const std::string text = fmt::format(
       "{} strikes with a hard contact: geometry labels within {:.2f} mm (median), {:.2f} mm "
       "(p95), {:.2f} mm (worst) of the simulator's; {} failures; the contact pose is {:.1f} ms "
-      "after the simulated touch (median); {:.1f} s\n",
-      strikes, median, p95, worst, failures, 1e3 * Percentile(step_lag, 0.5), seconds);
+      "{} the simulated touch (median); forward kinematics of the joint logs within {:.3f} mm "
+      "of the logged tube poses; {:.1f} s\n",
+      strikes, median, p95, worst, failures, std::abs(lag_ms), lag_ms < 0.0 ? "before" : "after",
+      1e3 * kinematics_gap_m, seconds);
   if (!out_md.empty()) WriteTextAtomic(out_md, text);
   return {j.dump(), text};
 }

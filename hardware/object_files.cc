@@ -1,4 +1,5 @@
 // Object meshes and scanned point clouds: PLY (ASCII or binary little endian), OBJ, STL, PTS, XYZ.
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -230,6 +231,32 @@ void AppendCylinder(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double
     mesh->triangles.col(faces + 4 * k + 2) << base + sides, base + n, base + k;
     mesh->triangles.col(faces + 4 * k + 3) << top + sides, top + k, top + n;
   }
+}
+
+void WriteObjectPly(const std::string& path, const ObjectGeometry& object) {
+  static_assert(std::endian::native == std::endian::little, "PLY bodies are written as stored");
+  std::string body = fmt::format(
+      "ply\nformat binary_little_endian 1.0\ncomment sonicboom object, metres, robot base frame\n"
+      "element vertex {}\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+      object.vertices.cols(), object.triangles.cols());
+  // vertices (V x 3 float32), then faces as (count 3, three int32 indices)
+  body.append(reinterpret_cast<const char*>(object.vertices.data()),
+              sizeof(float) * static_cast<size_t>(object.vertices.size()));
+  for (Eigen::Index f = 0; f < object.triangles.cols(); ++f) {
+    body.push_back(char(3));
+    body.append(reinterpret_cast<const char*>(object.triangles.col(f).data()), 3 * sizeof(int));
+  }
+  // written beside the target and renamed: a reader never sees half a mesh
+  const std::string partial = path + ".partial";
+  {
+    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+    out.write(body.data(), static_cast<std::streamsize>(body.size()));
+    if (!out.flush()) throw IoError(fmt::format("{}: cannot write", partial));
+  }
+  std::error_code ec;
+  fs::rename(partial, path, ec);
+  if (ec) throw IoError(fmt::format("{}: cannot rename into place: {}", path, ec.message()));
 }
 
 ObjectGeometry ReadObjectGeometry(const std::string& path, double scale) {

@@ -606,6 +606,7 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       static_cast<int64_t>(std::ceil(audio_.record_duration_s * strike_.proprio_rate_hz));
   const int64_t rows = std::max(proprio_rows, speed_rows);
   result.proprio.setZero(proprio_rows, kProprioFeatures);
+  result.joints.setZero(proprio_rows, kPandaJoints);
   result.joint_speed_rad_s.assign(static_cast<size_t>(speed_rows), 0.0);
   // tube-frame pose (from the kinematics in d) and velocity (from its com velocities)
   auto tube_row = [&](bool with_velocity) {
@@ -724,7 +725,10 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
     // rows due at t
     while (next_row < rows && next_row / strike_.proprio_rate_hz <= t_s + 0.5 * dt_s) {
       last_row = tube_row(true);
-      if (next_row < proprio_rows) result.proprio.row(next_row) = last_row;
+      if (next_row < proprio_rows) {
+        result.proprio.row(next_row) = last_row;
+        for (int i = 0; i < kPandaJoints; ++i) result.joints(next_row, i) = d->qpos[var.qpos[i]];
+      }
       if (next_row < speed_rows) {
         double sum_sq = 0.0;
         for (int i = 0; i < kPandaJoints; ++i) sum_sq += d->qvel[var.dof[i]] * d->qvel[var.dof[i]];
@@ -898,7 +902,9 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
   }
   last_row.tail<3>().setZero();
   for (; next_row < rows; ++next_row) {
-    if (next_row < proprio_rows) result.proprio.row(next_row) = last_row;
+    if (next_row >= proprio_rows) continue;
+    result.proprio.row(next_row) = last_row;
+    for (int i = 0; i < kPandaJoints; ++i) result.joints(next_row, i) = d->qpos[var.qpos[i]];
   }
   return result;
 }

@@ -174,13 +174,30 @@ TEST(CaptureCliTest, ImportLabelsTrialsFromTheJointLogAndAnObjectMesh) {
 
 TEST(CaptureCliTest, GeometryLabelsAgreeWithTheSimulatorOnMuJoCoStrikes) {
   TempDir dir;
-  const auto run = RunCli("geometry-check --count 12 --json -q", dir.path().string());
+  const auto run = RunCli("geometry-check --count 12 --scenes scenes --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
   EXPECT_GE(j["labelled"].get<int>(), 10);
   EXPECT_EQ(j["failures"], 0);
   EXPECT_LT(j["median_mm"].get<double>(), 1.0);
   EXPECT_LT(j["worst_mm"].get<double>(), 3.0);
+  // each strike's scene is on disk as a trial would bring it: a mesh and a 7-column joint log
+  // whose forward kinematics is the pose MuJoCo logged
+  EXPECT_LT(j["kinematics_gap_max_mm"].get<double>(), 0.01);
+  int64_t scenes = 0;
+  for (const auto& e : fs::directory_iterator(dir / "scenes")) {
+    ++scenes;
+    EXPECT_GT(hardware::ReadObjectGeometry((e.path() / "object.ply").string()).triangles.cols(), 0);
+    const hardware::NpyArray q = hardware::ReadNpy((e.path() / "q_t.npy").string());
+    EXPECT_EQ(q.cols(), 7);
+    EXPECT_EQ(q.rows(), 200);  // the 2 s record at 100 Hz
+  }
+  EXPECT_EQ(scenes, j["strikes"].get<int64_t>());
+  // a used scene directory is not written into
+  const auto again = RunCli("geometry-check --count 1 --scenes scenes", dir.path().string());
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_NE(again.err.find("scenes: exists and is not an empty directory (--scenes)"),
+            std::string::npos) << again.err;
   const auto bad = RunCli("--config " + std::string(SONICBOOM_SOURCE_DIR) +
                               "/configs/ts4.yaml geometry-check --count 2",
                           dir.path().string());

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <random>
@@ -65,6 +66,19 @@ TEST(GeometryTest, ReadsMeshesAndCloudsInEveryFormat) {
   std::ofstream(dir / "x.dae") << "<xml/>";
   EXPECT_THAT(ThrownMessage<IoError>([&] { ReadObjectGeometry(dir / "x.dae"); }),
               HasSubstr("unknown object format"));
+}
+
+TEST(GeometryTest, WrittenPlyReadsBackExactly) {
+  TempDir dir;
+  ObjectGeometry rod;
+  AppendCylinder({0.1, -0.2, 0.3}, {0.4, 0.1, 0.35}, 0.011, 24, &rod);
+  WriteObjectPly(dir / "rod.ply", rod);
+  EXPECT_FALSE(std::filesystem::exists(dir / "rod.ply.partial"));
+  const ObjectGeometry back = ReadObjectGeometry(dir / "rod.ply");
+  EXPECT_EQ(back.vertices, rod.vertices);
+  EXPECT_EQ(back.triangles, rod.triangles);
+  EXPECT_THAT(ThrownMessage<IoError>([&] { WriteObjectPly(dir / "no/such/dir/x.ply", rod); }),
+              HasSubstr("x.ply.partial: cannot write"));
 }
 
 // A sphere scan (Fibonacci points) of radius r around c.

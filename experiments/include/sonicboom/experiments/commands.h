@@ -116,10 +116,12 @@ struct ListenOptions {
   int64_t max_events{0};      // stop after this many strikes; 0: at the end of the stream
   double threshold_db{20.0};  // onset: frame energy this far above the noise floor
 };
-/// `geometry-check`: the first `count` strikes of the scene (mode strike or guided) relabelled
-/// from geometry (each strike's object as a mesh, its logged tube poses) against the simulator's
-/// labels: median, p95 and worst surface error, failures (docs/captures.md).
-CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std::string& out_md);
+/// `geometry-check`: the first `count` strikes of the scene (mode strike or guided) exported as
+/// files (the object as a PLY mesh, the arm's joint log as q_t.npy; under `scenes_dir`, kept,
+/// or a temporary directory) and relabelled from them as `import --object` does, against the
+/// simulator's labels: median, p95 and worst surface error, failures (docs/captures.md).
+CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std::string& out_md,
+                               const std::string& scenes_dir);
 CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o);
 CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
                         const std::string& out, const std::string& angle_convention);

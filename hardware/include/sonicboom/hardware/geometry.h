@@ -24,6 +24,10 @@ struct ObjectGeometry {
 /// index out of range or a non-finite coordinate.
 ObjectGeometry ReadObjectGeometry(const std::string& path, double scale = 1.0);
 
+/// Writes `object` as a binary little-endian PLY (float32 vertices, triangle faces) to
+/// "<path>.partial" and renames it into place. Throws IoError naming the file.
+void WriteObjectPly(const std::string& path, const ObjectGeometry& object);
+
 /// Appends a cylinder from p0 to p1 (m) of `radius_m` to `mesh` as a closed prism of `sides`
 /// faces with capped ends (for objects known as cylinders: simulated rods and branches).
 void AppendCylinder(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double radius_m,

@@ -106,6 +106,8 @@ struct RolloutResult {
   std::vector<ContactRecord> contacts;      // in time order
   Eigen::MatrixXf proprio;                  // (proprio_rows x 10) tube frame in the base frame:
                                             // pos m, quat wxyz, lin vel m/s; row k at k / rate
+  Eigen::MatrixXd joints;                   // (proprio_rows x 7) arm joint angles, rad, same rows
+                                            // (MuJoCo strikes only; empty where the arm is held)
   std::vector<double> joint_speed_rad_s;    // (ceil(record s x rate)) |qdot| 2-norm, rad/s
   double joint_speed_rate_hz{100.0};
   // the sampled strike
