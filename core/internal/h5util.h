@@ -1,6 +1,7 @@
 #pragma once
-/// Private HDF5 helpers shared by dataset.cc and array_file.cc: owning handles, error checks that
-/// become IoError naming the file and the object, attributes, and row-extendable datasets.
+/// Private HDF5 helpers shared by the dataset files (reader, writer, merge, summary) and
+/// array_file.cc: owning handles, error checks that become IoError naming the file and the
+/// object, attributes, and row-extendable datasets.
 /// Only core .cc files include this header; hdf5.h never reaches a public header.
 
 #include <hdf5.h>

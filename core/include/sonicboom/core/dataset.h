@@ -1,5 +1,6 @@
 #pragma once
-/// The strike dataset file (HDF5, docs/dataset.md). HDF5 headers stay in dataset.cc.
+/// The strike dataset file (HDF5, docs/dataset.md). HDF5 headers stay in core/dataset_*.cc and
+/// core/internal/.
 ///
 /// Layout (N samples, C channels, T audio frames, K proprio rows):
 ///   /audio                  (N, C, T) int16 or float32; attr `scale` maps stored values to full scale 1
