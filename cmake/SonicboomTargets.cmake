@@ -15,9 +15,13 @@ function(sonicboom_add_library module)
   target_compile_options(sonicboom_${module} PRIVATE ${SONICBOOM_WARNINGS})
 endfunction()
 
-# sonicboom_add_test(<name> SOURCES ... DEPS ... LABELS ...)
+# sonicboom_add_test(<name> SOURCES ... DEPS ... GROUPS "<label>=<gtest filter>" ...)
+# Every test gets one ctest label: a GROUPS entry's label for the tests its filter selects
+# (suites or single tests, ':'-separated; groups must not overlap), `unit` for the rest. Labels:
+# unit (fast logic checks), physics (physical values against theory), golden (stored reference
+# outputs), slow (end-to-end runs of the CLI, training).
 function(sonicboom_add_test name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;LABELS" ${ARGN})
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;GROUPS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest_main GTest::gmock)
   target_include_directories(${name} PRIVATE ${PROJECT_SOURCE_DIR}/tests)
@@ -25,13 +29,26 @@ function(sonicboom_add_test name)
   target_compile_definitions(${name} PRIVATE
     SONICBOOM_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
     SONICBOOM_CLI="$<TARGET_FILE:sonicboom>")
-  set(labels unit)
-  if(ARG_LABELS)
-    set(labels ${ARG_LABELS})
-  endif()
   # the tests (and the CLI runs they start) solve and cache modes under the build tree, never in
   # the user's home directory
-  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST
-    PROPERTIES LABELS "${labels}" ENVIRONMENT "SONICBOOM_CACHE_DIR=${CMAKE_BINARY_DIR}/test-cache/modes"
+  set(environment "SONICBOOM_CACHE_DIR=${CMAKE_BINARY_DIR}/test-cache/modes")
+  set(grouped "")
+  foreach(group IN LISTS ARG_GROUPS)
+    string(FIND "${group}" "=" eq)
+    string(SUBSTRING "${group}" 0 ${eq} label)
+    math(EXPR first "${eq} + 1")
+    string(SUBSTRING "${group}" ${first} -1 filter)
+    gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST TEST_FILTER "${filter}"
+      PROPERTIES LABELS "${label}" ENVIRONMENT "${environment}"
+      WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR})
+    list(APPEND grouped "${filter}")
+  endforeach()
+  set(rest "")
+  if(grouped)
+    list(JOIN grouped ":" negative)
+    set(rest "-${negative}")
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST TEST_FILTER "${rest}"
+    PROPERTIES LABELS unit ENVIRONMENT "${environment}"
     WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR})
 endfunction()
