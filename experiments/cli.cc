@@ -39,7 +39,7 @@ int RunCli(int argc, char** argv) {
   std::function<CommandResult()> run;
   std::string out, in, data, model, wav, proprio, boundary = "simply-supported", joints, path;
   int64_t count = -1, first_index = -1, shard = 0, num_shards = 1, index = 0, mode_count = 20;
-  bool resume = false, ideal = false;
+  bool ideal = false;
   std::vector<std::string> shards;
 
   auto* demo = app.add_subcommand("demo", "generate a small dataset, train, evaluate on held-out "
@@ -256,8 +256,12 @@ int RunCli(int argc, char** argv) {
       ->required();
   inspect->callback([&] { run = [&] { return RunInspect(g, path); }; });
 
+  std::string markdown_sections;
   auto* config = app.add_subcommand("config", "print the resolved config");
-  config->callback([&] { run = [&] { return RunConfig(g); }; });
+  config->add_option("--markdown", markdown_sections,
+                     "SECTIONS: a Markdown table of the keys of these comma-separated sections "
+                     "(docs/conventions.md)");
+  config->callback([&] { run = [&] { return RunConfig(g, markdown_sections); }; });
 
   // parse; usage errors exit 2 with CLI11's message
   try {

@@ -658,12 +658,6 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
   return {j.dump(), j.dump(2) + "\n"};
 }
 
-CommandResult RunConfig(const GlobalOptions& g) {
-  const SonicBoomConfig config = Resolve(g);
-  const std::string yaml = ConfigToYaml(config);
-  return {json{{"config_yaml", yaml}}.dump(), yaml};
-}
-
 namespace {
 
 // the test dataset's own config as the base layer, then --config files and --set overrides

@@ -32,6 +32,38 @@ TEST(CliTest, HelpListsEverySubcommand) {
   }
 }
 
+// Every generated block of docs/*.md equals what its command prints now (the defaults as the
+// config structs serialize them); scripts/update_docs_defaults.py rewrites a stale one.
+TEST(CliTest, DocsDefaultsTablesAreCurrent) {
+  TempDir dir;
+  const std::string begin = "<!-- generated: sonicboom config --markdown ", end = "<!-- end generated -->";
+  int blocks = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(SONICBOOM_SOURCE_DIR) + "/docs")) {
+    if (entry.path().extension() != ".md") continue;
+    std::ifstream in(entry.path());
+    const std::string text((std::istreambuf_iterator<char>(in)), {});
+    for (size_t at = text.find(begin); at != std::string::npos; at = text.find(begin, at + 1)) {
+      const size_t open_end = text.find(" -->\n", at);
+      const size_t close = text.find(end, at);
+      ASSERT_NE(open_end, std::string::npos) << entry.path();
+      ASSERT_NE(close, std::string::npos) << entry.path() << ": block without its end marker";
+      const std::string sections = text.substr(at + begin.size(), open_end - at - begin.size());
+      const std::string body = text.substr(open_end + 5, close - open_end - 5);
+      const auto run = RunCli("config --markdown " + sections, dir.path().string());
+      ASSERT_EQ(run.exit_code, 0) << run.err;
+      EXPECT_EQ(body, run.out) << entry.path() << " (" << sections
+                               << ") is stale: run /usr/bin/python3 scripts/update_docs_defaults.py";
+      ++blocks;
+    }
+  }
+  EXPECT_GE(blocks, 2);
+  // a section that does not exist is named, with the ones that do
+  const auto bad = RunCli("config --markdown tube,tubes", dir.path().string());
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("no config section 'tubes' (sections: tube, material"), std::string::npos)
+      << bad.err;
+}
+
 TEST(CliTest, SynthWritesLabelledWav) {
   TempDir dir;
   const auto run = RunCli("synth --out s.wav --index 3 --json", dir.path().string());

@@ -126,7 +126,9 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o);
 CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
                         const std::string& out, const std::string& angle_convention);
 CommandResult RunInspect(const GlobalOptions& g, const std::string& path);
-CommandResult RunConfig(const GlobalOptions& g);
+/// `config`: the resolved config as YAML; with `markdown_sections` (comma-separated top-level
+/// sections) a Markdown table of their keys and values instead.
+CommandResult RunConfig(const GlobalOptions& g, const std::string& markdown_sections);
 
 /// The demo's embedded config layer (small model, short training).
 const std::string& DemoConfigYaml();

@@ -1,6 +1,6 @@
 #pragma once
 /// The whole resolved configuration of a run: one struct per stage, one YAML file.
-/// Keys and units: docs/conventions.md and docs/config.md.
+/// Keys and units: docs/conventions.md (defaults tables: `sonicboom config --markdown`).
 
 #include <cstdint>
 #include <string>
