@@ -17,7 +17,7 @@ namespace sonicboom::acoustics {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-// rigid Hertz duration factor: t_c = kHertzDuration delta_max / v (physics.md §1.6)
+// rigid-target Hertz: t_c = kHertzDuration delta_max / v (docs/physics.md, "Hertz impact")
 constexpr double kHertzDuration = 2.9432;
 // a first closure shorter than this fraction of substeps_per_duration substeps (or longer than
 // its inverse) is redone with a substep sized on it, at most kMaxResolves times
@@ -209,7 +209,7 @@ void CheckBody(const DrivingPoint& body, const char* side) {
   }
 }
 
-// rigid-target Hertz duration for mass m_kg at speed v (physics.md §1.6)
+// rigid-target Hertz duration for mass m_kg at speed v (docs/physics.md, "Hertz impact")
 double HertzDuration(double m_kg, double stiffness_n_m15, double v_m_s) {
   const double delta_max = std::pow(5.0 * m_kg * v_m_s * v_m_s / (4.0 * stiffness_n_m15), 0.4);
   return kHertzDuration * delta_max / v_m_s;

@@ -15,7 +15,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
-// fundamental bending roots (physics.md 1.4): cantilever cos cosh = -1; clamped-clamped cos cosh = 1
+// fundamental roots (docs/physics.md, "Beam modes"): cantilever cos cosh = -1, clamped-clamped 1
 constexpr double kCantileverBetaL = 1.875104068711961;
 constexpr double kClampedBetaL = 4.730040744862704;
 

@@ -190,7 +190,7 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
     ev.invalid_reason = "no approach speed at contact";
   }
 
-  // struck object: its fundamental mode's modal mass near the free tip (physics.md 1.4)
+  // struck object: its fundamental's modal mass near the free tip (docs/physics.md, "Beam modes")
   const bool both_ends = object.clamp == "both_ends";
   const double aim_m = both_ends ? 0.5 * object.length_m : std::max(object.length_m - 0.05, 0.0);
   ContactEvent& contact = ev.contact;

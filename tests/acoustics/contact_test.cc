@@ -27,10 +27,10 @@ using ::testing::HasSubstr;
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kFs = 44100.0;
-// wood tip on the PVC wall: K = 4/3 E* sqrt(R_e), E* 2.79 GPa, R_e 6 mm (physics.md §1.6)
+// wood tip on PVC: K = 4/3 E* sqrt(R_e), E* 2.79 GPa, R_e 6 mm (docs/physics.md, "Hertz impact")
 const double kWoodOnPvc = 4.0 / 3.0 * 2.79e9 * std::sqrt(0.006);
 
-// rigid-target Hertz closed form (physics.md §1.6)
+// rigid-target Hertz closed form (docs/physics.md, "Hertz impact")
 struct Hertz {
   double delta_max_m, peak_n, duration_s;
 };
@@ -46,7 +46,7 @@ DrivingPoint RigidMass(double m_kg) {
 }
 const DrivingPoint kHeld;  // infinite mass, no modes
 
-// Ø12.7 mm wooden dowel, E 12 GPa, rho 700 kg/m^3 (physics.md §1.4 example)
+// Ø12.7 mm wooden dowel, E 12 GPa, rho 700 kg/m^3 (docs/physics.md, "Beam modes", example)
 BeamSpec Dowel(double length_m) {
   const double r = 0.0127 / 2.0, area = kPi * r * r, second_moment = kPi * std::pow(r, 4) / 4.0;
   BeamSpec b;

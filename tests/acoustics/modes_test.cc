@@ -1,4 +1,4 @@
-// Closed-form shell modes against the published and computed reference values (physics.md §1).
+// Closed-form shell modes against published and computed values (docs/physics.md, "Shell modes").
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -40,7 +40,7 @@ TEST(CylinderModesTest, FluggeMatchesLoyLamBenchmark) {
 }
 
 TEST(CylinderModesTest, PvcSimplySupportedTable) {
-  // physics.md Table 1.1b, Flügge column (Hz), default SDR35 pipe
+  // docs/physics.md, "Simply supported ends": Flügge, default SDR35 pipe (Hz)
   const auto modes = SimplySupportedModes(TubeConfig{}, MaterialConfig{}, 5000.0);
   EXPECT_NEAR(Lowest(modes, 1, 2), 356, 1.5);
   EXPECT_NEAR(Lowest(modes, 1, 3), 655, 1.5);
@@ -51,7 +51,7 @@ TEST(CylinderModesTest, PvcSimplySupportedTable) {
 }
 
 TEST(CylinderModesTest, RayleighFreeFreeValues) {
-  // physics.md §1.2: f_20 = 220, f_30 = 622, f_40 = 1192, f_50 = 1928, f_60 = 2829 Hz
+  // docs/physics.md, "Free-free ends", Hz: f_20 220, f_30 622, f_40 1192, f_50 1928, f_60 2829
   const double expected[5] = {220, 622, 1192, 1928, 2829};
   for (int n = 2; n <= 6; ++n) {
     EXPECT_NEAR(RayleighFrequency(TubeConfig{}, MaterialConfig{}, n), expected[n - 2],

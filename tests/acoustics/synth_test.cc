@@ -46,7 +46,7 @@ int64_t Arrival(const Eigen::MatrixXf& audio, int ch, double frac) {
 }
 
 TEST(HertzTest, DowelCrossingPipeMatchesClosedForm) {
-  // physics.md §1.6: dowel side (d 12.7 mm, E_T 1 GPa) crossing a pipe of R 55 mm, 10 g, 0.5 m/s
+  // docs/physics.md, "Hertz impact": dowel side (Ø12.7 mm, E_T 1 GPa) across R 55 mm, 10 g, 0.5 m/s
   TubeConfig tube;
   tube.outer_radius_m = 0.055;
   const HertzImpact h = SolveHertzImpact(DowelContact(0, 0, 0.5), tube, MaterialConfig{});

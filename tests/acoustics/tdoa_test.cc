@@ -64,7 +64,7 @@ double SurfaceError(double z1, double t1, double z2, double t2) {
 }
 
 TEST(TdoaTest, FlexuralSpeedsMatchThePlateTable) {
-  // physics.md §1.5, PVC SDR35: c_phase 93.6 m/s at 1 kHz, 295.9 at 10 kHz; c_group twice
+  // docs/physics.md, "Flexural waves": c_phase 93.6 m/s at 1 kHz, 295.9 at 10 kHz; c_group twice
   const MaterialConfig pvc;
   EXPECT_NEAR(FlexuralPhaseVelocity(1000.0, pvc, 0.00305), 93.6, 0.1);
   EXPECT_NEAR(FlexuralPhaseVelocity(10000.0, pvc, 0.00305), 295.9, 0.2);

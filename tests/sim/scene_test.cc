@@ -131,7 +131,7 @@ void PrintReasons(const std::string& what, const std::vector<RolloutResult>& res
 }
 
 // ---------------------------------------------------------------------------------------------
-// Beam modal mass (physics.md 1.4)
+// Beam modal mass (docs/physics.md, "Beam modes")
 
 TEST(SceneTest, BeamModalMassOfCantileverAndClampedBeam) {
   const double m = 0.17, length = 0.42;

@@ -1,10 +1,10 @@
 #pragma once
-/// Striker-tube contact solved at audio-rate substeps (physics.md §1.6 caveat): a Hertz spring
-/// F = K delta^1.5 (1 + lambda d(delta)/dt) (Hunt-Crossley when lambda > 0) between two bodies, each
-/// seen at the contact as a rigid mass plus modes (driving-point modal model). The tube side is
-/// the wall's modes at the contact point (so the wall is not rigid) and the robot-side mass; the
-/// striker side is the struck rod's cantilever (or clamped-clamped) beam modes, or a rigid mass.
-/// Bounces and chatter follow from the dynamics: the solve runs until the bodies separate for good.
+/// Striker-tube contact solved at audio-rate substeps (docs/physics.md, "Hertz impact"): a Hertz
+/// spring F = K delta^1.5 (1 + lambda d(delta)/dt) (Hunt-Crossley when lambda > 0) between two
+/// bodies, each seen at the contact as a rigid mass plus modes (driving-point modal model). The
+/// tube side is the wall's modes at the contact point (so the wall is not rigid) and the robot-side
+/// mass; the striker side is the struck rod's cantilever (or clamped-clamped) beam modes, or a
+/// rigid mass. Bounces and chatter follow: the solve runs until the bodies separate for good.
 
 #include <Eigen/Core>
 #include <cstdint>

@@ -1,6 +1,6 @@
 #pragma once
-/// Closed-form modes of an ideal thin cylindrical shell (physics.md §1.1-1.2): the simply
-/// supported (shear-diaphragm) tube by Flügge's 3x3 equations per (m, n), and Rayleigh's
+/// Closed-form modes of an ideal thin cylindrical shell (docs/physics.md, "Shell modes"): the
+/// simply supported (shear-diaphragm) tube by Flügge's 3x3 equations per (m, n), and Rayleigh's
 /// inextensional modes of the free-free tube. Uses the mid-surface radius.
 
 #include <string>

@@ -3,8 +3,8 @@
 /// surface strain with per-channel sensitivity, structure-borne background (motor and gear tones
 /// tied to joint speed, ambient floor, recorded noise from WAV files), the first-order high-pass
 /// of disc capacitance into the preamp input, preamp noise, and a clipping 24-bit converter with
-/// 16-bit output (physics.md §6: structure -> aperture -> HPF -> gain -> clip -> quantize).
-/// Configured once (filters, recordings loaded); Convert is const and allocates only its output.
+/// 16-bit output (in the order of docs/physics.md, "Sensor and DAQ chain"). Configured once
+/// (filters, recordings loaded); Convert is const and allocates only its output.
 
 #include <Eigen/Core>
 #include <cstdint>

@@ -1,8 +1,8 @@
 #pragma once
 /// Strike features as the paper computes them, with the published code's faults fixed
-/// (reference_impl.md §2, §7): onset from an all-channel energy envelope, a window around it,
-/// stationary spectral gating against a reference noise clip (spectral_gate.h), power mel
-/// spectrograms and GCC-PHAT without circular wrap-around.
+/// (docs/reference.md, "Onset and window" to "Faults we fix"): onset from an all-channel energy
+/// envelope, a window around it, stationary spectral gating against a reference noise clip
+/// (spectral_gate.h), power mel spectrograms and GCC-PHAT without circular wrap-around.
 /// DSP blocks are configured once (FFT plans, filterbanks) and computed many times.
 
 #include <Eigen/Core>
@@ -33,7 +33,7 @@ struct FeatureConfig {
   double onset_frame_s{0.0029};    // energy-envelope frame (~128 samples at 44.1 kHz)
   double onset_threshold{0.1};     // fraction of the envelope peak that marks the onset
   // stationary spectral gating of the window against a reference noise clip (spectral_gate.h),
-  // per channel, before mel and GCC-PHAT; noisereduce's defaults (reference_impl.md §1)
+  // per channel, before mel/GCC-PHAT; noisereduce's defaults (docs/reference.md, "Spectral gating")
   bool gating{true};
   double gating_n_std{2.5};        // threshold: mean + n_std * std of the noise dB, per bin
   int64_t gating_n_fft{1024};      // gate STFT size (periodic Hann), <= window samples

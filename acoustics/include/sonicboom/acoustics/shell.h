@@ -1,8 +1,8 @@
 #pragma once
-/// The tube as a discretized thin cylindrical shell (physics.md §3.2), shared by the
-/// finite-difference time-domain solver and the numerical modal model: both use the same stiffness
-/// K, lumped mass M and Rayleigh damping C = alpha M + beta K, so their signals differ only by time
-/// integration and mode truncation.
+/// The tube as a discretized thin cylindrical shell (docs/physics.md, "The discretized shell"),
+/// shared by the finite-difference time-domain solver and the numerical modal model: both use the
+/// same stiffness K, lumped mass M and Rayleigh damping C = alpha M + beta K, so their signals
+/// differ only by time integration and mode truncation.
 ///
 /// Theory: Sanders' thin-shell strains (membrane u_x, (v_th + w)/R, v_x + u_th/R; bending -w_xx,
 /// (v_th - w_thth)/R^2 and Sanders' twist), w radial outward. Grid: a staggered (z, theta) grid,

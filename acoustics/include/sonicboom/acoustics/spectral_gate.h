@@ -1,11 +1,11 @@
 #pragma once
 /// Stationary spectral gating against a reference noise clip: the reference pipeline's
-/// noisereduce.reduce_noise(stationary=True) step (reference_impl.md §1), with per-channel noise
-/// statistics. Per frequency bin the threshold is mean + n_std * std (over the clip's frames) of
-/// the clip's STFT magnitude in dB; a signal bin passes when its dB exceeds the threshold; the
-/// binary mask is smoothed by a normalized triangular kernel over frequency x time, multiplies
-/// the STFT, and the inverse STFT gives the gated signal. Configured once (FFT plans, thresholds,
-/// kernel); Apply is const, thread-safe and allocation-free in steady state.
+/// noisereduce.reduce_noise(stationary=True) step (docs/reference.md, "Spectral gating"), with
+/// per-channel noise statistics. Per frequency bin the threshold is mean + n_std * std (over the
+/// clip's frames) of the clip's STFT magnitude in dB; a signal bin passes when its dB exceeds the
+/// threshold; the binary mask is smoothed by a normalized triangular kernel over frequency x time,
+/// multiplies the STFT, and the inverse STFT gives the gated signal. Configured once (FFT plans,
+/// thresholds, kernel); Apply is const, thread-safe and allocation-free in steady state.
 
 #include <Eigen/Core>
 #include <cstdint>

@@ -56,7 +56,7 @@ struct AcousticModelConfig {
   uint64_t seed{0};                        // global seed: the structure pool's draws
 };
 
-/// The Hertz impact of a striker on the wall (rigid target): physics.md §1.6.
+/// The Hertz impact of a striker on the wall (rigid target): docs/physics.md, "Hertz impact".
 struct HertzImpact {
   double stiffness_n_m15{0.0};             // K in F = K delta^1.5
   double max_compression_m{0.0};

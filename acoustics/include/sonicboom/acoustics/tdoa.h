@@ -7,11 +7,11 @@
 ///
 /// Wave model: Kirchhoff flexural (bending) waves of a flat plate of the wall's thickness,
 /// c_phase = (D w^2 / (rho h))^(1/4), D = E h^3 / (12 (1 - nu^2)), group velocity 2 c_phase
-/// (physics.md §1.5); a band's speed is the inverse of its mean group slowness under the band
-/// weight (2.4 % above the value at the centre of an octave band). That is the wall's regime
-/// above the ring frequency c_L / (2 pi R) (4.84 kHz for the default tube). Below it the
-/// curvature's membrane stiffness lowers the bending group velocity of oblique paths (to zero at
-/// cut-off), which the plate model ignores: one global speed scale can be fitted instead.
+/// (docs/physics.md, "Flexural waves"); a band's speed is the inverse of its mean group slowness
+/// under the band weight (2.4 % above the value at the centre of an octave band). That is the
+/// wall's regime above the ring frequency c_L / (2 pi R) (4.84 kHz for the default tube). Below it
+/// the curvature's membrane stiffness lowers the bending group velocity of oblique paths (to zero
+/// at cut-off), which the plate model ignores: one global speed scale can be fitted instead.
 /// Paths: the shortest route on the unrolled mid-surface cylinder, sqrt(dz^2 + (R dphi)^2); on a
 /// seamed tube a path may cross a saw cut only at a bolt (shell.seam_theta_deg, shell.bolt_z_m).
 /// Time base and signs follow GccPhat (features.h): a positive lag means the first microphone of

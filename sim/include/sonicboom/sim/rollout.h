@@ -4,7 +4,7 @@
 /// object (a mocap body of cylinders: a rod, a cross or a branch structure); every tube contact
 /// (touch, release, impulse, approach speed, effective mass) comes from MuJoCo.
 ///
-/// Mode strike (the reference strike of reference_impl.md 6.1 and its variants). The strike is
+/// Mode strike (docs/reference.md, "The reference strike motion", and its variants). The strike is
 /// drawn by DrawStrike (strike.h), the same draws as the kinematic engine. At the kinematic
 /// contact configuration q_c (the swept joint turned by sweep * MinJerk(contact_fraction) from
 /// q0) the tube pose T comes from the DH forward kinematics. The intended contact (z, theta) has
@@ -40,9 +40,9 @@
 /// at once: first contacts, labels, episode kinds and durations are unchanged and impulses move by
 /// < 0.1 %, but the press's friction flicker re-contacts harder (its peak force rises).
 ///
-/// Contact durations follow MuJoCo's soft contact (contact_timeconst_s, milliseconds), longer than
-/// the Hertz contact of wood on PVC (0.2-0.6 ms, physics.md 1.6): use the impulse, approach speed
-/// and effective mass of a ContactRecord with a Hertz model for the sound, not its duration.
+/// Contact durations follow MuJoCo's soft contact (contact_timeconst_s, ms), longer than the Hertz
+/// contact of wood on PVC (0.2-0.6 ms, docs/physics.md, "Hertz impact"): use the impulse, approach
+/// speed and effective mass of a ContactRecord with a Hertz model for the sound, not its duration.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

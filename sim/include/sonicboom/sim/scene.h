@@ -150,8 +150,8 @@ int64_t ObjectVariants(const ObjectConfig& object);
 int DrawObjectIndex(const std::vector<ObjectConfig>& objects, double u);
 
 /// Modal mass of the fundamental bending mode of a beam seen at distance x from its clamped end,
-/// kg: m / phi(x)^2 with the mode shape normalised to integral(phi^2) = L (physics.md 1.4): a
-/// cantilever (clamped_both_ends false) has m / 4 at its tip. Infinite at a clamp.
+/// kg: m / phi(x)^2, mode shape normalised to integral(phi^2) = L (docs/physics.md, "Beam modes"):
+/// a cantilever (clamped_both_ends false) has m / 4 at its tip. Infinite at a clamp.
 double BeamModalMassKg(double mass_kg, double length_m, double x_m, bool clamped_both_ends);
 
 /// Describes the struck rod of a rod or cross object as a beam for acoustics (its bending modes

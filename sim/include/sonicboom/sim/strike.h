@@ -1,8 +1,8 @@
 #pragma once
-/// Kinematic strike generator (the reference motion of reference_impl.md §6.1): the arm sweeps
-/// joint 1 (or joint 6) towards a fixed object; the tube meets it at a sampled height; the
-/// object stops it. The contact is where the rod lies relative to the tube's direction of motion; joint 7 sets
-/// which side of the tube faces the motion, as in the paper's data collection.
+/// Kinematic strike generator (docs/reference.md, "The reference strike motion"): the arm sweeps
+/// joint 1 (or joint 6) towards a fixed object; the tube meets it at a sampled height; the object
+/// stops it. The contact is where the rod lies relative to the tube's direction of motion; joint 7
+/// sets which side of the tube faces the motion, as in the paper's data collection.
 /// Proprioception (tube-frame pose and velocity in the robot base frame, 100 Hz) is sampled on
 /// the audio clock: row k is time k / proprio_rate_hz from the start of the record.
 
