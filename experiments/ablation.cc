@@ -1,6 +1,9 @@
 // Ablations as configs: every YAML file of a directory is one variant (modality set or
 // preprocessing switch) layered over the run's config; each is trained on one dataset,
 // evaluated on another, and the results become one table.
+#include <CLI/CLI.hpp>
+
+#include <memory>
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -12,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
@@ -185,6 +189,18 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
   const json result = {{"out", o.out}, {"data", o.data}, {"test", o.test}, {"ablations", rows}};
   WriteTextAtomic((fs::path(o.out) / "results.json").string(), result.dump(2) + "\n");
   return {result.dump(), header + table};
+}
+
+void RegisterAblate(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto o = std::make_shared<AblateOptions>();
+  auto* ablate = app.add_subcommand("ablate", "train and evaluate every ablation config (modality "
+                                              "sets, preprocessing switches) and write a table");
+  ablate->add_option("--data", o->data, "training dataset (.h5)")->required();
+  ablate->add_option("--test", o->test, "held-out dataset (.h5)")->required();
+  ablate->add_option("--out", o->out, "output directory")->required();
+  ablate->add_option("--configs", o->configs_dir, "directory of ablation YAML layers");
+  ablate->add_option("--only", o->only, "ablation names to run (default all)")->delimiter(',');
+  ablate->callback([&g, run, o] { *run = [&g, o] { return RunAblate(g, *o); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -1,10 +1,14 @@
 // `import` and `export`: recorded strikes in and datasets out (docs/captures.md).
+#include <CLI/CLI.hpp>
+
+#include <memory>
 #include <cmath>
 #include <filesystem>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
@@ -117,6 +121,45 @@ CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const
   const int64_t n = hardware::ExportTrials(in, out, angle);
   const json j = {{"out", out}, {"trials", n}};
   return {j.dump(), fmt::format("wrote {} trials of {} to {}\n", n, in, out)};
+}
+
+void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto o = std::make_shared<ImportOptions>();
+  auto* import = app.add_subcommand("import", "recorded strikes (published trial layout or our "
+                                              "capture layout) into a dataset");
+  import->add_option("--layout", o->layout, "trial | capture")->required();
+  import->add_option("--in", o->in, "capture directory")->required();
+  import->add_option("--out", o->out, "dataset file (.h5)")->required();
+  import->add_option("--angle-convention", o->angle_convention,
+                     "tube (docs/conventions.md) | j7 (published joint-7 angle)");
+  import->add_option("--min-duration-s", o->min_duration_s,
+                     "shorter captures are bad (default 1.5)");
+  import->add_option("--object", o->object,
+                     "label trials from geometry: the object (ply, obj, stl, pts, xyz, robot base "
+                     "frame) met by the tube placed from each trial's q_t.npy");
+  import->add_option("--object-scale", o->object_scale,
+                     "object units to metres (0.001 for millimetres)");
+  import->add_option("--contact-tolerance-m", o->contact_tolerance_m,
+                     "contact when the object comes this close (default 0.002)");
+  import->add_flag("--skip-bad", o->skip_bad,
+                   "import the good captures when some are bad (they are listed)");
+  import->add_flag("--force", o->force, "replace an existing output");
+  import->callback([&g, run, o] { *run = [&g, o] { return RunImport(g, *o); }; });
+}
+
+void RegisterExport(CLI::App& app, GlobalOptions& g, Runner* run) {
+  struct Options {
+    std::string layout = "trial", in, out, angle_convention = "tube";
+  };
+  auto o = std::make_shared<Options>();
+  auto* export_cmd = app.add_subcommand("export", "a dataset in the published trial layout");
+  export_cmd->add_option("--layout", o->layout, "trial");
+  export_cmd->add_option("--in", o->in, "dataset (.h5)")->required();
+  export_cmd->add_option("--out", o->out, "new directory")->required();
+  export_cmd->add_option("--angle-convention", o->angle_convention, "tube | j7");
+  export_cmd->callback([&g, run, o] {
+    *run = [&g, o] { return RunExport(g, o->layout, o->in, o->out, o->angle_convention); };
+  });
 }
 
 }  // namespace sonicboom::experiments

@@ -1,6 +1,9 @@
 // `config`: the resolved config as YAML, or (--markdown SECTIONS) its keys under the named
 // top-level sections as a Markdown table, the form docs/conventions.md embeds and a test keeps
 // current (scripts/update_docs_defaults.py rewrites the doc's generated blocks).
+#include <CLI/CLI.hpp>
+
+#include <memory>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -10,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/experiments/commands.h"
 
@@ -60,6 +64,15 @@ CommandResult RunConfig(const GlobalOptions& g, const std::string& markdown_sect
   if (markdown_sections.empty()) return {nlohmann::json{{"config_yaml", yaml}}.dump(), yaml};
   const std::string table = MarkdownTable(yaml, markdown_sections);
   return {nlohmann::json{{"markdown", table}}.dump(), table};
+}
+
+void RegisterConfig(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto sections = std::make_shared<std::string>();
+  auto* config = app.add_subcommand("config", "print the resolved config");
+  config->add_option("--markdown", *sections,
+                     "SECTIONS: a Markdown table of the keys of these comma-separated sections "
+                     "(docs/conventions.md)");
+  config->callback([&g, run, sections] { *run = [&g, sections] { return RunConfig(g, *sections); }; });
 }
 
 }  // namespace sonicboom::experiments

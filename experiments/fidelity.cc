@@ -1,5 +1,8 @@
 // The fidelity ladder measured: every rung of the vibration model renders the same strikes (the
 // same contact forces), and is timed and compared against the finest FD reference.
+#include <CLI/CLI.hpp>
+
+#include <memory>
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
@@ -14,6 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "internal/subcommands.h"
 #include "sonicboom/acoustics/contact.h"
 #include "sonicboom/acoustics/fd_render.h"
 #include "sonicboom/acoustics/shell.h"
@@ -386,6 +390,25 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
             {"quick", quick}};
   if (!out_md.empty()) WriteTextAtomic(out_md, md);
   return {j.dump(), md};
+}
+
+void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run) {
+  struct Options {
+    std::string out = "docs/fidelity.md";
+    int64_t strikes = 4;
+    double window_s = 0.03;
+    bool quick = false;
+  };
+  auto o = std::make_shared<Options>();
+  auto* fidelity = app.add_subcommand("fidelity", "time and error of every vibration-model rung "
+                                                  "against the finest FD reference");
+  fidelity->add_option("--out", o->out, "markdown table (\"\" = print only)");
+  fidelity->add_option("--strikes", o->strikes, "test strikes (1-6)");
+  fidelity->add_option("--window-s", o->window_s, "compared signal after the onset, s");
+  fidelity->add_flag("--quick", o->quick, "coarse grids only (a smoke run)");
+  fidelity->callback([&g, run, o] {
+    *run = [&g, o] { return RunFidelity(g, o->out, o->strikes, o->window_s, o->quick); };
+  });
 }
 
 }  // namespace sonicboom::experiments

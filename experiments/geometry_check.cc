@@ -3,6 +3,9 @@
 // where the rollout put them, the arm's joint log at the proprio rate as q_t.npy), read back, and
 // labelled by the same path as `import --object`: forward kinematics of the joint log, then the
 // geometry labeller.
+#include <CLI/CLI.hpp>
+
+#include <memory>
 #include <unistd.h>
 
 #include <algorithm>
@@ -13,6 +16,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
@@ -169,6 +173,24 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
       1e3 * kinematics_gap_m, seconds);
   if (!out_md.empty()) WriteTextAtomic(out_md, text);
   return {j.dump(), text};
+}
+
+void RegisterGeometryCheck(CLI::App& app, GlobalOptions& g, Runner* run) {
+  struct Options {
+    int64_t count = 100;
+    std::string out, scenes;
+  };
+  auto o = std::make_shared<Options>();
+  auto* check = app.add_subcommand(
+      "geometry-check", "labels from geometry against the simulator's labels on MuJoCo strikes");
+  check->add_option("--count", o->count, "strikes (default 100)");
+  check->add_option("--out", o->out, "write the result line to this file");
+  check->add_option("--scenes", o->scenes,
+                    "keep each strike's exported scene here (object.ply, q_t.npy); "
+                    "default: a temporary directory, removed");
+  check->callback([&g, run, o] {
+    *run = [&g, o] { return RunGeometryCheck(g, o->count, o->out, o->scenes); };
+  });
 }
 
 }  // namespace sonicboom::experiments

@@ -1,4 +1,7 @@
 // `listen`: live localization from a sound device, or a WAV file read as one (docs/captures.md).
+#include <CLI/CLI.hpp>
+
+#include <memory>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -9,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "internal/report.h"
+#include "internal/subcommands.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
@@ -138,6 +142,22 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
                           ? ""
                           : fmt::format("; input overflowed {} times (frames lost)",
                                         source->overflows()))};
+}
+
+void RegisterListen(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto o = std::make_shared<ListenOptions>();
+  auto* listen = app.add_subcommand("listen", "live localization: strikes from a sound device (or "
+                                              "a WAV read as one), one JSON line each");
+  listen->add_option("--model", o->model, "run directory")->required();
+  listen->add_option("--device", o->device,
+                     "input device, part of its name (ALSA, e.g. hw:1,0); default input if empty");
+  listen->add_option("--wav", o->wav, "read this WAV as the device stream");
+  listen->add_flag("--realtime", o->realtime, "pace the WAV at its sample rate");
+  listen->add_option("--save", o->save, "session directory (capture layout)");
+  listen->add_option("--max-events", o->max_events, "stop after N strikes (0: never)");
+  listen->add_option("--threshold-db", o->threshold_db,
+                     "onset threshold above the noise floor (default 20)");
+  listen->callback([&g, run, o] { *run = [&g, o] { return RunListen(g, *o); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -1,6 +1,9 @@
 // `sonicboom variants`: the structure pool's cheap path measured. Each variant's modes come from a
 // Ritz projection onto the base modes (acoustics/shell_ritz.h); here the first few are also solved
 // in full, and the two are compared in frequency, shape and rendered signal, with the time of each.
+#include <CLI/CLI.hpp>
+
+#include <memory>
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
@@ -13,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "internal/subcommands.h"
 #include "sonicboom/acoustics/randomize.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_bank.h"
@@ -167,6 +171,19 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
             {"checked", rows}};
   if (!out_md.empty()) WriteTextAtomic(out_md, md);
   return {j.dump(), md};
+}
+
+void RegisterVariants(CLI::App& app, GlobalOptions& g, Runner* run) {
+  struct Options {
+    int64_t check = 3;
+    std::string out;
+  };
+  auto o = std::make_shared<Options>();
+  auto* variants = app.add_subcommand("variants", "the structure pool's Ritz modes against full "
+                                                  "solves: error and time");
+  variants->add_option("--check", o->check, "variants also solved in full (default 3)");
+  variants->add_option("--out", o->out, "markdown table (default: print only)");
+  variants->callback([&g, run, o] { *run = [&g, o] { return RunVariants(g, o->check, o->out); }; });
 }
 
 }  // namespace sonicboom::experiments

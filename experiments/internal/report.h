@@ -1,8 +1,9 @@
 #pragma once
-/// Pieces of command set-up and output shared by several commands.
+/// Pieces of command set-up and output shared by several subcommands (report.cc).
 
 #include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <string>
 
 #include "sonicboom/core/tube.h"
@@ -10,6 +11,29 @@
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::experiments {
+
+/// The config of this invocation: defaults, --config files, --set overrides.
+SonicBoomConfig Resolve(const GlobalOptions& g);
+
+/// The test dataset's own config as the base layer, then --config files and --set overrides.
+SonicBoomConfig ResolveWithDataset(const GlobalOptions& g, const std::string& data);
+
+/// Writes the resolved config beside an output file (OUTPUT.config.yaml).
+void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config);
+
+/// IoError unless the parent directory of an output exists.
+void RequireParentDir(const std::string& path);
+
+/// A label as JSON; NaN (no labelled strike) prints as null.
+nlohmann::json LabelJson(const ContactLabel& l);
+
+/// Milliseconds since `start` on the steady clock.
+double MillisecondsSince(std::chrono::steady_clock::time_point start);
+
+/// Features -> train/val split -> training, writing into run_dir.
+learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::string& data,
+                                 const std::string& run_dir, bool resume, int threads, bool quiet,
+                                 const learning::FineTune& fine_tune = {});
 
 /// A run directory's own config (RUN/config.yaml) as the base layer, then --config and --set:
 /// what eval, localize, listen and a fine-tune resolve. IoError when the run is missing.

@@ -1,0 +1,38 @@
+#pragma once
+/// Each subcommand's registration lives beside its Run function (experiments/*_command.cc and the
+/// study files): it declares the subcommand and its options on `app`, and when the subcommand is
+/// chosen, sets `*run`. Option values live in state the callbacks share, so they outlive parsing.
+/// Private to experiments; cli.cc calls them in the order `--help` lists them.
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+
+#include "sonicboom/experiments/commands.h"
+
+namespace sonicboom::experiments {
+
+using Runner = std::function<CommandResult()>;
+
+void RegisterDemo(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterGenerate(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterMerge(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterSynth(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterModes(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterVariants(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterEval(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterBaseline(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterAblate(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterLocalize(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterExport(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterListen(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterGeometryCheck(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterFk(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterInspect(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterConfig(CLI::App& app, GlobalOptions& g, Runner* run);
+
+}  // namespace sonicboom::experiments

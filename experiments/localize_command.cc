@@ -1,0 +1,139 @@
+// `localize`: the contact of one recorded strike, by a trained run or by first arrivals.
+#include "sonicboom/experiments/commands.h"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/acoustics/features.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/tube.h"
+#include "sonicboom/experiments/baselines.h"
+#include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/hardware/capture.h"
+#include "sonicboom/learning/learning.h"
+
+#include "internal/report.h"
+#include "internal/subcommands.h"
+
+namespace sonicboom::experiments {
+
+using nlohmann::json;
+
+CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav) {
+  const SonicBoomConfig config = Resolve(g);
+  const auto start = std::chrono::steady_clock::now();
+  const hardware::Capture cap =
+      hardware::LoadCapture(wav, "", config.mics.count(), config.audio.sample_rate_hz);
+  const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival,
+                                          config.audio.sample_rate_hz);
+  const int64_t onset = acoustics::DetectOnset(cap.audio, config.audio.sample_rate_hz,
+                                               config.features.onset_frame_s,
+                                               config.features.onset_threshold);
+  acoustics::ArrivalEstimate e;
+  try {
+    e = locator.Locate(cap.audio, onset);
+  } catch (const NumericalError& err) {
+    throw NumericalError(fmt::format("{}: {}", wav, err.what()));
+  }
+  const double ms = MillisecondsSince(start);
+  const Eigen::Vector3d point = SurfacePoint(config.tube, e.z_m, e.theta_rad);
+  const json j = {{"method", "arrival"}, {"z_m", e.z_m}, {"theta_rad", e.theta_rad},
+                  {"point_m", {point.x(), point.y(), point.z()}}, {"frame", "tube"},
+                  {"onset_s", static_cast<double>(onset) / config.audio.sample_rate_hz},
+                  {"arrival_s", e.arrival_s}, {"speed_m_s", e.speed_m_s},
+                  {"residual_s", e.residual_s}, {"latency_ms", ms}};
+  return {j.dump(), fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad (arrival times, no "
+                                "model; fitted speed {:.0f} m/s, residual {:.2f} ms)\n",
+                                e.z_m, e.theta_rad, e.speed_m_s, 1e3 * e.residual_s)};
+}
+
+CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
+                          const std::string& wav, const std::string& proprio_csv, int64_t repeat) {
+  if (repeat < 1) throw ConfigError(fmt::format("--repeat must be >= 1, got {}", repeat));
+  // set-up, once per process: the model, the gate's reference clip, FFT plans
+  const auto setup_start = std::chrono::steady_clock::now();
+  const SonicBoomConfig config = ResolveWithRun(g, model_dir);
+  learning::Localizer localizer(model_dir);
+  // only what the model reads: its modalities, and of the spectrogram only its crop
+  const RecordFeaturizer featurizer(config, config.audio.sample_rate_hz, config.mics.count(),
+                                    localizer.needs());
+  const double setup_ms = MillisecondsSince(setup_start);
+  // per strike: WAV (and robot log) read -> features -> network -> answer; the median of
+  // `repeat` runs is the latency
+  // per run: total, read, features, network (ms)
+  std::array<std::vector<double>, 4> stage_ms;
+  learning::Prediction p;
+  for (int64_t r = 0; r < repeat; ++r) {
+    const auto start = std::chrono::steady_clock::now();
+    const hardware::Capture cap =
+        hardware::LoadCapture(wav, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
+    const auto read = std::chrono::steady_clock::now();
+    const learning::FeatureSet features = featurizer.Compute(cap.audio, cap.proprio);
+    const auto featured = std::chrono::steady_clock::now();
+    p = localizer.Predict(features).front();
+    const auto done = std::chrono::steady_clock::now();
+    auto ms = [](auto from, auto to) {
+      return std::chrono::duration<double, std::milli>(to - from).count();
+    };
+    stage_ms[0].push_back(ms(start, done));
+    stage_ms[1].push_back(ms(start, read));
+    stage_ms[2].push_back(ms(read, featured));
+    stage_ms[3].push_back(ms(featured, done));
+  }
+  // medians over the runs, each stage on its own (the mean of the middle two for an even count)
+  std::array<double, 4> median{};
+  for (size_t i = 0; i < stage_ms.size(); ++i) {
+    std::vector<double>& v = stage_ms[i];
+    const auto upper = v.begin() + repeat / 2;
+    std::nth_element(v.begin(), upper, v.end());
+    median[i] = repeat % 2 == 1 ? *upper : 0.5 * (*upper + *std::max_element(v.begin(), upper));
+  }
+  const double median_ms = median[0];
+  std::string text;
+  json j = PredictionJson(p, config.tube, &text);
+  j["latency_ms"] = median_ms;
+  j["setup_ms"] = setup_ms;
+  j["latency_breakdown_ms"] = {{"read", median[1]}, {"features", median[2]}, {"network", median[3]}};
+  text += fmt::format("latency {:.1f} ms from WAV read to answer (median of {}: read {:.1f}, "
+                      "features {:.1f}, network {:.1f}); set-up {:.0f} ms\n",
+                      median_ms, repeat, median[1], median[2], median[3], setup_ms);
+  return {j.dump(), text};
+}
+
+void RegisterLocalize(CLI::App& app, GlobalOptions& g, Runner* run) {
+  struct Options {
+    std::string method = "network", model, wav, proprio;
+    int64_t repeat = 1;
+  };
+  auto o = std::make_shared<Options>();
+  auto* localize = app.add_subcommand("localize", "locate the contact of one recorded strike");
+  localize->add_option("--method", o->method,
+                       "network (a trained run, --model) | arrival (no training: first arrivals)");
+  localize->add_option("--model", o->model, "run directory (--method network)");
+  localize->add_option("--wav", o->wav, "6-channel WAV")->required();
+  localize->add_option("--proprio", o->proprio, "robot log CSV");
+  localize->add_option("--repeat", o->repeat,
+                       "time the WAV-read-to-answer path this many times (median reported)");
+  localize->callback([&g, run, o] {
+    *run = [&g, o] {
+      if (o->method == "arrival") {
+        if (!o->model.empty()) throw ConfigError("localize --method arrival uses no --model");
+        return RunLocalizeByArrival(g, o->wav);
+      }
+      if (o->method != "network") {
+        throw ConfigError(fmt::format("localize --method '{}' must be network or arrival",
+                                      o->method));
+      }
+      if (o->model.empty()) throw ConfigError("localize --method network needs --model RUN");
+      return RunLocalize(g, o->model, o->wav, o->proprio, o->repeat);
+    };
+  });
+}
+
+}  // namespace sonicboom::experiments

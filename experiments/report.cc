@@ -1,0 +1,125 @@
+// Set-up and output shared by the subcommands: config resolution with a run or a dataset as the
+// base layer, outputs beside their config, and the JSON forms of labels, metrics and predictions.
+#include "internal/report.h"
+
+#include <chrono>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/acoustics/features.h"
+#include "sonicboom/core/dataset.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/core/tube.h"
+#include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::experiments {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+SonicBoomConfig Resolve(const GlobalOptions& g) { return ResolveConfig(g.sources); }
+
+// the resolved config beside an output file
+void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config) {
+  WriteTextAtomic(output + ".config.yaml", ConfigToYaml(config));
+}
+
+// the parent directory of an output must exist
+void RequireParentDir(const std::string& path) {
+  const fs::path parent = fs::path(path).parent_path();
+  if (!parent.empty() && !fs::is_directory(parent)) {
+    throw IoError(fmt::format("{}: directory {} does not exist", path, parent.string()));
+  }
+}
+
+// NaN (no labelled strike, or a model without predictive uncertainty) prints as null
+json LabelJson(const ContactLabel& l) {
+  return {{"z_m", l.z_m},
+          {"theta_rad", l.theta_rad},
+          {"point_m", {l.point_m.x(), l.point_m.y(), l.point_m.z()}},
+          {"normal", {l.normal.x(), l.normal.y(), l.normal.z()}},
+          {"impulse_Ns", l.impulse_Ns},
+          {"time_s", l.time_s},
+          {"normal_speed_m_s", l.normal_speed_m_s},
+          {"duration_s", l.duration_s}};
+}
+
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// features -> train/val split -> training, writing into run_dir
+learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::string& data,
+                                 const std::string& run_dir, bool resume, int threads, bool quiet,
+                                 const learning::FineTune& fine_tune) {
+  std::vector<uint64_t> indices;
+  const learning::FeatureSet all = ComputeDatasetFeatures(data, config, threads, !quiet, &indices);
+  return TrainOnFeatures(config, all, indices, data, run_dir, resume, quiet, fine_tune);
+}
+
+SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_dir) {
+  ConfigSources sources = g.sources;
+  const std::string path = (fs::path(run_dir) / "config.yaml").string();
+  if (!fs::is_directory(run_dir)) throw IoError(fmt::format("{}: no such run directory", run_dir));
+  sources.embedded_yaml = ReadText(path);
+  sources.embedded_name = path;
+  return ResolveConfig(sources);
+}
+
+json MetricsJson(const learning::Metrics& m) {
+  return {{"n", m.n},
+          {"med_cm", m.med_cm},
+          {"height_err_cm", m.height_err_cm},
+          {"angle_err_deg", m.angle_err_deg},
+          {"reference_med_cm", m.reference_med_cm},
+          {"z_coverage_50", m.z_coverage_50},
+          {"z_coverage_90", m.z_coverage_90},
+          {"theta_coverage_50", m.theta_coverage_50},
+          {"theta_coverage_90", m.theta_coverage_90},
+          {"nll", m.nll}};
+}
+
+json PredictionJson(const learning::Prediction& p, const TubeConfig& tube, std::string* text) {
+  const Eigen::Vector3d point = SurfacePoint(tube, p.z_m, p.theta_rad);
+  json j = {{"z_m", p.z_m}, {"theta_rad", p.theta_rad}, {"point_m", {point.x(), point.y(), point.z()}},
+            {"frame", "tube"}};
+  *text += fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, {:.4f}, "
+                       "{:.4f}) m in the tube frame\n",
+                       p.z_m, p.theta_rad, point.x(), point.y(), point.z());
+  // the predictive distribution (null for a model without one); the theta interval is
+  // [theta - h, theta + h], not wrapped, so lo < hi also across +-pi
+  j["z_std_m"] = j["theta_std_rad"] = j["theta_kappa"] = nullptr;
+  j["z_interval_90_m"] = j["theta_interval_90_rad"] = nullptr;
+  if (p.has_uncertainty()) {
+    const double z_half = learning::GaussianIntervalHalfWidth(0.9) * p.z_std_m;
+    const double theta_half = learning::VonMisesIntervalHalfWidth(p.theta_kappa, 0.9);
+    const double theta_std = learning::VonMisesCircularStd(p.theta_kappa);
+    j["z_std_m"] = p.z_std_m;
+    j["theta_std_rad"] = theta_std;
+    j["theta_kappa"] = p.theta_kappa;
+    j["z_interval_90_m"] = {p.z_m - z_half, p.z_m + z_half};
+    j["theta_interval_90_rad"] = {p.theta_rad - theta_half, p.theta_rad + theta_half};
+    *text += fmt::format("uncertainty: z std {:.4f} m (90 %: [{:.4f}, {:.4f}] m), theta circular "
+                         "std {:.4f} rad (90 %: [{:.4f}, {:.4f}] rad, kappa {:.3g})\n",
+                         p.z_std_m, p.z_m - z_half, p.z_m + z_half, theta_std,
+                         p.theta_rad - theta_half, p.theta_rad + theta_half, p.theta_kappa);
+  }
+  return j;
+}
+
+// the test dataset's own config as the base layer, then --config files and --set overrides
+SonicBoomConfig ResolveWithDataset(const GlobalOptions& g, const std::string& data) {
+  ConfigSources sources = g.sources;
+  const DatasetInfo info = DatasetReader(data).info();
+  if (!info.config_yaml.empty()) {
+    sources.embedded_yaml = info.config_yaml;
+    sources.embedded_name = data + " (its config)";
+  }
+  return ResolveConfig(sources);
+}
+
+}  // namespace sonicboom::experiments

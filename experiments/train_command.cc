@@ -1,0 +1,85 @@
+// `train`: a localizer trained on a dataset, or fine-tuned from a pretrained run.
+#include "sonicboom/experiments/commands.h"
+
+#include <CLI/CLI.hpp>
+
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/learning/learning.h"
+
+#include "internal/report.h"
+#include "internal/subcommands.h"
+
+namespace sonicboom::experiments {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
+  // a fine-tune starts from the pretrained run's config (its model and features), then the
+  // user's layers; a fresh run from the defaults
+  learning::FineTune fine_tune;
+  fine_tune.init_from = o.init_from;
+  fine_tune.freeze = learning::ParseFreeze(o.freeze);
+  if (o.norm != "keep" && o.norm != "refit") {
+    throw ConfigError(fmt::format("--norm '{}' must be keep or refit", o.norm));
+  }
+  fine_tune.refit_normalization = o.norm == "refit";
+  if (o.init_from.empty() && (o.freeze != "none" || o.norm != "keep")) {
+    throw ConfigError("--freeze and --norm apply to a fine-tune: give --init-from RUN");
+  }
+  if (!o.init_from.empty() && fs::absolute(o.init_from) == fs::absolute(o.out)) {
+    throw ConfigError(fmt::format("--init-from {} is the output run; fine-tune into another directory", o.init_from));
+  }
+  const SonicBoomConfig config = o.init_from.empty() ? Resolve(g) : ResolveWithRun(g, o.init_from);
+  if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
+  MakeDirectories(o.out);
+  WriteTextAtomic((fs::path(o.out) / "config.yaml").string(), ConfigToYaml(config));
+  if (!o.init_from.empty()) {
+    const json init{{"init_from", o.init_from}, {"freeze", o.freeze}, {"norm", o.norm}};
+    WriteTextAtomic((fs::path(o.out) / "fine_tune.json").string(), init.dump(2) + "\n");
+  }
+  const learning::Metrics m =
+      TrainOnDataset(config, o.data, o.out, o.resume, g.threads, g.quiet, fine_tune);
+  json j = MetricsJson(m);
+  j["run_dir"] = o.out;
+  return {j.dump(), fmt::format("trained {}: validation MED {:.2f} cm, height {:.2f} cm, angle "
+                                "{:.1f} deg ({} strikes)\n",
+                                o.out, m.med_cm, m.height_err_cm, m.angle_err_deg, m.n)};
+}
+
+void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
+  struct Options {
+    TrainOptions train;
+    double lr = 0.0;
+    int64_t epochs = 0;
+  };
+  auto o = std::make_shared<Options>();
+  auto* train = app.add_subcommand("train", "train a localizer on a dataset, or fine-tune a "
+                                            "pretrained one (--init-from)");
+  train->add_option("--data", o->train.data, "training dataset (.h5)")->required();
+  train->add_option("--out", o->train.out, "run directory")->required();
+  train->add_flag("--resume", o->train.resume, "continue from the run directory's checkpoint");
+  train->add_option("--init-from", o->train.init_from,
+                    "pretrained run directory: start from its weights and config");
+  train->add_option("--freeze", o->train.freeze,
+                    "none | encoders | all-but-head (with --init-from)");
+  train->add_option("--norm", o->train.norm,
+                    "keep | refit the per-mic mel statistics (with --init-from; default keep)");
+  train->add_option("--lr", o->lr, "learning rate (sets train.learning_rate)")
+      ->check(CLI::PositiveNumber);
+  train->add_option("--epochs", o->epochs, "epochs (sets train.epochs)")
+      ->check(CLI::PositiveNumber);
+  train->callback([&g, run, o] {
+    if (o->lr > 0.0) g.sources.overrides.push_back(fmt::format("train.learning_rate={}", o->lr));
+    if (o->epochs > 0) g.sources.overrides.push_back(fmt::format("train.epochs={}", o->epochs));
+    *run = [&g, o] { return RunTrain(g, o->train); };
+  });
+}
+
+}  // namespace sonicboom::experiments
