@@ -48,7 +48,8 @@ void ArrivalConfig::Serialize(Archive* a) {
 void ArrivalConfig::Validate(double sample_rate_hz) const {
   Require(highpass_hz > 0 && highpass_hz < 0.45 * sample_rate_hz, "highpass_hz", highpass_hz,
           "must lie in (0, 0.45 x the sample rate)");
-  Require(pre_onset_s > 0 && pre_onset_s <= 0.1, "pre_onset_s", pre_onset_s, "must lie in (0, 0.1] s");
+  Require(pre_onset_s > 0 && pre_onset_s <= 0.1, "pre_onset_s", pre_onset_s,
+          "must lie in (0, 0.1] s");
   Require(post_onset_s > 0 && post_onset_s <= 0.1, "post_onset_s", post_onset_s,
           "must lie in (0, 0.1] s");
   Require(noise_window_s > 0 && noise_window_s <= 1.0, "noise_window_s", noise_window_s,
@@ -83,7 +84,9 @@ ArrivalLocator::ArrivalLocator(const TdoaGeometry& geometry, const ArrivalConfig
   m.mics = static_cast<int>(geometry.mic_z_m.size());
   m.hp = ButterworthHighPass(config.highpass_hz, sample_rate_hz);
   // the contact region on a z x theta grid, and every grid point's path to every microphone
-  const int nz = static_cast<int>(std::floor((geometry.z_max_m - geometry.z_min_m) / config.grid_z_step_m)) + 1;
+  const int nz =
+      static_cast<int>(std::floor((geometry.z_max_m - geometry.z_min_m) / config.grid_z_step_m)) +
+      1;
   const int nt = static_cast<int>(std::lround(360.0 / config.grid_theta_step_deg));
   for (int i = 0; i < nz; ++i) {
     for (int j = 0; j < nt; ++j) {
@@ -94,8 +97,8 @@ ArrivalLocator::ArrivalLocator(const TdoaGeometry& geometry, const ArrivalConfig
   const Eigen::Index points = static_cast<Eigen::Index>(m.grid_z.size());
   m.distance_m.resize(m.mics, points);
   for (int k = 0; k < m.mics; ++k) {
-    const std::vector<double> d = SurfacePathLengths(geometry, m.grid_z, m.grid_theta,
-                                                     geometry.mic_z_m[k], geometry.mic_theta_rad[k]);
+    const std::vector<double> d = SurfacePathLengths(
+        geometry, m.grid_z, m.grid_theta, geometry.mic_z_m[k], geometry.mic_theta_rad[k]);
     m.distance_m.row(k) = Eigen::Map<const Eigen::RowVectorXd>(d.data(), points);
   }
 }
@@ -147,9 +150,10 @@ std::vector<double> ArrivalLocator::PickArrivals(const Eigen::MatrixXf& record,
       break;
     }
     if (!(peak > 0.0)) {
-      throw NumericalError(fmt::format("arrival locator: channel {} is silent around the onset "
-                                       "(sample {}): no arrival to pick",
-                                       ch, onset_sample));
+      throw NumericalError(
+          fmt::format("arrival locator: channel {} is silent around the onset "
+                      "(sample {}): no arrival to pick",
+                      ch, onset_sample));
     }
     arrivals[static_cast<size_t>(ch)] = arrival;
   }

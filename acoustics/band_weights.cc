@@ -35,8 +35,8 @@ std::vector<double> LogBandWeights(double low_hz, double high_hz, int64_t fft_si
 void ValidateBandEdges(const std::vector<double>& edges_hz, double sample_rate_hz,
                        std::string_view key) {
   if (edges_hz.size() < 2) {
-    throw ConfigError(fmt::format("{} needs at least two edges (one band), got {}", key,
-                                  edges_hz.size()));
+    throw ConfigError(
+        fmt::format("{} needs at least two edges (one band), got {}", key, edges_hz.size()));
   }
   for (size_t b = 0; b < edges_hz.size(); ++b) {
     const double e = edges_hz[b];

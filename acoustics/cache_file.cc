@@ -20,7 +20,8 @@ bool OpenCacheFile(const std::string& path, const char (&magic)[8], const std::s
   if (!*in || std::memcmp(stored_magic, magic, 8) != 0 || key_size != key.size()) return false;
   std::string stored(key_size, '\0');
   in->read(stored.data(), static_cast<std::streamsize>(key_size));
-  in->read(reinterpret_cast<char*>(header), static_cast<std::streamsize>(sizeof(int64_t) * header_count));
+  in->read(reinterpret_cast<char*>(header),
+           static_cast<std::streamsize>(sizeof(int64_t) * header_count));
   return static_cast<bool>(*in) && stored == key;
 }
 
@@ -36,7 +37,8 @@ void WriteCacheFile(const std::string& cache_dir, const std::string& path, const
   std::error_code ec;
   std::filesystem::create_directories(cache_dir, ec);
   if (ec) {
-    spdlog::warn("mode cache: cannot create {}: {}; continuing without it", cache_dir, ec.message());
+    spdlog::warn("mode cache: cannot create {}: {}; continuing without it", cache_dir,
+                 ec.message());
     return;
   }
   const std::string partial = path + ".partial";

@@ -33,7 +33,7 @@ constexpr int64_t kMaxSubstepsPerSample = int64_t{1} << 20;
 
 // the rod's mesh: node positions (m), two uniform parts either side of the contact node
 struct BeamMesh {
-  std::vector<double> x_m;   // (nodes) from the clamp
+  std::vector<double> x_m;  // (nodes) from the clamp
   int contact_node{0};
 };
 
@@ -52,13 +52,12 @@ void CheckBeam(const BeamSpec& beam, int elements) {
   }
   const double a = beam.contact_from_clamp_m;
   if (!(a > 0.0 && a <= beam.length_m) || (beam.clamped_both_ends && a >= beam.length_m)) {
-    throw ConfigError(fmt::format(
-        "beam contact_from_clamp_m must lie in (0, {}{} m (the rod's length), got {}",
-        beam.length_m, beam.clamped_both_ends ? ")" : "]", a));
+    throw ConfigError(
+        fmt::format("beam contact_from_clamp_m must lie in (0, {}{} m (the rod's length), got {}",
+                    beam.length_m, beam.clamped_both_ends ? ")" : "]", a));
   }
   if (!(std::isfinite(beam.loss_factor) && beam.loss_factor >= 0.0 && beam.loss_factor < 2.0)) {
-    throw ConfigError(
-        fmt::format("beam loss_factor must lie in [0, 2), got {}", beam.loss_factor));
+    throw ConfigError(fmt::format("beam loss_factor must lie in [0, 2), got {}", beam.loss_factor));
   }
   if (elements < 2) throw ConfigError(fmt::format("beam elements must be >= 2, got {}", elements));
 }
@@ -102,14 +101,10 @@ BeamModes SolveBeam(const BeamSpec& beam, int elements, double max_frequency_hz)
     const double l = mesh.x_m[e + 1] - mesh.x_m[e];
     largest_element_m = std::max(largest_element_m, l);
     Eigen::Matrix4d ke, me;
-    ke << 12, 6 * l, -12, 6 * l,
-          6 * l, 4 * l * l, -6 * l, 2 * l * l,
-          -12, -6 * l, 12, -6 * l,
-          6 * l, 2 * l * l, -6 * l, 4 * l * l;
-    me << 156, 22 * l, 54, -13 * l,
-          22 * l, 4 * l * l, 13 * l, -3 * l * l,
-          54, 13 * l, 156, -22 * l,
-          -13 * l, -3 * l * l, -22 * l, 4 * l * l;
+    ke << 12, 6 * l, -12, 6 * l, 6 * l, 4 * l * l, -6 * l, 2 * l * l, -12, -6 * l, 12, -6 * l,
+        6 * l, 2 * l * l, -6 * l, 4 * l * l;
+    me << 156, 22 * l, 54, -13 * l, 22 * l, 4 * l * l, 13 * l, -3 * l * l, 54, 13 * l, 156, -22 * l,
+        -13 * l, -3 * l * l, -22 * l, 4 * l * l;
     k.block<4, 4>(2 * e, 2 * e) += ei / (l * l * l) * ke;
     m.block<4, 4>(2 * e, 2 * e) += rho_a * l / 420.0 * me;
   }
@@ -226,10 +221,10 @@ struct Reduced {
 // what one pass at a fixed substep needs besides the bodies
 struct PassSetup {
   double stiffness_n_m15, v_m_s, time_s, sample_rate_hz;
-  int64_t per_sample;        // substeps per audio sample
-  int64_t apart_stride;      // substeps per free step while apart near the other body
-  int64_t restart_below;     // abandon the pass when the first closure is shorter (substeps)
-  int64_t restart_above;     // ... or longer (substeps)
+  int64_t per_sample;     // substeps per audio sample
+  int64_t apart_stride;   // substeps per free step while apart near the other body
+  int64_t restart_below;  // abandon the pass when the first closure is shorter (substeps)
+  int64_t restart_above;  // ... or longer (substeps)
 };
 
 // one pass of the contact solve at a fixed substep
@@ -294,7 +289,7 @@ Pass SolveAtSubsteps(const Reduced& body, const PassSetup& setup, const ContactC
 
   bool closed = false;
   int64_t touches = 0, closure_start = 0, fine_until = 0;
-  double modal_reach = -1.0;  // m, the modes' energy bound while free; < 0 = to compute
+  double modal_reach = -1.0;   // m, the modes' energy bound while free; < 0 = to compute
   double release_s = touch_s;  // the last release, from the origin
   const double give_up_s = touch_s + config.max_duration_s;
 
@@ -352,8 +347,7 @@ Pass SolveAtSubsteps(const Reduced& body, const PassSetup& setup, const ContactC
     }
     // done once apart for the separation window with the rigid parts not closing (a rigid
     // part still closing meets the other body again: the modal parts are bounded)
-    if (!closed && touches > 0 && t_s - release_s >= config.separation_window_s &&
-        xd_m_s <= 0.0) {
+    if (!closed && touches > 0 && t_s - release_s >= config.separation_window_s && xd_m_s <= 0.0) {
       break;
     }
 
@@ -380,8 +374,8 @@ Pass SolveAtSubsteps(const Reduced& body, const PassSetup& setup, const ContactC
     const double f0 = force(delta, rate);
     const double delta_mid = x_m + 0.5 * h * xd_m_s - 0.125 * h * h * inv_mass * f0 +
                              (map.col(0) * y + map.col(1) * yd).sum() - half_g1 * f0;
-    const double rate_mid = xd_m_s - 0.5 * h * inv_mass * f0 +
-                            (map.col(2) * y + map.col(3) * yd).sum() - half_g2 * f0;
+    const double rate_mid =
+        xd_m_s - 0.5 * h * inv_mass * f0 + (map.col(2) * y + map.col(3) * yd).sum() - half_g2 * f0;
     const double f = force(delta_mid, rate_mid);
 
     // exact substep for the midpoint force held over it (rigid and modal parts)
@@ -491,16 +485,18 @@ ContactForce SolveContact(const DrivingPoint& tube, const DrivingPoint& striker,
   CheckBody(tube, "tube");
   CheckBody(striker, "striker");
   if (!(std::isfinite(stiffness_n_m15) && stiffness_n_m15 > 0.0)) {
-    throw ConfigError(fmt::format("contact: Hertz stiffness must be positive, got {} N/m^1.5",
-                                  stiffness_n_m15));
+    throw ConfigError(
+        fmt::format("contact: Hertz stiffness must be positive, got {} N/m^1.5", stiffness_n_m15));
   }
   if (!(std::isfinite(approach_speed_m_s) && approach_speed_m_s > 0.0)) {
     throw ConfigError(
         fmt::format("contact: approach speed must be positive, got {} m/s", approach_speed_m_s));
   }
   if (!(std::isfinite(sample_rate_hz) && sample_rate_hz > 0.0 && std::isfinite(time_s))) {
-    throw ConfigError(fmt::format("contact: needs a positive sample rate and a finite time, got "
-                                  "{} Hz, {} s", sample_rate_hz, time_s));
+    throw ConfigError(
+        fmt::format("contact: needs a positive sample rate and a finite time, got "
+                    "{} Hz, {} s",
+                    sample_rate_hz, time_s));
   }
   // relative rigid coordinate: (x_tube - x_striker)'' = -F (1/m_tube + 1/m_striker)
   const double inv_mass = 1.0 / tube.rigid_mass_kg + 1.0 / striker.rigid_mass_kg;
@@ -552,7 +548,13 @@ ContactForce SolveContact(const DrivingPoint& tube, const DrivingPoint& striker,
           "limit {}; lower acoustics.contact.substeps_per_duration",
           per_sample_f, t_c, kMaxSubstepsPerSample));
     }
-    PassSetup setup{stiffness_n_m15, approach_speed_m_s, time_s, sample_rate_hz, 0, 1, 0,
+    PassSetup setup{stiffness_n_m15,
+                    approach_speed_m_s,
+                    time_s,
+                    sample_rate_hz,
+                    0,
+                    1,
+                    0,
                     std::numeric_limits<int64_t>::max()};
     setup.per_sample = std::max<int64_t>(config.min_substeps, static_cast<int64_t>(per_sample_f));
     setup.apart_stride = std::max<int64_t>(1, config.substeps_per_duration / kApartStrideDivisor);

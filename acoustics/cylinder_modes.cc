@@ -18,13 +18,12 @@ constexpr double kPi = std::numbers::pi;
 Eigen::Matrix3d FluggeStiffness(double lambda, double n, double nu, double k) {
   Eigen::Matrix3d K;
   const double l2 = lambda * lambda, n2 = n * n;
-  K << l2 + (1 - nu) * n2 / 2, -(1 + nu) * lambda * n / 2, -nu * lambda,
-      -(1 + nu) * lambda * n / 2, (1 - nu) * l2 / 2 + n2, n,
-      -nu * lambda, n, 1 + k * (l2 + n2) * (l2 + n2);
+  K << l2 + (1 - nu) * n2 / 2, -(1 + nu) * lambda * n / 2, -nu * lambda, -(1 + nu) * lambda * n / 2,
+      (1 - nu) * l2 / 2 + n2, n, -nu * lambda, n, 1 + k * (l2 + n2) * (l2 + n2);
   Eigen::Matrix3d C;
-  C << (1 - nu) * n2 / 2, 0, -lambda * l2 + (1 - nu) * lambda * n2 / 2,
-      0, 3 * (1 - nu) * l2 / 2, (3 - nu) * l2 * n / 2,
-      -lambda * l2 + (1 - nu) * lambda * n2 / 2, (3 - nu) * l2 * n / 2, 1 - 2 * n2;
+  C << (1 - nu) * n2 / 2, 0, -lambda * l2 + (1 - nu) * lambda * n2 / 2, 0, 3 * (1 - nu) * l2 / 2,
+      (3 - nu) * l2 * n / 2, -lambda * l2 + (1 - nu) * lambda * n2 / 2, (3 - nu) * l2 * n / 2,
+      1 - 2 * n2;
   return K + k * C;
 }
 
@@ -37,8 +36,8 @@ std::vector<ShellMode> SimplySupportedModes(const TubeConfig& tube, const Materi
   const double nu = material.poisson_ratio;
   const double k = h * h / (12 * R * R);
   // Omega = omega R sqrt(rho (1 - nu^2) / E)
-  const double omega_scale = std::sqrt(material.youngs_modulus_pa /
-                                       (material.density_kg_m3 * (1 - nu * nu))) / R;
+  const double omega_scale =
+      std::sqrt(material.youngs_modulus_pa / (material.density_kg_m3 * (1 - nu * nu))) / R;
   std::vector<ShellMode> modes;
   for (int m = 1; m < 400; ++m) {
     const double lambda = m * kPi * R / tube.length_m;
@@ -101,8 +100,7 @@ std::vector<double> ClosedFormFrequencies(const TubeConfig& tube, const Material
       freqs.insert(freqs.end(), {f0, f0, f1, f1});
     }
   } else {
-    throw ConfigError(fmt::format(
-        "boundary '{}' is not one of: simply-supported, free", boundary));
+    throw ConfigError(fmt::format("boundary '{}' is not one of: simply-supported, free", boundary));
   }
   std::sort(freqs.begin(), freqs.end());
   if (static_cast<int>(freqs.size()) > count) freqs.resize(count);

@@ -51,8 +51,8 @@ void DaqConfig::Validate(int channels) const {
   CheckChannelList(channel_capacitance_f, "channel_capacitance_f", channels);
   CheckChannelList(channel_preamp_noise_v, "channel_preamp_noise_v", channels);
   if (output_bits > adc_bits) {
-    throw ConfigError(fmt::format("daq.output_bits = {} exceeds daq.adc_bits = {}", output_bits,
-                                  adc_bits));
+    throw ConfigError(
+        fmt::format("daq.output_bits = {} exceeds daq.adc_bits = {}", output_bits, adc_bits));
   }
 }
 
@@ -76,8 +76,9 @@ void NoiseConfig::Serialize(Archive* a) {
 
 void NoiseConfig::Validate() const {
   if (!(foliage_low_hz < foliage_high_hz)) {
-    throw ConfigError(fmt::format("noise.foliage_low_hz = {} must be below noise.foliage_high_hz = {}",
-                                  foliage_low_hz, foliage_high_hz));
+    throw ConfigError(
+        fmt::format("noise.foliage_low_hz = {} must be below noise.foliage_high_hz = {}",
+                    foliage_low_hz, foliage_high_hz));
   }
 }
 
@@ -87,8 +88,8 @@ struct DaqChain::Impl {
   int channels{0};
   double fs{0.0};
   int64_t record_samples{0};
-  Eigen::VectorXd b0, a1;                 // (channels) bilinear high-pass coefficients
-  Eigen::VectorXd preamp_noise_v;         // (channels)
+  Eigen::VectorXd b0, a1;                   // (channels) bilinear high-pass coefficients
+  Eigen::VectorXd preamp_noise_v;           // (channels)
   std::vector<Eigen::MatrixXf> recordings;  // each (channels x frames), full scale units
 };
 
@@ -110,9 +111,10 @@ DaqChain::DaqChain(const DaqConfig& daq, const NoiseConfig& noise, int channels,
   for (int c = 0; c < channels; ++c) {
     const double fc = daq.highpass_hz(c);
     if (!(fc < 0.5 * sample_rate_hz)) {
-      throw ConfigError(fmt::format("daq: channel {} high-pass corner {} Hz (1 / 2 pi R C) is not "
-                                    "below the Nyquist frequency {} Hz",
-                                    c, fc, 0.5 * sample_rate_hz));
+      throw ConfigError(
+          fmt::format("daq: channel {} high-pass corner {} Hz (1 / 2 pi R C) is not "
+                      "below the Nyquist frequency {} Hz",
+                      c, fc, 0.5 * sample_rate_hz));
     }
     const double kk = std::tan(kPi * fc / sample_rate_hz);
     m.b0[c] = 1.0 / (1.0 + kk);
@@ -123,18 +125,20 @@ DaqChain::DaqChain(const DaqConfig& daq, const NoiseConfig& noise, int channels,
   for (const std::string& path : noise.wav_files) {
     AudioClip clip = ReadWav(path);
     if (std::abs(clip.sample_rate_hz - sample_rate_hz) > 1e-6) {
-      throw ConfigError(fmt::format("noise.wav_files: {} is sampled at {} Hz; audio.sample_rate_hz "
-                                    "is {} Hz (resample it first)",
-                                    path, clip.sample_rate_hz, sample_rate_hz));
+      throw ConfigError(
+          fmt::format("noise.wav_files: {} is sampled at {} Hz; audio.sample_rate_hz "
+                      "is {} Hz (resample it first)",
+                      path, clip.sample_rate_hz, sample_rate_hz));
     }
     if (clip.channels() != 1 && clip.channels() != channels) {
       throw ConfigError(fmt::format("noise.wav_files: {} has {} channels; it needs 1 or {}", path,
                                     clip.channels(), channels));
     }
     if (clip.frames() < record_samples) {
-      throw ConfigError(fmt::format("noise.wav_files: {} has {} frames, shorter than one record "
-                                    "({} frames)",
-                                    path, clip.frames(), record_samples));
+      throw ConfigError(
+          fmt::format("noise.wav_files: {} has {} frames, shorter than one record "
+                      "({} frames)",
+                      path, clip.frames(), record_samples));
     }
     if (clip.channels() == 1) clip.samples = clip.samples.replicate(channels, 1).eval();
     m.recordings.push_back(std::move(clip.samples));
@@ -143,7 +147,9 @@ DaqChain::DaqChain(const DaqConfig& daq, const NoiseConfig& noise, int channels,
 
 DaqChain::~DaqChain() = default;
 
-const DaqConfig& DaqChain::daq() const { return impl_->daq; }
+const DaqConfig& DaqChain::daq() const {
+  return impl_->daq;
+}
 
 namespace {
 
@@ -228,7 +234,8 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
   if (!m.recordings.empty()) {
     rec = &m.recordings[noise_rng.UniformInt(m.recordings.size())];
     rec_span = std::min<int64_t>(num_frames, rec->cols());
-    rec_offset = static_cast<int64_t>(noise_rng.UniformInt(static_cast<uint64_t>(rec->cols() - rec_span + 1)));
+    rec_offset = static_cast<int64_t>(
+        noise_rng.UniformInt(static_cast<uint64_t>(rec->cols() - rec_span + 1)));
   }
 
   // this sample's sensor chain: hum, record level and converter full scale
@@ -283,8 +290,9 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
     if (hum.size() > 0) v += var->hum_channel_scale[ci] * hum;
     if (level != 1.0) v *= level;
     if (rec != nullptr) {
-      v.head(rec_span) += rec->row(i).segment(rec_offset, rec_span).transpose().cast<double>().array() *
-                          (m.noise.wav_gain * full_scale_v);
+      v.head(rec_span) +=
+          rec->row(i).segment(rec_offset, rec_span).transpose().cast<double>().array() *
+          (m.noise.wav_gain * full_scale_v);
     }
     // converter: clip at full scale, quantize to the ADC, then to the output word length
     v /= full_scale_v;

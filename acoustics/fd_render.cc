@@ -19,8 +19,8 @@ Eigen::MatrixXd FdRender(const ShellModel& model, const ShellFd& fd,
     for (Eigen::Index d = 0; d < w.size(); ++d) {
       if (w[d] != 0.0) weights[e].push_back({d, w[d]});
     }
-    force_end = std::max<int64_t>(force_end, forces[e].first_sample +
-                                                 static_cast<int64_t>(forces[e].force_n.size()));
+    force_end = std::max<int64_t>(
+        force_end, forces[e].first_sample + static_cast<int64_t>(forces[e].force_n.size()));
   }
   // a force sample is the mean over its sample interval: place it mid-sample, linear between
   auto force_at = [&](const ForceInput& f, double t_samples) {
@@ -28,7 +28,9 @@ Eigen::MatrixXd FdRender(const ShellModel& model, const ShellFd& fd,
     const int64_t i = static_cast<int64_t>(std::floor(x));
     const double frac = x - std::floor(x);
     auto at = [&](int64_t j) {
-      return j >= 0 && j < static_cast<int64_t>(f.force_n.size()) ? f.force_n[static_cast<size_t>(j)] : 0.0;
+      return j >= 0 && j < static_cast<int64_t>(f.force_n.size())
+                 ? f.force_n[static_cast<size_t>(j)]
+                 : 0.0;
     };
     return (1 - frac) * at(i) + frac * at(i + 1);
   };

@@ -86,8 +86,12 @@ double FourChainSum(int64_t count, Term term) {
   return (part[0] + part[1]) + (part[2] + part[3]);
 }
 
-double HzToMelHtk(double hz) { return 2595.0 * std::log10(1.0 + hz / 700.0); }
-double MelToHzHtk(double mel) { return 700.0 * (std::pow(10.0, mel / 2595.0) - 1.0); }
+double HzToMelHtk(double hz) {
+  return 2595.0 * std::log10(1.0 + hz / 700.0);
+}
+double MelToHzHtk(double mel) {
+  return 700.0 * (std::pow(10.0, mel / 2595.0) - 1.0);
+}
 
 }  // namespace
 
@@ -106,14 +110,14 @@ struct MelSpectrogram::Impl {
   int64_t hop{0};
   int64_t n_mels{0};
   int64_t n_freqs{0};
-  std::vector<double> window;       // periodic Hann (n_fft)
-  Eigen::MatrixXf filterbank;       // (n_mels x n_freqs), float copy for callers
-  Eigen::MatrixXd filterbank_d;     // (n_mels x n_freqs)
-  std::vector<int64_t> band_begin;  // per mel band: first non-zero frequency bin
-  std::vector<int64_t> band_end;    // per mel band: one past the last non-zero bin
-  std::vector<double> band_weights; // the non-zero weights of band j, contiguous from
-  std::vector<int64_t> band_offset; // band_offset[j] (n_mels + 1 offsets)
-  FftwPlan plan;                    // r2c of one frame
+  std::vector<double> window;        // periodic Hann (n_fft)
+  Eigen::MatrixXf filterbank;        // (n_mels x n_freqs), float copy for callers
+  Eigen::MatrixXd filterbank_d;      // (n_mels x n_freqs)
+  std::vector<int64_t> band_begin;   // per mel band: first non-zero frequency bin
+  std::vector<int64_t> band_end;     // per mel band: one past the last non-zero bin
+  std::vector<double> band_weights;  // the non-zero weights of band j, contiguous from
+  std::vector<int64_t> band_offset;  // band_offset[j] (n_mels + 1 offsets)
+  FftwPlan plan;                     // r2c of one frame
   std::unique_ptr<ScratchPool<Scratch>> pool;
 
   std::unique_ptr<Scratch> MakeScratch() const {
@@ -197,9 +201,13 @@ MelSpectrogram::MelSpectrogram(int64_t n_fft, int64_t hop, int64_t n_mels, doubl
 
 MelSpectrogram::~MelSpectrogram() = default;
 
-int64_t MelSpectrogram::Frames(int64_t n) const { return 1 + n / impl_->hop; }
+int64_t MelSpectrogram::Frames(int64_t n) const {
+  return 1 + n / impl_->hop;
+}
 
-const Eigen::MatrixXf& MelSpectrogram::filterbank() const { return impl_->filterbank; }
+const Eigen::MatrixXf& MelSpectrogram::filterbank() const {
+  return impl_->filterbank;
+}
 
 void MelSpectrogram::Compute(const float* x, int64_t n, Eigen::MatrixXf* out) const {
   Compute(x, n, 0, Frames(n), out);
@@ -251,7 +259,7 @@ struct GccPhat::Impl {
     std::vector<FftwArray<fftwf_complex>> spectra;
     std::vector<std::vector<float>> magnitudes;  // |X_c| per bin
     FftwArray<fftwf_complex> cross;
-    FftwArray<fftwf_complex> phat;             // the PHAT cross spectrum before band weights
+    FftwArray<fftwf_complex> phat;  // the PHAT cross spectrum before band weights
     FftwArray<float> correlation;
   };
 
@@ -260,10 +268,10 @@ struct GccPhat::Impl {
   int channels{0};
   int64_t fft_size{0};
   int64_t n_bins{0};
-  std::vector<std::pair<int, int>> pairs;  // itertools.combinations(range(C), 2) order
+  std::vector<std::pair<int, int>> pairs;       // itertools.combinations(range(C), 2) order
   std::vector<std::vector<float>> band_weight;  // (bands x bins); empty: the full band
-  internal::fftw::PlanF forward;           // r2c, fft_size, single precision
-  internal::fftw::PlanF inverse;           // c2r, fft_size, single precision
+  internal::fftw::PlanF forward;                // r2c, fft_size, single precision
+  internal::fftw::PlanF inverse;                // c2r, fft_size, single precision
   std::unique_ptr<ScratchPool<Scratch>> pool;
 
   std::unique_ptr<Scratch> MakeScratch() const {
@@ -309,18 +317,22 @@ GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels, double sample_rate_hz
   internal::ValidateBandEdges(band_edges_hz, sample_rate_hz, "features.gcc_bands_hz");
   Impl& g = *impl_;
   for (size_t b = 0; b + 1 < band_edges_hz.size(); ++b) {
-    const std::vector<double> w = internal::LogBandWeights(
-        band_edges_hz[b], band_edges_hz[b + 1], g.fft_size, sample_rate_hz, "features.gcc_bands_hz");
+    const std::vector<double> w =
+        internal::LogBandWeights(band_edges_hz[b], band_edges_hz[b + 1], g.fft_size, sample_rate_hz,
+                                 "features.gcc_bands_hz");
     g.band_weight.emplace_back(w.begin(), w.end());
   }
 }
 
 GccPhat::~GccPhat() = default;
 
-int64_t GccPhat::fft_size() const { return impl_->fft_size; }
+int64_t GccPhat::fft_size() const {
+  return impl_->fft_size;
+}
 
 int64_t GccPhat::rows() const {
-  const int64_t bands = impl_->band_weight.empty() ? 1 : static_cast<int64_t>(impl_->band_weight.size());
+  const int64_t bands =
+      impl_->band_weight.empty() ? 1 : static_cast<int64_t>(impl_->band_weight.size());
   return static_cast<int64_t>(impl_->pairs.size()) * bands;
 }
 
@@ -485,9 +497,10 @@ void ValidateFeatureConfig(const FeatureConfig& c, double fs, int channels) {
         fmt::format("features.f_min_hz must be < f_max ({} Hz), got {}", f_max, c.f_min_hz));
   }
   if (!(c.gcc_window_s >= 0.0 && c.gcc_window_s <= c.window_s)) {
-    throw ConfigError(fmt::format("features.gcc_window_s must be in [0, features.window_s = {}] "
-                                  "s (0: the whole window), got {}",
-                                  c.window_s, c.gcc_window_s));
+    throw ConfigError(
+        fmt::format("features.gcc_window_s must be in [0, features.window_s = {}] "
+                    "s (0: the whole window), got {}",
+                    c.window_s, c.gcc_window_s));
   }
   const int64_t gcc_samples = std::llround(c.gcc_span_s() * fs);
   if (c.gcc_max_lag < 0 || c.gcc_max_lag >= gcc_samples) {
@@ -509,25 +522,29 @@ void ValidateFeatureConfig(const FeatureConfig& c, double fs, int channels) {
     throw ConfigError(fmt::format("features.gating_n_std must be finite, got {}", c.gating_n_std));
   }
   if (c.gating_n_fft < 2 || c.gating_n_fft > window_samples) {
-    throw ConfigError(fmt::format("features.gating_n_fft must be in [2, window samples = {}], "
-                                  "got {}",
-                                  window_samples, c.gating_n_fft));
+    throw ConfigError(
+        fmt::format("features.gating_n_fft must be in [2, window samples = {}], "
+                    "got {}",
+                    window_samples, c.gating_n_fft));
   }
   if (c.gating_hop < 1 || c.gating_hop > c.gating_n_fft / 2) {
-    throw ConfigError(fmt::format("features.gating_hop must be in [1, gating_n_fft / 2 = {}], "
-                                  "got {}",
-                                  c.gating_n_fft / 2, c.gating_hop));
+    throw ConfigError(
+        fmt::format("features.gating_hop must be in [1, gating_n_fft / 2 = {}], "
+                    "got {}",
+                    c.gating_n_fft / 2, c.gating_hop));
   }
   if (!(c.gating_freq_smooth_hz >= 0.0 && c.gating_freq_smooth_hz <= nyquist)) {
-    throw ConfigError(fmt::format("features.gating_freq_smooth_hz must be in [0, Nyquist = {}] Hz, "
-                                  "got {}",
-                                  nyquist, c.gating_freq_smooth_hz));
+    throw ConfigError(
+        fmt::format("features.gating_freq_smooth_hz must be in [0, Nyquist = {}] Hz, "
+                    "got {}",
+                    nyquist, c.gating_freq_smooth_hz));
   }
   const double window_s = static_cast<double>(window_samples) / fs;
   if (!(c.gating_time_smooth_s >= 0.0 && c.gating_time_smooth_s <= window_s)) {
-    throw ConfigError(fmt::format("features.gating_time_smooth_s must be in [0, window = {} s], "
-                                  "got {}",
-                                  window_s, c.gating_time_smooth_s));
+    throw ConfigError(
+        fmt::format("features.gating_time_smooth_s must be in [0, window = {} s], "
+                    "got {}",
+                    window_s, c.gating_time_smooth_s));
   }
   if (!(c.gating_prop_decrease >= 0.0 && c.gating_prop_decrease <= 1.0)) {
     throw ConfigError(fmt::format("features.gating_prop_decrease must be in [0, 1], got {}",
@@ -557,14 +574,16 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
                                     config.gcc_bands_hz);
   if (config.gating && noise_clip != nullptr) {
     if (noise_clip->rows() != channels) {
-      throw ConfigError(fmt::format("features.gating: the reference noise clip has {} channels, "
-                                    "the records have {}",
-                                    noise_clip->rows(), channels));
+      throw ConfigError(
+          fmt::format("features.gating: the reference noise clip has {} channels, "
+                      "the records have {}",
+                      noise_clip->rows(), channels));
     }
     if (noise_clip->cols() < config.gating_n_fft) {
-      throw ConfigError(fmt::format("features.gating: the reference noise clip has {} samples, "
-                                    "shorter than one gate frame (features.gating_n_fft = {})",
-                                    noise_clip->cols(), config.gating_n_fft));
+      throw ConfigError(
+          fmt::format("features.gating: the reference noise clip has {} samples, "
+                      "shorter than one gate frame (features.gating_n_fft = {})",
+                      noise_clip->cols(), config.gating_n_fft));
     }
     e.gate = std::make_unique<SpectralGate>(GatingConfig(config), *noise_clip, sample_rate_hz);
   }
@@ -578,13 +597,27 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
 
 FeatureExtractor::~FeatureExtractor() = default;
 
-int64_t FeatureExtractor::window_samples() const { return impl_->window_samples; }
-int64_t FeatureExtractor::mel_frames() const { return impl_->mel->Frames(impl_->window_samples); }
-int64_t FeatureExtractor::gcc_lags() const { return 2 * impl_->config.gcc_max_lag + 1; }
-int64_t FeatureExtractor::gcc_rows() const { return impl_->gcc->rows(); }
-int64_t FeatureExtractor::gcc_samples() const { return impl_->gcc_samples; }
-int FeatureExtractor::channels() const { return impl_->channels; }
-const SpectralGate* FeatureExtractor::gate() const { return impl_->gate.get(); }
+int64_t FeatureExtractor::window_samples() const {
+  return impl_->window_samples;
+}
+int64_t FeatureExtractor::mel_frames() const {
+  return impl_->mel->Frames(impl_->window_samples);
+}
+int64_t FeatureExtractor::gcc_lags() const {
+  return 2 * impl_->config.gcc_max_lag + 1;
+}
+int64_t FeatureExtractor::gcc_rows() const {
+  return impl_->gcc->rows();
+}
+int64_t FeatureExtractor::gcc_samples() const {
+  return impl_->gcc_samples;
+}
+int FeatureExtractor::channels() const {
+  return impl_->channels;
+}
+const SpectralGate* FeatureExtractor::gate() const {
+  return impl_->gate.get();
+}
 
 StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
                                          const FeatureRequest& request) const {
@@ -597,9 +630,10 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
   const int64_t first_frame = request.mel_first_frame;
   const int64_t frames = request.mel_frames < 0 ? all_frames - first_frame : request.mel_frames;
   if (request.mel && (first_frame < 0 || frames < 0 || first_frame + frames > all_frames)) {
-    throw Error(fmt::format("feature request: mel frames [{}, {}) outside the {} frames of the "
-                            "window",
-                            first_frame, first_frame + frames, all_frames));
+    throw Error(
+        fmt::format("feature request: mel frames [{}, {}) outside the {} frames of the "
+                    "window",
+                    first_frame, first_frame + frames, all_frames));
   }
   StrikeFeatures features;
   features.onset_sample =
@@ -634,9 +668,8 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
     for (int c = 0; c < e.channels; ++c) {
       e.mel->Compute(window.row(c).data(), n, first_frame, frames, &features.mel[c]);
       if (e.config.log_mel) {
-        features.mel[c] = features.mel[c].unaryExpr([](float p) {
-          return static_cast<float>(std::log10(static_cast<double>(p) + 1e-10));
-        });
+        features.mel[c] = features.mel[c].unaryExpr(
+            [](float p) { return static_cast<float>(std::log10(static_cast<double>(p) + 1e-10)); });
       }
     }
   }

@@ -12,9 +12,15 @@ std::mutex& PlannerMutex() {
   return mutex;
 }
 
-void DestroyPlan(fftw_plan plan) { fftw_destroy_plan(plan); }
-void DestroyPlan(fftwf_plan plan) { fftwf_destroy_plan(plan); }
-void ThrowNoPlan() { throw NumericalError("FFTW could not create a plan"); }
+void DestroyPlan(fftw_plan plan) {
+  fftw_destroy_plan(plan);
+}
+void DestroyPlan(fftwf_plan plan) {
+  fftwf_destroy_plan(plan);
+}
+void ThrowNoPlan() {
+  throw NumericalError("FFTW could not create a plan");
+}
 
 namespace {
 
@@ -70,7 +76,8 @@ std::vector<double> PeriodicHann(int64_t n) {
   std::vector<double> w(static_cast<size_t>(n));
   for (int64_t k = 0; k < n; ++k) {
     w[static_cast<size_t>(k)] =
-        0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(n));
+        0.5 -
+        0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(n));
   }
   return w;
 }

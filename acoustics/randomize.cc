@@ -133,9 +133,10 @@ std::vector<NamedRange> StructureRanges(const RandomizeConfig& c) {
 void CheckRange(const char* name, const std::vector<double>& r) {
   if (r.empty()) return;
   if (r.size() != 2) {
-    throw ConfigError(fmt::format("randomize.{} has {} entries; a range is [min, max] (or [] for "
-                                  "none)",
-                                  name, r.size()));
+    throw ConfigError(
+        fmt::format("randomize.{} has {} entries; a range is [min, max] (or [] for "
+                    "none)",
+                    name, r.size()));
   }
   if (!(r[0] <= r[1])) {
     throw ConfigError(fmt::format("randomize.{} = [{}, {}]: min exceeds max", name, r[0], r[1]));
@@ -150,15 +151,16 @@ void RandomizeConfig::Validate() const {
   for (const NamedRange& r : StructureRanges(*this)) {
     CheckRange(r.name, *r.range);
     if (!r.range->empty() && structure_variants == 0) {
-      throw ConfigError(fmt::format("randomize.{} is set but randomize.structure_variants is 0: "
-                                    "structure ranges are drawn per variant of the pool",
-                                    r.name));
+      throw ConfigError(
+          fmt::format("randomize.{} is set but randomize.structure_variants is 0: "
+                      "structure ranges are drawn per variant of the pool",
+                      r.name));
     }
   }
   for (const double n : bolt_count) {
     if (n != std::floor(n)) {
-      throw ConfigError(fmt::format("randomize.bolt_count = {}: a count of bolts is a whole number",
-                                    n));
+      throw ConfigError(
+          fmt::format("randomize.bolt_count = {}: a count of bolts is a whole number", n));
     }
   }
   // the modulus must stay positive over the temperature range
@@ -244,11 +246,14 @@ StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig&
     // a uniform integer in [min, max]
     const auto lo_n = static_cast<int64_t>(config.bolt_count[0]);
     const auto hi_n = static_cast<int64_t>(config.bolt_count[1]);
-    const int64_t n = std::min(hi_n, lo_n + static_cast<int64_t>(u_count * static_cast<double>(hi_n - lo_n + 1)));
-    const auto [lo_it, hi_it] = std::minmax_element(base_shell.bolt_z_m.begin(), base_shell.bolt_z_m.end());
+    const int64_t n =
+        std::min(hi_n, lo_n + static_cast<int64_t>(u_count * static_cast<double>(hi_n - lo_n + 1)));
+    const auto [lo_it, hi_it] =
+        std::minmax_element(base_shell.bolt_z_m.begin(), base_shell.bolt_z_m.end());
     const double lo = *lo_it, hi = *hi_it;
     z.clear();
-    for (int64_t b = 0; b < n; ++b) z.push_back(n == 1 ? 0.5 * (lo + hi) : lo + (hi - lo) * b / (n - 1));
+    for (int64_t b = 0; b < n; ++b)
+      z.push_back(n == 1 ? 0.5 * (lo + hi) : lo + (hi - lo) * b / (n - 1));
     out.values.push_back(static_cast<double>(n));
   }
   out.shell.bolt_stiffness_scale.assign(z.size(), 1.0);
@@ -283,7 +288,9 @@ StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig&
   return out;
 }
 
-double Variation::frequency_scale() const { return std::sqrt(youngs_modulus_scale / density_scale); }
+double Variation::frequency_scale() const {
+  return std::sqrt(youngs_modulus_scale / density_scale);
+}
 
 double Variation::DampingRatio(double frequency_hz) const {
   return 0.5 * loss_factor * std::pow(frequency_hz / loss_reference_hz, loss_exponent);
@@ -355,9 +362,9 @@ Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, 
   }
   const double u = rng.Uniform();
   if (config.structure()) {
-    v.structure_variant = std::min<int64_t>(
-        static_cast<int64_t>(u * static_cast<double>(config.structure_variants)),
-        config.structure_variants - 1);
+    v.structure_variant =
+        std::min<int64_t>(static_cast<int64_t>(u * static_cast<double>(config.structure_variants)),
+                          config.structure_variants - 1);
   }
   return v;
 }

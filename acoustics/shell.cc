@@ -1,8 +1,8 @@
 #include "sonicboom/acoustics/shell.h"
 
 #include <algorithm>
-#include <functional>
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <tuple>
 #include <utility>
@@ -24,8 +24,8 @@ constexpr int64_t kFixed = -2;
 enum class Field { kU, kV, kW };
 struct Term {
   Field field;
-  int i, j;    // grid indices (u: i + 1/2, v: j + 1/2)
-  double c;    // coefficient
+  int i, j;  // grid indices (u: i + 1/2, v: j + 1/2)
+  double c;  // coefficient
 };
 using Row = std::vector<std::pair<int64_t, double>>;  // (dof, coefficient)
 
@@ -65,7 +65,7 @@ void ShellConfig::Validate(const TubeConfig& tube) const {
   }
   const double half_length_m = 0.5 * tube.length_m;
   for (const auto& [key, value] : {std::pair{"grid_spacing_m", grid_spacing_m},
-                                    std::pair{"axial_spacing_m", AxialSpacing()}}) {
+                                   std::pair{"axial_spacing_m", AxialSpacing()}}) {
     if (!(value > 0.0) || value > 0.25 * tube.length_m) {
       throw ConfigError(fmt::format(
           "shell.{} = {} m must be positive and at most a quarter of tube.length_m ({} m)", key,
@@ -73,9 +73,10 @@ void ShellConfig::Validate(const TubeConfig& tube) const {
     }
   }
   if (!bolt_stiffness_scale.empty() && bolt_stiffness_scale.size() != bolt_z_m.size()) {
-    throw ConfigError(fmt::format("shell.bolt_stiffness_scale has {} entries but shell.bolt_z_m "
-                                  "has {}: one scale per bolt (or none)",
-                                  bolt_stiffness_scale.size(), bolt_z_m.size()));
+    throw ConfigError(
+        fmt::format("shell.bolt_stiffness_scale has {} entries but shell.bolt_z_m "
+                    "has {}: one scale per bolt (or none)",
+                    bolt_stiffness_scale.size(), bolt_z_m.size()));
   }
   for (double z : bolt_z_m) {
     if (!(std::abs(z) <= half_length_m)) {
@@ -108,7 +109,7 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   const double h = tube.wall_thickness_m;
   const double E = material.youngs_modulus_pa, nu = material.poisson_ratio;
   const double rho_h = material.density_kg_m3 * h;
-  const double C = E * h / (1.0 - nu * nu);               // membrane stiffness, N/m
+  const double C = E * h / (1.0 - nu * nu);                   // membrane stiffness, N/m
   const double D = E * h * h * h / (12.0 * (1.0 - nu * nu));  // bending stiffness, N m
   radius_m_ = R;
 
@@ -132,7 +133,8 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       if (std::find(seams.begin(), seams.end(), js) != seams.end()) {
         throw ConfigError(fmt::format(
             "shell.seam_theta_deg: two seams fall on the same grid column (at {} deg); use a finer "
-            "shell.grid_spacing_m", deg));
+            "shell.grid_spacing_m",
+            deg));
       }
       seams.push_back(js);
     }
@@ -171,14 +173,17 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       }
     }
   };
-  auto fz = [&](int i) { return (i == 0 || i == nz) ? 0.5 : 1.0; };     // end rows carry half
-  auto fth = [&](int j) { return edge[j] ? 0.5 : 1.0; };               // seam edges carry half
-  number(&w_index_, nz + 1, 0.0, 0.0, [&](int i, int) { return supported && (i == 0 || i == nz); },
-         [&](int i, int j) { return dz * fz(i) * ds * fth(j); });
-  number(&u_index_, nz, 0.5, 0.0, [](int, int) { return false; },
-         [&](int, int j) { return dz * ds * fth(j); });
-  number(&v_index_, nz + 1, 0.0, 0.5, [&](int i, int) { return supported && (i == 0 || i == nz); },
-         [&](int i, int) { return dz * fz(i) * ds; });
+  auto fz = [&](int i) { return (i == 0 || i == nz) ? 0.5 : 1.0; };  // end rows carry half
+  auto fth = [&](int j) { return edge[j] ? 0.5 : 1.0; };             // seam edges carry half
+  number(
+      &w_index_, nz + 1, 0.0, 0.0, [&](int i, int) { return supported && (i == 0 || i == nz); },
+      [&](int i, int j) { return dz * fz(i) * ds * fth(j); });
+  number(
+      &u_index_, nz, 0.5, 0.0, [](int, int) { return false; },
+      [&](int, int j) { return dz * ds * fth(j); });
+  number(
+      &v_index_, nz + 1, 0.0, 0.5, [&](int i, int) { return supported && (i == 0 || i == nz); },
+      [&](int i, int) { return dz * fz(i) * ds; });
   for (int i = 0; i <= nz; ++i) {
     for (int j = 0; j < nth; ++j) {
       if (seam_v[j]) v_index_[static_cast<size_t>(i) * nth + j] = kAbsent;
@@ -204,7 +209,8 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
         if (d >= 0) d = remap[static_cast<size_t>(d)];
       }
     }
-    mass_kg_ = Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size()));
+    mass_kg_ =
+        Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size()));
   }
 
   // strain samples: each row b_r with weight w_r adds w_r (b_r q)^2 / 2 to the energy
@@ -235,7 +241,8 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   };
   const Row none;
   // the pair energy s (x^2 + y^2 + 2 nu x y) of two strains, or s (1 - nu^2) x^2 with y free
-  auto pair_energy = [&](bool has_x, const Row& x, bool has_y, const Row& y, double s, double area) {
+  auto pair_energy = [&](bool has_x, const Row& x, bool has_y, const Row& y, double s,
+                         double area) {
     if (has_x && has_y) {
       add(x, 1.0, y, 1.0, area * s * 0.5 * (1.0 + nu));
       add(x, 1.0, y, -1.0, area * s * 0.5 * (1.0 - nu));
@@ -252,32 +259,43 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       const double area = dz * fz(i) * ds * fth(j);
       // node (i, j): eps_x = u_x, eps_th = (v_th + w) / R, kappa_x = -w_xx,
       // kappa_th = (v_th - w_thth) / R^2
-      const bool has_ex = form({{Field::kU, i, j, 1.0 / dz}, {Field::kU, i - 1, j, -1.0 / dz}}, &ex);
+      const bool has_ex =
+          form({{Field::kU, i, j, 1.0 / dz}, {Field::kU, i - 1, j, -1.0 / dz}}, &ex);
       const bool has_et = form({{Field::kV, i, j, 1.0 / (R * dth)},
                                 {Field::kV, i, j - 1, -1.0 / (R * dth)},
-                                {Field::kW, i, j, 1.0 / R}}, &et);
+                                {Field::kW, i, j, 1.0 / R}},
+                               &et);
       const bool has_kx = form({{Field::kW, i + 1, j, -1.0 / (dz * dz)},
                                 {Field::kW, i, j, 2.0 / (dz * dz)},
-                                {Field::kW, i - 1, j, -1.0 / (dz * dz)}}, &kx);
+                                {Field::kW, i - 1, j, -1.0 / (dz * dz)}},
+                               &kx);
       const bool has_kt = form({{Field::kV, i, j, 1.0 / (R * R * dth)},
                                 {Field::kV, i, j - 1, -1.0 / (R * R * dth)},
                                 {Field::kW, i, j + 1, -1.0 / (R * R * dth * dth)},
                                 {Field::kW, i, j, 2.0 / (R * R * dth * dth)},
-                                {Field::kW, i, j - 1, -1.0 / (R * R * dth * dth)}}, &kt);
+                                {Field::kW, i, j - 1, -1.0 / (R * R * dth * dth)}},
+                               &kt);
       pair_energy(has_ex, ex, has_et, et, C, area);
       pair_energy(has_kx, kx, has_kt, kt, D, area);
       // corner (i + 1/2, j + 1/2): shear gamma = v_x + u_th / R and Sanders' twist
       // tau = (-w_xth + 3/4 v_x - u_th / (4 R)) / R
       if (i == nz || in_hole(z_of(i + 0.5), (j + 0.5) * dth)) continue;
-      if (form({{Field::kV, i + 1, j, 1.0 / dz}, {Field::kV, i, j, -1.0 / dz},
-                {Field::kU, i, j + 1, 1.0 / (R * dth)}, {Field::kU, i, j, -1.0 / (R * dth)}}, &g)) {
+      if (form({{Field::kV, i + 1, j, 1.0 / dz},
+                {Field::kV, i, j, -1.0 / dz},
+                {Field::kU, i, j + 1, 1.0 / (R * dth)},
+                {Field::kU, i, j, -1.0 / (R * dth)}},
+               &g)) {
         add(g, 1.0, none, 0.0, dz * ds * C * 0.5 * (1.0 - nu));
       }
       const double cw = -1.0 / (R * dz * dth);
-      if (form({{Field::kW, i + 1, j + 1, cw}, {Field::kW, i + 1, j, -cw},
-                {Field::kW, i, j + 1, -cw}, {Field::kW, i, j, cw},
-                {Field::kV, i + 1, j, 0.75 / (R * dz)}, {Field::kV, i, j, -0.75 / (R * dz)},
-                {Field::kU, i, j + 1, -0.25 / (R * R * dth)}, {Field::kU, i, j, 0.25 / (R * R * dth)}},
+      if (form({{Field::kW, i + 1, j + 1, cw},
+                {Field::kW, i + 1, j, -cw},
+                {Field::kW, i, j + 1, -cw},
+                {Field::kW, i, j, cw},
+                {Field::kV, i + 1, j, 0.75 / (R * dz)},
+                {Field::kV, i, j, -0.75 / (R * dz)},
+                {Field::kU, i, j + 1, -0.25 / (R * R * dth)},
+                {Field::kU, i, j, 0.25 / (R * R * dth)}},
                &tw)) {
         add(tw, 1.0, none, 0.0, dz * ds * 2.0 * D * (1.0 - nu));
       }
@@ -295,8 +313,10 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   if (real) {
     // one bolt at z: three springs of stiffness k across the cut at row (ib, iu)
     auto bolt_springs = [&](int js, double z, double k) {
-      const int ib = std::clamp(static_cast<int>(std::lround((z + 0.5 * tube.length_m) / dz)), 0, nz);
-      const int iu = std::clamp(static_cast<int>(std::floor((z + 0.5 * tube.length_m) / dz)), 0, nz - 1);
+      const int ib =
+          std::clamp(static_cast<int>(std::lround((z + 0.5 * tube.length_m) / dz)), 0, nz);
+      const int iu =
+          std::clamp(static_cast<int>(std::floor((z + 0.5 * tube.length_m) / dz)), 0, nz - 1);
       spring(Field::kW, ib, js, Field::kW, ib, js + 1, k);
       spring(Field::kU, iu, js, Field::kU, iu, js + 1, k);
       spring(Field::kV, ib, js - 1, Field::kV, ib, js + 1, k);
@@ -317,14 +337,13 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
         }
       }
     }
-    for (const auto& [i, iu, k_per_m] :
-         {std::tuple{0, 0, shell.flange_mount_stiffness_n_m2},
-          std::tuple{nz, nz - 1, shell.tool_mount_stiffness_n_m2}}) {
+    for (const auto& [i, iu, k_per_m] : {std::tuple{0, 0, shell.flange_mount_stiffness_n_m2},
+                                         std::tuple{nz, nz - 1, shell.tool_mount_stiffness_n_m2}}) {
       if (k_per_m <= 0.0) continue;
       for (int j = 0; j < nth; ++j) {
         const double k = k_per_m * ds * fth(j);
-        for (const auto& [f, ii] : {std::pair{Field::kW, i}, std::pair{Field::kU, iu},
-                                     std::pair{Field::kV, i}}) {
+        for (const auto& [f, ii] :
+             {std::pair{Field::kW, i}, std::pair{Field::kU, iu}, std::pair{Field::kV, i}}) {
           if (form({{f, ii, j, 1.0}}, &a)) add(a, 1.0, none, 0.0, k);
         }
       }
@@ -335,7 +354,8 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   const Eigen::Index n = dofs();
   Eigen::SparseMatrix<double> B(static_cast<Eigen::Index>(weights.size()), n);
   B.setFromTriplets(triplets.begin(), triplets.end());
-  const Eigen::Map<const Eigen::VectorXd> w(weights.data(), static_cast<Eigen::Index>(weights.size()));
+  const Eigen::Map<const Eigen::VectorXd> w(weights.data(),
+                                            static_cast<Eigen::Index>(weights.size()));
   const Eigen::SparseMatrix<double> WB = w.asDiagonal() * B;
   stiffness_ = Eigen::SparseMatrix<double>(B.transpose() * WB);
   stiffness_.makeCompressed();
@@ -347,7 +367,7 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
     return material.loss_factor * std::pow(f_hz / shell.loss_reference_hz, shell.loss_exponent);
   };
   const double eta_low = loss_law_ ? law(shell.loss_low_hz) : material.loss_factor;
-  const double eta_high = loss_law_ ? law(shell.loss_high_hz)
+  const double eta_high = loss_law_                      ? law(shell.loss_high_hz)
                           : shell.loss_factor_high > 0.0 ? shell.loss_factor_high
                                                          : eta_low;
   const double w1 = 2.0 * kPi * shell.loss_low_hz, w2 = 2.0 * kPi * shell.loss_high_hz;
@@ -374,8 +394,9 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       "ends={} ideal={} seams={} bolts={} kb={:.17g} holes={}/{} dh={:.17g} kf={:.17g} kt={:.17g}",
       tube.outer_radius_m, h, tube.length_m, E, nu, material.density_kg_m3, nz, nth, shell.ends,
       shell.ideal, fmt::join(shell.seam_theta_deg, ","), fmt::join(shell.bolt_z_m, ","),
-      shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","), fmt::join(shell.hole_theta_deg, ","),
-      shell.hole_diameter_m, shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
+      shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","),
+      fmt::join(shell.hole_theta_deg, ","), shell.hole_diameter_m,
+      shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
   // keys of structures made before per-bolt scales and ties existed stay as they were
   if (!shell.bolt_stiffness_scale.empty()) {
     key_ += fmt::format(" kbs={:.17g}", fmt::join(shell.bolt_stiffness_scale, ","));
@@ -410,8 +431,8 @@ int64_t ShellModel::WIndex(int i, int j) const {
 Eigen::VectorXd ShellModel::RadialForceWeights(double z_m, double theta_rad) const {
   const double x = (z_m + 0.5 * tube_.length_m) / dz_m_;
   if (!(x >= -1e-9 && x <= nz_ + 1e-9)) {
-    throw ConfigError(fmt::format("contact z = {} m lies off the tube (|z| <= {} m)", z_m,
-                                  0.5 * tube_.length_m));
+    throw ConfigError(
+        fmt::format("contact z = {} m lies off the tube (|z| <= {} m)", z_m, 0.5 * tube_.length_m));
   }
   double y = WrapAngle(theta_rad) / dth_rad_;
   if (y < 0.0) y += nth_;
@@ -449,12 +470,15 @@ int ShellModel::VisitSensorTerms(double z_m, double theta_rad, double diameter_m
   // outer-surface strain at node (i, j): eps_x + eps_th + h/2 (kappa_x + kappa_th)
   auto node_row = [&](int i, int j) {
     const std::initializer_list<std::tuple<int, int, int, double>> terms = {
-        {1, i, j, 1.0 / dz}, {1, i - 1, j, -1.0 / dz},
+        {1, i, j, 1.0 / dz},
+        {1, i - 1, j, -1.0 / dz},
         {2, i, j, 1.0 / (R * dth) + 0.5 * h / (R * R * dth)},
         {2, i, j - 1, -1.0 / (R * dth) - 0.5 * h / (R * R * dth)},
         {0, i, j, 1.0 / R + 0.5 * h * (2.0 / (dz * dz) + 2.0 / (R * R * dth * dth))},
-        {0, i + 1, j, -0.5 * h / (dz * dz)}, {0, i - 1, j, -0.5 * h / (dz * dz)},
-        {0, i, j + 1, -0.5 * h / (R * R * dth * dth)}, {0, i, j - 1, -0.5 * h / (R * R * dth * dth)}};
+        {0, i + 1, j, -0.5 * h / (dz * dz)},
+        {0, i - 1, j, -0.5 * h / (dz * dz)},
+        {0, i, j + 1, -0.5 * h / (R * R * dth * dth)},
+        {0, i, j - 1, -0.5 * h / (R * R * dth * dth)}};
     for (const auto& [f, ii, jj, c] : terms) {
       if (at(ii, jj, f) == kAbsent) return false;
     }
@@ -479,16 +503,18 @@ int ShellModel::VisitSensorTerms(double z_m, double theta_rad, double diameter_m
   }
   if (count == 0 && node_row(ic, jc)) count = 1;  // disc smaller than the grid
   if (count == 0) {
-    throw ConfigError(fmt::format("microphone at z = {} m, theta = {} rad has no complete grid node "
-                                  "under it (seam, hole or end)", z_m, theta_rad));
+    throw ConfigError(
+        fmt::format("microphone at z = {} m, theta = {} rad has no complete grid node "
+                    "under it (seam, hole or end)",
+                    z_m, theta_rad));
   }
   return count;
 }
 
 Eigen::VectorXd ShellModel::SensorRow(double z_m, double theta_rad, double diameter_m) const {
   Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
-  const int count = VisitSensorTerms(z_m, theta_rad, diameter_m,
-                                     [&out](int64_t d, double c) { out[d] += c; });
+  const int count =
+      VisitSensorTerms(z_m, theta_rad, diameter_m, [&out](int64_t d, double c) { out[d] += c; });
   return out / count;
 }
 
@@ -512,8 +538,8 @@ std::vector<int64_t> ShellModel::SensorDofs(double z_m, double theta_rad, double
 Eigen::MatrixXd ShellModel::SensorRows(const MicArrayConfig& mics) const {
   Eigen::MatrixXd rows(mics.count(), dofs());
   for (int m = 0; m < mics.count(); ++m) {
-    rows.row(m) = SensorRow(mics.z_m[m], mics.theta_deg[m] * kPi / 180.0, mics.disc_diameter_m)
-                      .transpose();
+    rows.row(m) =
+        SensorRow(mics.z_m[m], mics.theta_deg[m] * kPi / 180.0, mics.disc_diameter_m).transpose();
   }
   return rows;
 }

@@ -62,8 +62,12 @@ void StepModes(int64_t live, int mics, const float* const* gain, const float* pr
 struct FlushSubnormals {
 #if defined(__SSE2__)
   unsigned int saved = _mm_getcsr();
-  FlushSubnormals() { _mm_setcsr(saved | 0x8040u); }
-  ~FlushSubnormals() { _mm_setcsr(saved); }
+  FlushSubnormals() {
+    _mm_setcsr(saved | 0x8040u);
+  }
+  ~FlushSubnormals() {
+    _mm_setcsr(saved);
+  }
 #endif
 };
 
@@ -75,8 +79,9 @@ std::vector<int64_t> PlacementDofs(const ShellModel& model, const MicArrayConfig
   const double step = std::max(model.dz_m(), model.dtheta_rad() * model.tube().outer_radius_m);
   for (int c = 0; c < mics.count(); ++c) {
     const double d = mics.disc_diameter_m + 2.0 * margin_m + 2.0 * step;
-    for (const int64_t dof : model.SensorDofs(mics.z_m[static_cast<size_t>(c)],
-                                              mics.theta_deg[static_cast<size_t>(c)] * M_PI / 180.0, d)) {
+    for (const int64_t dof :
+         model.SensorDofs(mics.z_m[static_cast<size_t>(c)],
+                          mics.theta_deg[static_cast<size_t>(c)] * M_PI / 180.0, d)) {
       dofs.push_back(dof);
     }
   }
@@ -108,14 +113,14 @@ PointWeights SparseWeights(const ShellModel& model, const std::vector<int64_t>& 
 
 // the recursion tables of one structure: the bank's own, or a varied one per render
 struct RecursionTables {
-  Eigen::ArrayXf pole_re, pole_im;     // (modes) p = exp((-sigma + i omega_d) T)
-  Eigen::ArrayXf in_re, in_im;         // (modes) p^(1/2): an impulse mid-sample
-  Eigen::ArrayXd decay_per_sample;     // (modes) sigma T
-  Eigen::ArrayXd decay_tail_min;       // (modes) min of sigma T over this mode and every above
+  Eigen::ArrayXf pole_re, pole_im;  // (modes) p = exp((-sigma + i omega_d) T)
+  Eigen::ArrayXf in_re, in_im;      // (modes) p^(1/2): an impulse mid-sample
+  Eigen::ArrayXd decay_per_sample;  // (modes) sigma T
+  Eigen::ArrayXd decay_tail_min;    // (modes) min of sigma T over this mode and every above
   Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> sensor_gain;
-                                       // (mics x modes) S phi_n / omega_d, rows contiguous
-  double shape_scale{1.0};             // mass-normalized shapes: 1 / sqrt(rho' / rho)
-  double static_scale{1.0};            // residual flexibility: E / E'
+  // (mics x modes) S phi_n / omega_d, rows contiguous
+  double shape_scale{1.0};   // mass-normalized shapes: 1 / sqrt(rho' / rho)
+  double static_scale{1.0};  // residual flexibility: E / E'
 
   // poles of modes at omega (rad/s) with damping ratios zeta (each < 1) at the audio period T
   void SetPoles(const Eigen::VectorXd& omega, const Eigen::VectorXd& zeta, double T);
@@ -133,7 +138,8 @@ void RecursionTables::SetPoles(const Eigen::VectorXd& omega, const Eigen::Vector
   for (Eigen::Index k = 0; k < n; ++k) {
     const double sigma = zeta[k] * omega[k], wd = omega[k] * std::sqrt(1 - zeta[k] * zeta[k]);
     const std::complex<double> p = std::exp(std::complex<double>(-sigma * T, wd * T));
-    const std::complex<double> half = std::exp(std::complex<double>(-0.5 * sigma * T, 0.5 * wd * T));
+    const std::complex<double> half =
+        std::exp(std::complex<double>(-0.5 * sigma * T, 0.5 * wd * T));
     pole_re[k] = static_cast<float>(p.real());
     pole_im[k] = static_cast<float>(p.imag());
     in_re[k] = static_cast<float>(half.real());
@@ -141,8 +147,8 @@ void RecursionTables::SetPoles(const Eigen::VectorXd& omega, const Eigen::Vector
     decay_per_sample[k] = sigma * T;
   }
   for (Eigen::Index k = n - 1; k >= 0; --k) {
-    decay_tail_min[k] = k + 1 < n ? std::min(decay_per_sample[k], decay_tail_min[k + 1])
-                                  : decay_per_sample[k];
+    decay_tail_min[k] =
+        k + 1 < n ? std::min(decay_per_sample[k], decay_tail_min[k + 1]) : decay_per_sample[k];
   }
 }
 
@@ -152,15 +158,15 @@ struct ShellModalBank::Impl {
   const ShellModel* model{nullptr};
   double fs{0.0};
   int64_t n_modes{0};
-  Eigen::VectorXd frequency_hz;        // (modes) ascending
-  Eigen::VectorXd omega, zeta;         // (modes) rad/s, damping ratio
-  RecursionTables base;                // the structure as solved
-  Eigen::MatrixXd sensor_shape;        // (mics x modes) S phi_n
-  Eigen::MatrixXd sensor_static;       // (mics x modes) S phi_n / omega_n^2
-  std::vector<int64_t> w_row;          // (dofs) row of a radial DOF in the tables below, or -1
-  Eigen::MatrixXf shapes;              // (radial DOFs x modes) mass-normalized shapes, 1/sqrt(kg)
-  Eigen::MatrixXd flexibility;         // (radial DOFs x mics) rows of K^-1 S^T, or empty
-  double floor_ln{0.0};                // ln of the decay floor ratio
+  Eigen::VectorXd frequency_hz;   // (modes) ascending
+  Eigen::VectorXd omega, zeta;    // (modes) rad/s, damping ratio
+  RecursionTables base;           // the structure as solved
+  Eigen::MatrixXd sensor_shape;   // (mics x modes) S phi_n
+  Eigen::MatrixXd sensor_static;  // (mics x modes) S phi_n / omega_n^2
+  std::vector<int64_t> w_row;     // (dofs) row of a radial DOF in the tables below, or -1
+  Eigen::MatrixXf shapes;         // (radial DOFs x modes) mass-normalized shapes, 1/sqrt(kg)
+  Eigen::MatrixXd flexibility;    // (radial DOFs x mics) rows of K^-1 S^T, or empty
+  double floor_ln{0.0};           // ln of the decay floor ratio
   // microphone placement: the configured array, and the shapes of every DOF around the discs
   MicArrayConfig mics;
   std::vector<int64_t> placement_row;  // (dofs) row of a DOF in placement_shapes, or -1
@@ -178,9 +184,10 @@ double ShellModalBank::Impl::VariedDamping(const Variation& v, double omega_rad_
   const double zeta = v.loss_factor > 0.0 ? v.DampingRatio(omega_rad_s / (2 * M_PI))
                                           : model->DampingRatio(omega_rad_s);
   if (!(zeta < 1.0)) {
-    throw NumericalError(fmt::format("a mode at {:.1f} Hz of the randomized structure has damping "
-                                     "ratio {:.3f} >= 1 (overdamped)",
-                                     omega_rad_s / (2 * M_PI), zeta));
+    throw NumericalError(
+        fmt::format("a mode at {:.1f} Hz of the randomized structure has damping "
+                    "ratio {:.3f} >= 1 (overdamped)",
+                    omega_rad_s / (2 * M_PI), zeta));
   }
   return zeta;
 }
@@ -197,8 +204,8 @@ RecursionTables ShellModalBank::Impl::Varied(const Variation& v, int64_t n) cons
   t.SetPoles(w, z, 1.0 / fs);
   t.shape_scale = 1.0 / std::sqrt(v.density_scale);
   t.static_scale = 1.0 / v.youngs_modulus_scale;
-  const bool placed = !v.mic_z_offset_m.empty() || !v.mic_theta_offset_deg.empty() ||
-                      !v.disc_diameter_m.empty();
+  const bool placed =
+      !v.mic_z_offset_m.empty() || !v.mic_theta_offset_deg.empty() || !v.disc_diameter_m.empty();
   const Eigen::MatrixXd shape = placed ? PlacedSensorShape(v, n) : sensor_shape.leftCols(n);
   t.sensor_gain = (shape * (t.shape_scale * out_scale).asDiagonal()).cast<float>();
   return t;
@@ -206,8 +213,9 @@ RecursionTables ShellModalBank::Impl::Varied(const Variation& v, int64_t n) cons
 
 Eigen::MatrixXd ShellModalBank::Impl::PlacedSensorShape(const Variation& v, int64_t n) const {
   if (placement_shapes.size() == 0) {
-    throw ConfigError("randomize: microphone placement ranges need a modal bank built with a "
-                      "placement margin (acoustics.model = modal)");
+    throw ConfigError(
+        "randomize: microphone placement ranges need a modal bank built with a "
+        "placement margin (acoustics.model = modal)");
   }
   const int count = mics.count();
   Eigen::MatrixXd shape = Eigen::MatrixXd::Zero(count, n);
@@ -216,8 +224,8 @@ Eigen::MatrixXd ShellModalBank::Impl::PlacedSensorShape(const Variation& v, int6
       return x.empty() ? 0.0 : x[static_cast<size_t>(c)];
     };
     const double z = mics.z_m[static_cast<size_t>(c)] + at(v.mic_z_offset_m);
-    const double theta = (mics.theta_deg[static_cast<size_t>(c)] + at(v.mic_theta_offset_deg)) *
-                         M_PI / 180.0;
+    const double theta =
+        (mics.theta_deg[static_cast<size_t>(c)] + at(v.mic_theta_offset_deg)) * M_PI / 180.0;
     const double d = v.disc_diameter_m.empty() ? mics.disc_diameter_m : at(v.disc_diameter_m);
     for (const auto& [dof, coefficient] : model->SensorTerms(z, theta, d)) {
       const int64_t r = placement_row[static_cast<size_t>(dof)];
@@ -257,7 +265,8 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
                    modes.shapes.cols() == modes.omega_rad_s.size());
   // a DOF's row in modes.shapes (-1: not given)
   std::vector<int64_t> row_of(static_cast<size_t>(model.dofs()), -1);
-  for (size_t r = 0; r < modes.dofs.size(); ++r) row_of[static_cast<size_t>(modes.dofs[r])] = static_cast<int64_t>(r);
+  for (size_t r = 0; r < modes.dofs.size(); ++r)
+    row_of[static_cast<size_t>(modes.dofs[r])] = static_cast<int64_t>(r);
   const auto shape_row = [&](int64_t dof) {
     const int64_t r = row_of[static_cast<size_t>(dof)];
     if (r < 0) throw Error(fmt::format("modal bank: the mode shapes lack DOF {}", dof));
@@ -269,7 +278,8 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
   const double nyquist_rad_s = M_PI * sample_rate_hz;
   // keep the modes below Nyquist: above it a recursion aliases
   m.n_modes = 0;
-  while (m.n_modes < modes.omega_rad_s.size() && modes.omega_rad_s[m.n_modes] < 0.95 * nyquist_rad_s) {
+  while (m.n_modes < modes.omega_rad_s.size() &&
+         modes.omega_rad_s[m.n_modes] < 0.95 * nyquist_rad_s) {
     ++m.n_modes;
   }
   const int64_t n = m.n_modes;
@@ -281,9 +291,10 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
     const double w = m.omega[k];
     const double zeta = model.DampingRatio(w);
     if (!(zeta < 1.0)) {
-      throw ConfigError(fmt::format("mode at {:.1f} Hz has damping ratio {:.3f} >= 1 (overdamped); "
-                                    "lower shell.loss_factor_high or material.loss_factor",
-                                    m.frequency_hz[k], zeta));
+      throw ConfigError(
+          fmt::format("mode at {:.1f} Hz has damping ratio {:.3f} >= 1 (overdamped); "
+                      "lower shell.loss_factor_high or material.loss_factor",
+                      m.frequency_hz[k], zeta));
     }
     m.zeta[k] = zeta;
     out_scale[k] = 1.0 / (w * std::sqrt(1 - zeta * zeta));
@@ -310,8 +321,8 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
   for (size_t r = 0; r < w_dofs.size(); ++r) {
     m.shapes.row(static_cast<Eigen::Index>(r)) = shape_row(w_dofs[r]).head(n).cast<float>();
   }
-  const Eigen::MatrixXd rows = model.SensorRows(mics);                      // (mics x dofs)
-  m.sensor_shape = Eigen::MatrixXd::Zero(mics.count(), n);                  // (mics x modes)
+  const Eigen::MatrixXd rows = model.SensorRows(mics);      // (mics x dofs)
+  m.sensor_shape = Eigen::MatrixXd::Zero(mics.count(), n);  // (mics x modes)
   for (int c = 0; c < mics.count(); ++c) {
     for (Eigen::Index d = 0; d < rows.cols(); ++d) {
       if (rows(c, d) != 0.0) m.sensor_shape.row(c) += rows(c, d) * shape_row(d).head(n);
@@ -333,7 +344,8 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
     }
     m.placement_shapes.resize(static_cast<Eigen::Index>(dofs.size()), n);
     for (size_t r = 0; r < dofs.size(); ++r) {
-      m.placement_shapes.row(static_cast<Eigen::Index>(r)) = shape_row(dofs[r]).head(n).cast<float>();
+      m.placement_shapes.row(static_cast<Eigen::Index>(r)) =
+          shape_row(dofs[r]).head(n).cast<float>();
     }
   }
   m.floor_ln = std::abs(decay_floor_db) / 20.0 * std::log(10.0);
@@ -341,9 +353,10 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
   if (residual && modes.rigid_body_modes == 0) {
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(model.stiffness());
     SONICBOOM_DEMAND(ldlt.info() == Eigen::Success);
-    const Eigen::MatrixXd flex = ldlt.solve(rows.transpose());           // (dofs x mics)
+    const Eigen::MatrixXd flex = ldlt.solve(rows.transpose());  // (dofs x mics)
     m.flexibility.resize(static_cast<Eigen::Index>(w_dofs.size()), flex.cols());
-    for (size_t r = 0; r < w_dofs.size(); ++r) m.flexibility.row(static_cast<Eigen::Index>(r)) = flex.row(w_dofs[r]);
+    for (size_t r = 0; r < w_dofs.size(); ++r)
+      m.flexibility.row(static_cast<Eigen::Index>(r)) = flex.row(w_dofs[r]);
   }
 }
 
@@ -372,7 +385,9 @@ std::vector<int64_t> ShellModalBank::RowsRead(const ShellModel& model, const Mic
   return rows;
 }
 
-int64_t ShellModalBank::modes() const { return impl_->n_modes; }
+int64_t ShellModalBank::modes() const {
+  return impl_->n_modes;
+}
 
 double ShellModalBank::max_frequency_hz() const {
   return impl_->n_modes > 0 ? impl_->frequency_hz[impl_->n_modes - 1] : 0.0;
@@ -439,8 +454,11 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
     // impulse per newton of sample force; drives 120 dB below the strongest are dropped (a mode
     // with a nodal line through the point would otherwise decay into subnormal floats)
     const double drive_floor = 1e-6 * b.cwiseAbs().maxCoeff();
-    input[e] = (b.array().abs() < drive_floor).select(0.0, b.array() * (T * tab.shape_scale)).cast<float>();
-    force_end = std::max<int64_t>(force_end, f.first_sample + static_cast<int64_t>(f.force_n.size()));
+    input[e] = (b.array().abs() < drive_floor)
+                   .select(0.0, b.array() * (T * tab.shape_scale))
+                   .cast<float>();
+    force_end =
+        std::max<int64_t>(force_end, f.first_sample + static_cast<int64_t>(f.force_n.size()));
     // residual flexibility of the modes left out: (S K^-1 w - sum_n S phi_n b_n / omega_n^2) F
     if (m.flexibility.size() > 0) {
       stat -= m.sensor_static.leftCols(n) * b;
@@ -469,7 +487,8 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
   const FlushSubnormals ftz;  // decayed states must not fall into slow subnormal arithmetic
   int64_t live = n;
   int64_t force_start = samples;  // the modes rest until the first force
-  for (const ForceInput& f : forces) force_start = std::min(force_start, std::max<int64_t>(f.first_sample, 0));
+  for (const ForceInput& f : forces)
+    force_start = std::min(force_start, std::max<int64_t>(f.first_sample, 0));
   for (int64_t k = force_start; k < samples && live > 0; ++k) {
     // modal impulses of this sample from every force acting in it
     bool driven = false;

@@ -23,7 +23,8 @@ double LargestEigenvalue(const ShellModel& model) {
   const Eigen::SparseMatrix<double> a = model.MassScaledStiffness();
   Spectra::SparseSymMatProd<double> op(a);
   const Eigen::Index n = a.rows();
-  Spectra::SymEigsSolver<Spectra::SparseSymMatProd<double>> solver(op, 1, std::min<Eigen::Index>(n, 40));
+  Spectra::SymEigsSolver<Spectra::SparseSymMatProd<double>> solver(op, 1,
+                                                                   std::min<Eigen::Index>(n, 40));
   solver.init();
   solver.compute(Spectra::SortRule::LargestAlge, 5000, 1e-12);
   if (solver.info() != Spectra::CompInfo::Successful) {
@@ -48,7 +49,8 @@ ShellFd::ShellFd(const ShellModel& model, double sample_rate_hz, int64_t oversam
   omega_max_ = std::sqrt(LargestEigenvalue(model));
   const double zeta = 0.5 * beta_ * omega_max_;
   k_max_s_ = (2.0 / omega_max_) * (std::sqrt(1.0 + zeta * zeta) - zeta);
-  const int64_t smallest = static_cast<int64_t>(std::ceil(1.0 / (sample_rate_hz * k_max_s_ * kAutoMargin)));
+  const int64_t smallest =
+      static_cast<int64_t>(std::ceil(1.0 / (sample_rate_hz * k_max_s_ * kAutoMargin)));
   if (oversampling == 0) {
     oversampling_ = std::max<int64_t>(smallest, 1);
   } else {
@@ -57,7 +59,8 @@ ShellFd::ShellFd(const ShellModel& model, double sample_rate_hz, int64_t oversam
     if (k > k_max_s_) {
       throw ConfigError(fmt::format(
           "fd.oversampling = {} gives a timestep of {:.4g} us, above the scheme's stability limit "
-          "of {:.4g} us (2/w_max (sqrt(1 + z^2) - z), w_max = {:.4g} rad/s from the grid, z = {:.3g}); "
+          "of {:.4g} us (2/w_max (sqrt(1 + z^2) - z), w_max = {:.4g} rad/s from the grid, z = "
+          "{:.3g}); "
           "use fd.oversampling >= {} or a coarser shell.grid_spacing_m",
           oversampling, 1e6 * k, 1e6 * k_max_s_, omega_max_, zeta,
           static_cast<int64_t>(std::ceil(1.0 / (sample_rate_hz * k_max_s_)))));
@@ -153,7 +156,8 @@ Eigen::MatrixXd ShellFd::Run(const Eigen::VectorXd& force_weights, std::span<con
   ShellFdState state = Rest();
   const auto force_at = [&](int64_t sample, double frac) {
     const auto at = [&](int64_t s) {
-      return s >= 0 && s < static_cast<int64_t>(force_n.size()) ? force_n[static_cast<size_t>(s)] : 0.0;
+      return s >= 0 && s < static_cast<int64_t>(force_n.size()) ? force_n[static_cast<size_t>(s)]
+                                                                : 0.0;
     };
     return (1.0 - frac) * at(sample) + frac * at(sample + 1);
   };

@@ -1,10 +1,10 @@
 #include "sonicboom/acoustics/shell_modes.h"
 
+#include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 #include <Eigen/Eigenvalues>
 #include <Eigen/OrderingMethods>
 #include <Eigen/SparseCholesky>
-#include <tbb/parallel_for.h>
-#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <atomic>
@@ -26,8 +26,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "sonicboom/core/errors.h"
 #include "internal/cache_file.h"
+#include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
@@ -63,14 +63,19 @@ using Ldlt = Eigen::SimplicialLDLT<SpMat, Eigen::Upper, Eigen::NaturalOrdering<i
 using RowBlock = Eigen::Matrix<double, Eigen::Dynamic, kBlock, Eigen::RowMajor>;
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-double Hz(double lambda) { return std::sqrt(std::max(lambda, 0.0)) / (2.0 * kPi); }
-double Lambda(double hz) { return std::pow(2.0 * kPi * hz, 2); }
+double Hz(double lambda) {
+  return std::sqrt(std::max(lambda, 0.0)) / (2.0 * kPi);
+}
+double Lambda(double hz) {
+  return std::pow(2.0 * kPi * hz, 2);
+}
 
 class Stopwatch {
  public:
   Stopwatch() : start_(std::chrono::steady_clock::now()) {}
   int64_t ns() const {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start_)
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() -
+                                                                start_)
         .count();
   }
 
@@ -80,11 +85,14 @@ class Stopwatch {
 
 // where the time goes, summed over threads (debug log)
 struct Stats {
-  std::atomic<int64_t> factorizations{0}, factor_ns{0}, vectors{0}, solve_ns{0}, orthogonalize_ns{0};
+  std::atomic<int64_t> factorizations{0}, factor_ns{0}, vectors{0}, solve_ns{0},
+      orthogonalize_ns{0};
   std::atomic<int64_t> lanczos_ns{0}, reruns{0}, ritz_checks{0};
 };
 
-double Seconds(const std::atomic<int64_t>& ns) { return 1e-9 * static_cast<double>(ns.load()); }
+double Seconds(const std::atomic<int64_t>& ns) {
+  return 1e-9 * static_cast<double>(ns.load());
+}
 
 // reproducible uniform numbers in (-0.5, 0.5) (splitmix64) for the start blocks
 class Random {
@@ -140,9 +148,9 @@ class OrderedMatrix {
     return ldlt;
   }
 
-  // relative residual |x - (A - sigma I) y| / |x| of a solve by the factorization at sigma: a little
-  // above rounding, unless its pivots grew (L D L^T of an indefinite matrix has no pivoting) or sigma
-  // nearly hits an eigenvalue
+  // relative residual |x - (A - sigma I) y| / |x| of a solve by the factorization at sigma: a
+  // little above rounding, unless its pivots grew (L D L^T of an indefinite matrix has no pivoting)
+  // or sigma nearly hits an eigenvalue
   double SolveError(const Ldlt& ldlt, double sigma) const {
     Random random(0);
     Eigen::VectorXd x(rows());
@@ -162,7 +170,9 @@ class OrderedMatrix {
 };
 
 // eigenvalues below sigma (Sylvester): the negative pivots of L D L^T of A - sigma I
-int64_t NegativePivots(const Ldlt& ldlt) { return (ldlt.vectorD().array() < 0.0).count(); }
+int64_t NegativePivots(const Ldlt& ldlt) {
+  return (ldlt.vectorD().array() < 0.0).count();
+}
 
 // (A - sigma I)^-1 on a block of kBlock vectors through L D L^T: the factor is read once per block.
 // Found eigenvectors (orthonormal columns Q) are projected out: P (A - sigma I)^-1 P with
@@ -170,7 +180,10 @@ int64_t NegativePivots(const Ldlt& ldlt) { return (ldlt.vectorD().array() < 0.0)
 class BlockShiftInvert {
  public:
   BlockShiftInvert(const Ldlt& ldlt, const Eigen::MatrixXd& found, Stats* stats)
-      : l_(ldlt.matrixL().nestedExpression()), d_inv_(ldlt.vectorD().cwiseInverse()), q_(found), stats_(stats) {}
+      : l_(ldlt.matrixL().nestedExpression()),
+        d_inv_(ldlt.vectorD().cwiseInverse()),
+        q_(found),
+        stats_(stats) {}
   Eigen::Index rows() const { return l_.rows(); }
 
   // x - Q (Q^T x)
@@ -230,8 +243,8 @@ class BlockShiftInvert {
   Stats* stats_;
 };
 
-// Two adjacent doubles (GCC / Clang vector extension, SSE2 on x86-64): the orthogonalization kernels
-// work on a row of a block as kPairs of them.
+// Two adjacent doubles (GCC / Clang vector extension, SSE2 on x86-64): the orthogonalization
+// kernels work on a row of a block as kPairs of them.
 using Pair = double __attribute__((vector_size(16)));
 constexpr int kPairs = kBlock / 2;
 static_assert(kBlock % 2 == 0);
@@ -241,7 +254,9 @@ Pair LoadPair(const double* p) {
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-void StorePair(double* p, Pair v) { std::memcpy(p, &v, sizeof v); }
+void StorePair(double* p, Pair v) {
+  std::memcpy(p, &v, sizeof v);
+}
 
 // Four rows i..i+3 of a block, as pairs.
 struct FourRows {
@@ -256,7 +271,8 @@ FourRows LoadFourRows(const double* wd, Eigen::Index i) {
 }
 
 // h(k, :) += sum_r V(i + r, k) w(r, :) for k < m: four rows of V (starting at v) per sweep over h
-void AccumulateFourRows(const double* v, Eigen::Index ld, Eigen::Index m, const FourRows& w, double* hk) {
+void AccumulateFourRows(const double* v, Eigen::Index ld, Eigen::Index m, const FourRows& w,
+                        double* hk) {
   for (Eigen::Index k = 0; k < m; ++k) {
     Pair acc[kPairs];
     for (int p = 0; p < kPairs; ++p) acc[p] = LoadPair(hk + kBlock * k + 2 * p);
@@ -272,7 +288,8 @@ void AccumulateFourRows(const double* v, Eigen::Index ld, Eigen::Index m, const 
 void AccumulateRow(const double* v, Eigen::Index m, const double* wi, double* hk) {
   for (Eigen::Index k = 0; k < m; ++k) {
     for (int p = 0; p < kPairs; ++p) {
-      StorePair(hk + kBlock * k + 2 * p, LoadPair(hk + kBlock * k + 2 * p) + v[k] * LoadPair(wi + 2 * p));
+      StorePair(hk + kBlock * k + 2 * p,
+                LoadPair(hk + kBlock * k + 2 * p) + v[k] * LoadPair(wi + 2 * p));
     }
   }
 }
@@ -284,12 +301,14 @@ void Coefficients(const RowMatrix& basis, Eigen::Index m, const RowBlock& w, Row
   const double* wd = w.data();
   const Eigen::Index n = w.rows(), ld = basis.cols();
   Eigen::Index i = 0;
-  for (; i + 4 <= n; i += 4) AccumulateFourRows(basis.data() + i * ld, ld, m, LoadFourRows(wd, i), hk);
+  for (; i + 4 <= n; i += 4)
+    AccumulateFourRows(basis.data() + i * ld, ld, m, LoadFourRows(wd, i), hk);
   for (; i < n; ++i) AccumulateRow(basis.data() + i * ld, m, wd + i * kBlock, hk);
 }
 
 // w -= V h; with next, also next = V^T w of the updated w (one sweep over V for both)
-void Subtract(const RowMatrix& basis, Eigen::Index m, const RowBlock& h, RowBlock* w, RowBlock* next) {
+void Subtract(const RowMatrix& basis, Eigen::Index m, const RowBlock& h, RowBlock* w,
+              RowBlock* next) {
   if (next != nullptr) next->setZero(m, kBlock);
   const double* hk = h.data();
   double* nk = next != nullptr ? next->data() : nullptr;
@@ -327,8 +346,9 @@ void Subtract(const RowMatrix& basis, Eigen::Index m, const RowBlock& h, RowBloc
 // Orthonormalizes the block w (already orthogonal to the basis) in place: w_in = w_out r with r
 // upper triangular. A column that vanishes (the Krylov space holds an invariant subspace) gets
 // r(c, c) = 0 and is replaced by a random direction orthogonal to everything before.
-Eigen::MatrixXd OrthonormalizeBlock(const BlockShiftInvert& op, const RowMatrix& basis, Eigen::Index m,
-                                    const Eigen::VectorXd& scale, Random* random, RowBlock* w) {
+Eigen::MatrixXd OrthonormalizeBlock(const BlockShiftInvert& op, const RowMatrix& basis,
+                                    Eigen::Index m, const Eigen::VectorXd& scale, Random* random,
+                                    RowBlock* w) {
   Eigen::MatrixXd r = Eigen::MatrixXd::Zero(kBlock, kBlock);
   for (Eigen::Index c = 0; c < kBlock; ++c) {
     auto col = w->col(c);
@@ -373,11 +393,12 @@ struct SliceModes {
 // grows until `wanted` converged Ritz values lie in the slice, or to its largest size (`size` times
 // the usual for the slice; then the converged ones are kept, with their vectors, and the caller
 // reruns with them deflated and a larger size).
-void BlockLanczos(const BlockShiftInvert& op, const Slice& slice, int64_t wanted, int size, bool with_vectors,
-                  SliceModes* out, Stats* stats) {
+void BlockLanczos(const BlockShiftInvert& op, const Slice& slice, int64_t wanted, int size,
+                  bool with_vectors, SliceModes* out, Stats* stats) {
   const Stopwatch watch;
   const Eigen::Index n = op.rows(), b = kBlock;
-  const Eigen::Index max_dim = std::min<Eigen::Index>((n / b) * b, ((4 * slice.count + 64) * size / b) * b);
+  const Eigen::Index max_dim =
+      std::min<Eigen::Index>((n / b) * b, ((4 * slice.count + 64) * size / b) * b);
   RowMatrix basis(n, max_dim);
   Eigen::MatrixXd t = Eigen::MatrixXd::Zero(max_dim, max_dim);  // block tridiagonal V^T op V
   Random random(static_cast<uint64_t>(size));
@@ -405,7 +426,8 @@ void BlockLanczos(const BlockShiftInvert& op, const Slice& slice, int64_t wanted
     Subtract(basis, m, h, &w, &h2);
     const Eigen::VectorXd norms = w.colwise().norm().transpose();
     bool again = false;
-    for (Eigen::Index c = 0; c < b; ++c) again = again || h2.col(c).cwiseAbs().maxCoeff() > 1e-14 * norms[c];
+    for (Eigen::Index c = 0; c < b; ++c)
+      again = again || h2.col(c).cwiseAbs().maxCoeff() > 1e-14 * norms[c];
     if (again) {
       Subtract(basis, m, h2, &w, nullptr);
       h += h2;
@@ -425,14 +447,17 @@ void BlockLanczos(const BlockShiftInvert& op, const Slice& slice, int64_t wanted
       std::vector<Eigen::Index> inside;
       for (Eigen::Index k = 0; k < m; ++k) {
         const double lambda = slice.sigma + 1.0 / theta[k];
-        if (lambda >= slice.lo && lambda < slice.hi && residual.col(k).norm() < kTolerance * std::abs(theta[k])) {
+        if (lambda >= slice.lo && lambda < slice.hi &&
+            residual.col(k).norm() < kTolerance * std::abs(theta[k])) {
           inside.push_back(k);
         }
       }
       const bool complete = static_cast<int64_t>(inside.size()) >= wanted;
       if (complete || last) {
-        // Ritz vectors of the converged ones, V s, where the shapes are wanted or a rerun deflates them
-        const Eigen::Index have = out->vectors.cols(), count = static_cast<Eigen::Index>(inside.size());
+        // Ritz vectors of the converged ones, V s, where the shapes are wanted or a rerun deflates
+        // them
+        const Eigen::Index have = out->vectors.cols(),
+                           count = static_cast<Eigen::Index>(inside.size());
         Eigen::MatrixXd s(m, count);
         for (Eigen::Index c = 0; c < count; ++c) {
           const Eigen::Index k = inside[static_cast<size_t>(c)];
@@ -444,11 +469,13 @@ void BlockLanczos(const BlockShiftInvert& op, const Slice& slice, int64_t wanted
           out->vectors.rightCols(count).noalias() = basis.leftCols(m) * s;
         }
         stats->lanczos_ns += watch.ns();
-        spdlog::trace("shell modes: [{:.1f}, {:.1f}) Hz: {} of {} modes in a {}-vector Krylov space", Hz(slice.lo),
-                      Hz(slice.hi), count, wanted, m);
+        spdlog::trace(
+            "shell modes: [{:.1f}, {:.1f}) Hz: {} of {} modes in a {}-vector Krylov space",
+            Hz(slice.lo), Hz(slice.hi), count, wanted, m);
         return;
       }
-      next_check = m + b * std::max<Eigen::Index>(1, (wanted - static_cast<int64_t>(inside.size())) / (2 * b));
+      next_check = m + b * std::max<Eigen::Index>(
+                               1, (wanted - static_cast<int64_t>(inside.size())) / (2 * b));
     }
     t.block(m, m - b, b, b) = r;
     t.block(m - b, m, b, b) = r.transpose();
@@ -459,10 +486,10 @@ void BlockLanczos(const BlockShiftInvert& op, const Slice& slice, int64_t wanted
 }
 
 // The eigenpairs of one slice by block Lanczos on the shift-invert at its shift (its centre, where
-// its eigenvalues are exactly the `count` nearest ones, or its lower end when nothing but rigid-body
-// modes lies below), rerun with the found ones deflated until the inertia count is met
-SliceModes SolveSlice(const OrderedMatrix& a, const Slice& slice, std::shared_ptr<const Ldlt> ldlt, bool with_vectors,
-                      Stats* stats) {
+// its eigenvalues are exactly the `count` nearest ones, or its lower end when nothing but
+// rigid-body modes lies below), rerun with the found ones deflated until the inertia count is met
+SliceModes SolveSlice(const OrderedMatrix& a, const Slice& slice, std::shared_ptr<const Ldlt> ldlt,
+                      bool with_vectors, Stats* stats) {
   SliceModes out;
   if (a.rows() < kSmallestSparse) {
     // a tiny matrix: all eigenpairs at once
@@ -479,13 +506,14 @@ SliceModes SolveSlice(const OrderedMatrix& a, const Slice& slice, std::shared_pt
   // an inner shift whose solves are off (element growth) is moved a little, if that helps
   Slice at = slice;
   if (ldlt == nullptr) ldlt = a.Factor(at.sigma, stats);
-  if (const double error = slice.sigma == slice.lo ? 0.0 : a.SolveError(*ldlt, at.sigma); error > kSolveError) {
+  if (const double error = slice.sigma == slice.lo ? 0.0 : a.SolveError(*ldlt, at.sigma);
+      error > kSolveError) {
     Slice moved = slice;
     moved.sigma = slice.sigma + 0.01 * (slice.hi - slice.lo);
     std::shared_ptr<const Ldlt> other = a.Factor(moved.sigma, stats);
     const double moved_error = a.SolveError(*other, moved.sigma);
-    spdlog::debug("shell modes: solves at {:.2f} Hz are off by {:.1e}, at {:.2f} Hz by {:.1e}", Hz(at.sigma), error,
-                  Hz(moved.sigma), moved_error);
+    spdlog::debug("shell modes: solves at {:.2f} Hz are off by {:.1e}, at {:.2f} Hz by {:.1e}",
+                  Hz(at.sigma), error, Hz(moved.sigma), moved_error);
     if (moved_error < error) {
       at = moved;
       ldlt = std::move(other);
@@ -496,8 +524,9 @@ SliceModes SolveSlice(const OrderedMatrix& a, const Slice& slice, std::shared_pt
     const int64_t missing = slice.count - static_cast<int64_t>(out.lambdas.size());
     if (missing == 0) break;
     if (missing < 0 || attempt > kMaxReruns) {
-      throw Error(fmt::format("shell modes: {} modes found in [{:.2f}, {:.2f}) Hz but the inertia count is {}",
-                              out.lambdas.size(), Hz(slice.lo), Hz(slice.hi), slice.count));
+      throw Error(fmt::format(
+          "shell modes: {} modes found in [{:.2f}, {:.2f}) Hz but the inertia count is {}",
+          out.lambdas.size(), Hz(slice.lo), Hz(slice.hi), slice.count));
     }
     if (attempt > 0) ++stats->reruns;
     const BlockShiftInvert op(*ldlt, out.vectors, stats);
@@ -511,13 +540,14 @@ SliceModes SolveSlice(const OrderedMatrix& a, const Slice& slice, std::shared_pt
 // below it.
 class Planner {
  public:
-  Planner(const OrderedMatrix& a, double rigid_lambda, double cut_lambda, int64_t max_count, Stats* stats)
+  Planner(const OrderedMatrix& a, double rigid_lambda, double cut_lambda, int64_t max_count,
+          Stats* stats)
       : a_(a), rigid_(rigid_lambda), cut_(cut_lambda), max_count_(max_count), stats_(stats) {
     counts_[-rigid_lambda] = 0;  // below every eigenvalue of the PSD A
   }
 
-  // inertia counts at these points, factorized concurrently (the one at the rigid-body limit is kept
-  // for the first slice); returns how many were new
+  // inertia counts at these points, factorized concurrently (the one at the rigid-body limit is
+  // kept for the first slice); returns how many were new
   size_t Probe(std::vector<double> points) {
     std::sort(points.begin(), points.end());
     points.erase(std::unique(points.begin(), points.end()), points.end());
@@ -553,19 +583,23 @@ class Planner {
     if (top->second < wanted) {
       // probes a slice apart, at the density of the eigenvalues below the top
       auto low = top;
-      while (low != counts_.begin() && (low == top || top->second - low->second < kSliceModes / 2)) --low;
+      while (low != counts_.begin() && (low == top || top->second - low->second < kSliceModes / 2))
+        --low;
       const int64_t below = top->second - low->second;
       const double f_top = Hz(top->first), f_max = Hz(1.001 * a_.upper_bound());
-      const int64_t steps = std::min<int64_t>(kProbesPerRound, (wanted - top->second + kSliceModes - 1) / kSliceModes);
+      const int64_t steps = std::min<int64_t>(
+          kProbesPerRound, (wanted - top->second + kSliceModes - 1) / kSliceModes);
       for (int64_t k = 1; k <= steps; ++k) {
-        const double f = below > 0 ? f_top + static_cast<double>(k * kSliceModes) * (f_top - Hz(low->first)) /
-                                                 static_cast<double>(below)
-                                   : f_top * std::pow(2.0, static_cast<double>(k));
+        const double f = below > 0
+                             ? f_top + static_cast<double>(k * kSliceModes) *
+                                           (f_top - Hz(low->first)) / static_cast<double>(below)
+                             : f_top * std::pow(2.0, static_cast<double>(k));
         points.push_back(Lambda(std::min(f, f_max)));
         if (f >= f_max) break;
       }
     }
-    for (auto lo = counts_.lower_bound(rigid_); lo != counts_.end() && std::next(lo) != counts_.end(); ++lo) {
+    for (auto lo = counts_.lower_bound(rigid_);
+         lo != counts_.end() && std::next(lo) != counts_.end(); ++lo) {
       const auto hi = std::next(lo);
       if (lo->second >= wanted) break;
       if (!NeedsSplit(lo, wanted)) continue;
@@ -575,9 +609,11 @@ class Planner {
       const int64_t useful = std::min(count, wanted - lo->second + kSliceModes / 4);
       const int64_t pieces = (useful + kSliceModes - 1) / kSliceModes;
       const double f_lo = Hz(lo->first), f_hi = Hz(hi->first);
-      const double f_useful = f_lo + (f_hi - f_lo) * static_cast<double>(useful) / static_cast<double>(count);
+      const double f_useful =
+          f_lo + (f_hi - f_lo) * static_cast<double>(useful) / static_cast<double>(count);
       for (int64_t k = 1; k < pieces; ++k) {
-        points.push_back(Lambda(f_lo + (f_useful - f_lo) * static_cast<double>(k) / static_cast<double>(pieces)));
+        points.push_back(Lambda(f_lo + (f_useful - f_lo) * static_cast<double>(k) /
+                                           static_cast<double>(pieces)));
       }
       if (useful < count) points.push_back(Lambda(f_useful));
     }
@@ -589,11 +625,13 @@ class Planner {
   std::vector<Slice> TakeSlices(bool complete) {
     const int64_t wanted = Wanted();
     std::vector<Slice> slices;
-    for (auto lo = counts_.lower_bound(rigid_); lo != counts_.end() && std::next(lo) != counts_.end(); ++lo) {
+    for (auto lo = counts_.lower_bound(rigid_);
+         lo != counts_.end() && std::next(lo) != counts_.end(); ++lo) {
       const auto hi = std::next(lo);
       if (lo->second >= wanted) break;
       const int64_t count = hi->second - lo->second;
-      if (count == 0 || (!complete && NeedsSplit(lo, wanted)) || !taken_.insert(lo->first).second) continue;
+      if (count == 0 || (!complete && NeedsSplit(lo, wanted)) || !taken_.insert(lo->first).second)
+        continue;
       // the first slice is solved at the rigid-body limit (nothing but rigid-body modes below it)
       const double sigma = lo->first == rigid_ ? rigid_ : 0.5 * (lo->first + hi->first);
       slices.push_back(Slice{lo->first, hi->first, count, sigma});
@@ -638,7 +676,8 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
     throw ConfigError("shell modes need a frequency limit or a mode count");
   }
   if (max_count > kMaxModes) {
-    throw ConfigError(fmt::format("shell modes: {} modes requested, at most {}", max_count, kMaxModes));
+    throw ConfigError(
+        fmt::format("shell modes: {} modes requested, at most {}", max_count, kMaxModes));
   }
   const Stopwatch total;
   Stats stats;
@@ -660,9 +699,10 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
     }
     planner.Probe(points);
     if (cut_lambda > 0.0 && planner.CountAt(cut_lambda) - 12 > kMaxModes) {
-      throw ConfigError(fmt::format("shell modes: {} modes lie below {} Hz, at most {}; lower the band or "
-                                    "coarsen shell.grid_spacing_m",
-                                    planner.CountAt(cut_lambda), max_frequency_hz, kMaxModes));
+      throw ConfigError(
+          fmt::format("shell modes: {} modes lie below {} Hz, at most {}; lower the band or "
+                      "coarsen shell.grid_spacing_m",
+                      planner.CountAt(cut_lambda), max_frequency_hz, kMaxModes));
     }
     // (complete also where no new point can be placed, as at the top of the spectrum)
     for (bool complete = false;;) {
@@ -688,7 +728,8 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
   group.wait();
 
   // ascending (slices are disjoint; in order of their lower ends the sort is deterministic)
-  std::sort(solved.begin(), solved.end(), [](const auto& x, const auto& y) { return x.first.lo < y.first.lo; });
+  std::sort(solved.begin(), solved.end(),
+            [](const auto& x, const auto& y) { return x.first.lo < y.first.lo; });
   struct Found {
     double lambda;
     const SliceModes* slice;
@@ -700,9 +741,11 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
       found.push_back(Found{modes.lambdas[c], &modes, static_cast<Eigen::Index>(c)});
     }
   }
-  std::stable_sort(found.begin(), found.end(), [](const Found& x, const Found& y) { return x.lambda < y.lambda; });
+  std::stable_sort(found.begin(), found.end(),
+                   [](const Found& x, const Found& y) { return x.lambda < y.lambda; });
   if (cut_lambda > 0.0) std::erase_if(found, [&](const Found& f) { return f.lambda > cut_lambda; });
-  if (max_count > 0 && static_cast<int64_t>(found.size()) > max_count) found.resize(static_cast<size_t>(max_count));
+  if (max_count > 0 && static_cast<int64_t>(found.size()) > max_count)
+    found.resize(static_cast<size_t>(max_count));
 
   ShellModes out;
   out.rigid_body_modes = planner.CountAt(rigid_lambda);
@@ -716,19 +759,22 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
           inv_sqrt_mass.cwiseProduct(a.ToDofs(found[c].slice->vectors.col(found[c].column)));
     }
   }
-  spdlog::debug("shell modes: {} modes in {} slices ({} reruns), {} planning rounds; {} factorizations {:.2f} s, "
-                "{} Lanczos vectors: solves {:.2f} s, orthogonalization {:.2f} s, all Lanczos {:.2f} s ({} Ritz checks); "
-                "{:.2f} s in all",
-                found.size(), solved.size(), stats.reruns.load(), planner.rounds(), stats.factorizations.load(),
-                Seconds(stats.factor_ns), stats.vectors.load(), Seconds(stats.solve_ns),
-                Seconds(stats.orthogonalize_ns), Seconds(stats.lanczos_ns), stats.ritz_checks.load(), 1e-9 * static_cast<double>(total.ns()));
+  spdlog::debug(
+      "shell modes: {} modes in {} slices ({} reruns), {} planning rounds; {} factorizations "
+      "{:.2f} s, "
+      "{} Lanczos vectors: solves {:.2f} s, orthogonalization {:.2f} s, all Lanczos {:.2f} s ({} "
+      "Ritz checks); "
+      "{:.2f} s in all",
+      found.size(), solved.size(), stats.reruns.load(), planner.rounds(),
+      stats.factorizations.load(), Seconds(stats.factor_ns), stats.vectors.load(),
+      Seconds(stats.solve_ns), Seconds(stats.orthogonalize_ns), Seconds(stats.lanczos_ns),
+      stats.ritz_checks.load(), 1e-9 * static_cast<double>(total.ns()));
   return out;
 }
 
 namespace {
 
 constexpr char kCacheMagic[8] = {'S', 'B', 'M', 'O', 'D', 'E', 'S', '1'};
-
 
 // file layout (internal/cache_file.h): header {rigid, modes, rows}, omega (modes), shapes
 // (rows x modes)
@@ -744,7 +790,8 @@ bool ReadModes(const std::string& path, const std::string& key, ShellModes* out)
   out->shapes.resize(header[2], header[2] > 0 ? header[1] : 0);
   const size_t omega_bytes = sizeof(double) * out->omega_rad_s.size();
   return internal::ReadCacheBlock(in, out->omega_rad_s.data(), omega_bytes, false) &&
-         internal::ReadCacheBlock(in, out->shapes.data(), sizeof(double) * out->shapes.size(), true);
+         internal::ReadCacheBlock(in, out->shapes.data(), sizeof(double) * out->shapes.size(),
+                                  true);
 }
 
 void WriteModes(const std::string& cache_dir, const std::string& path, const std::string& key,
@@ -767,7 +814,8 @@ uint64_t CacheKeyHash(const std::string& key) {
 }
 
 std::string DefaultModeCacheDir() {
-  if (const char* dir = std::getenv("SONICBOOM_CACHE_DIR"); dir != nullptr && *dir != '\0') return dir;
+  if (const char* dir = std::getenv("SONICBOOM_CACHE_DIR"); dir != nullptr && *dir != '\0')
+    return dir;
   if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0') {
     return (std::filesystem::path(home) / ".cache" / "sonicboom" / "modes").string();
   }
@@ -781,7 +829,8 @@ ShellModes CachedShellModes(const ShellModel& model, double max_frequency_hz, in
   const std::string key = fmt::format("{} | band={:.17g} count={} shapes={}", model.key(),
                                       max_frequency_hz, max_count, with_shapes);
   const std::string path =
-      (std::filesystem::path(cache_dir) / fmt::format("modes-{:016x}.bin", CacheKeyHash(key))).string();
+      (std::filesystem::path(cache_dir) / fmt::format("modes-{:016x}.bin", CacheKeyHash(key)))
+          .string();
   ShellModes modes;
   if (ReadModes(path, key, &modes)) {
     if (hit != nullptr) *hit = true;

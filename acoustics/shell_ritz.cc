@@ -1,21 +1,21 @@
 #include "sonicboom/acoustics/shell_ritz.h"
 
 #include <Eigen/Dense>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <vector>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "sonicboom/core/errors.h"
 #include "internal/cache_file.h"
+#include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
@@ -23,7 +23,9 @@ namespace {
 using SpMat = Eigen::SparseMatrix<double>;
 
 // the three factors of Poisson's ratio in the shell's stiffness
-std::array<double, 3> PoissonFactors(double nu) { return {1.0 / (1.0 - nu), 1.0 / (1.0 + nu), 1.0}; }
+std::array<double, 3> PoissonFactors(double nu) {
+  return {1.0 / (1.0 - nu), 1.0 / (1.0 + nu), 1.0};
+}
 
 // the shell of a model's structure without its springs (bolts and mounts), at Poisson's ratio nu
 ShellModel SpringFree(const ShellModel& model, const MaterialConfig& material, double nu) {
@@ -44,7 +46,8 @@ void DeflateAgainst(const Eigen::MatrixXd& phi, const Eigen::VectorXd& mass, Eig
 
 // an M-orthonormal basis of the columns of x (dofs x k); directions whose M-norm is below `drop`
 // of the largest are dropped as dependent
-Eigen::MatrixXd MassOrthonormal(const Eigen::MatrixXd& x, const Eigen::VectorXd& mass, double drop) {
+Eigen::MatrixXd MassOrthonormal(const Eigen::MatrixXd& x, const Eigen::VectorXd& mass,
+                                double drop) {
   const Eigen::MatrixXd gram = x.transpose() * mass.asDiagonal() * x;  // (k x k)
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
   const Eigen::VectorXd& d = eig.eigenvalues();
@@ -55,7 +58,8 @@ Eigen::MatrixXd MassOrthonormal(const Eigen::MatrixXd& x, const Eigen::VectorXd&
   }
   Eigen::MatrixXd out(x.rows(), static_cast<Eigen::Index>(keep.size()));
   for (size_t j = 0; j < keep.size(); ++j) {
-    out.col(static_cast<Eigen::Index>(j)) = x * eig.eigenvectors().col(keep[j]) / std::sqrt(d[keep[j]]);
+    out.col(static_cast<Eigen::Index>(j)) =
+        x * eig.eigenvectors().col(keep[j]) / std::sqrt(d[keep[j]]);
   }
   return out;
 }
@@ -87,8 +91,8 @@ Eigen::MatrixXd ProjectSparse(const SpMat& a, const Eigen::MatrixXd& phi) {
 
 struct ShellRitzProjector::Impl {
   const ShellModel* base{nullptr};
-  Eigen::MatrixXd phi;                     // (dofs x N) base shapes
-  Eigen::MatrixXf phi_f;                   // the same in float, for the shapes of a variant
+  Eigen::MatrixXd phi;    // (dofs x N) base shapes
+  Eigen::MatrixXf phi_f;  // the same in float, for the shapes of a variant
   int64_t enrichment{0};
   // Phi^T X_i Phi of the three parts of K_shell(nu) = X1 / (1 - nu) + X2 / (1 + nu) + X3, (N x N)
   std::array<Eigen::MatrixXd, 3> reduced_part;
@@ -100,12 +104,14 @@ namespace {
 // K(nu_j) = sum_i f_i(nu_j) X_i
 std::array<SpMat, 3> StiffnessParts(const ShellModel& base) {
   const double nu0 = base.material().poisson_ratio;
-  const std::array<double, 3> nus{nu0, nu0 > 0.3 ? nu0 - 0.15 : nu0 + 0.15, nu0 > 0.3 ? nu0 - 0.3 : nu0 + 0.3};
+  const std::array<double, 3> nus{nu0, nu0 > 0.3 ? nu0 - 0.15 : nu0 + 0.15,
+                                  nu0 > 0.3 ? nu0 - 0.3 : nu0 + 0.3};
   Eigen::Matrix3d f;  // f(i, j) = f_i(nu_j)
   std::array<SpMat, 3> k;
   for (size_t j = 0; j < 3; ++j) {
     const std::array<double, 3> fj = PoissonFactors(nus[j]);
-    for (size_t i = 0; i < 3; ++i) f(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = fj[i];
+    for (size_t i = 0; i < 3; ++i)
+      f(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = fj[i];
     k[j] = SpringFree(base, base.material(), nus[j]).stiffness();
   }
   // X_i = sum_j (f^-1)_{j i} K(nu_j)
@@ -153,9 +159,9 @@ ShellRitzProjector::~ShellRitzProjector() = default;
 
 // the reduced solution of a variant: kept eigenvalues and coefficients on [Phi, X]
 struct RitzSolution {
-  Eigen::VectorXd omega_rad_s;   // (kept)
-  Eigen::MatrixXd y;             // (N + e, kept)
-  Eigen::MatrixXd x;             // (dofs, e) the static corrections
+  Eigen::VectorXd omega_rad_s;  // (kept)
+  Eigen::MatrixXd y;            // (N + e, kept)
+  Eigen::MatrixXd x;            // (dofs, e) the static corrections
   int64_t rigid_body_modes{0};
 };
 
@@ -174,7 +180,7 @@ ShellModes ShellRitzProjector::Project(const ShellModel& varied, double max_freq
 }
 
 ModeRows ShellRitzProjector::Project(const ShellModel& varied, double max_frequency_hz,
-                                    const std::vector<int64_t>& rows) const {
+                                     const std::vector<int64_t>& rows) const {
   const RitzSolution r = SolveRitz(*impl_, varied, max_frequency_hz);
   const Eigen::Index n = impl_->phi.cols(), e = r.x.cols();
   const auto count = static_cast<Eigen::Index>(rows.size());
@@ -209,8 +215,8 @@ RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& vari
 
   // Phi^T K_v Phi: the shell at nu from its three parts, plus the variant's springs
   const std::array<double, 3> f = PoissonFactors(nu);
-  Eigen::MatrixXd k_pp = f[0] * m.reduced_part[0] + f[1] * m.reduced_part[1] +
-                         f[2] * m.reduced_part[2];
+  Eigen::MatrixXd k_pp =
+      f[0] * m.reduced_part[0] + f[1] * m.reduced_part[1] + f[2] * m.reduced_part[2];
   // (the difference of two assemblies: round-off below 1e-12 of the largest entry is dropped)
   const double tiny = 1e-12 * kv.coeffs().cwiseAbs().maxCoeff();
   SpMat springs = kv - SpringFree(varied, varied.material(), nu).stiffness();
@@ -303,7 +309,8 @@ bool ReadRitz(const std::string& path, const std::string& key, const std::vector
 void WriteRitz(const std::string& cache_dir, const std::string& path, const std::string& key,
                const ModeRows& modes) {
   const Eigen::MatrixXf part = modes.shapes.cast<float>();
-  internal::WriteCacheFile(cache_dir, path, kRitzMagic, key, {modes.omega_rad_s.size(), part.rows()},
+  internal::WriteCacheFile(cache_dir, path, kRitzMagic, key,
+                           {modes.omega_rad_s.size(), part.rows()},
                            {{modes.omega_rad_s.data(), sizeof(double) * modes.omega_rad_s.size()},
                             {part.data(), sizeof(float) * part.size()}});
 }
@@ -311,19 +318,21 @@ void WriteRitz(const std::string& cache_dir, const std::string& path, const std:
 }  // namespace
 
 ModeRows CachedRitzModes(const std::function<const ShellRitzProjector&()>& projector,
-                         const ShellModel& base, const ShellModel& varied,
-                         double max_frequency_hz, const std::vector<int64_t>& rows,
-                         const std::string& cache_dir, bool* hit) {
+                         const ShellModel& base, const ShellModel& varied, double max_frequency_hz,
+                         const std::vector<int64_t>& rows, const std::string& cache_dir,
+                         bool* hit) {
   if (hit != nullptr) *hit = false;
   if (cache_dir.empty()) return projector().Project(varied, max_frequency_hz, rows);
   std::string row_text;
   for (const int64_t r : rows) row_text += fmt::format("{},", r);
-  const std::string key = fmt::format("ritz-v1 | base: {} | variant: {} | band={:.17g} "
-                                      "enrichment={} rows={}:{:016x}",
-                                      base.key(), varied.key(), max_frequency_hz, kRitzEnrichment,
-                                      rows.size(), CacheKeyHash(row_text));
+  const std::string key = fmt::format(
+      "ritz-v1 | base: {} | variant: {} | band={:.17g} "
+      "enrichment={} rows={}:{:016x}",
+      base.key(), varied.key(), max_frequency_hz, kRitzEnrichment, rows.size(),
+      CacheKeyHash(row_text));
   const std::string path =
-      (std::filesystem::path(cache_dir) / fmt::format("ritz-{:016x}.bin", CacheKeyHash(key))).string();
+      (std::filesystem::path(cache_dir) / fmt::format("ritz-{:016x}.bin", CacheKeyHash(key)))
+          .string();
   ModeRows modes;
   if (ReadRitz(path, key, rows, &modes)) {
     if (hit != nullptr) *hit = true;

@@ -56,12 +56,12 @@ struct SpectralGate::Impl {
   struct Scratch {
     fftw::Array<double> frame;
     fftw::Array<fftw_complex> spectrum;
-    fftw::Array<fftw_complex> spectra;       // the STFT: frames columns of `stride` (bins used)
-    std::vector<double> power;               // |X|^2 of one frame (bins)
-    std::vector<double> above;               // 1.0 where it exceeds the threshold, else 0.0
-    std::vector<double> threshold;           // per bin: the power to exceed (< 0: every frame)
-    std::vector<int32_t> mask;               // b: frames rows of mask_stride (MaskRow), padded
-    Counts<int32_t> narrow;                  // the counts, int32_t or double (narrow_counts)
+    fftw::Array<fftw_complex> spectra;  // the STFT: frames columns of `stride` (bins used)
+    std::vector<double> power;          // |X|^2 of one frame (bins)
+    std::vector<double> above;          // 1.0 where it exceeds the threshold, else 0.0
+    std::vector<double> threshold;      // per bin: the power to exceed (< 0: every frame)
+    std::vector<int32_t> mask;          // b: frames rows of mask_stride (MaskRow), padded
+    Counts<int32_t> narrow;             // the counts, int32_t or double (narrow_counts)
     Counts<double> wide;
     std::vector<double> overlap_add;         // padded output samples ((frames - 1) hop + n_fft)
     std::vector<double> time_norm;           // per frame: 1 / triangle taps inside
@@ -74,17 +74,17 @@ struct SpectralGate::Impl {
   int channels{0};
   int64_t n_fft{0};
   int64_t hop{0};
-  int64_t half{0};         // centre padding, n_fft / 2
-  int64_t bins{0};         // n_fft / 2 + 1
-  int64_t stride{0};       // STFT column stride: bins rounded up to 64 bytes (FFTW alignment kept)
-  int64_t freq_bins{0};    // kernel half widths
+  int64_t half{0};       // centre padding, n_fft / 2
+  int64_t bins{0};       // n_fft / 2 + 1
+  int64_t stride{0};     // STFT column stride: bins rounded up to 64 bytes (FFTW alignment kept)
+  int64_t freq_bins{0};  // kernel half widths
   int64_t time_frames{0};
-  int64_t mask_stride{0};  // binary mask row: bins, 2 n_f + 2 zeros before and n_f after
-  bool narrow_counts{true};  // the kernel's sum (n_f + 1)^2 (n_t + 1)^2 fits int32_t
-  std::vector<double> window;          // periodic Hann (n_fft)
-  std::vector<double> ola_window;      // window / n_fft: inverse FFT scale and synthesis window
-  Eigen::MatrixXd threshold_db;        // (channels x bins)
-  Eigen::MatrixXd threshold_power;     // (channels x bins): 10^(threshold_db / 10)
+  int64_t mask_stride{0};           // binary mask row: bins, 2 n_f + 2 zeros before and n_f after
+  bool narrow_counts{true};         // the kernel's sum (n_f + 1)^2 (n_t + 1)^2 fits int32_t
+  std::vector<double> window;       // periodic Hann (n_fft)
+  std::vector<double> ola_window;   // window / n_fft: inverse FFT scale and synthesis window
+  Eigen::MatrixXd threshold_db;     // (channels x bins)
+  Eigen::MatrixXd threshold_power;  // (channels x bins): 10^(threshold_db / 10)
   std::vector<double> keep_freq_norm;  // per bin: prop_decrease / (the triangle's taps inside)
   fftw::Plan forward;                  // r2c, n_fft
   fftw::Plan inverse;                  // c2r, n_fft
@@ -201,8 +201,8 @@ SpectralGate::SpectralGate(const SpectralGateConfig& config, const Eigen::Matrix
   // the smoothed counts are at most the kernel's sum: int32_t when that fits
   const double taps_f = static_cast<double>(g.freq_bins + 1);
   const double taps_t = static_cast<double>(g.time_frames + 1);
-  g.narrow_counts = taps_f * taps_f * taps_t * taps_t <=
-                    static_cast<double>(std::numeric_limits<int32_t>::max());
+  g.narrow_counts =
+      taps_f * taps_f * taps_t * taps_t <= static_cast<double>(std::numeric_limits<int32_t>::max());
   g.stride = (g.bins + 3) / 4 * 4;  // 4 complex values = 64 bytes
   g.mask_stride = g.bins + 3 * g.freq_bins + 2;
 
@@ -249,12 +249,24 @@ SpectralGate::SpectralGate(const SpectralGateConfig& config, const Eigen::Matrix
 
 SpectralGate::~SpectralGate() = default;
 
-int SpectralGate::channels() const { return impl_->channels; }
-int64_t SpectralGate::frames(int64_t n) const { return 1 + n / impl_->hop; }
-int64_t SpectralGate::freq_smooth_bins() const { return impl_->freq_bins; }
-int64_t SpectralGate::time_smooth_frames() const { return impl_->time_frames; }
-const Eigen::MatrixXd& SpectralGate::threshold_db() const { return impl_->threshold_db; }
-const SpectralGateConfig& SpectralGate::config() const { return impl_->config; }
+int SpectralGate::channels() const {
+  return impl_->channels;
+}
+int64_t SpectralGate::frames(int64_t n) const {
+  return 1 + n / impl_->hop;
+}
+int64_t SpectralGate::freq_smooth_bins() const {
+  return impl_->freq_bins;
+}
+int64_t SpectralGate::time_smooth_frames() const {
+  return impl_->time_frames;
+}
+const Eigen::MatrixXd& SpectralGate::threshold_db() const {
+  return impl_->threshold_db;
+}
+const SpectralGateConfig& SpectralGate::config() const {
+  return impl_->config;
+}
 
 void SpectralGate::Apply(const float* x, int64_t n, int channel, float* out) const {
   const Impl& g = *impl_;

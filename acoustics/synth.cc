@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <chrono>
-#include <limits>
-#include <mutex>
 #include <cmath>
 #include <complex>
+#include <limits>
+#include <mutex>
 #include <numbers>
 
 #include <fmt/format.h>
@@ -30,14 +30,14 @@ constexpr double kDefaultModeBandHz = 20000.0;
 // one precomputed mode: recursion pole, drive and sensor factors
 struct ModeBank {
   double frequency_hz;
-  double pole_re, pole_im;     // exp((-sigma + i omega_d) T)
-  double decay_per_sample;     // sigma T
-  double response_scale;       // T / (omega_d M)
-  double wavenumber_m;         // k = m pi / L
+  double pole_re, pole_im;  // exp((-sigma + i omega_d) T)
+  double decay_per_sample;  // sigma T
+  double response_scale;    // T / (omega_d M)
+  double wavenumber_m;      // k = m pi / L
   int n;
-  double drive_w;              // W: radial part of the shape
-  double strain_factor;        // surface strain per unit modal amplitude, aperture included
-  Eigen::VectorXd mic_axial;   // (mics) sin(k x_i)
+  double drive_w;             // W: radial part of the shape
+  double strain_factor;       // surface strain per unit modal amplitude, aperture included
+  Eigen::VectorXd mic_axial;  // (mics) sin(k x_i)
 };
 
 }  // namespace
@@ -59,10 +59,10 @@ void SynthConfig::Serialize(Archive* a) {
 HertzImpact SolveHertzImpact(const ContactEvent& contact, const TubeConfig& tube,
                              const MaterialConfig& material) {
   // effective modulus and radius of a rod crossing the tube (crossed cylinders, R_e = sqrt(R1 R2))
-  const double inv_e = (1 - material.poisson_ratio * material.poisson_ratio) /
-                           material.youngs_modulus_pa +
-                       (1 - contact.striker_poisson_ratio * contact.striker_poisson_ratio) /
-                           contact.striker_youngs_modulus_pa;
+  const double inv_e =
+      (1 - material.poisson_ratio * material.poisson_ratio) / material.youngs_modulus_pa +
+      (1 - contact.striker_poisson_ratio * contact.striker_poisson_ratio) /
+          contact.striker_youngs_modulus_pa;
   const double e_star = 1.0 / inv_e;
   const double r_e = std::sqrt(contact.striker_radius_m * tube.outer_radius_m);
   HertzImpact impact;
@@ -83,20 +83,20 @@ double HertzForce(const HertzImpact& impact, double t_s) {
 struct StrikeSynthesizer::Impl {
   AcousticModelConfig c;
   double widest_band_hz{0.0};
-  double limit_band_hz{0.0};       // the configured limit (max_frequency_hz or 0.95 Nyquist)
-  double mode_band_hz{0.0};        // modes solved to here (modal and fd); 0: closed form
+  double limit_band_hz{0.0};  // the configured limit (max_frequency_hz or 0.95 Nyquist)
+  double mode_band_hz{0.0};   // modes solved to here (modal and fd); 0: closed form
 
   // the band played for a first closure of t_c s on a structure whose frequencies are scaled by
   // frequency_scale (a randomized material; 1: as solved), Hz
   double Band(double contact_duration_s, double frequency_scale) const {
-    const double widest = mode_band_hz > 0 ? std::min(limit_band_hz, mode_band_hz * frequency_scale)
-                                           : limit_band_hz;
+    const double widest =
+        mode_band_hz > 0 ? std::min(limit_band_hz, mode_band_hz * frequency_scale) : limit_band_hz;
     if (c.synth.max_frequency_hz > 0) return widest;
     return std::min(widest, c.synth.band_factor * 1.8 / contact_duration_s);
   }
   // modal-closed-form
-  std::vector<ModeBank> modes;     // ascending frequency, up to the widest band
-  Eigen::VectorXd mic_theta_rad;   // (mics)
+  std::vector<ModeBank> modes;    // ascending frequency, up to the widest band
+  Eigen::VectorXd mic_theta_rad;  // (mics)
   // modal and fd: the discretized shell, its modes, and the FD solver
   std::unique_ptr<ShellModel> shell;
   std::unique_ptr<ShellModalBank> bank;
@@ -108,7 +108,7 @@ struct StrikeSynthesizer::Impl {
   };
   std::vector<Variant> pool;
   std::unique_ptr<ShellFd> fd;
-  Eigen::MatrixXd sensor_rows;     // (mics x dofs) fd only
+  Eigen::MatrixXd sensor_rows;  // (mics x dofs) fd only
   std::unique_ptr<DaqChain> daq;
 
   void BuildClosedForm();
@@ -239,11 +239,13 @@ void StrikeSynthesizer::Impl::BuildPool(const ShellModes& base_modes, double pla
   std::once_flag made;
   std::unique_ptr<ShellRitzProjector> projector;
   const auto get_projector = [&]() -> const ShellRitzProjector& {
-    std::call_once(made, [&] { projector = std::make_unique<ShellRitzProjector>(*shell, base_modes); });
+    std::call_once(made,
+                   [&] { projector = std::make_unique<ShellRitzProjector>(*shell, base_modes); });
     return *projector;
   };
   const std::vector<int64_t> rows = ShellModalBank::RowsRead(*shell, c.mics, placement_margin_m);
-  const std::string cache = c.synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : c.synth.mode_cache_dir;
+  const std::string cache =
+      c.synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : c.synth.mode_cache_dir;
   // each variant alone: its draws, its shell, Ritz modes to the base band, its bank
   tbb::parallel_for(int64_t{0}, count, [&](int64_t v) {
     const StructureVariant draw =
@@ -275,10 +277,10 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   m.widest_band_hz = synth.max_frequency_hz > 0 ? synth.max_frequency_hz : 0.95 * nyquist;
   m.limit_band_hz = m.widest_band_hz;
   if (m.widest_band_hz >= nyquist) {
-    throw ConfigError(fmt::format(
-        "acoustics.max_frequency_hz = {} must be below the Nyquist frequency {} Hz "
-        "(audio.sample_rate_hz / 2): modes above it alias",
-        synth.max_frequency_hz, nyquist));
+    throw ConfigError(
+        fmt::format("acoustics.max_frequency_hz = {} must be below the Nyquist frequency {} Hz "
+                    "(audio.sample_rate_hz / 2): modes above it alias",
+                    synth.max_frequency_hz, nyquist));
   }
   m.daq = std::make_unique<DaqChain>(config.daq, config.noise, config.mics.count(),
                                      audio.sample_rate_hz, audio.num_samples());
@@ -294,10 +296,13 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   const double mode_band =
       synth.mode_band_hz > 0 ? synth.mode_band_hz : std::min(0.95 * nyquist, kDefaultModeBandHz);
   if (mode_band >= nyquist) {
-    throw ConfigError(fmt::format("acoustics.mode_band_hz = {} must be below the Nyquist frequency "
-                                  "{} Hz", synth.mode_band_hz, nyquist));
+    throw ConfigError(
+        fmt::format("acoustics.mode_band_hz = {} must be below the Nyquist frequency "
+                    "{} Hz",
+                    synth.mode_band_hz, nyquist));
   }
-  const std::string cache = synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : synth.mode_cache_dir;
+  const std::string cache =
+      synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : synth.mode_cache_dir;
   const ShellModes modes = CachedShellModes(*m.shell, mode_band, 0, true, cache);
   m.widest_band_hz = std::min(m.widest_band_hz, mode_band);
   m.mode_band_hz = mode_band;
@@ -306,9 +311,10 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
                                             synth.decay_floor_db, synth.residual, margin);
   if (config.randomize.structure()) {
     if (synth.model != "modal") {
-      throw ConfigError(fmt::format("randomize.structure_variants = {} needs acoustics.model = "
-                                    "modal (the variants are Ritz projections of its modes), not {}",
-                                    config.randomize.structure_variants, synth.model));
+      throw ConfigError(
+          fmt::format("randomize.structure_variants = {} needs acoustics.model = "
+                      "modal (the variants are Ritz projections of its modes), not {}",
+                      config.randomize.structure_variants, synth.model));
     }
     m.BuildPool(modes, margin);
   }
@@ -351,7 +357,8 @@ std::vector<double> RustleForce(double duration_s, double fs, double rms_n, doub
   const double q = f0 / (high_hz - low_hz);
   const double alpha = std::sin(w0) / (2 * q);
   const double a0 = 1 + alpha;
-  const double b0 = alpha / a0, b2 = -alpha / a0, a1 = -2 * std::cos(w0) / a0, a2 = (1 - alpha) / a0;
+  const double b0 = alpha / a0, b2 = -alpha / a0, a1 = -2 * std::cos(w0) / a0,
+               a2 = (1 - alpha) / a0;
   double x1 = 0, x2 = 0, y1 = 0, y2 = 0, sum_sq = 0;
   for (int64_t k = 0; k < n; ++k) {
     const double x = rng->NoiseSample();
@@ -409,16 +416,17 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
   const int64_t num_frames = m.c.audio.num_samples();
   RenderedStrike out;
   const bool placed = variation != nullptr && (!variation->mic_z_offset_m.empty() ||
-                                                !variation->mic_theta_offset_deg.empty() ||
-                                                !variation->disc_diameter_m.empty());
-  const bool varied_structure = variation != nullptr && (variation->frequency_scale() != 1.0 ||
-                                                         variation->density_scale != 1.0 ||
-                                                         variation->loss_factor > 0.0 ||
-                                                         variation->structure_variant >= 0 || placed);
+                                               !variation->mic_theta_offset_deg.empty() ||
+                                               !variation->disc_diameter_m.empty());
+  const bool varied_structure =
+      variation != nullptr &&
+      (variation->frequency_scale() != 1.0 || variation->density_scale != 1.0 ||
+       variation->loss_factor > 0.0 || variation->structure_variant >= 0 || placed);
   if (varied_structure && (!m.bank || m.fd)) {
-    throw ConfigError("randomize: material, structure and placement ranges need acoustics.model = "
-                      "modal (the numerical modes vary exactly or by projection; the fd and "
-                      "closed-form rungs do not)");
+    throw ConfigError(
+        "randomize: material, structure and placement ranges need acoustics.model = "
+        "modal (the numerical modes vary exactly or by projection; the fd and "
+        "closed-form rungs do not)");
   }
   // the structure this sample is played on: the configured one or a variant of the pool
   const ShellModalBank* bank = m.bank.get();
@@ -426,17 +434,18 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
     SONICBOOM_DEMAND(variation->structure_variant < static_cast<int64_t>(m.pool.size()));
     bank = m.pool[static_cast<size_t>(variation->structure_variant)].bank.get();
   }
-  const ContactEvent contact = variation != nullptr ? VariedContact(given_contact, *variation)
-                                                    : given_contact;
-  const MaterialConfig material = variation != nullptr ? VariedMaterial(m.c.material, *variation)
-                                                       : m.c.material;
+  const ContactEvent contact =
+      variation != nullptr ? VariedContact(given_contact, *variation) : given_contact;
+  const MaterialConfig material =
+      variation != nullptr ? VariedMaterial(m.c.material, *variation) : m.c.material;
 
   // the rigid-wall Hertz impact: closed-form rung's pulse, and the contact band's first guess
   const HertzImpact impact = SolveHertzImpact(contact, m.c.tube, material);
   if (!std::isfinite(impact.duration_s) || impact.duration_s <= 0) {
-    throw NumericalError(fmt::format("contact of speed {} m/s and mass {} kg has no finite "
-                                     "Hertz duration",
-                                     contact.normal_speed_m_s, contact.effective_mass_kg));
+    throw NumericalError(
+        fmt::format("contact of speed {} m/s and mass {} kg has no finite "
+                    "Hertz duration",
+                    contact.normal_speed_m_s, contact.effective_mass_kg));
   }
   Eigen::MatrixXd strain;
   const auto t0 = std::chrono::steady_clock::now();
@@ -491,9 +500,9 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
       forces.push_back({z_m, theta_rad, cf.first_sample, std::move(cf.force_n)});
       return cf;
     };
-    const ContactForce first = play_contact(contact.time_s, contact.z_m, contact.theta_rad,
-                                            contact.normal_speed_m_s, contact.robot_side_mass_kg,
-                                            striker);
+    const ContactForce first =
+        play_contact(contact.time_s, contact.z_m, contact.theta_rad, contact.normal_speed_m_s,
+                     contact.robot_side_mass_kg, striker);
     out.impulse_ns = first.impulse_ns;
     out.duration_s = first.duration_s;
     out.peak_force_n = first.peak_force_n;
@@ -506,9 +515,10 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
         if (m.c.noise.foliage_force_rms_n <= 0) continue;
         const double z = std::clamp(e.z_m, -0.49 * m.c.tube.length_m, 0.49 * m.c.tube.length_m);
         try {
-          forces.push_back({z, e.theta_rad, static_cast<int64_t>(std::floor(e.time_s * fs)),
-                            RustleForce(e.duration_s, fs, m.c.noise.foliage_force_rms_n,
-                                        m.c.noise.foliage_low_hz, m.c.noise.foliage_high_hz, &rng)});
+          forces.push_back(
+              {z, e.theta_rad, static_cast<int64_t>(std::floor(e.time_s * fs)),
+               RustleForce(e.duration_s, fs, m.c.noise.foliage_force_rms_n,
+                           m.c.noise.foliage_low_hz, m.c.noise.foliage_high_hz, &rng)});
         } catch (const ConfigError&) {
           // the brushed point lies in a hole: its rustle reaches the wall around it elsewhere
         }
@@ -536,8 +546,8 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
     out.band_hz = m.Band(first.first_closure_s, frequency_scale);
     if (m.fd) {
       out.modes_used = 0;
-      strain = FdRender(*m.shell, *m.fd, forces, m.sensor_rows, num_frames,
-                        m.c.synth.decay_floor_db);
+      strain =
+          FdRender(*m.shell, *m.fd, forces, m.sensor_rows, num_frames, m.c.synth.decay_floor_db);
     } else {
       const Variation* structure = varied_structure ? variation : nullptr;
       out.modes_used = m.c.synth.mode_count > 0 ? std::min(m.c.synth.mode_count, bank->modes())

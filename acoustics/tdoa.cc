@@ -30,7 +30,9 @@ double MapFrom(double theta, double base) {
 }
 
 // wrapped angle difference in [-pi, pi]
-double WrappedDelta(double a, double b) { return std::remainder(a - b, 2.0 * kPi); }
+double WrappedDelta(double a, double b) {
+  return std::remainder(a - b, 2.0 * kPi);
+}
 
 int64_t NextPowerOfTwo(int64_t n) {
   int64_t m = 1;
@@ -65,9 +67,10 @@ void TdoaGeometry::Validate() const {
   }
   if (!(material.youngs_modulus_pa > 0.0 && material.density_kg_m3 > 0.0 &&
         material.poisson_ratio > -1.0 && material.poisson_ratio < 0.5)) {
-    fail(fmt::format("material needs E > 0, rho > 0 and -1 < nu < 0.5, got E = {}, rho = {}, "
-                     "nu = {}",
-                     material.youngs_modulus_pa, material.density_kg_m3, material.poisson_ratio));
+    fail(
+        fmt::format("material needs E > 0, rho > 0 and -1 < nu < 0.5, got E = {}, rho = {}, "
+                    "nu = {}",
+                    material.youngs_modulus_pa, material.density_kg_m3, material.poisson_ratio));
   }
   if (!(z_min_m < z_max_m)) {
     fail(fmt::format("z_min_m must be < z_max_m, got [{}, {}]", z_min_m, z_max_m));
@@ -121,8 +124,8 @@ class SurfacePaths {
         for (int sector = 0; sector < k; ++sector) {
           for (double ta : BoundaryAngles(nodes_[a].seam, sector)) {
             for (double tb : BoundaryAngles(nodes_[b].seam, sector)) {
-              between_[a][b] = std::min(
-                  between_[a][b], std::hypot(nodes_[a].z - nodes_[b].z, radius_ * (ta - tb)));
+              between_[a][b] = std::min(between_[a][b],
+                                        std::hypot(nodes_[a].z - nodes_[b].z, radius_ * (ta - tb)));
             }
           }
         }
@@ -197,15 +200,15 @@ class SurfacePaths {
   }
 
   double radius_;
-  std::vector<double> seams_;                  // sorted, in [0, 2 pi)
+  std::vector<double> seams_;  // sorted, in [0, 2 pi)
   std::vector<Node> nodes_;
-  std::vector<std::vector<double>> between_;   // bolt to bolt shortest paths
+  std::vector<std::vector<double>> between_;  // bolt to bolt shortest paths
 };
 
 }  // namespace
 
-double SurfacePathLength(const TdoaGeometry& geometry, double z1_m, double theta1_rad,
-                         double z2_m, double theta2_rad) {
+double SurfacePathLength(const TdoaGeometry& geometry, double z1_m, double theta1_rad, double z2_m,
+                         double theta2_rad) {
   geometry.Validate();
   return SurfacePaths(geometry).Length(z1_m, theta1_rad, z2_m, theta2_rad);
 }
@@ -217,7 +220,8 @@ std::vector<double> SurfacePathLengths(const TdoaGeometry& geometry, const std::
   geometry.Validate();
   const SurfacePaths paths(geometry);
   std::vector<double> out(z_m.size());
-  for (size_t i = 0; i < z_m.size(); ++i) out[i] = paths.Length(z_m[i], theta_rad[i], z2_m, theta2_rad);
+  for (size_t i = 0; i < z_m.size(); ++i)
+    out[i] = paths.Length(z_m[i], theta_rad[i], z2_m, theta2_rad);
   return out;
 }
 
@@ -236,8 +240,8 @@ void TdoaConfig::Validate() const {
     }
   }
   if (!band_weights.empty() && band_weights.size() + 1 != band_edges_hz.size()) {
-    fail(fmt::format("band_weights needs one entry per band ({}), got {}",
-                     band_edges_hz.size() - 1, band_weights.size()));
+    fail(fmt::format("band_weights needs one entry per band ({}), got {}", band_edges_hz.size() - 1,
+                     band_weights.size()));
   }
   for (double w : band_weights) {
     if (!(w >= 0.0) || !std::isfinite(w)) fail(fmt::format("band_weights must be >= 0, got {}", w));
@@ -255,7 +259,8 @@ void TdoaConfig::Validate() const {
   if (!(taper_s >= 0.0 && 2.0 * taper_s <= pre_onset_s + post_onset_s)) {
     fail(fmt::format("taper_s must be in [0, half the window], got {}", taper_s));
   }
-  if (upsample < 1 || upsample > 64) fail(fmt::format("upsample must be in [1, 64], got {}", upsample));
+  if (upsample < 1 || upsample > 64)
+    fail(fmt::format("upsample must be in [1, 64], got {}", upsample));
   if (!(grid_z_step_m > 0.0)) fail(fmt::format("grid_z_step_m must be > 0, got {}", grid_z_step_m));
   if (!(grid_theta_step_deg > 0.0 && grid_theta_step_deg <= 90.0)) {
     fail(fmt::format("grid_theta_step_deg must be in (0, 90], got {}", grid_theta_step_deg));
@@ -274,21 +279,21 @@ struct TdoaLocator::Impl {
   double fs{0.0};
   std::unique_ptr<SurfacePaths> paths;
   int mics{0};
-  std::vector<std::pair<int, int>> pairs;   // combinations order
+  std::vector<std::pair<int, int>> pairs;  // combinations order
   std::vector<double> band_centre_hz;
-  std::vector<double> band_speed;           // m/s at scale 1
+  std::vector<double> band_speed;  // m/s at scale 1
   std::vector<double> band_weight;
-  int64_t pre{0}, post{0}, n{0};            // analysis window, samples
-  std::vector<float> taper;                 // (n)
+  int64_t pre{0}, post{0}, n{0};  // analysis window, samples
+  std::vector<float> taper;       // (n)
   int64_t max_lag{0};
-  int64_t fft_size{0};                      // N: linear correlation up to max_lag
+  int64_t fft_size{0};                          // N: linear correlation up to max_lag
   std::vector<std::vector<double>> bin_weight;  // per band, bins 0..N/2
   std::vector<double> bin_weight_sum;
   // coarse grid: candidate c = iz * n_theta + it; path differences (candidates x pairs), m
   int64_t n_z{0}, n_theta{0};
   double theta_step{0.0};
   std::vector<double> grid_z, grid_theta;
-  Eigen::MatrixXd path_diff;                // (pairs x candidates)
+  Eigen::MatrixXd path_diff;  // (pairs x candidates)
 
   std::vector<double> PathLengths(double z, double theta) const {
     std::vector<double> out(static_cast<size_t>(mics));
@@ -407,7 +412,8 @@ TdoaLocator::TdoaLocator(const TdoaGeometry& geometry, const TdoaConfig& config,
   m.path_diff.resize(static_cast<int64_t>(m.pairs.size()), candidates);
   double max_diff = 0.0;
   for (int64_t c = 0; c < candidates; ++c) {
-    const std::vector<double> len = m.PathLengths(m.grid_z[c / m.n_theta], m.grid_theta[c % m.n_theta]);
+    const std::vector<double> len =
+        m.PathLengths(m.grid_z[c / m.n_theta], m.grid_theta[c % m.n_theta]);
     for (size_t p = 0; p < m.pairs.size(); ++p) {
       const double d = len[m.pairs[p].first] - len[m.pairs[p].second];
       m.path_diff(static_cast<int64_t>(p), c) = d;
@@ -419,14 +425,15 @@ TdoaLocator::TdoaLocator(const TdoaGeometry& geometry, const TdoaConfig& config,
   // linear (not circular) correlation up to that lag
   const double slowest = *std::min_element(m.band_speed.begin(), m.band_speed.end());
   m.max_lag = static_cast<int64_t>(
-                  std::ceil(max_diff * sample_rate_hz / (config.min_speed_scale * slowest))) + 2;
+                  std::ceil(max_diff * sample_rate_hz / (config.min_speed_scale * slowest))) +
+              2;
   m.fft_size = NextPowerOfTwo(m.n + m.max_lag);
 
   // per band: cos^2 weight in log2 frequency, half power at the band edges
   for (size_t b = 0; b < bands; ++b) {
-    std::vector<double> w = internal::LogBandWeights(
-        config.band_edges_hz[b], config.band_edges_hz[b + 1], m.fft_size, sample_rate_hz,
-        "tdoa.band_edges_hz");
+    std::vector<double> w =
+        internal::LogBandWeights(config.band_edges_hz[b], config.band_edges_hz[b + 1], m.fft_size,
+                                 sample_rate_hz, "tdoa.band_edges_hz");
     double sum = 0.0;
     for (double x : w) sum += x;
     m.bin_weight.push_back(std::move(w));
@@ -436,11 +443,21 @@ TdoaLocator::TdoaLocator(const TdoaGeometry& geometry, const TdoaConfig& config,
 
 TdoaLocator::~TdoaLocator() = default;
 
-int TdoaLocator::bands() const { return static_cast<int>(impl_->band_speed.size()); }
-int TdoaLocator::pairs() const { return static_cast<int>(impl_->pairs.size()); }
-double TdoaLocator::sample_rate_hz() const { return impl_->fs; }
-const TdoaConfig& TdoaLocator::config() const { return impl_->config; }
-const TdoaGeometry& TdoaLocator::geometry() const { return impl_->geometry; }
+int TdoaLocator::bands() const {
+  return static_cast<int>(impl_->band_speed.size());
+}
+int TdoaLocator::pairs() const {
+  return static_cast<int>(impl_->pairs.size());
+}
+double TdoaLocator::sample_rate_hz() const {
+  return impl_->fs;
+}
+const TdoaConfig& TdoaLocator::config() const {
+  return impl_->config;
+}
+const TdoaGeometry& TdoaLocator::geometry() const {
+  return impl_->geometry;
+}
 
 double TdoaLocator::BandSpeed(int band) const {
   if (band < 0 || band >= bands()) {
@@ -513,7 +530,8 @@ TdoaCorrelations TdoaLocator::Correlate(const Eigen::MatrixXf& record, int64_t o
       for (int64_t u = 0; u < lags; ++u) {
         int64_t index = u - m.max_lag * m.config.upsample;
         if (index < 0) index += fine;
-        out.envelope[b](static_cast<int64_t>(p), u) = static_cast<float>(std::abs(corr[index]) * norm);
+        out.envelope[b](static_cast<int64_t>(p), u) =
+            static_cast<float>(std::abs(corr[index]) * norm);
       }
     }
   }
@@ -526,8 +544,8 @@ TdoaEstimate TdoaLocator::Locate(const TdoaCorrelations& correlations, double sp
     throw ConfigError(fmt::format("tdoa: speed scale {} is below min_speed_scale {}", speed_scale,
                                   m.config.min_speed_scale));
   }
-  if (correlations.envelope.size() != m.band_speed.size() ||
-      correlations.max_lag != m.max_lag || correlations.upsample != m.config.upsample) {
+  if (correlations.envelope.size() != m.band_speed.size() || correlations.max_lag != m.max_lag ||
+      correlations.upsample != m.config.upsample) {
     throw Error("tdoa: correlations were made by a locator of another config");
   }
 
@@ -588,9 +606,10 @@ double FitSpeedScale(const TdoaLocator& locator, const std::vector<TdoaCorrelati
                             strikes.size(), z_m.size(), theta_rad.size()));
   }
   if (!(lo >= locator.config().min_speed_scale && hi > lo)) {
-    throw ConfigError(fmt::format("tdoa speed fit: the range [{}, {}] must lie above "
-                                  "min_speed_scale {} and not be empty",
-                                  lo, hi, locator.config().min_speed_scale));
+    throw ConfigError(
+        fmt::format("tdoa speed fit: the range [{}, {}] must lie above "
+                    "min_speed_scale {} and not be empty",
+                    lo, hi, locator.config().min_speed_scale));
   }
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   // mean surface distance at one scale; per-strike slots summed in order (deterministic)
@@ -623,7 +642,8 @@ double FitSpeedScale(const TdoaLocator& locator, const std::vector<TdoaCorrelati
   }
   const double centre = best_scale;
   for (int i = 0; i < kFine; ++i) {
-    const double s = std::max(lo, centre * std::pow(ratio, (i - (kFine - 1) / 2.0) / ((kFine - 1) / 2.0)));
+    const double s =
+        std::max(lo, centre * std::pow(ratio, (i - (kFine - 1) / 2.0) / ((kFine - 1) / 2.0)));
     if (s == centre) continue;
     const double v = med(s);
     if (v < best) {

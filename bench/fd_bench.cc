@@ -86,7 +86,8 @@ double TriadBandwidth(double working_set_bytes) {
   TriadArrays t(n);
   // passes per burst so that one burst moves >= 1.2 GB (>= 50 ms at 24 GB/s)
   const int64_t passes = std::max<int64_t>(1, static_cast<int64_t>(1.2e9 / (24.0 * n)));
-  for (int64_t p = 0; p < std::min<int64_t>(passes, 4); ++p) Triad(t.a.data(), t.b.data(), t.c.data(), 0.5, n);
+  for (int64_t p = 0; p < std::min<int64_t>(passes, 4); ++p)
+    Triad(t.a.data(), t.b.data(), t.c.data(), 0.5, n);
   double best = 0.0;
   for (int burst = 0; burst < 7; ++burst) {
     const double start = ThreadSeconds();
@@ -147,7 +148,8 @@ const FdGrid& Grid(int which) {
   g->nnz = static_cast<double>(k.nonZeros());
   // upper triangle with the diagonal: (nnz + dofs) / 2 when every diagonal entry is stored
   for (Eigen::Index c = 0; c < k.outerSize(); ++c) {
-    for (Eigen::SparseMatrix<double>::InnerIterator it(k, c); it; ++it) g->nnz_upper += it.row() <= it.col();
+    for (Eigen::SparseMatrix<double>::InnerIterator it(k, c); it; ++it)
+      g->nnz_upper += it.row() <= it.col();
   }
   g->nodes = static_cast<double>(g->model->axial_points()) * g->model->circumferential_points();
   // CSR values + column indices + row pointers, then u, u-, force, mass coefficient, u+
@@ -172,7 +174,8 @@ void BM_TriadDram(benchmark::State& state) {
   using benchmark::Counter;
   state.counters["working_set_MB"] = 24.0 * n / 1e6;
   state.counters["GB_per_s_24B"] = Counter(24.0 * n * state.iterations() / 1e9, Counter::kIsRate);
-  state.counters["GB_per_s_32B_wa"] = Counter(32.0 * n * state.iterations() / 1e9, Counter::kIsRate);
+  state.counters["GB_per_s_32B_wa"] =
+      Counter(32.0 * n * state.iterations() / 1e9, Counter::kIsRate);
 }
 BENCHMARK(BM_TriadDram)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 
@@ -205,7 +208,11 @@ void BM_TriadAtFdWorkingSet(benchmark::State& state) {
   state.counters["working_set_MB"] = 24.0 * n / 1e6;
   state.counters["GB_per_s_24B"] = Counter(24.0 * n * state.iterations() / 1e9, Counter::kIsRate);
 }
-BENCHMARK(BM_TriadAtFdWorkingSet)->Args({0, 0})->Args({0, 1})->Args({1, 0})->Args({1, 1})
+BENCHMARK(BM_TriadAtFdWorkingSet)
+    ->Args({0, 0})
+    ->Args({0, 1})
+    ->Args({1, 0})
+    ->Args({1, 1})
     ->Unit(benchmark::kMicrosecond);
 
 // Peak flop rate of register-resident multiply-adds
@@ -218,7 +225,8 @@ void BM_PeakFlops(benchmark::State& state) {
     benchmark::DoNotOptimize(acc);
   }
   using benchmark::Counter;
-  state.counters["GFlop_per_s"] = Counter(2.0 * kChains * rounds * state.iterations() / 1e9, Counter::kIsRate);
+  state.counters["GFlop_per_s"] =
+      Counter(2.0 * kChains * rounds * state.iterations() / 1e9, Counter::kIsRate);
 }
 BENCHMARK(BM_PeakFlops)->Unit(benchmark::kMicrosecond);
 
@@ -253,7 +261,8 @@ PairedBest InterleavedBursts(const FdGrid& g, ShellFdState* s, const Eigen::Vect
     const double start = ThreadSeconds();
     for (int64_t k = 0; k < steps; ++k) g.fd->Step(s, force);
     benchmark::DoNotOptimize(s->current.data());
-    best.steps_per_s = std::max(best.steps_per_s, static_cast<double>(steps) / (ThreadSeconds() - start));
+    best.steps_per_s =
+        std::max(best.steps_per_s, static_cast<double>(steps) / (ThreadSeconds() - start));
     best.ws_bytes_per_s = std::max(best.ws_bytes_per_s, triad_rate(full));
     best.ws_sym_bytes_per_s = std::max(best.ws_sym_bytes_per_s, triad_rate(sym));
   }
@@ -307,7 +316,8 @@ void BM_FdStep(benchmark::State& state) {
   state.counters["bound_dram_steps_per_s"] = bound_dram;
   state.counters["fraction_of_dram_bound"] = best.steps_per_s / bound_dram;
   // simulated seconds per CPU second at 44.1 kHz x oversampling
-  state.counters["x_real_time"] = Counter(steps / (kAudioRateHz * g.fd->oversampling()), Counter::kIsRate);
+  state.counters["x_real_time"] =
+      Counter(steps / (kAudioRateHz * g.fd->oversampling()), Counter::kIsRate);
 }
 BENCHMARK(BM_FdStep)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond)->MinTime(1.0);
 

@@ -24,9 +24,9 @@ Eigen::MatrixXf Signal(int64_t n, double level, int64_t onset, double burst_ampl
   Eigen::MatrixXf x(kChannels, n);
   for (int64_t t = 0; t < n; ++t) {
     const double dt = static_cast<double>(t - onset) / kRateHz;
-    const double burst = t >= onset ? burst_amplitude * std::exp(-dt / 0.05) *
-                                          std::sin(2.0 * M_PI * 2000.0 * dt)
-                                    : 0.0;
+    const double burst =
+        t >= onset ? burst_amplitude * std::exp(-dt / 0.05) * std::sin(2.0 * M_PI * 2000.0 * dt)
+                   : 0.0;
     for (int c = 0; c < kChannels; ++c) x(c, t) = noise(rng) + static_cast<float>(burst);
   }
   return x;

@@ -10,7 +10,8 @@ namespace {
 
 // strike kinematics + proprioception window
 void BM_StrikeKinematics(benchmark::State& state) {
-  const sim::StrikeModel model(sim::StrikeConfig{}, sim::SceneConfig{}, TubeConfig{}, AudioConfig{});
+  const sim::StrikeModel model(sim::StrikeConfig{}, sim::SceneConfig{}, TubeConfig{},
+                               AudioConfig{});
   uint64_t i = 0;
   for (auto _ : state) benchmark::DoNotOptimize(model.Generate(SampleSeed(1, i++)));
 }
@@ -22,7 +23,8 @@ void BM_RenderStrike(benchmark::State& state) {
   config.synth.model = "modal-closed-form";
   config.synth.max_frequency_hz = static_cast<double>(state.range(0));
   const acoustics::StrikeSynthesizer synthesizer(config);
-  const sim::StrikeModel model(sim::StrikeConfig{}, sim::SceneConfig{}, TubeConfig{}, AudioConfig{});
+  const sim::StrikeModel model(sim::StrikeConfig{}, sim::SceneConfig{}, TubeConfig{},
+                               AudioConfig{});
   uint64_t i = 0;
   int64_t modes = 0;
   for (auto _ : state) {
@@ -33,7 +35,8 @@ void BM_RenderStrike(benchmark::State& state) {
     ++i;
   }
   state.counters["modes"] = static_cast<double>(modes);
-  state.counters["strikes_per_s"] = benchmark::Counter(static_cast<double>(i), benchmark::Counter::kIsRate);
+  state.counters["strikes_per_s"] =
+      benchmark::Counter(static_cast<double>(i), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_RenderStrike)->Arg(0)->Arg(5000)->Arg(20000)->Unit(benchmark::kMillisecond);
 

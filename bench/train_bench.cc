@@ -20,13 +20,14 @@ namespace {
 int64_t g_steps = 8;
 int64_t g_warmup = 2;
 
-void TrainStep(benchmark::State& state, const std::string& encoder, int64_t batch, int64_t threads) {
+void TrainStep(benchmark::State& state, const std::string& encoder, int64_t batch,
+               int64_t threads) {
   learning::ModelConfig model;  // the paper's fusion: width 256, 6 blocks, 8 heads, all modalities
   model.audio_encoder = encoder;
   learning::TrainConfig train;
   train.batch_size = batch;
   train.threads = threads;
-  train.uncertainty_weight = 0.0;  // the paper's model and loss, as the PyTorch mirror
+  train.uncertainty_weight = 0.0;     // the paper's model and loss, as the PyTorch mirror
   const learning::FeatureSet shapes;  // the paper's feature shapes
   learning::ThroughputResult r;
   for (auto _ : state) {
@@ -63,10 +64,12 @@ int main(int argc, char** argv) {
   for (const char* encoder : {"compact", "resnet18", "resnet50"}) {
     for (int64_t batch : {16, 32, 64, 128}) {
       for (int64_t threads : thread_counts) {
-        benchmark::RegisterBenchmark(
-            (std::string("TrainStep/") + encoder + "/" + std::to_string(batch) + "/" +
-             std::to_string(threads)).c_str(),
-            [encoder, batch, threads](benchmark::State& s) { TrainStep(s, encoder, batch, threads); })
+        benchmark::RegisterBenchmark((std::string("TrainStep/") + encoder + "/" +
+                                      std::to_string(batch) + "/" + std::to_string(threads))
+                                         .c_str(),
+                                     [encoder, batch, threads](benchmark::State& s) {
+                                       TrainStep(s, encoder, batch, threads);
+                                     })
             ->Iterations(1)
             ->UseManualTime()
             ->Unit(benchmark::kMillisecond);

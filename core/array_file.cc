@@ -92,8 +92,7 @@ NamedArray ReadArray(const std::string& path, const std::string& name) {
   h5::Handle type(h5::CheckId(H5Dget_type(dataset.get()), path, name, "read type of"));
   const H5T_class_t type_class = H5Tget_class(type.get());
   if (type_class != H5T_FLOAT && type_class != H5T_INTEGER) {
-    throw IoError(path + ": array " + name + " is not numeric (" + h5::DtypeName(type.get()) +
-                  ")");
+    throw IoError(path + ": array " + name + " is not numeric (" + h5::DtypeName(type.get()) + ")");
   }
 
   // Whole dataset, converted to float32 by the library.
@@ -106,9 +105,9 @@ NamedArray ReadArray(const std::string& path, const std::string& name) {
   }
   array.data.resize(elements);
   if (elements > 0) {
-    h5::CheckStatus(H5Dread(dataset.get(), H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT,
-                            array.data.data()),
-                    path, name, "read array");
+    h5::CheckStatus(
+        H5Dread(dataset.get(), H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, array.data.data()),
+        path, name, "read array");
   }
   return array;
 }
@@ -118,7 +117,9 @@ std::string ReadStringAttr(const std::string& path, const std::string& name) {
   return h5::ReadStringAttr(file.get(), name.c_str(), path);
 }
 
-bool IsHdf5File(const std::string& path) { return h5::IsHdf5(path); }
+bool IsHdf5File(const std::string& path) {
+  return h5::IsHdf5(path);
+}
 
 std::string SummarizeH5Json(const std::string& path) {
   h5::Handle file = h5::OpenFileReadOnly(path);
@@ -140,10 +141,18 @@ std::string SummarizeH5Json(const std::string& path) {
           attrs[attr.name] = attr.text;
         }
         break;
-      case h5::AttrValue::Kind::kSigned: attrs[attr.name] = attr.signed_value; break;
-      case h5::AttrValue::Kind::kUnsigned: attrs[attr.name] = attr.unsigned_value; break;
-      case h5::AttrValue::Kind::kFloat: attrs[attr.name] = attr.float_value; break;
-      case h5::AttrValue::Kind::kOther: attrs[attr.name] = nullptr; break;
+      case h5::AttrValue::Kind::kSigned:
+        attrs[attr.name] = attr.signed_value;
+        break;
+      case h5::AttrValue::Kind::kUnsigned:
+        attrs[attr.name] = attr.unsigned_value;
+        break;
+      case h5::AttrValue::Kind::kFloat:
+        attrs[attr.name] = attr.float_value;
+        break;
+      case h5::AttrValue::Kind::kOther:
+        attrs[attr.name] = nullptr;
+        break;
     }
   }
 

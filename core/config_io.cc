@@ -218,8 +218,8 @@ class YamlReadArchive : public Archive {
   }
   void BeginItem(size_t index) override {
     const Frame& list = frames_.back();
-    Frame item{list.node ? list.node[index] : YAML::Node(), list.path + "." + std::to_string(index),
-               {}};
+    Frame item{
+        list.node ? list.node[index] : YAML::Node(), list.path + "." + std::to_string(index), {}};
     frames_.push_back(std::move(item));
   }
   void EndItem() override {
@@ -257,7 +257,8 @@ class YamlReadArchive : public Archive {
     }
   }
   [[noreturn]] void Fail(std::string_view name, const std::string& what, const YAML::Node& node) {
-    std::string shown = node.IsScalar() ? node.Scalar() : (node.IsSequence() ? "a list" : "a mapping");
+    std::string shown =
+        node.IsScalar() ? node.Scalar() : (node.IsSequence() ? "a list" : "a mapping");
     throw ConfigError(fmt::format("config key '{}' (from {}): {}, got '{}'", Path(name),
                                   origin_of_(Path(name)), what, shown));
   }
@@ -273,8 +274,7 @@ class YamlReadArchive : public Archive {
       const auto key = kv.first.as<std::string>();
       if (!frame.visited.count(key)) {
         const std::string path = frame.path.empty() ? key : frame.path + "." + key;
-        throw ConfigError(
-            fmt::format("unknown config key '{}' (from {})", path, origin_of_(path)));
+        throw ConfigError(fmt::format("unknown config key '{}' (from {})", path, origin_of_(path)));
       }
     }
   }
@@ -371,7 +371,9 @@ void ConfigLayers::FinishRead(Archive* archive) const {
 
 namespace sonicboom::internal {
 
-std::unique_ptr<Archive> MakeYamlWriteArchive() { return std::make_unique<YamlWriteArchive>(); }
+std::unique_ptr<Archive> MakeYamlWriteArchive() {
+  return std::make_unique<YamlWriteArchive>();
+}
 
 std::string FinishYamlWrite(Archive* archive) {
   return static_cast<YamlWriteArchive*>(archive)->Emit();

@@ -20,9 +20,13 @@ DatasetReader::~DatasetReader() = default;
 DatasetReader::DatasetReader(DatasetReader&&) noexcept = default;
 DatasetReader& DatasetReader::operator=(DatasetReader&&) noexcept = default;
 
-const DatasetInfo& DatasetReader::info() const { return impl_->file.info(); }
+const DatasetInfo& DatasetReader::info() const {
+  return impl_->file.info();
+}
 
-int64_t DatasetReader::size() const { return impl_->file.size(); }
+int64_t DatasetReader::size() const {
+  return impl_->file.size();
+}
 
 StrikeSample DatasetReader::ReadMeta(int64_t i) const {
   StrikeSample sample;

@@ -47,8 +47,7 @@ nlohmann::ordered_json RangeJson(const std::vector<double>& values, bool with_me
 int BinClosedBelow(const std::vector<double>& edges, double value) {
   if (!std::isfinite(value) || value < edges.front() || value > edges.back()) return -1;
   const auto above = std::upper_bound(edges.begin(), edges.end(), value);
-  return std::min(static_cast<int>(above - edges.begin()) - 1,
-                  static_cast<int>(edges.size()) - 2);
+  return std::min(static_cast<int>(above - edges.begin()) - 1, static_cast<int>(edges.size()) - 2);
 }
 
 // Bin of an angle in degrees among ascending `edges` spanning (-180, 180] (bins (e_b, e_b+1]),
@@ -89,9 +88,8 @@ nlohmann::ordered_json ContactsSummaryJson(const DatasetFile& dataset,
     for (size_t f = 0; f < kScalarContacts.size(); ++f) {
       const std::string name = kScalarContacts[f].path;
       if (name == "contacts/z_m" || name == "contacts/theta_rad") {
-        std::vector<double> column = ReadColumn<double>(table.scalars[f].get(),
-                                                        H5T_NATIVE_DOUBLE, m, path,
-                                                        kScalarContacts[f].path);
+        std::vector<double> column = ReadColumn<double>(table.scalars[f].get(), H5T_NATIVE_DOUBLE,
+                                                        m, path, kScalarContacts[f].path);
         (name == "contacts/z_m" ? z : theta) = std::move(column);
       }
     }
@@ -159,24 +157,24 @@ nlohmann::ordered_json ContactsSummaryJson(const DatasetFile& dataset,
   return contacts;
 }
 
-
 // An invalid reason with its numbers replaced by '#', so that reasons differing only in a time
 // or a depth count together ("penetration # mm ... at t = # s").
 std::string ReasonCategory(const std::string& reason) {
   std::string out;
   for (size_t i = 0; i < reason.size();) {
-    const bool sign = (reason[i] == '-' || reason[i] == '+') && i + 1 < reason.size() &&
-                      std::isdigit(static_cast<unsigned char>(reason[i + 1])) &&
-                      (i == 0 || reason[i - 1] == ' ' || reason[i - 1] == '(' || reason[i - 1] == '[');
+    const bool sign =
+        (reason[i] == '-' || reason[i] == '+') && i + 1 < reason.size() &&
+        std::isdigit(static_cast<unsigned char>(reason[i + 1])) &&
+        (i == 0 || reason[i - 1] == ' ' || reason[i - 1] == '(' || reason[i - 1] == '[');
     if (!sign && !std::isdigit(static_cast<unsigned char>(reason[i]))) {
       out += reason[i++];
       continue;
     }
     // a number: sign, digits, fraction, exponent
     i += sign ? 1 : 0;
-    while (i < reason.size() && (std::isdigit(static_cast<unsigned char>(reason[i])) ||
-                                 reason[i] == '.' || reason[i] == 'e' ||
-                                 ((reason[i] == '-' || reason[i] == '+') && reason[i - 1] == 'e'))) {
+    while (i < reason.size() &&
+           (std::isdigit(static_cast<unsigned char>(reason[i])) || reason[i] == '.' ||
+            reason[i] == 'e' || ((reason[i] == '-' || reason[i] == '+') && reason[i - 1] == 'e'))) {
       ++i;
     }
     out += '#';
@@ -202,8 +200,7 @@ std::string SummarizeDatasetJson(const std::string& path) {
   auto label_column = [&](const char* name) {
     for (size_t f = 0; f < kScalarLabels.size(); ++f) {
       if (std::string(kScalarLabels[f].path) == name) {
-        return ReadColumn<double>(columns.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, n, path,
-                                  name);
+        return ReadColumn<double>(columns.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, n, path, name);
       }
     }
     throw IoError(path + ": no label column " + name);
@@ -221,7 +218,8 @@ std::string SummarizeDatasetJson(const std::string& path) {
   for (int64_t i = 0; i < n; ++i) {
     if (clipped[i] != 0) ++clipped_count;
     if (valid[i] == 0) {
-      ++invalid_reasons[reasons[i].empty() ? std::string("(no reason)") : ReasonCategory(reasons[i])];
+      ++invalid_reasons[reasons[i].empty() ? std::string("(no reason)")
+                                           : ReasonCategory(reasons[i])];
       continue;
     }
     ++valid_count;
@@ -261,6 +259,5 @@ std::string SummarizeDatasetJson(const std::string& path) {
   summary["contacts"] = ContactsSummaryJson(dataset, valid);
   return summary.dump(2);
 }
-
 
 }  // namespace sonicboom

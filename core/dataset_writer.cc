@@ -32,7 +32,6 @@ constexpr int kDeflateLevel = 1;
 // An unfinished file is flushed at most this often, so a crash leaves a readable prefix.
 constexpr std::chrono::seconds kFlushInterval{2};
 
-
 // Current UTC time as ISO 8601, e.g. "2024-05-01T12:34:56Z".
 std::string UtcNow() {
   const std::time_t now = std::time(nullptr);
@@ -45,9 +44,7 @@ std::string UtcNow() {
 
 // Refuses dataset metadata that cannot describe a file.
 void CheckInfo(const std::string& path, const DatasetInfo& info) {
-  auto fail = [&](const std::string& what) {
-    throw ConfigError(path + ": dataset " + what);
-  };
+  auto fail = [&](const std::string& what) { throw ConfigError(path + ": dataset " + what); };
   if (info.channels < 1) fail("channels must be >= 1, got " + std::to_string(info.channels));
   if (info.audio_frames < 1) {
     fail("audio_frames must be >= 1, got " + std::to_string(info.audio_frames));
@@ -100,8 +97,8 @@ std::vector<unsigned char> Deflate(const std::vector<unsigned char>& bytes, int 
                                    const std::string& where) {
   uLongf size = compressBound(static_cast<uLong>(bytes.size()));
   std::vector<unsigned char> compressed(size);
-  const int status = compress2(compressed.data(), &size, bytes.data(),
-                               static_cast<uLong>(bytes.size()), level);
+  const int status =
+      compress2(compressed.data(), &size, bytes.data(), static_cast<uLong>(bytes.size()), level);
   if (status != Z_OK) {
     throw IoError(where + ": cannot deflate the audio chunk (zlib status " +
                   std::to_string(status) + ")");
@@ -160,10 +157,9 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info, b
   const hsize_t proprio_row_bytes = std::max<hsize_t>(k * kProprioFeatures * sizeof(float), 1);
   const hsize_t proprio_chunk_rows =
       std::clamp<hsize_t>(kProprioChunkBytes / proprio_row_bytes, 1, kColumnChunkRows);
-  s.columns.proprio = h5::CreateExtendable(root, kProprioPath, H5T_IEEE_F32LE,
-                                           {{k, kProprioFeatures}, proprio_chunk_rows,
-                                            kDeflateLevel},
-                                           file);
+  s.columns.proprio =
+      h5::CreateExtendable(root, kProprioPath, H5T_IEEE_F32LE,
+                           {{k, kProprioFeatures}, proprio_chunk_rows, kDeflateLevel}, file);
 
   // Labels (N) and (N, 3) float64; index columns (N).
   for (size_t f = 0; f < kScalarLabels.size(); ++f) {
@@ -174,8 +170,8 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info, b
     s.columns.vector_labels[f] = h5::CreateExtendable(root, kVectorLabels[f].path, H5T_IEEE_F64LE,
                                                       {{3}, kColumnChunkRows, -1}, file);
   }
-  s.columns.sample_index = h5::CreateExtendable(root, kSampleIndexPath, H5T_STD_U64LE,
-                                                {{}, kColumnChunkRows, -1}, file);
+  s.columns.sample_index =
+      h5::CreateExtendable(root, kSampleIndexPath, H5T_STD_U64LE, {{}, kColumnChunkRows, -1}, file);
   s.columns.seed =
       h5::CreateExtendable(root, kSeedPath, H5T_STD_U64LE, {{}, kColumnChunkRows, -1}, file);
   s.columns.valid =
@@ -279,8 +275,7 @@ void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio
   const int64_t k = info.proprio_rows;
   // Shapes: audio (C x T), proprio (K x 10); an invalid sample may carry neither (zeros stored).
   const bool audio_missing = !sample.valid && sample.audio.size() == 0;
-  if (!raw_audio && !audio_missing &&
-      (sample.audio.rows() != c || sample.audio.cols() != t)) {
+  if (!raw_audio && !audio_missing && (sample.audio.rows() != c || sample.audio.cols() != t)) {
     throw SchemaError(where + ": audio is " + std::to_string(sample.audio.rows()) + " x " +
                       std::to_string(sample.audio.cols()) + ", expected " + std::to_string(c) +
                       " x " + std::to_string(t));
@@ -303,8 +298,7 @@ void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio
   }
   for (size_t j = 0; j < sample.variation.size(); ++j) {
     if (!std::isfinite(sample.variation[j])) {
-      throw SchemaError(where + ": randomized value " + info.variation_names[j] +
-                        " is not finite");
+      throw SchemaError(where + ": randomized value " + info.variation_names[j] + " is not finite");
     }
   }
   // Contacts: only a 1.1 file stores them; kind codes must be known.
@@ -400,8 +394,7 @@ void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
   }
   if (columns.provenance.valid()) {
     const char* origin = sample.provenance.c_str();
-    h5::AppendRows(columns.provenance.get(), string_type.get(), &origin, 1, file,
-                   kProvenancePath);
+    h5::AppendRows(columns.provenance.get(), string_type.get(), &origin, 1, file, kProvenancePath);
   }
   indices.insert(sample.index);
   ++count;
@@ -452,8 +445,7 @@ void DatasetWriter::Impl::WriteContacts(const StrikeSample& sample) {
   h5::AppendRows(table.material.get(), string_type.get(), materials.data(), rows, file,
                  kContactMaterialPath);
   // The sample's offsets.
-  h5::AppendRows(columns.contact_first.get(), H5T_NATIVE_INT64, &first, 1, file,
-                 kContactFirstPath);
+  h5::AppendRows(columns.contact_first.get(), H5T_NATIVE_INT64, &first, 1, file, kContactFirstPath);
   h5::AppendRows(columns.contact_count.get(), H5T_NATIVE_INT64, &m, 1, file, kContactCountPath);
   contact_rows += m;
 }
@@ -471,6 +463,8 @@ void DatasetWriter::Finish() {
   s.finished = true;
 }
 
-int64_t DatasetWriter::count() const { return impl_->count; }
+int64_t DatasetWriter::count() const {
+  return impl_->count;
+}
 
 }  // namespace sonicboom

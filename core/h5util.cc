@@ -38,8 +38,8 @@ void WriteScalarAttr(hid_t loc, const char* name, hid_t file_type, hid_t mem_typ
     CheckStatus(H5Adelete(loc, name), file, name, "replace attribute");
   }
   Handle space(CheckId(H5Screate(H5S_SCALAR), file, name, "create dataspace for attribute"));
-  Handle attr(CheckId(H5Acreate2(loc, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT),
-                      file, name, "create attribute"));
+  Handle attr(CheckId(H5Acreate2(loc, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT), file,
+                      name, "create attribute"));
   CheckStatus(H5Awrite(attr.get(), mem_type, value), file, name, "write attribute");
 }
 
@@ -74,8 +74,7 @@ void ReadNumericAttr(hid_t loc, const char* name, hid_t mem_type, void* out,
 Handle VlenStringTypeLike(hid_t file_type, std::string_view file, std::string_view object) {
   Handle type(CheckId(H5Tcopy(H5T_C_S1), file, object, "create string type"));
   CheckStatus(H5Tset_size(type.get(), H5T_VARIABLE), file, object, "create string type");
-  CheckStatus(H5Tset_cset(type.get(), H5Tget_cset(file_type)), file, object,
-              "create string type");
+  CheckStatus(H5Tset_cset(type.get(), H5Tget_cset(file_type)), file, object, "create string type");
   return type;
 }
 
@@ -101,8 +100,8 @@ Handle SelectRows(hid_t dataset, const std::vector<hsize_t>& dims, hsize_t first
   std::vector<hsize_t> count = dims;
   start[0] = first;
   count[0] = rows;
-  CheckStatus(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start.data(), nullptr,
-                                  count.data(), nullptr),
+  CheckStatus(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
+                                  nullptr),
               file, object, "select rows of");
   return space;
 }
@@ -142,14 +141,29 @@ hid_t Handle::Release() {
 void Handle::Reset() {
   if (id_ < 0) return;
   switch (H5Iget_type(id_)) {
-    case H5I_FILE: H5Fclose(id_); break;
-    case H5I_GROUP: H5Gclose(id_); break;
-    case H5I_DATATYPE: H5Tclose(id_); break;
-    case H5I_DATASPACE: H5Sclose(id_); break;
-    case H5I_DATASET: H5Dclose(id_); break;
-    case H5I_ATTR: H5Aclose(id_); break;
-    case H5I_GENPROP_LST: H5Pclose(id_); break;
-    default: break;
+    case H5I_FILE:
+      H5Fclose(id_);
+      break;
+    case H5I_GROUP:
+      H5Gclose(id_);
+      break;
+    case H5I_DATATYPE:
+      H5Tclose(id_);
+      break;
+    case H5I_DATASPACE:
+      H5Sclose(id_);
+      break;
+    case H5I_DATASET:
+      H5Dclose(id_);
+      break;
+    case H5I_ATTR:
+      H5Aclose(id_);
+      break;
+    case H5I_GENPROP_LST:
+      H5Pclose(id_);
+      break;
+    default:
+      break;
   }
   id_ = H5I_INVALID_HID;
 }
@@ -159,10 +173,18 @@ void Handle::Close(std::string_view file, std::string_view object) {
   const hid_t id = Release();
   herr_t status = 0;
   switch (H5Iget_type(id)) {
-    case H5I_FILE: status = H5Fclose(id); break;
-    case H5I_DATASET: status = H5Dclose(id); break;
-    case H5I_GROUP: status = H5Gclose(id); break;
-    default: status = H5Idec_ref(id) < 0 ? -1 : 0; break;
+    case H5I_FILE:
+      status = H5Fclose(id);
+      break;
+    case H5I_DATASET:
+      status = H5Dclose(id);
+      break;
+    case H5I_GROUP:
+      status = H5Gclose(id);
+      break;
+    default:
+      status = H5Idec_ref(id) < 0 ? -1 : 0;
+      break;
   }
   CheckStatus(status, file, object, "close");
 }
@@ -189,7 +211,9 @@ void CheckStatus(herr_t status, std::string_view file, std::string_view object,
   if (status < 0) ThrowIo(file, object, action);
 }
 
-std::string PartialPath(const std::string& path) { return path + ".partial"; }
+std::string PartialPath(const std::string& path) {
+  return path + ".partial";
+}
 
 void PrepareAtomicWrite(const std::string& path) {
   namespace fs = std::filesystem;
@@ -219,8 +243,8 @@ void MarkComplete(hid_t file, std::string_view file_name) {
 
 Handle CreateFile(const std::string& path) {
   SilenceErrorPrinting();
-  return Handle(CheckId(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), path,
-                        "", "create HDF5 file"));
+  return Handle(CheckId(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), path, "",
+                        "create HDF5 file"));
 }
 
 Handle OpenFileReadOnly(const std::string& path) {
@@ -277,8 +301,7 @@ bool HasAttr(hid_t loc, const char* name, std::string_view file) {
   return exists > 0;
 }
 
-void WriteStringAttr(hid_t loc, const char* name, const std::string& value,
-                     std::string_view file) {
+void WriteStringAttr(hid_t loc, const char* name, const std::string& value, std::string_view file) {
   Handle type = VlenStringType();
   const char* text = value.c_str();
   WriteScalarAttr(loc, name, type.get(), type.get(), &text, file);
@@ -390,11 +413,16 @@ std::string DtypeName(hid_t type) {
   switch (H5Tget_class(type)) {
     case H5T_INTEGER:
       return (H5Tget_sign(type) == H5T_SGN_NONE ? "uint" : "int") + std::to_string(bits);
-    case H5T_FLOAT: return "float" + std::to_string(bits);
-    case H5T_STRING: return "string";
-    case H5T_COMPOUND: return "compound";
-    case H5T_ENUM: return "enum";
-    default: return "other";
+    case H5T_FLOAT:
+      return "float" + std::to_string(bits);
+    case H5T_STRING:
+      return "string";
+    case H5T_COMPOUND:
+      return "compound";
+    case H5T_ENUM:
+      return "enum";
+    default:
+      return "other";
   }
 }
 
@@ -411,8 +439,8 @@ std::vector<std::string> ListDatasets(hid_t file, std::string_view file_name) {
               "list objects of");
   std::vector<std::string> datasets;
   for (const std::string& link : links) {
-    Handle object(CheckId(H5Oopen(file, link.c_str(), H5P_DEFAULT), file_name, link,
-                          "open object"));
+    Handle object(
+        CheckId(H5Oopen(file, link.c_str(), H5P_DEFAULT), file_name, link, "open object"));
     if (H5Iget_type(object.get()) == H5I_DATASET) datasets.push_back("/" + link);
   }
   return datasets;
@@ -442,20 +470,20 @@ Handle CreateExtendable(hid_t loc, const std::string& path, hid_t file_type,
     if (dims[d] > 0) max_dims[d] = dims[d];
     chunk[d] = std::max<hsize_t>(dims[d], 1);
   }
-  Handle space(CheckId(H5Screate_simple(static_cast<int>(rank), dims.data(), max_dims.data()),
-                       file, path, "create dataspace for"));
+  Handle space(CheckId(H5Screate_simple(static_cast<int>(rank), dims.data(), max_dims.data()), file,
+                       path, "create dataspace for"));
   Handle dcpl(CheckId(H5Pcreate(H5P_DATASET_CREATE), file, path, "create properties for"));
   CheckStatus(H5Pset_chunk(dcpl.get(), static_cast<int>(rank), chunk.data()), file, path,
               "set chunking of");
   if (layout.deflate_level >= 0) {
     CheckStatus(H5Pset_shuffle(dcpl.get()), file, path, "set shuffle filter of");
-    CheckStatus(H5Pset_deflate(dcpl.get(), static_cast<unsigned>(layout.deflate_level)), file,
-                path, "set deflate filter of");
+    CheckStatus(H5Pset_deflate(dcpl.get(), static_cast<unsigned>(layout.deflate_level)), file, path,
+                "set deflate filter of");
   }
   Handle lcpl = IntermediateGroupsLcpl(file, path);
-  return Handle(CheckId(H5Dcreate2(loc, path.c_str(), file_type, space.get(), lcpl.get(),
-                                   dcpl.get(), H5P_DEFAULT),
-                        file, path, "create dataset"));
+  return Handle(CheckId(
+      H5Dcreate2(loc, path.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
+      file, path, "create dataset"));
 }
 
 void AppendRows(hid_t dataset, hid_t mem_type, const void* data, hsize_t rows,
@@ -495,8 +523,8 @@ void ReadRows(hid_t dataset, hid_t mem_type, void* out, hsize_t first, hsize_t r
   block[0] = rows;
   Handle mem_space(CheckId(H5Screate_simple(static_cast<int>(block.size()), block.data(), nullptr),
                            file, object, "create memory dataspace for"));
-  CheckStatus(H5Dread(dataset, mem_type, mem_space.get(), file_space.get(), H5P_DEFAULT, out),
-              file, object, "read rows of");
+  CheckStatus(H5Dread(dataset, mem_type, mem_space.get(), file_space.get(), H5P_DEFAULT, out), file,
+              object, "read rows of");
 }
 
 std::vector<std::string> ReadStringRows(hid_t dataset, hsize_t first, hsize_t rows,
@@ -515,8 +543,8 @@ std::vector<std::string> ReadStringRows(hid_t dataset, hsize_t first, hsize_t ro
     ReadRows(dataset, mem_type.get(), texts.data(), first, rows, file, object);
     for (const char* text : texts) values.emplace_back(text == nullptr ? "" : text);
     const hsize_t count = rows;
-    Handle mem_space(CheckId(H5Screate_simple(1, &count, nullptr), file, object,
-                             "create memory dataspace for"));
+    Handle mem_space(
+        CheckId(H5Screate_simple(1, &count, nullptr), file, object, "create memory dataspace for"));
     H5Dvlen_reclaim(mem_type.get(), mem_space.get(), H5P_DEFAULT, texts.data());
     return values;
   }
@@ -570,9 +598,9 @@ RawChunk ReadRawChunk(hid_t dataset, const std::vector<hsize_t>& offset, std::st
               "read chunk size of");
   RawChunk chunk;
   chunk.bytes.resize(size);
-  CheckStatus(H5Dread_chunk(dataset, H5P_DEFAULT, offset.data(), &chunk.filter_mask,
-                            chunk.bytes.data()),
-              file, object, "read raw chunk of");
+  CheckStatus(
+      H5Dread_chunk(dataset, H5P_DEFAULT, offset.data(), &chunk.filter_mask, chunk.bytes.data()),
+      file, object, "read raw chunk of");
   return chunk;
 }
 
@@ -590,14 +618,14 @@ void AppendRawChunkRow(hid_t dataset, uint32_t filter_mask, const void* bytes, s
 
 void WriteFixed(hid_t loc, const std::string& path, hid_t file_type, hid_t mem_type,
                 const std::vector<hsize_t>& dims, const void* data, std::string_view file) {
-  Handle space(CheckId(dims.empty() ? H5Screate(H5S_SCALAR)
-                                    : H5Screate_simple(static_cast<int>(dims.size()),
-                                                       dims.data(), nullptr),
+  Handle space(CheckId(dims.empty()
+                           ? H5Screate(H5S_SCALAR)
+                           : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
                        file, path, "create dataspace for"));
   Handle lcpl = IntermediateGroupsLcpl(file, path);
-  Handle dataset(CheckId(H5Dcreate2(loc, path.c_str(), file_type, space.get(), lcpl.get(),
-                                    H5P_DEFAULT, H5P_DEFAULT),
-                         file, path, "create dataset"));
+  Handle dataset(CheckId(
+      H5Dcreate2(loc, path.c_str(), file_type, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT),
+      file, path, "create dataset"));
   hsize_t elements = 1;
   for (hsize_t d : dims) elements *= d;
   if (elements == 0) return;

@@ -17,12 +17,15 @@ std::atomic<bool> g_quiet{false};
 std::string FormatSeconds(double s) {
   if (s < 0 || !std::isfinite(s)) return "?";
   const int total = static_cast<int>(s + 0.5);
-  return total >= 60 ? fmt::format("{}m{:02d}s", total / 60, total % 60) : fmt::format("{}s", total);
+  return total >= 60 ? fmt::format("{}m{:02d}s", total / 60, total % 60)
+                     : fmt::format("{}s", total);
 }
 
 }  // namespace
 
-void Progress::SetQuiet(bool quiet) { g_quiet = quiet; }
+void Progress::SetQuiet(bool quiet) {
+  g_quiet = quiet;
+}
 
 Progress::Progress(std::string label, int64_t total, bool enabled)
     : label_(std::move(label)),
@@ -32,7 +35,9 @@ Progress::Progress(std::string label, int64_t total, bool enabled)
       start_(std::chrono::steady_clock::now()),
       last_draw_(start_) {}
 
-Progress::~Progress() { Finish(); }
+Progress::~Progress() {
+  Finish();
+}
 
 void Progress::Add(int64_t n) {
   done_ += n;
@@ -72,10 +77,10 @@ void Progress::Draw(bool final_line) {
   const double rate = elapsed > 0 ? done / elapsed : 0.0;
   const double eta = rate > 0 ? (total_ - done) / rate : -1.0;
   const double frac = total_ > 0 ? static_cast<double>(done) / total_ : 1.0;
-  std::string text = fmt::format("{} {}/{} ({:.0f}%) {:.1f}/s elapsed {} eta {}{}{}", label_, done,
-                                 total_, 100 * frac, rate, FormatSeconds(elapsed),
-                                 final_line ? "0s" : FormatSeconds(eta),
-                                 status_.empty() ? "" : "  ", status_);
+  std::string text =
+      fmt::format("{} {}/{} ({:.0f}%) {:.1f}/s elapsed {} eta {}{}{}", label_, done, total_,
+                  100 * frac, rate, FormatSeconds(elapsed), final_line ? "0s" : FormatSeconds(eta),
+                  status_.empty() ? "" : "  ", status_);
   if (tty_) {
     // bar redrawn in place
     const int width = 24;

@@ -16,7 +16,9 @@ Rng::Rng(uint64_t seed) {
 Rng::Rng(uint64_t sample_seed, Stream stream)
     : Rng(SplitMix64(sample_seed ^ (static_cast<uint64_t>(stream) * 0xA0761D6478BD642FULL))) {}
 
-double Rng::Uniform() { return static_cast<double>(NextU64() >> 11) * 0x1.0p-53; }
+double Rng::Uniform() {
+  return static_cast<double>(NextU64() >> 11) * 0x1.0p-53;
+}
 
 uint64_t Rng::UniformInt(uint64_t n) {
   // rejection sampling avoids modulo bias

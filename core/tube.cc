@@ -20,9 +20,9 @@ void TubeConfig::Serialize(Archive* a) {
 
 void TubeConfig::Validate() const {
   if (wall_thickness_m >= outer_radius_m) {
-    throw ConfigError(fmt::format(
-        "tube.wall_thickness_m = {} must be smaller than tube.outer_radius_m = {}",
-        wall_thickness_m, outer_radius_m));
+    throw ConfigError(
+        fmt::format("tube.wall_thickness_m = {} must be smaller than tube.outer_radius_m = {}",
+                    wall_thickness_m, outer_radius_m));
   }
   if (!(contact_z_min_m < contact_z_max_m)) {
     throw ConfigError(fmt::format("tube.contact_z_min_m = {} must be < tube.contact_z_max_m = {}",

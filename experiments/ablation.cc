@@ -3,24 +3,24 @@
 // evaluated on another, and the results become one table.
 #include <CLI/CLI.hpp>
 
-#include <memory>
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
+#include "internal/report.h"
 #include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/experiments/pipeline.h"
-#include "internal/report.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -125,7 +125,8 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
   }
   MakeDirectories(o.out);
 
-  FeatureCache train_features(o.data, g.threads, g.quiet), test_features(o.test, g.threads, g.quiet);
+  FeatureCache train_features(o.data, g.threads, g.quiet),
+      test_features(o.test, g.threads, g.quiet);
   json rows = json::array();
   std::string table =
       "| ablation | modalities | gating | GCC span (s) | shift | masks | norm | 3-D MED (cm) | "
@@ -156,8 +157,8 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     // held-out errors
     const learning::FeatureSet& test = test_features.Get(config, nullptr);
     learning::Localizer localizer(run_dir);
-    const learning::Metrics m = learning::ComputeMetrics(localizer.Predict(test), test,
-                                                         localizer.surface_radius_m());
+    const learning::Metrics m =
+        learning::ComputeMetrics(localizer.Predict(test), test, localizer.surface_radius_m());
     const learning::TrainConfig& t = config.train;
     const bool masks = t.augment && (t.time_mask_frames > 0 || t.freq_mask_bands > 0);
     const bool shift = t.augment && t.time_shift_frames > 0;
@@ -174,12 +175,12 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
                 {"train_s", train_s},
                 {"test", MetricsJson(m)}};
     rows.push_back(row);
-    table += fmt::format("| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} "
-                         "| {} |\n",
-                         v.name, Join(config.model.modalities), config.features.gating ? "on" : "off",
-                         gcc_span_s, shift ? "on" : "off", masks ? "on" : "off",
-                         t.normalize ? "on" : "off",
-                         m.med_cm, m.height_err_cm, m.angle_err_deg, train_s, v.description);
+    table += fmt::format(
+        "| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} "
+        "| {} |\n",
+        v.name, Join(config.model.modalities), config.features.gating ? "on" : "off", gcc_span_s,
+        shift ? "on" : "off", masks ? "on" : "off", t.normalize ? "on" : "off", m.med_cm,
+        m.height_err_cm, m.angle_err_deg, train_s, v.description);
   }
 
   const std::string header = fmt::format(
@@ -193,8 +194,9 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
 
 void RegisterAblate(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto o = std::make_shared<AblateOptions>();
-  auto* ablate = app.add_subcommand("ablate", "train and evaluate every ablation config (modality "
-                                              "sets, preprocessing switches) and write a table");
+  auto* ablate = app.add_subcommand("ablate",
+                                    "train and evaluate every ablation config (modality "
+                                    "sets, preprocessing switches) and write a table");
   ablate->add_option("--data", o->data, "training dataset (.h5)")->required();
   ablate->add_option("--test", o->test, "held-out dataset (.h5)")->required();
   ablate->add_option("--out", o->out, "output directory")->required();

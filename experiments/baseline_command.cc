@@ -27,7 +27,8 @@ using nlohmann::json;
 
 CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
   if (o.method != "knn" && o.method != "tdoa" && o.method != "constant" && o.method != "arrival") {
-    throw ConfigError(fmt::format("--method '{}' must be knn, tdoa, arrival or constant", o.method));
+    throw ConfigError(
+        fmt::format("--method '{}' must be knn, tdoa, arrival or constant", o.method));
   }
   if ((o.method == "knn" || o.method == "constant") && o.train.empty()) {
     throw ConfigError(fmt::format("--method {} needs --train TRAIN.h5", o.method));
@@ -73,7 +74,9 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
     knn_config.threads = g.threads;
     const learning::KnnBaseline knn(train, knn_config);
     predictions = knn.Predict(truth);
-    extra = {{"train_n", knn.size()}, {"k", o.k}, {"dimensions", knn.dimensions()},
+    extra = {{"train_n", knn.size()},
+             {"k", o.k},
+             {"dimensions", knn.dimensions()},
              {"gcc_lags", o.knn_gcc_lags}};
     detail = fmt::format(" (k = {}, {} training strikes, {} dimensions)", o.k, knn.size(),
                          knn.dimensions());
@@ -87,8 +90,10 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
     std::vector<double> speeds;
     for (int b = 0; b < locator.bands(); ++b) speeds.push_back(locator.BandSpeed(b));
     double scale = 1.0;
-    extra = {{"dispersive", tdoa_config.dispersive}, {"band_edges_hz", tdoa_config.band_edges_hz},
-             {"band_speeds_m_s", speeds}, {"seamed", !TdoaGeometryOf(config).seam_theta_rad.empty()}};
+    extra = {{"dispersive", tdoa_config.dispersive},
+             {"band_edges_hz", tdoa_config.band_edges_hz},
+             {"band_speeds_m_s", speeds},
+             {"seamed", !TdoaGeometryOf(config).seam_theta_rad.empty()}};
     if (!o.train.empty() && !o.no_fit) {
       // one global speed scale, fitted on (at most fit_strikes) training strikes; the range
       // holds the simulated tube's best scale (about 0.5, docs/baselines.md) with room
@@ -129,24 +134,26 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
 
 void RegisterBaseline(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto o = std::make_shared<BaselineOptions>();
-  auto* baseline = app.add_subcommand("baseline", "a baseline's errors on a dataset: kNN on "
-                                                  "pooled log-mel, analytic TDOA, or a constant");
+  auto* baseline = app.add_subcommand("baseline",
+                                      "a baseline's errors on a dataset: kNN on "
+                                      "pooled log-mel, analytic TDOA, or a constant");
   baseline->add_option("--method", o->method, "knn | tdoa | arrival | constant")->required();
   baseline->add_option("--train", o->train,
                        "training dataset (.h5): knn and constant need it; tdoa fits its speed "
                        "scale on it");
   baseline->add_option("--data", o->data, "held-out dataset (.h5)")->required();
   baseline->add_option("--k", o->k, "knn: neighbours")->check(CLI::PositiveNumber);
-  baseline->add_option("--gcc-lags", o->knn_gcc_lags,
-                       "knn: GCC-PHAT lags each side of zero in the feature vector (0 = none)")
+  baseline
+      ->add_option("--gcc-lags", o->knn_gcc_lags,
+                   "knn: GCC-PHAT lags each side of zero in the feature vector (0 = none)")
       ->check(CLI::NonNegativeNumber);
-  baseline->add_option("--bands", o->bands_hz,
-                       "tdoa: band edges in Hz, e.g. 1000,2000,4000,8000,16000")
+  baseline
+      ->add_option("--bands", o->bands_hz, "tdoa: band edges in Hz, e.g. 1000,2000,4000,8000,16000")
       ->delimiter(',');
   baseline->add_flag("--non-dispersive", o->non_dispersive, "tdoa: one speed for every band");
   baseline->add_flag("--no-fit", o->no_fit, "tdoa: analytic speeds only");
-  baseline->add_option("--fit-strikes", o->fit_strikes,
-                       "tdoa: training strikes used by the speed fit")
+  baseline
+      ->add_option("--fit-strikes", o->fit_strikes, "tdoa: training strikes used by the speed fit")
       ->check(CLI::PositiveNumber);
   baseline->callback([&g, run, o] { *run = [&g, o] { return RunBaseline(g, *o); }; });
 }

@@ -79,12 +79,10 @@ std::vector<acoustics::TdoaCorrelations> CorrelateDataset(const std::string& dat
   return out;
 }
 
-std::vector<learning::Prediction> LocateByArrival(const std::string& dataset_path,
-                                                  const SonicBoomConfig& config,
-                                                  const acoustics::ArrivalLocator& locator,
-                                                  int threads, bool show_progress,
-                                                  learning::FeatureSet* labels,
-                                                  std::vector<acoustics::ArrivalEstimate>* estimates) {
+std::vector<learning::Prediction> LocateByArrival(
+    const std::string& dataset_path, const SonicBoomConfig& config,
+    const acoustics::ArrivalLocator& locator, int threads, bool show_progress,
+    learning::FeatureSet* labels, std::vector<acoustics::ArrivalEstimate>* estimates) {
   DatasetReader reader(dataset_path);
   const DatasetInfo& info = reader.info();
   const ValidRecords valid = ReadValidRecords(reader, dataset_path);

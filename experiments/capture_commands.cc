@@ -1,9 +1,9 @@
 // `import` and `export`: recorded strikes in and datasets out (docs/captures.md).
 #include <CLI/CLI.hpp>
 
-#include <memory>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -65,7 +65,8 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
   const hardware::Layout layout = hardware::ParseLayout(o.layout);
   if (!fs::is_directory(o.in)) throw IoError(fmt::format("{}: no such directory (--in)", o.in));
   if (fs::exists(o.out) && !o.force) {
-    throw IoError(fmt::format("{}: exists; --force replaces it once the new one is complete", o.out));
+    throw IoError(
+        fmt::format("{}: exists; --force replaces it once the new one is complete", o.out));
   }
   const fs::path parent = fs::path(o.out).parent_path();
   if (!parent.empty() && !fs::is_directory(parent)) {
@@ -77,9 +78,10 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
   const fs::path rig = fs::path(o.in) / "capture.yaml";
   if (layout == hardware::Layout::kCapture) {
     if (!fs::exists(rig)) {
-      throw IoError(fmt::format("{}: missing (a capture directory states its rig: sample rate, "
-                                "mics, tube)",
-                                rig.string()));
+      throw IoError(
+          fmt::format("{}: missing (a capture directory states its rig: sample rate, "
+                      "mics, tube)",
+                      rig.string()));
     }
     sources.files.insert(sources.files.begin(), rig.string());
   }
@@ -96,18 +98,20 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
 
   // the result, bad captures listed
   json bad = json::array();
-  std::string text = fmt::format("imported {} captures from {} into {}", report.imported, o.in, o.out);
+  std::string text =
+      fmt::format("imported {} captures from {} into {}", report.imported, o.in, o.out);
   text += report.bad.empty() ? "\n" : fmt::format(", {} bad ones skipped:\n", report.bad.size());
   for (const hardware::BadCapture& b : report.bad) {
     bad.push_back({{"file", b.file}, {"reason", b.reason}});
     text += "  " + b.reason + "\n";
   }
   if (!report.noise_wav.empty()) {
-    text += fmt::format("no-contact clip copied to {} (features.gating_noise_wav in {}.config.yaml)\n",
-                        report.noise_wav, o.out);
+    text +=
+        fmt::format("no-contact clip copied to {} (features.gating_noise_wav in {}.config.yaml)\n",
+                    report.noise_wav, o.out);
   }
-  const json j = {{"out", o.out}, {"imported", report.imported}, {"bad", bad},
-                  {"noise_wav", report.noise_wav}};
+  const json j = {
+      {"out", o.out}, {"imported", report.imported}, {"bad", bad}, {"noise_wav", report.noise_wav}};
   return {j.dump(), text};
 }
 
@@ -125,8 +129,9 @@ CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const
 
 void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto o = std::make_shared<ImportOptions>();
-  auto* import = app.add_subcommand("import", "recorded strikes (published trial layout or our "
-                                              "capture layout) into a dataset");
+  auto* import = app.add_subcommand("import",
+                                    "recorded strikes (published trial layout or our "
+                                    "capture layout) into a dataset");
   import->add_option("--layout", o->layout, "trial | capture")->required();
   import->add_option("--in", o->in, "capture directory")->required();
   import->add_option("--out", o->out, "dataset file (.h5)")->required();
@@ -144,7 +149,10 @@ void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run) {
   import->add_flag("--skip-bad", o->skip_bad,
                    "import the good captures when some are bad (they are listed)");
   import->add_flag("--force", o->force, "replace an existing output");
-  import->callback([&g, run, o] { *run = [&g, o] { return RunImport(g, *o); }; });
+  import->callback([&g, run, o] { *run = [&g, o] { return RunImport(g, *o);
+};
+}  // namespace sonicboom::experiments
+);
 }
 
 void RegisterExport(CLI::App& app, GlobalOptions& g, Runner* run) {

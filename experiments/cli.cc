@@ -8,17 +8,19 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/log.h"
 #include "sonicboom/core/progress.h"
-#include "internal/subcommands.h"
 #include "sonicboom/experiments/commands.h"
 
 namespace sonicboom::experiments {
 
 int RunCli(int argc, char** argv) {
-  CLI::App app{"SonicBoom: acoustic contact localization on a robot link, from simulated strikes "
-               "to trained localizers", "sonicboom"};
+  CLI::App app{
+      "SonicBoom: acoustic contact localization on a robot link, from simulated strikes "
+      "to trained localizers",
+      "sonicboom"};
   app.require_subcommand(1);
   app.fallthrough();
   app.set_version_flag("--version", SONICBOOM_VERSION);
@@ -39,10 +41,11 @@ int RunCli(int argc, char** argv) {
   // subcommands, each registered beside its Run function (internal/subcommands.h)
   Runner run;
   for (auto* register_subcommand :
-       {RegisterDemo, RegisterGenerate, RegisterMerge, RegisterSynth, RegisterModes,
-        RegisterFidelity, RegisterVariants, RegisterFeatures, RegisterTrain, RegisterEval,
-        RegisterBaseline, RegisterAblate, RegisterLocalize, RegisterImport, RegisterExport,
-        RegisterListen, RegisterGeometryCheck, RegisterFk, RegisterInspect, RegisterConfig}) {
+       {RegisterDemo,          RegisterGenerate, RegisterMerge,    RegisterSynth,
+        RegisterModes,         RegisterFidelity, RegisterVariants, RegisterFeatures,
+        RegisterTrain,         RegisterEval,     RegisterBaseline, RegisterAblate,
+        RegisterLocalize,      RegisterImport,   RegisterExport,   RegisterListen,
+        RegisterGeometryCheck, RegisterFk,       RegisterInspect,  RegisterConfig}) {
     register_subcommand(app, g, &run);
   }
 

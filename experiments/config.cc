@@ -50,31 +50,34 @@ void SonicBoomConfig::Validate() const {
   scene.Validate();
   rollout.Validate();
   if (strike.engine == "kinematic" && scene.mode != "strike") {
-    throw ConfigError(fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; set "
-                                  "strike.engine = mujoco",
-                                  scene.mode));
+    throw ConfigError(
+        fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; set "
+                    "strike.engine = mujoco",
+                    scene.mode));
   }
   model.Validate();
   train.Validate();
   if (audio.onset_time_s >= audio.record_duration_s) {
-    throw ConfigError(fmt::format("audio.onset_time_s = {} must lie inside the record "
-                                  "(audio.record_duration_s = {})",
-                                  audio.onset_time_s, audio.record_duration_s));
+    throw ConfigError(
+        fmt::format("audio.onset_time_s = {} must lie inside the record "
+                    "(audio.record_duration_s = {})",
+                    audio.onset_time_s, audio.record_duration_s));
   }
   if (audio.onset_jitter_s > audio.onset_time_s ||
       audio.onset_time_s + audio.onset_jitter_s >= audio.record_duration_s) {
-    throw ConfigError(fmt::format("audio.onset_jitter_s = {}: the first contact, drawn in "
-                                  "audio.onset_time_s +- audio.onset_jitter_s = [{}, {}] s, must "
-                                  "lie inside the record [0, audio.record_duration_s = {})",
-                                  audio.onset_jitter_s, audio.onset_time_s - audio.onset_jitter_s,
-                                  audio.onset_time_s + audio.onset_jitter_s,
-                                  audio.record_duration_s));
+    throw ConfigError(
+        fmt::format("audio.onset_jitter_s = {}: the first contact, drawn in "
+                    "audio.onset_time_s +- audio.onset_jitter_s = [{}, {}] s, must "
+                    "lie inside the record [0, audio.record_duration_s = {})",
+                    audio.onset_jitter_s, audio.onset_time_s - audio.onset_jitter_s,
+                    audio.onset_time_s + audio.onset_jitter_s, audio.record_duration_s));
   }
   const double proprio_s = strike.proprio_rows / strike.proprio_rate_hz;
   if (proprio_s > audio.record_duration_s) {
-    throw ConfigError(fmt::format("strike.proprio_rows / strike.proprio_rate_hz = {} s is longer "
-                                  "than the record (audio.record_duration_s = {})",
-                                  proprio_s, audio.record_duration_s));
+    throw ConfigError(
+        fmt::format("strike.proprio_rows / strike.proprio_rate_hz = {} s is longer "
+                    "than the record (audio.record_duration_s = {})",
+                    proprio_s, audio.record_duration_s));
   }
   daq.Validate(mics.count());
   noise.Validate();
@@ -82,20 +85,24 @@ void SonicBoomConfig::Validate() const {
   arrival.Validate(audio.sample_rate_hz);
   randomize.CheckLossLaw(material.loss_factor);
   if (randomize.material() && acoustics.model != "modal") {
-    throw ConfigError(fmt::format("randomize: the material ranges (youngs_modulus_scale, "
-                                  "density_scale, temperature_c, loss_*) scale the numerical "
-                                  "modes and need acoustics.model = modal, not {}",
-                                  acoustics.model));
+    throw ConfigError(
+        fmt::format("randomize: the material ranges (youngs_modulus_scale, "
+                    "density_scale, temperature_c, loss_*) scale the numerical "
+                    "modes and need acoustics.model = modal, not {}",
+                    acoustics.model));
   }
-  if (randomize.highpass_hz.size() == 2 && !(randomize.highpass_hz[1] < 0.5 * audio.sample_rate_hz)) {
-    throw ConfigError(fmt::format("randomize.highpass_hz reaches {} Hz, not below the Nyquist "
-                                  "frequency {} Hz (audio.sample_rate_hz / 2)",
-                                  randomize.highpass_hz[1], 0.5 * audio.sample_rate_hz));
+  if (randomize.highpass_hz.size() == 2 &&
+      !(randomize.highpass_hz[1] < 0.5 * audio.sample_rate_hz)) {
+    throw ConfigError(
+        fmt::format("randomize.highpass_hz reaches {} Hz, not below the Nyquist "
+                    "frequency {} Hz (audio.sample_rate_hz / 2)",
+                    randomize.highpass_hz[1], 0.5 * audio.sample_rate_hz));
   }
   if (acoustics.max_frequency_hz >= 0.5 * audio.sample_rate_hz) {
-    throw ConfigError(fmt::format("acoustics.max_frequency_hz = {} must be below Nyquist "
-                                  "(audio.sample_rate_hz / 2 = {})",
-                                  acoustics.max_frequency_hz, 0.5 * audio.sample_rate_hz));
+    throw ConfigError(
+        fmt::format("acoustics.max_frequency_hz = {} must be below Nyquist "
+                    "(audio.sample_rate_hz / 2 = {})",
+                    acoustics.max_frequency_hz, 0.5 * audio.sample_rate_hz));
   }
 }
 

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
+#include <nlohmann/json.hpp>
 
 #include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
@@ -47,8 +47,8 @@ std::string MarkdownTable(const std::string& yaml, const std::string& sections) 
       for (const auto& item : root) {
         if (item.second.IsMap()) known += (known.empty() ? "" : ", ") + item.first.Scalar();
       }
-      throw ConfigError(fmt::format("--markdown: no config section '{}' (sections: {})", section,
-                                    known));
+      throw ConfigError(
+          fmt::format("--markdown: no config section '{}' (sections: {})", section, known));
     }
     Flatten(node, section, &rows);
   }
@@ -72,7 +72,8 @@ void RegisterConfig(CLI::App& app, GlobalOptions& g, Runner* run) {
   config->add_option("--markdown", *sections,
                      "SECTIONS: a Markdown table of the keys of these comma-separated sections "
                      "(docs/conventions.md)");
-  config->callback([&g, run, sections] { *run = [&g, sections] { return RunConfig(g, *sections); }; });
+  config->callback(
+      [&g, run, sections] { *run = [&g, sections] { return RunConfig(g, *sections); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -8,8 +8,8 @@
 #include <filesystem>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/dataset.h"
@@ -73,10 +73,11 @@ CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
   const std::string test_path = (fs::path(run_dir) / "test.h5").string();
   spdlog::info("step 1/3: simulating {} training and {} held-out strikes", config.demo.train_count,
                config.demo.test_count);
-  const GenerateResult gen_train = GenerateDataset(config, train_path, config.demo.train_count, 0,
-                                                   0, 1, g.threads, !g.quiet);
-  const GenerateResult gen_test = GenerateDataset(
-      config, test_path, config.demo.test_count, config.demo.train_count, 0, 1, g.threads, !g.quiet);
+  const GenerateResult gen_train =
+      GenerateDataset(config, train_path, config.demo.train_count, 0, 0, 1, g.threads, !g.quiet);
+  const GenerateResult gen_test =
+      GenerateDataset(config, test_path, config.demo.test_count, config.demo.train_count, 0, 1,
+                      g.threads, !g.quiet);
 
   // training
   spdlog::info("step 2/3: training ({} epochs)", config.train.epochs);
@@ -84,7 +85,8 @@ CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
   MakeDirectories(model_dir);
   WriteTextAtomic((fs::path(model_dir) / "config.yaml").string(), ConfigToYaml(config));
   const auto train_start = std::chrono::steady_clock::now();
-  const learning::Metrics val = TrainOnDataset(config, train_path, model_dir, false, g.threads, g.quiet);
+  const learning::Metrics val =
+      TrainOnDataset(config, train_path, model_dir, false, g.threads, g.quiet);
   const double train_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - train_start).count();
 
@@ -133,18 +135,19 @@ CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
   text += "|------------------------------|---------------|-----------------|-----------------|\n";
   text += MetricsRow("multimodal transformer", model_metrics);
   text += MetricsRow("constant (train mean)", baseline);
-  text += fmt::format("\nMED: mean 3-D distance between surface points (r = {} m). "
-                      "Wall time {:.0f} s (simulate {:.0f} s, train {:.0f} s).\n"
-                      "Run directory: {}\n",
-                      config.tube.outer_radius_m, wall_s, gen_train.wall_s + gen_test.wall_s,
-                      train_s, run_dir);
+  text += fmt::format(
+      "\nMED: mean 3-D distance between surface points (r = {} m). "
+      "Wall time {:.0f} s (simulate {:.0f} s, train {:.0f} s).\n"
+      "Run directory: {}\n",
+      config.tube.outer_radius_m, wall_s, gen_train.wall_s + gen_test.wall_s, train_s, run_dir);
   return {result.dump(), text};
 }
 
 void RegisterDemo(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto out = std::make_shared<std::string>();
-  auto* demo = app.add_subcommand("demo", "generate a small dataset, train, evaluate on held-out "
-                                          "strikes and print the result table");
+  auto* demo = app.add_subcommand("demo",
+                                  "generate a small dataset, train, evaluate on held-out "
+                                  "strikes and print the result table");
   demo->add_option("--out", *out, "run directory (default runs/demo-<UTC time>)");
   demo->callback([&g, run, out] { *run = [&g, out] { return RunDemo(g, *out); }; });
 }

@@ -27,15 +27,15 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
   const learning::FeatureSet set = ComputeDatasetFeatures(data, config, g.threads, !g.quiet);
   const learning::Metrics m =
       learning::ComputeMetrics(localizer.Predict(set), set, localizer.surface_radius_m());
-  std::string text = fmt::format("{} strikes: MED {:.2f} cm, height {:.2f} cm, angle {:.1f} deg "
-                                 "(published-code MED {:.2f})\n",
-                                 m.n, m.med_cm, m.height_err_cm, m.angle_err_deg,
-                                 m.reference_med_cm);
+  std::string text = fmt::format(
+      "{} strikes: MED {:.2f} cm, height {:.2f} cm, angle {:.1f} deg "
+      "(published-code MED {:.2f})\n",
+      m.n, m.med_cm, m.height_err_cm, m.angle_err_deg, m.reference_med_cm);
   if (std::isfinite(m.nll)) {
-    text += fmt::format("coverage of the 50 % / 90 % intervals: z {:.2f} / {:.2f}, theta {:.2f} / "
-                        "{:.2f}; mean NLL {:.3f} (z in cm, theta in rad)\n",
-                        m.z_coverage_50, m.z_coverage_90, m.theta_coverage_50,
-                        m.theta_coverage_90, m.nll);
+    text += fmt::format(
+        "coverage of the 50 % / 90 % intervals: z {:.2f} / {:.2f}, theta {:.2f} / "
+        "{:.2f}; mean NLL {:.3f} (z in cm, theta in rad)\n",
+        m.z_coverage_50, m.z_coverage_90, m.theta_coverage_50, m.theta_coverage_90, m.nll);
   }
   return {MetricsJson(m).dump(), text};
 }

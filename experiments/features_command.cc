@@ -35,7 +35,8 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
     set = ComputeDatasetFeatures(in, config, g.threads, !g.quiet);
     n = set.size();
     arrays.push_back({"z_m", {n}, std::vector<float>(set.z_m.begin(), set.z_m.end())});
-    arrays.push_back({"theta_rad", {n}, std::vector<float>(set.theta_rad.begin(), set.theta_rad.end())});
+    arrays.push_back(
+        {"theta_rad", {n}, std::vector<float>(set.theta_rad.begin(), set.theta_rad.end())});
     arrays.push_back({"mel", {n, set.channels, set.mels, set.frames}, set.mel});
     arrays.push_back({"gcc", {n, set.gcc_pairs, set.gcc_lags}, set.gcc});
     arrays.push_back({"proprio", {n, set.proprio_rows, set.proprio_features}, set.proprio});
@@ -52,13 +53,16 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
   }
   WriteConfigBeside(out, config);
   WriteArrayFile(out, "sonicboom.features", arrays,
-                 {{"source", in}, {"config_yaml", ConfigToYaml(config)},
-                  {"mel_layout", fmt::format("power mel, n_fft {}, hop {}, {} HTK bands, {}",
-                                             config.features.n_fft, config.features.hop,
-                                             config.features.n_mels,
-                                             config.features.log_mel ? "log10" : "no log")},
+                 {{"source", in},
+                  {"config_yaml", ConfigToYaml(config)},
+                  {"mel_layout",
+                   fmt::format("power mel, n_fft {}, hop {}, {} HTK bands, {}",
+                               config.features.n_fft, config.features.hop, config.features.n_mels,
+                               config.features.log_mel ? "log10" : "no log")},
                   {"gcc_layout", "15 pairs in combinations order x lags -max..+max samples"}});
-  json j = {{"path", out}, {"samples", n}, {"mel_shape", {set.channels, set.mels, set.frames}},
+  json j = {{"path", out},
+            {"samples", n},
+            {"mel_shape", {set.channels, set.mels, set.frames}},
             {"gcc_shape", {set.gcc_pairs, set.gcc_lags}}};
   return {j.dump(), fmt::format("wrote {}: mel {} x {} x {}, GCC-PHAT {} x {} ({} sample{})\n", out,
                                 set.channels, set.mels, set.frames, set.gcc_pairs, set.gcc_lags, n,
@@ -70,11 +74,13 @@ void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run) {
     std::string in, out, proprio;
   };
   auto o = std::make_shared<Options>();
-  auto* features = app.add_subcommand("features", "mel spectrograms and GCC-PHAT of a WAV or dataset");
+  auto* features =
+      app.add_subcommand("features", "mel spectrograms and GCC-PHAT of a WAV or dataset");
   features->add_option("--in", o->in, "WAV file or dataset (.h5)")->required();
   features->add_option("--out", o->out, "features file (.h5)")->required();
   features->add_option("--proprio", o->proprio, "robot log CSV for a WAV input");
-  features->callback([&g, run, o] { *run = [&g, o] { return RunFeatures(g, o->in, o->out, o->proprio); }; });
+  features->callback(
+      [&g, run, o] { *run = [&g, o] { return RunFeatures(g, o->in, o->out, o->proprio); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -2,20 +2,20 @@
 // same contact forces), and is timed and compared against the finest FD reference.
 #include <CLI/CLI.hpp>
 
-#include <memory>
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <complex>
 #include <filesystem>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "internal/subcommands.h"
 #include "sonicboom/acoustics/contact.h"
@@ -46,9 +46,9 @@ double Seconds(Clock::time_point since) {
 struct TestStrike {
   double z_m, theta_rad, speed_m_s, mass_kg;
 };
-constexpr TestStrike kStrikes[] = {{0.05, 0.3, 0.1, 0.03},   {-0.08, 2.0, 0.3, 0.03},
-                                   {0.0, -1.2, 1.0, 0.03},   {0.09, 3.0, 0.05, 0.1},
-                                   {-0.1, -2.8, 0.5, 0.02},  {0.03, 1.4, 0.2, 0.05}};
+constexpr TestStrike kStrikes[] = {{0.05, 0.3, 0.1, 0.03},  {-0.08, 2.0, 0.3, 0.03},
+                                   {0.0, -1.2, 1.0, 0.03},  {0.09, 3.0, 0.05, 0.1},
+                                   {-0.1, -2.8, 0.5, 0.02}, {0.03, 1.4, 0.2, 0.05}};
 
 ContactEvent StrikeEvent(const TestStrike& s, double time_s) {
   ContactEvent c;
@@ -108,7 +108,8 @@ Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double fs) {
     const double f = bin * fs / n;
     int band = -1;
     for (size_t b = 0; b < centres.size(); ++b) {
-      if (f >= centres[b] / std::sqrt(2.0) && f < centres[b] * std::sqrt(2.0)) band = static_cast<int>(b);
+      if (f >= centres[b] / std::sqrt(2.0) && f < centres[b] * std::sqrt(2.0))
+        band = static_cast<int>(b);
     }
     if (band < 0) continue;
     // one bin of every channel: rotate a unit phasor through the record
@@ -146,12 +147,12 @@ struct Grid {
 
 struct Rung {
   std::string name;
-  std::string kind;                        // modal | fd
+  std::string kind;  // modal | fd
   Grid grid;
-  double band_hz{0};                       // modal: fixed band; 0 = derived from the contact
-  int64_t mode_count{0};                   // modal: fixed count
+  double band_hz{0};      // modal: fixed band; 0 = derived from the contact
+  int64_t mode_count{0};  // modal: fixed count
   bool residual{true};
-  int64_t oversampling_factor{1};          // fd: multiple of the smallest stable oversampling
+  int64_t oversampling_factor{1};  // fd: multiple of the smallest stable oversampling
 };
 
 struct RungResult {
@@ -165,7 +166,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
                           double window_s, bool quick) {
   const SonicBoomConfig config = ResolveConfig(g.sources);
   if (strikes < 1 || strikes > static_cast<int64_t>(std::size(kStrikes))) {
-    throw ConfigError(fmt::format("--strikes must be in [1, {}], got {}", std::size(kStrikes), strikes));
+    throw ConfigError(
+        fmt::format("--strikes must be in [1, {}], got {}", std::size(kStrikes), strikes));
   }
   if (!(window_s >= 0.005 && window_s <= 1.0)) {
     throw ConfigError(fmt::format("--window-s must be in [0.005, 1], got {}", window_s));
@@ -199,8 +201,10 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   if (config.shell.damping == "law") {
     // the Rayleigh curve through the law at the anchors, as the FD rung builds it
     const acoustics::ShellModel law(config.tube, config.material, config.shell);
-    rayleigh_material.loss_factor = 2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_low_hz);
-    rayleigh_shell.loss_factor_high = 2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_high_hz);
+    rayleigh_material.loss_factor =
+        2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_low_hz);
+    rayleigh_shell.loss_factor_high =
+        2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_high_hz);
   }
   auto shell_model = [&](const Grid& grid) {
     acoustics::ShellConfig sc = rayleigh_shell;
@@ -228,13 +232,15 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
     acoustics::DrivingPoint striker;
     striker.rigid_mass_kg = ev.effective_mass_kg;
     const double band = std::min(full_band, config.acoustics.band_factor * 1.8 / hz.duration_s);
-    const acoustics::DrivingPoint wall = main_bank.WallAt(ev.z_m, ev.theta_rad, std::min(full_band, 2 * band));
-    acoustics::ContactForce cf = acoustics::SolveContact(wall, striker, hz.stiffness_n_m15,
-                                                         ev.normal_speed_m_s, ev.time_s, fs,
-                                                         config.acoustics.contact);
+    const acoustics::DrivingPoint wall =
+        main_bank.WallAt(ev.z_m, ev.theta_rad, std::min(full_band, 2 * band));
+    acoustics::ContactForce cf =
+        acoustics::SolveContact(wall, striker, hz.stiffness_n_m15, ev.normal_speed_m_s, ev.time_s,
+                                fs, config.acoustics.contact);
     derived_band[static_cast<size_t>(s)] =
         std::min(full_band, config.acoustics.band_factor * 1.8 / cf.first_closure_s);
-    forces[static_cast<size_t>(s)].push_back({ev.z_m, ev.theta_rad, cf.first_sample, std::move(cf.force_n)});
+    forces[static_cast<size_t>(s)].push_back(
+        {ev.z_m, ev.theta_rad, cf.first_sample, std::move(cf.force_n)});
   }
 
   // the rungs, the reference first
@@ -266,12 +272,13 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
     acoustics::ShellModes modes;
     if (rung.kind == "fd") {
       const acoustics::ShellFd stable(*model, fs, 0);
-      fd = std::make_unique<acoustics::ShellFd>(*model, fs, stable.oversampling() * rung.oversampling_factor);
+      fd = std::make_unique<acoustics::ShellFd>(*model, fs,
+                                                stable.oversampling() * rung.oversampling_factor);
       r.oversampling = static_cast<double>(fd->oversampling());
     } else {
       modes = acoustics::CachedShellModes(*model, full_band, 0, true, cache);
-      bank = std::make_unique<acoustics::ShellModalBank>(*model, modes, config.mics, fs,
-                                                         config.acoustics.decay_floor_db, rung.residual);
+      bank = std::make_unique<acoustics::ShellModalBank>(
+          *model, modes, config.mics, fs, config.acoustics.decay_floor_db, rung.residual);
     }
     for (int64_t s = 0; s < strikes; ++s) {
       const auto& f = forces[static_cast<size_t>(s)];
@@ -283,8 +290,11 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
         y = acoustics::FdRender(*model, *fd, f, rows, window, -300.0);
         seconds = Seconds(t0) * static_cast<double>(one_second) / static_cast<double>(window);
       } else {
-        const int64_t n = rung.mode_count > 0 ? rung.mode_count
-                          : bank->ModesBelow(rung.band_hz > 0 ? rung.band_hz : derived_band[static_cast<size_t>(s)]);
+        const int64_t n =
+            rung.mode_count > 0
+                ? rung.mode_count
+                : bank->ModesBelow(rung.band_hz > 0 ? rung.band_hz
+                                                    : derived_band[static_cast<size_t>(s)]);
         r.modes += static_cast<double>(n) / strikes;
         y = bank->Render(f, n, window);
         // a whole second, best of three
@@ -296,7 +306,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
           if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
         }
       }
-      if (!y.allFinite()) throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", rung.name));
+      if (!y.allFinite())
+        throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", rung.name));
       r.ms_per_strike += 1e3 * seconds / strikes;
       if (&rung == &rungs.front()) {
         ref_signal[static_cast<size_t>(s)] = y;
@@ -304,7 +315,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
       }
       r.rel_error += RelativeError(y, ref_signal[static_cast<size_t>(s)]) / strikes;
       r.delay_error_us += DelayErrorUs(y, ref_signal[static_cast<size_t>(s)], fs) / strikes;
-      r.band_error_db += BandEnergyErrorDb(OctaveEnergies(y, fs), ref_bands[static_cast<size_t>(s)]) / strikes;
+      r.band_error_db +=
+          BandEnergyErrorDb(OctaveEnergies(y, fs), ref_bands[static_cast<size_t>(s)]) / strikes;
     }
     results.push_back(r);
   }
@@ -332,7 +344,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   // the table
   std::string md = fmt::format(
       "# Fidelity ladder: speed against accuracy\n\n"
-      "Made by `sonicboom fidelity --out docs/fidelity.md{}` (experiments/fidelity.cc); do not edit "
+      "Made by `sonicboom fidelity --out docs/fidelity.md{}` (experiments/fidelity.cc); do not "
+      "edit "
       "by hand. One core, {}.\n\n"
       "Every rung renders the same {} strikes (wooden rod, 0.05–1 m/s, contact forces solved once "
       "against the configured grid's modal wall). Time: the vibration model for 1 s of 6 channels "
@@ -349,22 +362,29 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   for (size_t i = 0; i < rungs.size(); ++i) {
     const Rung& rung = rungs[i];
     const RungResult& r = results[i];
-    const std::string size = rung.kind == "fd" ? fmt::format("{:.0f}x", r.oversampling)
-                                                : fmt::format("{:.0f}", r.modes);
+    const std::string size =
+        rung.kind == "fd" ? fmt::format("{:.0f}x", r.oversampling) : fmt::format("{:.0f}", r.modes);
     md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} |\n",
                       rung.name, rung.grid.arc_m * 1e3, rung.grid.axial_m * 1e3, r.dofs, size,
                       r.ms_per_strike, 1e3 / r.ms_per_strike,
                       i == 0 ? "—" : fmt::format("{:.3f}", r.rel_error),
                       i == 0 ? "—" : fmt::format("{:.1f}", r.delay_error_us),
                       i == 0 ? "—" : fmt::format("{:.2f}", r.band_error_db));
-    rows_json.push_back({{"rung", rung.name}, {"kind", rung.kind}, {"grid_arc_m", rung.grid.arc_m},
-                         {"grid_axial_m", rung.grid.axial_m}, {"dofs", r.dofs}, {"modes", r.modes},
-                         {"oversampling", r.oversampling}, {"ms_per_strike", r.ms_per_strike},
-                         {"relative_error", r.rel_error}, {"delay_error_us", r.delay_error_us},
+    rows_json.push_back({{"rung", rung.name},
+                         {"kind", rung.kind},
+                         {"grid_arc_m", rung.grid.arc_m},
+                         {"grid_axial_m", rung.grid.axial_m},
+                         {"dofs", r.dofs},
+                         {"modes", r.modes},
+                         {"oversampling", r.oversampling},
+                         {"ms_per_strike", r.ms_per_strike},
+                         {"relative_error", r.rel_error},
+                         {"delay_error_us", r.delay_error_us},
                          {"band_energy_error_db", r.band_error_db}});
   }
   md += fmt::format(
-      "\nWhole default strike through `StrikeSynthesizer` (acoustics.model = {}, contact solve with "
+      "\nWhole default strike through `StrikeSynthesizer` (acoustics.model = {}, contact solve "
+      "with "
       "the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike = "
       "{:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
       config.acoustics.model, whole_ms, 1e3 / whole_ms, 1e3 * vibration_s / reps);
@@ -373,9 +393,10 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   json damping_json = json::array();
   if (config.shell.damping == "law") {
     const acoustics::ShellModel law(config.tube, config.material, config.shell);
-    md += "\nDamping: the modal rung gives every mode the loss law's eta(f); the FD rung's Rayleigh "
-          "curve (C = alpha M + beta K) meets it at shell.loss_low_hz and shell.loss_high_hz:\n\n"
-          "| f (Hz) | law eta | FD (Rayleigh) eta | ratio |\n|---|---|---|---|\n";
+    md +=
+        "\nDamping: the modal rung gives every mode the loss law's eta(f); the FD rung's Rayleigh "
+        "curve (C = alpha M + beta K) meets it at shell.loss_low_hz and shell.loss_high_hz:\n\n"
+        "| f (Hz) | law eta | FD (Rayleigh) eta | ratio |\n|---|---|---|---|\n";
     for (double f : {100.0, 220.0, 500.0, 1000.0, 2000.0, 5000.0, 10000.0, 20000.0}) {
       const double w = 2.0 * std::numbers::pi * f;
       const double eta_law = 2.0 * law.DampingRatio(w), eta_fd = 2.0 * law.RayleighDampingRatio(w);
@@ -384,9 +405,12 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
       damping_json.push_back({{"frequency_hz", f}, {"law_eta", eta_law}, {"fd_eta", eta_fd}});
     }
   }
-  json j = {{"rungs", rows_json}, {"strikes", strikes}, {"window_s", window_s},
+  json j = {{"rungs", rows_json},
+            {"strikes", strikes},
+            {"window_s", window_s},
             {"damping", damping_json},
-            {"whole_strike_ms", whole_ms}, {"whole_strike_vibration_ms", 1e3 * vibration_s / reps},
+            {"whole_strike_ms", whole_ms},
+            {"whole_strike_vibration_ms", 1e3 * vibration_s / reps},
             {"quick", quick}};
   if (!out_md.empty()) WriteTextAtomic(out_md, md);
   return {j.dump(), md};
@@ -400,8 +424,9 @@ void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run) {
     bool quick = false;
   };
   auto o = std::make_shared<Options>();
-  auto* fidelity = app.add_subcommand("fidelity", "time and error of every vibration-model rung "
-                                                  "against the finest FD reference");
+  auto* fidelity = app.add_subcommand("fidelity",
+                                      "time and error of every vibration-model rung "
+                                      "against the finest FD reference");
   fidelity->add_option("--out", o->out, "markdown table (\"\" = print only)");
   fidelity->add_option("--strikes", o->strikes, "test strikes (1-6)");
   fidelity->add_option("--window-s", o->window_s, "compared signal after the onset, s");

@@ -34,7 +34,8 @@ CommandResult RunFk(const GlobalOptions& g, const std::string& joints) {
     }
   }
   if (q_list.size() != sim::kPandaJoints) {
-    throw ConfigError(fmt::format("--joints needs {} values, got {}", sim::kPandaJoints, q_list.size()));
+    throw ConfigError(
+        fmt::format("--joints needs {} values, got {}", sim::kPandaJoints, q_list.size()));
   }
   sim::JointVector q;
   const sim::JointVector lo = sim::PandaLowerLimits(), hi = sim::PandaUpperLimits();

@@ -23,14 +23,15 @@ CommandResult RunGenerate(const GlobalOptions& g, const std::string& out, int64_
   const SonicBoomConfig config = Resolve(g);
   RequireParentDir(out);
   const int64_t n = count > 0 ? count : config.dataset.count;
-  if (count == 0 || count < -1) throw ConfigError(fmt::format("--count must be >= 1, got {}", count));
+  if (count == 0 || count < -1)
+    throw ConfigError(fmt::format("--count must be >= 1, got {}", count));
   const int64_t first = first_index >= 0 ? first_index : config.dataset.first_index;
   WriteConfigBeside(out, config);
   const GenerateResult r =
       GenerateDataset(config, out, n, first, shard, num_shards, g.threads, !g.quiet);
-  json j = {{"path", r.path}, {"written", r.written}, {"valid", r.valid},
-            {"clipped", r.clipped}, {"wall_s", r.wall_s},
-            {"strikes_per_s", r.written / std::max(r.wall_s, 1e-9)}};
+  json j = {{"path", r.path},     {"written", r.written},
+            {"valid", r.valid},   {"clipped", r.clipped},
+            {"wall_s", r.wall_s}, {"strikes_per_s", r.written / std::max(r.wall_s, 1e-9)}};
   return {j.dump(), fmt::format("wrote {} strikes ({} valid, {} clipped) to {} in {:.1f} s\n",
                                 r.written, r.valid, r.clipped, r.path, r.wall_s)};
 }
@@ -45,10 +46,13 @@ void RegisterGenerate(CLI::App& app, GlobalOptions& g, Runner* run) {
   generate->add_option("--out", o->out, "dataset file (.h5)")->required();
   generate->add_option("--count", o->count, "number of strikes (default dataset.count)");
   generate->add_option("--first-index", o->first_index, "global index of the first strike");
-  generate->add_option("--shard", o->shard, "this shard (owns indices i with i % num-shards == shard)");
+  generate->add_option("--shard", o->shard,
+                       "this shard (owns indices i with i % num-shards == shard)");
   generate->add_option("--num-shards", o->num_shards, "number of shards");
   generate->callback([&g, run, o] {
-    *run = [&g, o] { return RunGenerate(g, o->out, o->count, o->first_index, o->shard, o->num_shards); };
+    *run = [&g, o] {
+      return RunGenerate(g, o->out, o->count, o->first_index, o->shard, o->num_shards);
+    };
   });
 }
 

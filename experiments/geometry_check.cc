@@ -5,8 +5,8 @@
 // geometry labeller.
 #include <CLI/CLI.hpp>
 
-#include <memory>
 #include <unistd.h>
+#include <memory>
 
 #include <algorithm>
 #include <chrono>
@@ -33,7 +33,8 @@ namespace {
 using nlohmann::json;
 
 // The object's cylinders as 24-sided capped prisms, in the base frame.
-hardware::ObjectGeometry ObjectMesh(const sim::ObjectGeometry& object, const Eigen::Isometry3d& pose) {
+hardware::ObjectGeometry ObjectMesh(const sim::ObjectGeometry& object,
+                                    const Eigen::Isometry3d& pose) {
   hardware::ObjectGeometry mesh;
   for (const sim::ObjectSegment& s : object.segments) {
     hardware::AppendCylinder(pose * s.p0, pose * s.p1, s.radius_m, 24, &mesh);
@@ -68,7 +69,8 @@ std::vector<Eigen::Isometry3d> PosesFromJointLog(const std::filesystem::path& fi
 double KinematicsGap(const Eigen::MatrixXf& proprio, const std::vector<Eigen::Isometry3d>& poses) {
   double gap = 0.0;
   for (size_t r = 0; r < poses.size(); ++r) {
-    const Eigen::Vector3d logged = proprio.row(Eigen::Index(r)).head<3>().transpose().cast<double>();
+    const Eigen::Vector3d logged =
+        proprio.row(Eigen::Index(r)).head<3>().transpose().cast<double>();
     gap = std::max(gap, (logged - poses[r].translation()).norm());
   }
   return gap;
@@ -79,10 +81,12 @@ class SceneDirectory {
  public:
   explicit SceneDirectory(const std::string& user) : keep_(!user.empty()) {
     namespace fs = std::filesystem;
-    path_ = keep_ ? fs::path(user)
-                  : fs::temp_directory_path() / fmt::format("sonicboom-geometry-check-{}", getpid());
+    path_ = keep_
+                ? fs::path(user)
+                : fs::temp_directory_path() / fmt::format("sonicboom-geometry-check-{}", getpid());
     if (fs::exists(path_) && !(fs::is_directory(path_) && fs::is_empty(path_))) {
-      throw IoError(fmt::format("{}: exists and is not an empty directory (--scenes)", path_.string()));
+      throw IoError(
+          fmt::format("{}: exists and is not an empty directory (--scenes)", path_.string()));
     }
   }
   ~SceneDirectory() {
@@ -110,13 +114,16 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
   if (count < 1) throw ConfigError(fmt::format("--count {} must be >= 1", count));
   SonicBoomConfig config = ResolveConfig(g.sources);
   if (config.scene.mode != "strike" && config.scene.mode != "guided") {
-    throw ConfigError(fmt::format("geometry-check needs scene.mode strike or guided (the arm "
-                                  "meets a fixed object), not '{}'", config.scene.mode));
+    throw ConfigError(
+        fmt::format("geometry-check needs scene.mode strike or guided (the arm "
+                    "meets a fixed object), not '{}'",
+                    config.scene.mode));
   }
   // the pose log covers the whole record, at the proprio rate
   config.strike.proprio_rows = static_cast<int64_t>(
       std::ceil(config.audio.record_duration_s * config.strike.proprio_rate_hz));
-  const sim::StrikeRollout rollout(config.tube, config.audio, config.strike, config.scene, config.rollout);
+  const sim::StrikeRollout rollout(config.tube, config.audio, config.strike, config.scene,
+                                   config.rollout);
   hardware::ContactRule rule;
   rule.outer_radius_m = config.tube.outer_radius_m;
   rule.length_m = config.tube.length_m;
@@ -129,24 +136,27 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
   std::vector<std::string> failed;
   const auto start = std::chrono::steady_clock::now();
   for (int64_t i = 0; i < count; ++i) {
-    const sim::RolloutResult r = rollout.Run(static_cast<uint64_t>(i), SampleSeed(config.seed, uint64_t(i)));
+    const sim::RolloutResult r =
+        rollout.Run(static_cast<uint64_t>(i), SampleSeed(config.seed, uint64_t(i)));
     ContactEvent event;
     ContactLabel truth;
     if (!r.valid || !sim::FirstHardContact(r, config.scene, &event, &truth)) continue;
     ++strikes;
     // the scene out to files and back, as a recorded trial comes in
     const std::filesystem::path dir = scenes.path() / fmt::format("strike{:06d}", i);
-    ExportScene(dir, ObjectMesh(sim::BuildObjectGeometry(config.scene.objects[r.object], r.variant),
-                                r.object_pose),
+    ExportScene(dir,
+                ObjectMesh(sim::BuildObjectGeometry(config.scene.objects[r.object], r.variant),
+                           r.object_pose),
                 r.joints);
-    const hardware::ObjectGeometry mesh = hardware::ReadObjectGeometry((dir / "object.ply").string());
+    const hardware::ObjectGeometry mesh =
+        hardware::ReadObjectGeometry((dir / "object.ply").string());
     const std::vector<Eigen::Isometry3d> poses =
         PosesFromJointLog(dir / "q_t.npy", config.tube.center_from_flange_m);
     kinematics_gap_m = std::max(kinematics_gap_m, KinematicsGap(r.proprio, poses));
     try {
       const hardware::GeometryLabel label = hardware::ContactLabeler(mesh, rule).Label(poses);
-      errors_mm.push_back(1e3 * SurfaceDistance(config.tube, label.z_m, label.theta_rad,
-                                                truth.z_m, truth.theta_rad));
+      errors_mm.push_back(1e3 * SurfaceDistance(config.tube, label.z_m, label.theta_rad, truth.z_m,
+                                                truth.theta_rad));
       step_lag.push_back(label.step / config.strike.proprio_rate_hz - truth.time_s);
     } catch (const IoError& e) {
       ++failures;
@@ -154,12 +164,18 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
     }
   }
   if (errors_mm.empty()) throw NumericalError("geometry-check: no strike could be labelled");
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double median = Percentile(errors_mm, 0.5), p95 = Percentile(errors_mm, 0.95);
   const double worst = *std::max_element(errors_mm.begin(), errors_mm.end());
-  const json j = {{"strikes", strikes}, {"labelled", errors_mm.size()}, {"failures", failures},
-                  {"median_mm", median}, {"p95_mm", p95}, {"worst_mm", worst},
-                  {"median_pose_after_contact_s", Percentile(step_lag, 0.5)}, {"seconds", seconds},
+  const json j = {{"strikes", strikes},
+                  {"labelled", errors_mm.size()},
+                  {"failures", failures},
+                  {"median_mm", median},
+                  {"p95_mm", p95},
+                  {"worst_mm", worst},
+                  {"median_pose_after_contact_s", Percentile(step_lag, 0.5)},
+                  {"seconds", seconds},
                   {"kinematics_gap_max_mm", 1e3 * kinematics_gap_m},
                   {"scenes", scenes_dir.empty() ? json(nullptr) : json(scenes_dir)},
                   {"failed", failed}};

@@ -34,7 +34,8 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
     j = {{"kind", "run"}, {"path", path}};
     for (const char* name : {"model.json", "metrics.json"}) {
       const fs::path p = fs::path(path) / name;
-      if (fs::exists(p)) j[fs::path(name).stem().string()] = json::parse(ReadText(p.string()), nullptr, false);
+      if (fs::exists(p))
+        j[fs::path(name).stem().string()] = json::parse(ReadText(p.string()), nullptr, false);
     }
     const fs::path metrics_lines = fs::path(path) / "metrics.jsonl";
     if (fs::exists(metrics_lines)) {
@@ -50,7 +51,8 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
       j["epochs_logged"] = epochs;
       if (!last.empty()) j["last_epoch"] = json::parse(last, nullptr, false);
     }
-    j["complete"] = fs::exists(fs::path(path) / "model.json") || fs::exists(fs::path(path) / "metrics.json");
+    j["complete"] =
+        fs::exists(fs::path(path) / "model.json") || fs::exists(fs::path(path) / "metrics.json");
     // trainable parameters per part of a finished model
     if (fs::exists(fs::path(path) / "model.json") && fs::exists(fs::path(path) / "model.pt")) {
       const learning::Localizer localizer(path);
@@ -66,8 +68,11 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
   } else if (fs::path(path).extension() == ".wav") {
     // a WAV and its label sidecar
     const AudioClip clip = ReadWav(path);
-    j = {{"kind", "wav"}, {"path", path}, {"channels", clip.channels()},
-         {"frames", clip.frames()}, {"sample_rate_hz", clip.sample_rate_hz},
+    j = {{"kind", "wav"},
+         {"path", path},
+         {"channels", clip.channels()},
+         {"frames", clip.frames()},
+         {"sample_rate_hz", clip.sample_rate_hz},
          {"duration_s", clip.frames() / clip.sample_rate_hz},
          {"peak", clip.samples.cwiseAbs().maxCoeff()},
          {"finite", clip.samples.allFinite()}};
@@ -99,7 +104,9 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
   } else if (fs::path(path).extension() == ".csv") {
     // a robot log
     const Eigen::MatrixXf proprio = hardware::ReadProprioCsv(path);
-    j = {{"kind", "robot_log"}, {"path", path}, {"rows", proprio.rows()},
+    j = {{"kind", "robot_log"},
+         {"path", path},
+         {"rows", proprio.rows()},
          {"finite", proprio.allFinite()}};
   } else if (fs::path(path).extension() == ".pt") {
     // torch weights: the model card beside them describes them
@@ -111,7 +118,10 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
     GlobalOptions with_file = g;
     with_file.sources.files.insert(with_file.sources.files.begin(), path);
     const SonicBoomConfig config = Resolve(with_file);
-    j = {{"kind", "config"}, {"path", path}, {"valid", true}, {"resolved_yaml", ConfigToYaml(config)}};
+    j = {{"kind", "config"},
+         {"path", path},
+         {"valid", true},
+         {"resolved_yaml", ConfigToYaml(config)}};
   } else {
     // HDF5: a dataset or any other file we write
     std::string schema;
@@ -127,7 +137,8 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
 
 void RegisterInspect(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto path = std::make_shared<std::string>();
-  auto* inspect = app.add_subcommand("inspect", "summarize a file or run directory SonicBoom wrote");
+  auto* inspect =
+      app.add_subcommand("inspect", "summarize a file or run directory SonicBoom wrote");
   inspect->add_option("path", *path, "dataset, features file, WAV, run directory or config")
       ->required();
   inspect->callback([&g, run, path] { *run = [&g, path] { return RunInspect(g, *path); }; });

@@ -1,12 +1,12 @@
 // `listen`: live localization from a sound device, or a WAV file read as one (docs/captures.md).
 #include <CLI/CLI.hpp>
 
-#include <memory>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -39,7 +39,8 @@ class SessionWriter {
   SessionWriter(const std::string& dir, const SonicBoomConfig& config) : dir_(dir) {
     if (dir_.empty()) return;
     if (fs::exists(fs::path(dir_) / "labels.csv")) {
-      throw IoError(fmt::format("{}: already holds a session (labels.csv); save into a new directory", dir_));
+      throw IoError(
+          fmt::format("{}: already holds a session (labels.csv); save into a new directory", dir_));
     }
     MakeDirectories(dir_);
     WriteTextAtomic((fs::path(dir_) / "capture.yaml").string(), ConfigToYaml(config));
@@ -56,7 +57,8 @@ class SessionWriter {
     json line = answer;
     line["file"] = name;
     predictions_ << line.dump() << "\n" << std::flush;
-    if (!labels_ || !predictions_) throw IoError(fmt::format("{}: cannot write the session files", dir_));
+    if (!labels_ || !predictions_)
+      throw IoError(fmt::format("{}: cannot write the session files", dir_));
     return name;
   }
 
@@ -69,7 +71,8 @@ class SessionWriter {
 
 CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
   if (o.model.empty()) throw ConfigError("listen needs --model RUN");
-  if (o.max_events < 0) throw ConfigError(fmt::format("--max-events {} must be >= 0", o.max_events));
+  if (o.max_events < 0)
+    throw ConfigError(fmt::format("--max-events {} must be >= 0", o.max_events));
   const SonicBoomConfig config = ResolveWithRun(g, o.model);
   const double rate = config.audio.sample_rate_hz;
   const int channels = config.mics.count();
@@ -94,7 +97,8 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
   hardware::OnsetTrigger trigger(trigger_config);
   learning::Localizer localizer(o.model);
   const RecordFeaturizer featurizer(config, rate, channels, localizer.needs());
-  const Eigen::MatrixXf no_log;  // no robot log: the model's proprio input is absent, as in localize
+  const Eigen::MatrixXf
+      no_log;  // no robot log: the model's proprio input is absent, as in localize
   SessionWriter session(o.save, config);
 
   // stream -> trigger -> features -> network -> one JSON line per strike, as it happens
@@ -125,29 +129,30 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
       const std::string file = session.Save(events, r.audio, rate, line);
       if (!file.empty()) line["file"] = file;
       std::cout << (g.json ? line.dump() + "\n"
-                           : fmt::format("[{}] onset {:.3f} s: {}", events, r.onset_frame / rate, text));
+                           : fmt::format("[{}] onset {:.3f} s: {}", events, r.onset_frame / rate,
+                                         text));
       std::cout.flush();
       ++events;
     }
     records.clear();
   }
   const double seconds = trigger.frames_seen() / rate;
-  const json summary = {{"summary", true}, {"events", events}, {"stream_s", seconds},
-                        {"source", source->name()}, {"saved_to", o.save},
-                        {"input_overflows", source->overflows()}};
-  return {summary.dump(),
-          fmt::format("{} strikes in {:.1f} s of {}{}{}\n", events, seconds, source->name(),
-                      o.save.empty() ? "" : ", saved to " + o.save,
-                      source->overflows() == 0
-                          ? ""
-                          : fmt::format("; input overflowed {} times (frames lost)",
-                                        source->overflows()))};
+  const json summary = {{"summary", true},     {"events", events},
+                        {"stream_s", seconds}, {"source", source->name()},
+                        {"saved_to", o.save},  {"input_overflows", source->overflows()}};
+  return {summary.dump(), fmt::format("{} strikes in {:.1f} s of {}{}{}\n", events, seconds,
+                                      source->name(), o.save.empty() ? "" : ", saved to " + o.save,
+                                      source->overflows() == 0
+                                          ? ""
+                                          : fmt::format("; input overflowed {} times (frames lost)",
+                                                        source->overflows()))};
 }
 
 void RegisterListen(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto o = std::make_shared<ListenOptions>();
-  auto* listen = app.add_subcommand("listen", "live localization: strikes from a sound device (or "
-                                              "a WAV read as one), one JSON line each");
+  auto* listen = app.add_subcommand("listen",
+                                    "live localization: strikes from a sound device (or "
+                                    "a WAV read as one), one JSON line each");
   listen->add_option("--model", o->model, "run directory")->required();
   listen->add_option("--device", o->device,
                      "input device, part of its name (ALSA, e.g. hw:1,0); default input if empty");

@@ -32,9 +32,9 @@ CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wa
       hardware::LoadCapture(wav, "", config.mics.count(), config.audio.sample_rate_hz);
   const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival,
                                           config.audio.sample_rate_hz);
-  const int64_t onset = acoustics::DetectOnset(cap.audio, config.audio.sample_rate_hz,
-                                               config.features.onset_frame_s,
-                                               config.features.onset_threshold);
+  const int64_t onset =
+      acoustics::DetectOnset(cap.audio, config.audio.sample_rate_hz, config.features.onset_frame_s,
+                             config.features.onset_threshold);
   acoustics::ArrivalEstimate e;
   try {
     e = locator.Locate(cap.audio, onset);
@@ -43,11 +43,16 @@ CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wa
   }
   const double ms = MillisecondsSince(start);
   const Eigen::Vector3d point = SurfacePoint(config.tube, e.z_m, e.theta_rad);
-  const json j = {{"method", "arrival"}, {"z_m", e.z_m}, {"theta_rad", e.theta_rad},
-                  {"point_m", {point.x(), point.y(), point.z()}}, {"frame", "tube"},
+  const json j = {{"method", "arrival"},
+                  {"z_m", e.z_m},
+                  {"theta_rad", e.theta_rad},
+                  {"point_m", {point.x(), point.y(), point.z()}},
+                  {"frame", "tube"},
                   {"onset_s", static_cast<double>(onset) / config.audio.sample_rate_hz},
-                  {"arrival_s", e.arrival_s}, {"speed_m_s", e.speed_m_s},
-                  {"residual_s", e.residual_s}, {"latency_ms", ms}};
+                  {"arrival_s", e.arrival_s},
+                  {"speed_m_s", e.speed_m_s},
+                  {"residual_s", e.residual_s},
+                  {"latency_ms", ms}};
   return {j.dump(), fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad (arrival times, no "
                                 "model; fitted speed {:.0f} m/s, residual {:.2f} ms)\n",
                                 e.z_m, e.theta_rad, e.speed_m_s, 1e3 * e.residual_s)};
@@ -99,10 +104,12 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
   json j = PredictionJson(p, config.tube, &text);
   j["latency_ms"] = median_ms;
   j["setup_ms"] = setup_ms;
-  j["latency_breakdown_ms"] = {{"read", median[1]}, {"features", median[2]}, {"network", median[3]}};
-  text += fmt::format("latency {:.1f} ms from WAV read to answer (median of {}: read {:.1f}, "
-                      "features {:.1f}, network {:.1f}); set-up {:.0f} ms\n",
-                      median_ms, repeat, median[1], median[2], median[3], setup_ms);
+  j["latency_breakdown_ms"] = {
+      {"read", median[1]}, {"features", median[2]}, {"network", median[3]}};
+  text += fmt::format(
+      "latency {:.1f} ms from WAV read to answer (median of {}: read {:.1f}, "
+      "features {:.1f}, network {:.1f}); set-up {:.0f} ms\n",
+      median_ms, repeat, median[1], median[2], median[3], setup_ms);
   return {j.dump(), text};
 }
 
@@ -127,8 +134,8 @@ void RegisterLocalize(CLI::App& app, GlobalOptions& g, Runner* run) {
         return RunLocalizeByArrival(g, o->wav);
       }
       if (o->method != "network") {
-        throw ConfigError(fmt::format("localize --method '{}' must be network or arrival",
-                                      o->method));
+        throw ConfigError(
+            fmt::format("localize --method '{}' must be network or arrival", o->method));
       }
       if (o->model.empty()) throw ConfigError("localize --method network needs --model RUN");
       return RunLocalize(g, o->model, o->wav, o->proprio, o->repeat);

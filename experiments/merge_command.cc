@@ -34,7 +34,8 @@ void RegisterMerge(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto* merge = app.add_subcommand("merge", "join dataset shards into one file");
   merge->add_option("--out", *out, "merged dataset file")->required();
   merge->add_option("shards", *shards, "shard files")->required();
-  merge->callback([&g, run, out, shards] { *run = [&g, out, shards] { return RunMerge(g, *out, *shards); }; });
+  merge->callback(
+      [&g, run, out, shards] { *run = [&g, out, shards] { return RunMerge(g, *out, *shards); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -6,12 +6,12 @@
 #include <numbers>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
+#include "sonicboom/acoustics/features.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_modes.h"
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/errors.h"
 
 #include "internal/report.h"
@@ -24,7 +24,8 @@ using nlohmann::json;
 CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool ideal,
                        int64_t count) {
   SonicBoomConfig config = Resolve(g);
-  if (count < 1 || count > 5000) throw ConfigError(fmt::format("--count must be in [1, 5000], got {}", count));
+  if (count < 1 || count > 5000)
+    throw ConfigError(fmt::format("--count must be in [1, 5000], got {}", count));
   if (boundary != "free" && boundary != "simply-supported") {
     throw ConfigError(fmt::format("--boundary '{}' must be free or simply-supported", boundary));
   }
@@ -37,11 +38,13 @@ CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool
   spdlog::info("modes {} the cache ({})", cached ? "read from" : "computed and stored in",
                acoustics::DefaultModeCacheDir());
   std::vector<double> f(static_cast<size_t>(modes.omega_rad_s.size()));
-  for (size_t k = 0; k < f.size(); ++k) f[k] = modes.omega_rad_s[static_cast<Eigen::Index>(k)] / (2.0 * std::numbers::pi);
+  for (size_t k = 0; k < f.size(); ++k)
+    f[k] = modes.omega_rad_s[static_cast<Eigen::Index>(k)] / (2.0 * std::numbers::pi);
   json j = {{"frequencies_hz", f},
             {"boundary", boundary},
             {"ideal", config.shell.ideal},
-            {"model", "numerical shell: Sanders theory on a staggered (z, theta) grid (acoustics/shell.h)"},
+            {"model",
+             "numerical shell: Sanders theory on a staggered (z, theta) grid (acoustics/shell.h)"},
             {"grid_points", {model.axial_points(), model.circumferential_points()}},
             {"dofs", model.dofs()},
             {"rigid_body_modes", modes.rigid_body_modes},
@@ -66,7 +69,8 @@ void RegisterModes(CLI::App& app, GlobalOptions& g, Runner* run) {
   modes->add_option("--boundary", o->boundary, "simply-supported | free");
   modes->add_flag("--ideal", o->ideal, "ideal uniform tube (no seam, no holes)");
   modes->add_option("--count", o->count, "number of modes (pairs count twice)");
-  modes->callback([&g, run, o] { *run = [&g, o] { return RunModes(g, o->boundary, o->ideal, o->count); }; });
+  modes->callback(
+      [&g, run, o] { *run = [&g, o] { return RunModes(g, o->boundary, o->ideal, o->count); }; });
 }
 
 }  // namespace sonicboom::experiments

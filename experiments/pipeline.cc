@@ -29,9 +29,9 @@ namespace sonicboom::experiments {
 
 struct StrikePipeline::Impl {
   SonicBoomConfig config;
-  std::unique_ptr<sim::StrikeModel> strikes;         // kinematic engine
-  std::unique_ptr<sim::StrikeRollout> rollout;       // mujoco engine: the arm strikes
-  std::unique_ptr<sim::HandStrikeRollout> hand;      // stationary robot, hand-held striker
+  std::unique_ptr<sim::StrikeModel> strikes;     // kinematic engine
+  std::unique_ptr<sim::StrikeRollout> rollout;   // mujoco engine: the arm strikes
+  std::unique_ptr<sim::HandStrikeRollout> hand;  // stationary robot, hand-held striker
   std::unique_ptr<acoustics::StrikeSynthesizer> synth;
 };
 
@@ -86,15 +86,17 @@ StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_
     impl_->rollout = std::make_unique<sim::StrikeRollout>(config.tube, config.audio, config.strike,
                                                           config.scene, config.rollout);
   } else {
-    impl_->strikes = std::make_unique<sim::StrikeModel>(config.strike, config.scene, config.tube,
-                                                        config.audio);
+    impl_->strikes =
+        std::make_unique<sim::StrikeModel>(config.strike, config.scene, config.tube, config.audio);
   }
   impl_->synth = std::make_unique<acoustics::StrikeSynthesizer>(AcousticModel(config));
 }
 
 StrikePipeline::~StrikePipeline() = default;
 
-const SonicBoomConfig& StrikePipeline::config() const { return impl_->config; }
+const SonicBoomConfig& StrikePipeline::config() const {
+  return impl_->config;
+}
 
 StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   const SonicBoomConfig& c = impl_->config;
@@ -122,8 +124,8 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   const bool randomized = c.randomize.any();
   acoustics::Variation variation;
   if (randomized) {
-    variation = acoustics::DrawVariation(c.randomize, c.material.loss_factor, c.mics.count(),
-                                         sample.seed);
+    variation =
+        acoustics::DrawVariation(c.randomize, c.material.loss_factor, c.mics.count(), sample.seed);
     sample.variation = variation.values;
     if (variation.structure_variant >= 0) {
       const std::vector<double>& drawn = impl_->synth->StructureValues(variation.structure_variant);
@@ -135,9 +137,9 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   const int64_t frames = c.audio.num_samples();
   try {
     if (!sample.valid) throw NumericalError("no contact to play");
-    acoustics::RenderedStrike r = impl_->synth->Render(ev.contact, sample.contacts,
-                                                       ev.joint_speed_rad_s, ev.joint_speed_rate_hz,
-                                                       sample.seed, randomized ? &variation : nullptr);
+    acoustics::RenderedStrike r = impl_->synth->Render(
+        ev.contact, sample.contacts, ev.joint_speed_rad_s, ev.joint_speed_rate_hz, sample.seed,
+        randomized ? &variation : nullptr);
     sample.audio = std::move(r.audio);
     sample.clipped = r.clipped;
     sample.label.impulse_Ns = r.impulse_ns;
@@ -147,9 +149,9 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
       const float peak = sample.audio.cwiseAbs().maxCoeff();
       if (peak < c.scene.guided.amplitude_threshold) {
         sample.valid = false;
-        sample.invalid_reason = fmt::format(
-            "audio peak {:.4f} below scene.guided.amplitude_threshold = {}", peak,
-            c.scene.guided.amplitude_threshold);
+        sample.invalid_reason =
+            fmt::format("audio peak {:.4f} below scene.guided.amplitude_threshold = {}", peak,
+                        c.scene.guided.amplitude_threshold);
       }
     }
     // the kinematic engine knows one contact: the impact acoustics played
@@ -190,7 +192,8 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
 GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string& out_path,
                                int64_t count, int64_t first_index, int64_t shard,
                                int64_t num_shards, int threads, bool show_progress) {
-  if (num_shards < 1) throw ConfigError(fmt::format("--num-shards must be >= 1, got {}", num_shards));
+  if (num_shards < 1)
+    throw ConfigError(fmt::format("--num-shards must be >= 1, got {}", num_shards));
   if (shard < 0 || shard >= num_shards) {
     throw ConfigError(fmt::format("--shard must be in [0, {}), got {}", num_shards, shard));
   }
@@ -332,26 +335,30 @@ Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config) {
       throw IoError(fmt::format("features.gating_noise_wav: {}", e.what()));
     }
     if (std::abs(clip.sample_rate_hz - fs) > 1e-6) {
-      throw ConfigError(fmt::format("features.gating_noise_wav: {} is sampled at {} Hz; "
-                                    "audio.sample_rate_hz is {} Hz",
-                                    path, clip.sample_rate_hz, fs));
+      throw ConfigError(
+          fmt::format("features.gating_noise_wav: {} is sampled at {} Hz; "
+                      "audio.sample_rate_hz is {} Hz",
+                      path, clip.sample_rate_hz, fs));
     }
     if (clip.channels() != channels) {
-      throw ConfigError(fmt::format("features.gating_noise_wav: {} has {} channels; it needs one "
-                                    "per microphone ({})",
-                                    path, clip.channels(), channels));
+      throw ConfigError(
+          fmt::format("features.gating_noise_wav: {} has {} channels; it needs one "
+                      "per microphone ({})",
+                      path, clip.channels(), channels));
     }
     if (clip.frames() < features.gating_n_fft) {
-      throw ConfigError(fmt::format("features.gating_noise_wav: {} has {} frames, shorter than "
-                                    "one gate frame (features.gating_n_fft = {})",
-                                    path, clip.frames(), features.gating_n_fft));
+      throw ConfigError(
+          fmt::format("features.gating_noise_wav: {} has {} frames, shorter than "
+                      "one gate frame (features.gating_n_fft = {})",
+                      path, clip.frames(), features.gating_n_fft));
     }
     for (int64_t t = 0; t < clip.frames(); ++t) {
       for (int c = 0; c < channels; ++c) {
         if (!std::isfinite(clip.samples(c, t))) {
-          throw ConfigError(fmt::format("features.gating_noise_wav: {} has a non-finite sample "
-                                        "at channel {} frame {}",
-                                        path, c, t));
+          throw ConfigError(
+              fmt::format("features.gating_noise_wav: {} has a non-finite sample "
+                          "at channel {} frame {}",
+                          path, c, t));
         }
       }
     }
@@ -370,15 +377,15 @@ Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config) {
     const double sweep_rad =
         0.5 * (strike.sweep_min_deg + strike.sweep_max_deg) * std::numbers::pi / 180.0;
     const double peak_speed = sweep_rad * sim::MinJerkRate(0.5) / strike.sweep_duration_s;
-    const auto rows = static_cast<int64_t>(
-        std::ceil(config.audio.record_duration_s * strike.proprio_rate_hz));
+    const auto rows =
+        static_cast<int64_t>(std::ceil(config.audio.record_duration_s * strike.proprio_rate_hz));
     joint_speed_rad_s.assign(static_cast<size_t>(rows), peak_speed);
   }
   Eigen::MatrixXf clip(channels, kReferenceNoiseRecords * frames);
   Eigen::MatrixXf audio;
   for (int64_t r = 0; r < kReferenceNoiseRecords; ++r) {
-    daq.Convert(Eigen::MatrixXd::Zero(channels, frames), joint_speed_rad_s,
-                strike.proprio_rate_hz, SampleSeed(config.seed, kReferenceNoiseIndex - r), &audio);
+    daq.Convert(Eigen::MatrixXd::Zero(channels, frames), joint_speed_rad_s, strike.proprio_rate_hz,
+                SampleSeed(config.seed, kReferenceNoiseIndex - r), &audio);
     clip.middleCols(r * frames, frames) = audio;
   }
   return clip;
@@ -393,12 +400,12 @@ Eigen::MatrixXf GatingClipFor(const SonicBoomConfig& config, double sample_rate_
   if (!config.features.gating) return {};
   if (std::abs(sample_rate_hz - config.audio.sample_rate_hz) > 1e-6 ||
       channels != config.mics.count()) {
-    throw ConfigError(fmt::format("{}: records at {} Hz with {} channels, but features.gating "
-                                  "gates against a reference noise clip at audio.sample_rate_hz = "
-                                  "{} Hz with one channel per mic ({}); match the config or set "
-                                  "features.gating=false",
-                                  what, sample_rate_hz, channels, config.audio.sample_rate_hz,
-                                  config.mics.count()));
+    throw ConfigError(fmt::format(
+        "{}: records at {} Hz with {} channels, but features.gating "
+        "gates against a reference noise clip at audio.sample_rate_hz = "
+        "{} Hz with one channel per mic ({}); match the config or set "
+        "features.gating=false",
+        what, sample_rate_hz, channels, config.audio.sample_rate_hz, config.mics.count()));
   }
   spdlog::debug("spectral gating against {}", config.features.gating_noise_wav.empty()
                                                   ? "the noise model's reference clip"
@@ -416,9 +423,10 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
   const DatasetInfo& info = reader.info();
   if (config.features.gating && config.features.gating_noise_wav.empty() &&
       info.source == "hardware") {
-    spdlog::warn("{}: hardware records gated against the simulated noise model; set "
-                 "features.gating_noise_wav to a no-contact recording",
-                 dataset_path);
+    spdlog::warn(
+        "{}: hardware records gated against the simulated noise model; set "
+        "features.gating_noise_wav to a no-contact recording",
+        dataset_path);
   }
   const Eigen::MatrixXf noise =
       GatingClipFor(config, info.sample_rate_hz, info.channels, dataset_path);
@@ -430,9 +438,10 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
   const std::vector<StrikeSample>& metas = valid.metas;
   const int64_t n = static_cast<int64_t>(valid.rows.size());
   if (info.proprio_rows < config.strike.proprio_rows) {
-    throw SchemaError(fmt::format("{}: proprio windows have {} rows, the model needs "
-                                  "strike.proprio_rows = {}",
-                                  dataset_path, info.proprio_rows, config.strike.proprio_rows));
+    throw SchemaError(
+        fmt::format("{}: proprio windows have {} rows, the model needs "
+                    "strike.proprio_rows = {}",
+                    dataset_path, info.proprio_rows, config.strike.proprio_rows));
   }
   learning::FeatureSet set = AllocateFeatures(fx, n, config.strike.proprio_rows);
   set.mels = config.features.n_mels;
@@ -488,9 +497,8 @@ void ForEachRecord(const DatasetReader& reader, const std::vector<int64_t>& rows
 struct RecordFeaturizer::Impl {
   Impl(const SonicBoomConfig& config, double sample_rate_hz, int channels,
        const acoustics::FeatureRequest& request)
-      : noise(request.mel || request.gcc
-                  ? GatingClipFor(config, sample_rate_hz, channels, "record")
-                  : Eigen::MatrixXf()),
+      : noise(request.mel || request.gcc ? GatingClipFor(config, sample_rate_hz, channels, "record")
+                                         : Eigen::MatrixXf()),
         fx(config.features, sample_rate_hz, channels, noise.size() > 0 ? &noise : nullptr),
         request(request),
         n_mels(config.features.n_mels),
@@ -503,8 +511,8 @@ struct RecordFeaturizer::Impl {
 
 RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
                                    int channels)
-    : impl_(std::make_unique<Impl>(config, sample_rate_hz, channels,
-                                   acoustics::FeatureRequest{})) {}
+    : impl_(std::make_unique<Impl>(config, sample_rate_hz, channels, acoustics::FeatureRequest{})) {
+}
 
 RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
                                    int channels, const learning::FeatureNeeds& needs)
@@ -553,9 +561,10 @@ learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning:
   const auto [train_rows, val_rows] =
       SplitRows(sample_indices, config.train.val_fraction, config.seed);
   if (train_rows.empty() || val_rows.empty()) {
-    throw ConfigError(fmt::format("{}: {} valid samples cannot be split into train and validation "
-                                  "with train.val_fraction = {}",
-                                  data, all.size(), config.train.val_fraction));
+    throw ConfigError(
+        fmt::format("{}: {} valid samples cannot be split into train and validation "
+                    "with train.val_fraction = {}",
+                    data, all.size(), config.train.val_fraction));
   }
   spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
   return learning::Train(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,

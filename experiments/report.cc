@@ -21,7 +21,9 @@ namespace sonicboom::experiments {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-SonicBoomConfig Resolve(const GlobalOptions& g) { return ResolveConfig(g.sources); }
+SonicBoomConfig Resolve(const GlobalOptions& g) {
+  return ResolveConfig(g.sources);
+}
 
 // the resolved config beside an output file
 void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config) {
@@ -85,11 +87,14 @@ json MetricsJson(const learning::Metrics& m) {
 
 json PredictionJson(const learning::Prediction& p, const TubeConfig& tube, std::string* text) {
   const Eigen::Vector3d point = SurfacePoint(tube, p.z_m, p.theta_rad);
-  json j = {{"z_m", p.z_m}, {"theta_rad", p.theta_rad}, {"point_m", {point.x(), point.y(), point.z()}},
+  json j = {{"z_m", p.z_m},
+            {"theta_rad", p.theta_rad},
+            {"point_m", {point.x(), point.y(), point.z()}},
             {"frame", "tube"}};
-  *text += fmt::format("contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, {:.4f}, "
-                       "{:.4f}) m in the tube frame\n",
-                       p.z_m, p.theta_rad, point.x(), point.y(), point.z());
+  *text += fmt::format(
+      "contact at z = {:.4f} m, theta = {:.4f} rad; point ({:.4f}, {:.4f}, "
+      "{:.4f}) m in the tube frame\n",
+      p.z_m, p.theta_rad, point.x(), point.y(), point.z());
   // the predictive distribution (null for a model without one); the theta interval is
   // [theta - h, theta + h], not wrapped, so lo < hi also across +-pi
   j["z_std_m"] = j["theta_std_rad"] = j["theta_kappa"] = nullptr;
@@ -103,10 +108,11 @@ json PredictionJson(const learning::Prediction& p, const TubeConfig& tube, std::
     j["theta_kappa"] = p.theta_kappa;
     j["z_interval_90_m"] = {p.z_m - z_half, p.z_m + z_half};
     j["theta_interval_90_rad"] = {p.theta_rad - theta_half, p.theta_rad + theta_half};
-    *text += fmt::format("uncertainty: z std {:.4f} m (90 %: [{:.4f}, {:.4f}] m), theta circular "
-                         "std {:.4f} rad (90 %: [{:.4f}, {:.4f}] rad, kappa {:.3g})\n",
-                         p.z_std_m, p.z_m - z_half, p.z_m + z_half, theta_std,
-                         p.theta_rad - theta_half, p.theta_rad + theta_half, p.theta_kappa);
+    *text += fmt::format(
+        "uncertainty: z std {:.4f} m (90 %: [{:.4f}, {:.4f}] m), theta circular "
+        "std {:.4f} rad (90 %: [{:.4f}, {:.4f}] rad, kappa {:.3g})\n",
+        p.z_std_m, p.z_m - z_half, p.z_m + z_half, theta_std, p.theta_rad - theta_half,
+        p.theta_rad + theta_half, p.theta_kappa);
   }
   return j;
 }

@@ -28,8 +28,8 @@ CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64
   StrikePipeline pipeline(config);
   const StrikeSample s = pipeline.Simulate(static_cast<uint64_t>(index));
   if (!s.valid) {
-    throw NumericalError(fmt::format("strike {} (seed {}) is invalid: {}", index, config.seed,
-                                     s.invalid_reason));
+    throw NumericalError(
+        fmt::format("strike {} (seed {}) is invalid: {}", index, config.seed, s.invalid_reason));
   }
   // label sidecar and config first, the WAV last: a WAV on disk means the set is complete
   const std::string stem = (fs::path(out_wav).parent_path() / fs::path(out_wav).stem()).string();
@@ -48,9 +48,9 @@ CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64
     fs::remove(stem + ".json");
     throw;
   }
-  json j = {{"wav", out_wav}, {"label", stem + ".json"}, {"z_m", s.label.z_m},
-            {"theta_rad", s.label.theta_rad}, {"clipped", s.clipped},
-            {"peak", s.audio.cwiseAbs().maxCoeff()}};
+  json j = {{"wav", out_wav},       {"label", stem + ".json"},
+            {"z_m", s.label.z_m},   {"theta_rad", s.label.theta_rad},
+            {"clipped", s.clipped}, {"peak", s.audio.cwiseAbs().maxCoeff()}};
   return {j.dump(), fmt::format("wrote {} (6 channels, {} Hz) and {}: z = {:.4f} m, theta = "
                                 "{:.4f} rad\n",
                                 out_wav, config.audio.sample_rate_hz, stem + ".json", s.label.z_m,
@@ -63,7 +63,8 @@ void RegisterSynth(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto* synth = app.add_subcommand("synth", "one strike as a 6-channel WAV plus a JSON label");
   synth->add_option("--out", *out, "WAV file")->required();
   synth->add_option("--index", *index, "sample index (with --seed it fixes the strike)");
-  synth->callback([&g, run, out, index] { *run = [&g, out, index] { return RunSynth(g, *out, *index); }; });
+  synth->callback(
+      [&g, run, out, index] { *run = [&g, out, index] { return RunSynth(g, *out, *index); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -34,7 +34,8 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
     throw ConfigError("--freeze and --norm apply to a fine-tune: give --init-from RUN");
   }
   if (!o.init_from.empty() && fs::absolute(o.init_from) == fs::absolute(o.out)) {
-    throw ConfigError(fmt::format("--init-from {} is the output run; fine-tune into another directory", o.init_from));
+    throw ConfigError(fmt::format(
+        "--init-from {} is the output run; fine-tune into another directory", o.init_from));
   }
   const SonicBoomConfig config = o.init_from.empty() ? Resolve(g) : ResolveWithRun(g, o.init_from);
   if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
@@ -60,8 +61,9 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
     int64_t epochs = 0;
   };
   auto o = std::make_shared<Options>();
-  auto* train = app.add_subcommand("train", "train a localizer on a dataset, or fine-tune a "
-                                            "pretrained one (--init-from)");
+  auto* train = app.add_subcommand("train",
+                                   "train a localizer on a dataset, or fine-tune a "
+                                   "pretrained one (--init-from)");
   train->add_option("--data", o->train.data, "training dataset (.h5)")->required();
   train->add_option("--out", o->train.out, "run directory")->required();
   train->add_flag("--resume", o->train.resume, "continue from the run directory's checkpoint");

@@ -3,18 +3,18 @@
 // in full, and the two are compared in frequency, shape and rendered signal, with the time of each.
 #include <CLI/CLI.hpp>
 
-#include <memory>
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "internal/subcommands.h"
 #include "sonicboom/acoustics/randomize.h"
@@ -77,12 +77,14 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
   const SonicBoomConfig config = ResolveConfig(g.sources);
   const acoustics::RandomizeConfig& r = config.randomize;
   if (!r.structure()) {
-    throw ConfigError("sonicboom variants measures the structure pool: set "
-                      "randomize.structure_variants > 0 (configs/randomized.yaml does)");
+    throw ConfigError(
+        "sonicboom variants measures the structure pool: set "
+        "randomize.structure_variants > 0 (configs/randomized.yaml does)");
   }
   if (check < 0 || check > r.structure_variants) {
-    throw ConfigError(fmt::format("--check must be in [0, randomize.structure_variants = {}], got {}",
-                                  r.structure_variants, check));
+    throw ConfigError(
+        fmt::format("--check must be in [0, randomize.structure_variants = {}], got {}",
+                    r.structure_variants, check));
   }
   const double fs = config.audio.sample_rate_hz;
   const double band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
@@ -99,12 +101,13 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
   // the test forces: a sharp and a dull strike at two points, 30 ms of signal
   const int64_t samples = static_cast<int64_t>(0.03 * fs);
   std::vector<acoustics::ForceInput> forces;
-  for (const auto& [z, theta, t_c] : {std::tuple{0.04, 0.3, 0.2e-3}, std::tuple{-0.07, 2.4, 1.0e-3}}) {
+  for (const auto& [z, theta, t_c] :
+       {std::tuple{0.04, 0.3, 0.2e-3}, std::tuple{-0.07, 2.4, 1.0e-3}}) {
     forces.push_back({z, theta, 0, Pulse(fs, t_c)});
   }
   auto render = [&](const acoustics::ShellModel& model, const acoustics::ShellModes& modes) {
-    const acoustics::ShellModalBank bank(model, modes, config.mics, fs, config.acoustics.decay_floor_db,
-                                         config.acoustics.residual);
+    const acoustics::ShellModalBank bank(
+        model, modes, config.mics, fs, config.acoustics.decay_floor_db, config.acoustics.residual);
     std::vector<Eigen::MatrixXd> out;
     for (const auto& f : forces) out.push_back(bank.Render({&f, 1}, bank.modes(), samples));
     return out;
@@ -140,24 +143,36 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
     const double capture = WorstCapture(ritz, exact, varied.mass_kg(), 10000.0);
     const std::vector<Eigen::MatrixXd> a = render(varied, ritz), b = render(varied, exact);
     double signal = 0.0;
-    for (size_t k = 0; k < a.size(); ++k) signal = std::max(signal, (a[k] - b[k]).norm() / b[k].norm());
+    for (size_t k = 0; k < a.size(); ++k)
+      signal = std::max(signal, (a[k] - b[k]).norm() / b[k].norm());
     double log_scale = 0.0;
     for (double s : draw.shell.bolt_stiffness_scale) log_scale += std::log(s);
-    const double bolt_scale = draw.shell.bolt_z_m.empty()
-                                  ? 1.0
-                                  : std::exp(log_scale / static_cast<double>(draw.shell.bolt_z_m.size()));
-    const double flange = draw.shell.flange_mount_stiffness_n_m2 / config.shell.flange_mount_stiffness_n_m2;
-    const double tool = draw.shell.tool_mount_stiffness_n_m2 / config.shell.tool_mount_stiffness_n_m2;
-    md += fmt::format("| {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.3f} | {:.2f} | {:.1f} | {:.2e} / {:.2e} | "
-                      "{:.2e} / {:.2e} | {:.4f} | {:.4f} |\n",
-                      v, draw.shell.bolt_z_m.size(), bolt_scale, flange, tool, draw.poisson_ratio,
-                      ritz_s, full_s, f5_med, f5_max, f20_med, f20_max, capture, signal);
-    rows.push_back({{"variant", v}, {"bolts", draw.shell.bolt_z_m.size()},
-                    {"bolt_stiffness_scale", bolt_scale}, {"flange_mount_scale", flange},
-                    {"tool_mount_scale", tool}, {"poisson_ratio", draw.poisson_ratio},
-                    {"ritz_s", ritz_s}, {"full_s", full_s}, {"freq_err_5k_median", f5_med},
-                    {"freq_err_5k_max", f5_max}, {"freq_err_band_median", f20_med},
-                    {"freq_err_band_max", f20_max}, {"worst_capture_10k", capture},
+    const double bolt_scale =
+        draw.shell.bolt_z_m.empty()
+            ? 1.0
+            : std::exp(log_scale / static_cast<double>(draw.shell.bolt_z_m.size()));
+    const double flange =
+        draw.shell.flange_mount_stiffness_n_m2 / config.shell.flange_mount_stiffness_n_m2;
+    const double tool =
+        draw.shell.tool_mount_stiffness_n_m2 / config.shell.tool_mount_stiffness_n_m2;
+    md += fmt::format(
+        "| {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.3f} | {:.2f} | {:.1f} | {:.2e} / {:.2e} | "
+        "{:.2e} / {:.2e} | {:.4f} | {:.4f} |\n",
+        v, draw.shell.bolt_z_m.size(), bolt_scale, flange, tool, draw.poisson_ratio, ritz_s, full_s,
+        f5_med, f5_max, f20_med, f20_max, capture, signal);
+    rows.push_back({{"variant", v},
+                    {"bolts", draw.shell.bolt_z_m.size()},
+                    {"bolt_stiffness_scale", bolt_scale},
+                    {"flange_mount_scale", flange},
+                    {"tool_mount_scale", tool},
+                    {"poisson_ratio", draw.poisson_ratio},
+                    {"ritz_s", ritz_s},
+                    {"full_s", full_s},
+                    {"freq_err_5k_median", f5_med},
+                    {"freq_err_5k_max", f5_max},
+                    {"freq_err_band_median", f20_med},
+                    {"freq_err_band_max", f20_max},
+                    {"worst_capture_10k", capture},
                     {"signal_error", signal}});
   }
   md += fmt::format(
@@ -165,8 +180,10 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
       "signal error is the larger relative error of the six channels over 30 ms for a 0.2 ms and "
       "a 1 ms pulse.\n",
       ritz_total_s / static_cast<double>(r.structure_variants), r.structure_variants);
-  json j = {{"variants", r.structure_variants}, {"band_hz", band},
-            {"base_modes", base_modes.omega_rad_s.size()}, {"projector_s", projector_s},
+  json j = {{"variants", r.structure_variants},
+            {"band_hz", band},
+            {"base_modes", base_modes.omega_rad_s.size()},
+            {"projector_s", projector_s},
             {"ritz_s_mean", ritz_total_s / static_cast<double>(r.structure_variants)},
             {"checked", rows}};
   if (!out_md.empty()) WriteTextAtomic(out_md, md);
@@ -179,8 +196,9 @@ void RegisterVariants(CLI::App& app, GlobalOptions& g, Runner* run) {
     std::string out;
   };
   auto o = std::make_shared<Options>();
-  auto* variants = app.add_subcommand("variants", "the structure pool's Ritz modes against full "
-                                                  "solves: error and time");
+  auto* variants = app.add_subcommand("variants",
+                                      "the structure pool's Ritz modes against full "
+                                      "solves: error and time");
   variants->add_option("--check", o->check, "variants also solved in full (default 3)");
   variants->add_option("--out", o->out, "markdown table (default: print only)");
   variants->callback([&g, run, o] { *run = [&g, o] { return RunVariants(g, o->check, o->out); }; });

@@ -1,10 +1,10 @@
 #include "sonicboom/hardware/capture.h"
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <array>
 #include <vector>
 
 #include <fmt/format.h>
@@ -26,7 +26,8 @@ Eigen::MatrixXf ReadProprioCsv(const std::string& path) {
   if (!std::getline(in, line)) throw IoError(fmt::format("{}: empty robot log", path));
   if (!line.empty() && line.back() == '\r') line.pop_back();
   if (line != kProprioHeader) {
-    throw IoError(fmt::format("{}:1: expected header '{}', found '{}'", path, kProprioHeader, line));
+    throw IoError(
+        fmt::format("{}:1: expected header '{}', found '{}'", path, kProprioHeader, line));
   }
   // rows of 11 numbers; the time column is checked, then dropped
   std::vector<std::array<float, 10>> rows;
@@ -45,15 +46,16 @@ Eigen::MatrixXf ReadProprioCsv(const std::string& path) {
         values[col] = std::stod(cell, &used);
         if (used != cell.size() && cell.substr(used) != "\r") throw std::invalid_argument(cell);
       } catch (const std::exception&) {
-        throw IoError(fmt::format("{}:{}: column {} is not a number: '{}'", path, line_no, col + 1,
-                                  cell));
+        throw IoError(
+            fmt::format("{}:{}: column {} is not a number: '{}'", path, line_no, col + 1, cell));
       }
       if (!std::isfinite(values[col])) {
         throw IoError(fmt::format("{}:{}: column {} is not finite", path, line_no, col + 1));
       }
       ++col;
     }
-    if (col != 11) throw IoError(fmt::format("{}:{}: expected 11 columns, found {}", path, line_no, col));
+    if (col != 11)
+      throw IoError(fmt::format("{}:{}: expected 11 columns, found {}", path, line_no, col));
     std::array<float, 10> row;
     for (int j = 0; j < 10; ++j) row[j] = static_cast<float>(values[j + 1]);
     rows.push_back(row);

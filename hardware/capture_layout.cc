@@ -8,9 +8,9 @@
 
 #include <fmt/format.h>
 
+#include "internal/import_common.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/hardware/capture.h"
-#include "internal/import_common.h"
 
 namespace fs = std::filesystem;
 
@@ -44,8 +44,8 @@ StrikeSample LoadCapture(const fs::path& dir, const std::map<std::string, std::s
                          const std::string& where, const ImportSettings& s) {
   StrikeSample sample;
   sample.audio = CheckedRecord((dir / row.at("file")).string(), s);
-  SetLabel(Number(row.at("z_m"), where, "z_m"), Number(row.at("theta_rad"), where, "theta_rad"),
-           s, where, &sample);
+  SetLabel(Number(row.at("z_m"), where, "z_m"), Number(row.at("theta_rad"), where, "theta_rad"), s,
+           where, &sample);
   if (row.count("object")) sample.contacts[0].object = row.at("object");
   if (row.count("material")) sample.contacts[0].material = row.at("material");
   const auto log = row.find("robot_log");
@@ -69,7 +69,9 @@ std::vector<ImportEntry> ListCaptures(const std::string& dir_name) {
   const fs::path dir(dir_name);
   const fs::path labels = dir / "labels.csv";
   std::ifstream in(labels);
-  if (!in) throw IoError(fmt::format("{}: missing (a capture directory needs labels.csv)", labels.string()));
+  if (!in)
+    throw IoError(
+        fmt::format("{}: missing (a capture directory needs labels.csv)", labels.string()));
 
   // header: the required columns, then any optional ones, nothing else
   std::string line;
@@ -77,9 +79,10 @@ std::vector<ImportEntry> ListCaptures(const std::string& dir_name) {
   const std::vector<std::string> header = SplitCsv(line);
   for (const char* name : kRequired) {
     if (std::find(header.begin(), header.end(), name) == header.end()) {
-      throw IoError(fmt::format("{}:1: header lacks the column '{}' (file,z_m,theta_rad required; "
-                                "object,material,robot_log optional)",
-                                labels.string(), name));
+      throw IoError(
+          fmt::format("{}:1: header lacks the column '{}' (file,z_m,theta_rad required; "
+                      "object,material,robot_log optional)",
+                      labels.string(), name));
     }
   }
   for (const std::string& name : header) {
@@ -108,11 +111,11 @@ std::vector<ImportEntry> ListCaptures(const std::string& dir_name) {
       problem = fmt::format("{}: '{}' is labelled twice", where, file);
     }
     const auto index = static_cast<uint64_t>(entries.size());
-    entries.push_back({(dir / file).string(), index,
-                       [dir, row, where, problem](const ImportSettings& s) {
-                         if (!problem.empty()) throw IoError(problem);
-                         return LoadCapture(dir, row, where, s);
-                       }});
+    entries.push_back(
+        {(dir / file).string(), index, [dir, row, where, problem](const ImportSettings& s) {
+           if (!problem.empty()) throw IoError(problem);
+           return LoadCapture(dir, row, where, s);
+         }});
   }
 
   // WAVs without a label are bad captures too
@@ -126,7 +129,8 @@ std::vector<ImportEntry> ListCaptures(const std::string& dir_name) {
   std::sort(unlabelled.begin(), unlabelled.end());
   for (const std::string& name : unlabelled) {
     const std::string file = (dir / name).string();
-    entries.push_back({file, static_cast<uint64_t>(entries.size()), [file](const ImportSettings&) -> StrikeSample {
+    entries.push_back({file, static_cast<uint64_t>(entries.size()),
+                       [file](const ImportSettings&) -> StrikeSample {
                          throw IoError(fmt::format("{}: no row in labels.csv", file));
                        }});
   }

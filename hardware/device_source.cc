@@ -19,7 +19,8 @@ void InitializePortAudio() {
   static PaError status = paNoError;
   std::call_once(once, [] { status = Pa_Initialize(); });
   if (status != paNoError) {
-    throw IoError(fmt::format("audio input: cannot initialize PortAudio: {}", Pa_GetErrorText(status)));
+    throw IoError(
+        fmt::format("audio input: cannot initialize PortAudio: {}", Pa_GetErrorText(status)));
   }
 }
 
@@ -32,7 +33,8 @@ PaDeviceIndex FindDevice(const std::string& wanted) {
   }
   for (PaDeviceIndex d = 0; d < Pa_GetDeviceCount(); ++d) {
     const PaDeviceInfo* info = Pa_GetDeviceInfo(d);
-    if (info && info->maxInputChannels > 0 && std::string(info->name).find(wanted) != std::string::npos) {
+    if (info && info->maxInputChannels > 0 &&
+        std::string(info->name).find(wanted) != std::string::npos) {
       return d;
     }
   }
@@ -58,7 +60,8 @@ class DeviceSource final : public AudioSource {
     const PaError ok = Pa_IsFormatSupported(&in, nullptr, rate);
     if (ok != paFormatIsSupported) {
       throw IoError(fmt::format("{}: cannot capture {} channels at {} Hz ({} input channels): {}",
-                                name_, channels, rate, info->maxInputChannels, Pa_GetErrorText(ok)));
+                                name_, channels, rate, info->maxInputChannels,
+                                Pa_GetErrorText(ok)));
     }
     const PaError open = Pa_OpenStream(&stream_, &in, nullptr, rate, paFramesPerBufferUnspecified,
                                        paNoFlag, nullptr, nullptr);
@@ -79,7 +82,8 @@ class DeviceSource final : public AudioSource {
 
   int64_t Read(Eigen::MatrixXf* block) override {
     interleaved_.resize(static_cast<size_t>(block->size()));
-    const PaError e = Pa_ReadStream(stream_, interleaved_.data(), static_cast<unsigned long>(block->cols()));
+    const PaError e =
+        Pa_ReadStream(stream_, interleaved_.data(), static_cast<unsigned long>(block->cols()));
     // an overflow lost frames: counted (listen reports it), and the stream goes on
     if (e == paInputOverflowed) {
       ++overflows_;

@@ -49,10 +49,10 @@ struct ContactLabeler::Impl {
   ObjectGeometry object;
   RTCDevice device{nullptr};
   RTCScene scene{nullptr};
-  Eigen::AlignedBox3f bounds;          // the object's, base frame
-  Eigen::Matrix3Xf samples;            // (3 x rows*ring) tube-frame surface samples, row-major
-  int64_t rows{0}, ring{0};            // axial rows (z ascending) of `ring` samples each
-  std::vector<float> sample_theta;     // (S)
+  Eigen::AlignedBox3f bounds;       // the object's, base frame
+  Eigen::Matrix3Xf samples;         // (3 x rows*ring) tube-frame surface samples, row-major
+  int64_t rows{0}, ring{0};         // axial rows (z ascending) of `ring` samples each
+  std::vector<float> sample_theta;  // (S)
 
   // one point query: the squared distance from p to the object, kept below the query radius
   struct Query {
@@ -69,7 +69,8 @@ struct ContactLabeler::Impl {
       closest = o.vertices.col(args->primID);
     } else {
       const Eigen::Vector3i t = o.triangles.col(args->primID);
-      closest = ClosestOnTriangle(p, o.vertices.col(t[0]), o.vertices.col(t[1]), o.vertices.col(t[2]));
+      closest =
+          ClosestOnTriangle(p, o.vertices.col(t[0]), o.vertices.col(t[1]), o.vertices.col(t[2]));
     }
     const float d2 = (closest - p).squaredNorm();
     if (d2 >= q->best2) return false;
@@ -100,10 +101,11 @@ ContactLabeler::ContactLabeler(const ObjectGeometry& object, const ContactRule& 
   if (object.vertices.cols() == 0) throw IoError("contact labels: the object has no vertices");
   if (!(rule.tolerance_m > 0) || !(rule.patch_margin_m >= 0) || !(rule.surface_spacing_m > 0) ||
       !(rule.outer_radius_m > 0) || !(rule.length_m > 0)) {
-    throw ConfigError(fmt::format("contact rule: tolerance {} m, spacing {} m, radius {} m and "
-                                  "length {} m must be positive, patch margin {} m >= 0",
-                                  rule.tolerance_m, rule.surface_spacing_m, rule.outer_radius_m,
-                                  rule.length_m, rule.patch_margin_m));
+    throw ConfigError(
+        fmt::format("contact rule: tolerance {} m, spacing {} m, radius {} m and "
+                    "length {} m must be positive, patch margin {} m >= 0",
+                    rule.tolerance_m, rule.surface_spacing_m, rule.outer_radius_m, rule.length_m,
+                    rule.patch_margin_m));
   }
   s.rule = rule;
   s.object = object;
@@ -128,7 +130,8 @@ ContactLabeler::ContactLabeler(const ObjectGeometry& object, const ContactRule& 
     auto* t = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0,
                                                              RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
                                                              object.triangles.cols()));
-    for (Eigen::Index i = 0; i < object.triangles.size(); ++i) t[i] = static_cast<unsigned>(object.triangles.data()[i]);
+    for (Eigen::Index i = 0; i < object.triangles.size(); ++i)
+      t[i] = static_cast<unsigned>(object.triangles.data()[i]);
   }
   rtcCommitGeometry(geometry);
   rtcAttachGeometry(s.scene, geometry);
@@ -137,7 +140,8 @@ ContactLabeler::ContactLabeler(const ObjectGeometry& object, const ContactRule& 
 
   // samples of the outer surface, tube frame: axial rows by rings
   const int64_t rows = static_cast<int64_t>(std::ceil(rule.length_m / rule.surface_spacing_m)) + 1;
-  const int64_t ring = static_cast<int64_t>(std::ceil(2 * kPi * rule.outer_radius_m / rule.surface_spacing_m));
+  const int64_t ring =
+      static_cast<int64_t>(std::ceil(2 * kPi * rule.outer_radius_m / rule.surface_spacing_m));
   s.rows = rows;
   s.ring = ring;
   s.samples.resize(3, rows * ring);
@@ -146,8 +150,8 @@ ContactLabeler::ContactLabeler(const ObjectGeometry& object, const ContactRule& 
     const double z = -0.5 * rule.length_m + rule.length_m * r / double(rows - 1);
     for (int64_t k = 0; k < ring; ++k) {
       const double theta = -kPi + 2 * kPi * (k + 0.5) / double(ring);
-      s.samples.col(r * ring + k) = Vec(rule.outer_radius_m * std::cos(theta),
-                                        rule.outer_radius_m * std::sin(theta), z);
+      s.samples.col(r * ring + k) =
+          Vec(rule.outer_radius_m * std::cos(theta), rule.outer_radius_m * std::sin(theta), z);
       s.sample_theta[r * ring + k] = static_cast<float>(theta);
     }
   }
@@ -167,7 +171,8 @@ GeometryLabel ContactLabeler::Label(const std::vector<Eigen::Isometry3d>& tube_p
     // the object's bounds in the tube frame, grown by the reach: samples outside cannot touch
     Eigen::AlignedBox3f box;
     const Eigen::Isometry3f to_tube = pose.inverse();
-    for (int c = 0; c < 8; ++c) box.extend(to_tube * s.bounds.corner(Eigen::AlignedBox3f::CornerType(c)));
+    for (int c = 0; c < 8; ++c)
+      box.extend(to_tube * s.bounds.corner(Eigen::AlignedBox3f::CornerType(c)));
     box.min().array() -= reach;
     box.max().array() += reach;
     // where along the axis the object comes near: points of the axis every `h` whose distance
@@ -186,8 +191,10 @@ GeometryLabel ContactLabeler::Label(const std::vector<Eigen::Isometry3d>& tube_p
     // only the rows in [z_lo, z_hi] (one row of slack each side; the test below decides)
     const double row_pitch = s.rule.length_m / double(s.rows - 1);
     const auto row_of = [&](float z) { return (z + 0.5 * s.rule.length_m) / row_pitch; };
-    const int64_t first = z_lo <= z_hi ? std::max<int64_t>(0, int64_t(std::floor(row_of(z_lo))) - 1) : 0;
-    const int64_t last = z_lo <= z_hi ? std::min<int64_t>(s.rows - 1, int64_t(std::ceil(row_of(z_hi))) + 1) : -1;
+    const int64_t first =
+        z_lo <= z_hi ? std::max<int64_t>(0, int64_t(std::floor(row_of(z_lo))) - 1) : 0;
+    const int64_t last =
+        z_lo <= z_hi ? std::min<int64_t>(s.rows - 1, int64_t(std::ceil(row_of(z_hi))) + 1) : -1;
     for (Eigen::Index i = first * s.ring; i < (last + 1) * s.ring; ++i) {
       const float z = s.samples(2, i);
       if (z < z_lo || z > z_hi || !box.contains(s.samples.col(i))) continue;
@@ -215,11 +222,12 @@ GeometryLabel ContactLabeler::Label(const std::vector<Eigen::Isometry3d>& tube_p
     label.theta_rad = std::atan2(s_sum, c_sum);
     return label;
   }
-  throw IoError(fmt::format("no contact: the object never comes within {} m of the tube over {} "
-                            "poses (closest {})",
-                            s.rule.tolerance_m, tube_poses.size(),
-                            std::isfinite(closest_ever) ? fmt::format("{:.4f} m", closest_ever)
-                                                        : std::string("farther than that")));
+  throw IoError(
+      fmt::format("no contact: the object never comes within {} m of the tube over {} "
+                  "poses (closest {})",
+                  s.rule.tolerance_m, tube_poses.size(),
+                  std::isfinite(closest_ever) ? fmt::format("{:.4f} m", closest_ever)
+                                              : std::string("farther than that")));
 }
 
 }  // namespace sonicboom::hardware

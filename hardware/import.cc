@@ -10,10 +10,10 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
+#include "internal/import_common.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/tube.h"
-#include "internal/import_common.h"
 
 namespace fs = std::filesystem;
 
@@ -86,7 +86,8 @@ Eigen::MatrixXf CheckedRecord(const std::string& wav, const ImportSettings& sett
     throw IoError(fmt::format("{}: {} channels, the rig has {} mics", wav, clip.channels(),
                               settings.channels));
   }
-  const auto min_frames = static_cast<int64_t>(std::ceil(settings.min_duration_s * settings.sample_rate_hz));
+  const auto min_frames =
+      static_cast<int64_t>(std::ceil(settings.min_duration_s * settings.sample_rate_hz));
   if (clip.frames() < min_frames) {
     throw IoError(fmt::format("{}: {:.3f} s long, shorter than {} s (--min-duration-s)", wav,
                               clip.frames() / clip.sample_rate_hz, settings.min_duration_s));
@@ -104,9 +105,10 @@ Eigen::MatrixXf CheckedRecord(const std::string& wav, const ImportSettings& sett
   if (clipped > 0) {
     Eigen::Index c = 0, t = 0;
     x.array().abs().maxCoeff(&c, &t);
-    throw IoError(fmt::format("{}: clipped: {} samples at or beyond full scale (peak {:.4g} on "
-                              "channel {} at {:.4f} s)",
-                              wav, clipped, std::abs(x(c, t)), c, t / clip.sample_rate_hz));
+    throw IoError(
+        fmt::format("{}: clipped: {} samples at or beyond full scale (peak {:.4g} on "
+                    "channel {} at {:.4f} s)",
+                    wav, clipped, std::abs(x(c, t)), c, t / clip.sample_rate_hz));
   }
   for (int c = 0; c < x.rows(); ++c) {
     if (x.row(c).cwiseAbs().maxCoeff() == 0.0f) {
@@ -177,29 +179,28 @@ ImportReport ImportCaptures(const std::string& in_dir, const std::string& out_pa
   size_t next = 0;
   tbb::task_arena arena(settings.threads > 0 ? settings.threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    tbb::parallel_pipeline(
-        static_cast<size_t>(2 * arena.max_concurrency()),
-        tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
-                                       [&](tbb::flow_control& fc) -> size_t {
-                                         if (next == entries.size()) fc.stop();
-                                         return next++;
-                                       }) &
-            tbb::make_filter<size_t, std::shared_ptr<std::pair<size_t, Loaded>>>(
-                tbb::filter_mode::parallel,
-                [&](size_t i) {
-                  return std::make_shared<std::pair<size_t, Loaded>>(
-                      i, LoadOne(entries[i], settings, *writer));
-                }) &
-            tbb::make_filter<std::shared_ptr<std::pair<size_t, Loaded>>, void>(
-                tbb::filter_mode::serial_in_order, [&](const auto& item) {
-                  const auto& [i, loaded] = *item;
-                  if (!loaded.sample) {
-                    report.bad.push_back({entries[i].file, loaded.reason});
-                  } else if (report.bad.empty() || settings.skip_bad) {
-                    writer->AppendEncoded(*loaded.sample);
-                    ++report.imported;
-                  }
-                }));
+    tbb::parallel_pipeline(static_cast<size_t>(2 * arena.max_concurrency()),
+                           tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
+                                                          [&](tbb::flow_control& fc) -> size_t {
+                                                            if (next == entries.size()) fc.stop();
+                                                            return next++;
+                                                          }) &
+                               tbb::make_filter<size_t, std::shared_ptr<std::pair<size_t, Loaded>>>(
+                                   tbb::filter_mode::parallel,
+                                   [&](size_t i) {
+                                     return std::make_shared<std::pair<size_t, Loaded>>(
+                                         i, LoadOne(entries[i], settings, *writer));
+                                   }) &
+                               tbb::make_filter<std::shared_ptr<std::pair<size_t, Loaded>>, void>(
+                                   tbb::filter_mode::serial_in_order, [&](const auto& item) {
+                                     const auto& [i, loaded] = *item;
+                                     if (!loaded.sample) {
+                                       report.bad.push_back({entries[i].file, loaded.reason});
+                                     } else if (report.bad.empty() || settings.skip_bad) {
+                                       writer->AppendEncoded(*loaded.sample);
+                                       ++report.imported;
+                                     }
+                                   }));
   });
 
   // All or nothing without --skip-bad; nothing at all is an error either way.
@@ -213,9 +214,10 @@ ImportReport ImportCaptures(const std::string& in_dir, const std::string& out_pa
     discard();
     std::string list;
     for (const BadCapture& b : report.bad) list += "\n  " + b.reason;
-    throw IoError(fmt::format("{}: {} of {} captures are bad, nothing written (--skip-bad "
-                              "imports the rest):{}",
-                              in_dir, report.bad.size(), entries.size(), list));
+    throw IoError(
+        fmt::format("{}: {} of {} captures are bad, nothing written (--skip-bad "
+                    "imports the rest):{}",
+                    in_dir, report.bad.size(), entries.size(), list));
   }
   if (report.imported == 0) {
     discard();

@@ -90,7 +90,8 @@ double HalfToDouble(uint16_t h) {
   if (exponent == 0) {
     v = std::ldexp(mantissa, -24);
   } else if (exponent == 31) {
-    v = mantissa ? std::numeric_limits<double>::quiet_NaN() : std::numeric_limits<double>::infinity();
+    v = mantissa ? std::numeric_limits<double>::quiet_NaN()
+                 : std::numeric_limits<double>::infinity();
   } else {
     v = std::ldexp(mantissa + 1024, exponent - 25);
   }
@@ -161,16 +162,19 @@ NpyArray ReadNpy(const std::string& path) {
   array.dtype = descr.substr(1, descr.size() - 2);
   const std::string& t = array.dtype;
   if (t.find('O') != std::string::npos) {
-    throw IoError(fmt::format("{}: .npy holds Python objects (dtype '{}'); pickled arrays are "
-                              "refused, save a numeric array instead",
-                              path, t));
+    throw IoError(
+        fmt::format("{}: .npy holds Python objects (dtype '{}'); pickled arrays are "
+                    "refused, save a numeric array instead",
+                    path, t));
   }
-  const bool order_given = t.size() == 3 && (t[0] == '<' || t[0] == '>' || t[0] == '|' || t[0] == '=');
+  const bool order_given =
+      t.size() == 3 && (t[0] == '<' || t[0] == '>' || t[0] == '|' || t[0] == '=');
   const char kind = order_given ? t[1] : ' ';
   const int size = order_given ? t[2] - '0' : 0;
-  const bool kind_ok = (kind == 'f' && (size == 2 || size == 4 || size == 8)) ||
-                       ((kind == 'i' || kind == 'u') && (size == 1 || size == 2 || size == 4 || size == 8)) ||
-                       (kind == 'b' && size == 1);
+  const bool kind_ok =
+      (kind == 'f' && (size == 2 || size == 4 || size == 8)) ||
+      ((kind == 'i' || kind == 'u') && (size == 1 || size == 2 || size == 4 || size == 8)) ||
+      (kind == 'b' && size == 1);
   if (!kind_ok) {
     throw IoError(fmt::format("{}: .npy dtype '{}' is not bool, an integer or a float", path, t));
   }
@@ -223,7 +227,8 @@ void WriteNpy(const std::string& path, const std::vector<int64_t>& shape,
   int64_t count = 1;
   for (int64_t d : shape) count *= d;
   if (static_cast<int64_t>(data.size()) != count) {
-    throw IoError(fmt::format("{}: {} values for a shape of {} elements", path, data.size(), count));
+    throw IoError(
+        fmt::format("{}: {} values for a shape of {} elements", path, data.size(), count));
   }
   std::string dims;
   for (int64_t d : shape) dims += fmt::format("{}, ", d);

@@ -22,8 +22,8 @@ namespace {
 struct Builder {
   std::string path;
   double scale;
-  std::vector<float> v;   // x y z ...
-  std::vector<int> f;     // a b c ...
+  std::vector<float> v;  // x y z ...
+  std::vector<int> f;    // a b c ...
   void Vertex(double x, double y, double z, const std::string& where) {
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
       throw IoError(fmt::format("{}: a coordinate is not finite", where));
@@ -34,9 +34,11 @@ struct Builder {
   void Polygon(const std::vector<long>& idx, const std::string& where) {
     const long n = static_cast<long>(v.size() / 3);
     for (long i : idx) {
-      if (i < 0 || i >= n) throw IoError(fmt::format("{}: vertex index {} is out of range (0-{})", where, i, n - 1));
+      if (i < 0 || i >= n)
+        throw IoError(fmt::format("{}: vertex index {} is out of range (0-{})", where, i, n - 1));
     }
-    for (size_t k = 2; k < idx.size(); ++k) f.insert(f.end(), {int(idx[0]), int(idx[k - 1]), int(idx[k])});
+    for (size_t k = 2; k < idx.size(); ++k)
+      f.insert(f.end(), {int(idx[0]), int(idx[k - 1]), int(idx[k])});
   }
   ObjectGeometry Done() const {
     if (v.empty()) throw IoError(fmt::format("{}: no vertices", path));
@@ -108,7 +110,8 @@ ObjectGeometry ReadStl(Builder b, const std::string& bytes) {
       return b.Done();
     }
   }
-  if (bytes.rfind("solid", 0) != 0) throw IoError(fmt::format("{}: neither binary nor ASCII STL", b.path));
+  if (bytes.rfind("solid", 0) != 0)
+    throw IoError(fmt::format("{}: neither binary nor ASCII STL", b.path));
   std::istringstream in(bytes);
   std::string line;
   std::vector<long> facet;
@@ -118,7 +121,8 @@ ObjectGeometry ReadStl(Builder b, const std::string& bytes) {
     cells >> tag;
     if (tag == "vertex") {
       double x, y, z;
-      if (!(cells >> x >> y >> z)) throw IoError(fmt::format("{}:{}: expected vertex x y z", b.path, no));
+      if (!(cells >> x >> y >> z))
+        throw IoError(fmt::format("{}:{}: expected vertex x y z", b.path, no));
       b.Vertex(x, y, z, fmt::format("{}:{}", b.path, no));
       facet.push_back(long(b.v.size() / 3) - 1);
     } else if (tag == "endfacet") {
@@ -132,10 +136,13 @@ ObjectGeometry ReadStl(Builder b, const std::string& bytes) {
 // PLY: vertex x y z (any scalar type, other properties skipped), optional face lists.
 ObjectGeometry ReadPly(Builder b, const std::string& bytes) {
   const size_t end = bytes.find("end_header");
-  if (bytes.rfind("ply", 0) != 0 || end == std::string::npos) throw IoError(fmt::format("{}: not a PLY file", b.path));
+  if (bytes.rfind("ply", 0) != 0 || end == std::string::npos)
+    throw IoError(fmt::format("{}: not a PLY file", b.path));
   std::istringstream header(bytes.substr(0, end));
   std::string line, format, element;
-  struct Property { std::string name, type, count_type; };
+  struct Property {
+    std::string name, type, count_type;
+  };
   std::vector<Property> vertex_props, face_props;
   long vertices = 0, faces = 0;
   while (std::getline(header, line)) {
@@ -147,7 +154,8 @@ ObjectGeometry ReadPly(Builder b, const std::string& bytes) {
       long n;
       cells >> element >> n;
       (element == "vertex" ? vertices : element == "face" ? faces : n) = n;
-      if (element != "vertex" && element != "face") throw IoError(fmt::format("{}: element '{}' is not supported", b.path, element));
+      if (element != "vertex" && element != "face")
+        throw IoError(fmt::format("{}: element '{}' is not supported", b.path, element));
     }
     if (tag == "property") {
       Property p;
@@ -158,7 +166,8 @@ ObjectGeometry ReadPly(Builder b, const std::string& bytes) {
     }
   }
   if (format != "ascii" && format != "binary_little_endian") {
-    throw IoError(fmt::format("{}: PLY format '{}' is not ascii or binary_little_endian", b.path, format));
+    throw IoError(
+        fmt::format("{}: PLY format '{}' is not ascii or binary_little_endian", b.path, format));
   }
   size_t at = bytes.find('\n', end) + 1;
   std::istringstream text(format == "ascii" ? bytes.substr(at) : std::string());
@@ -170,15 +179,35 @@ ObjectGeometry ReadPly(Builder b, const std::string& bytes) {
       return x;
     }
     const int size = (type == "double" || type == "float64") ? 8
-                   : (type == "float" || type == "float32" || type == "int" || type == "int32" || type == "uint" || type == "uint32") ? 4
-                   : (type == "short" || type == "int16" || type == "ushort" || type == "uint16") ? 2 : 1;
+                     : (type == "float" || type == "float32" || type == "int" || type == "int32" ||
+                        type == "uint" || type == "uint32")
+                         ? 4
+                     : (type == "short" || type == "int16" || type == "ushort" || type == "uint16")
+                         ? 2
+                         : 1;
     if (at + size > bytes.size()) throw IoError(fmt::format("{}: truncated PLY body", b.path));
     const char* p = bytes.data() + at;
     at += size;
-    if (type == "double" || type == "float64") { double d; std::memcpy(&d, p, 8); return d; }
-    if (type == "float" || type == "float32") { float x; std::memcpy(&x, p, 4); return x; }
-    if (size == 4) { int32_t i; std::memcpy(&i, p, 4); return type[0] == 'u' ? double(uint32_t(i)) : double(i); }
-    if (size == 2) { int16_t i; std::memcpy(&i, p, 2); return type[0] == 'u' ? double(uint16_t(i)) : double(i); }
+    if (type == "double" || type == "float64") {
+      double d;
+      std::memcpy(&d, p, 8);
+      return d;
+    }
+    if (type == "float" || type == "float32") {
+      float x;
+      std::memcpy(&x, p, 4);
+      return x;
+    }
+    if (size == 4) {
+      int32_t i;
+      std::memcpy(&i, p, 4);
+      return type[0] == 'u' ? double(uint32_t(i)) : double(i);
+    }
+    if (size == 2) {
+      int16_t i;
+      std::memcpy(&i, p, 2);
+      return type[0] == 'u' ? double(uint16_t(i)) : double(i);
+    }
     return type == "char" || type == "int8" ? double(int8_t(*p)) : double(uint8_t(*p));
   };
   for (long i = 0; i < vertices; ++i) {
@@ -193,11 +222,15 @@ ObjectGeometry ReadPly(Builder b, const std::string& bytes) {
   }
   for (long i = 0; i < faces; ++i) {
     for (const Property& p : face_props) {
-      if (p.count_type.empty()) { scalar(p.type); continue; }
+      if (p.count_type.empty()) {
+        scalar(p.type);
+        continue;
+      }
       const long n = long(scalar(p.count_type));
       std::vector<long> idx;
       for (long k = 0; k < n; ++k) idx.push_back(long(scalar(p.type)));
-      if (p.name == "vertex_indices" || p.name == "vertex_index") b.Polygon(idx, fmt::format("{}: face {}", b.path, i));
+      if (p.name == "vertex_indices" || p.name == "vertex_index")
+        b.Polygon(idx, fmt::format("{}: face {}", b.path, i));
     }
   }
   return b.Done();
@@ -216,7 +249,8 @@ void AppendCylinder(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double
   for (const Eigen::Vector3d& end : {p0, p1}) {
     for (int k = 0; k < sides; ++k) {
       const double t = 2 * std::numbers::pi * k / sides;
-      mesh->vertices.col(at++) = (end + radius_m * (std::cos(t) * a + std::sin(t) * b)).cast<float>();
+      mesh->vertices.col(at++) =
+          (end + radius_m * (std::cos(t) * a + std::sin(t) * b)).cast<float>();
     }
     mesh->vertices.col(at++) = end.cast<float>();  // cap centre
   }
@@ -260,7 +294,8 @@ void WriteObjectPly(const std::string& path, const ObjectGeometry& object) {
 }
 
 ObjectGeometry ReadObjectGeometry(const std::string& path, double scale) {
-  if (!(scale > 0.0) || !std::isfinite(scale)) throw ConfigError(fmt::format("object scale {} must be positive", scale));
+  if (!(scale > 0.0) || !std::isfinite(scale))
+    throw ConfigError(fmt::format("object scale {} must be positive", scale));
   const std::string bytes = ReadAll(path);
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(c));

@@ -1,19 +1,19 @@
 // The published trial layout: trial{N}/mic2.wav, gt_label.npy, x_t.npy, xdot_t.npy, q_t.npy.
 #include <algorithm>
-#include <cmath>
 #include <array>
+#include <cmath>
 #include <filesystem>
 #include <optional>
 
 #include <fmt/format.h>
 
+#include "internal/import_common.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/hardware/geometry.h"
 #include "sonicboom/hardware/import.h"
 #include "sonicboom/hardware/npy.h"
-#include "internal/import_common.h"
 
 namespace fs = std::filesystem;
 
@@ -54,9 +54,10 @@ Eigen::MatrixXf TrialProprio(const fs::path& dir, const ImportSettings& s) {
   std::optional<NpyArray> q;
   if (x.cols() == 3) {
     if (!fs::exists(dir / "q_t.npy") || !s.tube_pose_from_joints) {
-      throw IoError(fmt::format("{}: x_t.npy has no orientation (3 columns) and there is no "
-                                "q_t.npy to compute it",
-                                dir.string()));
+      throw IoError(
+          fmt::format("{}: x_t.npy has no orientation (3 columns) and there is no "
+                      "q_t.npy to compute it",
+                      dir.string()));
     }
     q = ReadTable(dir / "q_t.npy", k, {7});
   }
@@ -84,7 +85,8 @@ Eigen::MatrixXf TrialProprio(const fs::path& dir, const ImportSettings& s) {
 void LabelFromGeometry(const fs::path& dir, const ImportSettings& s, StrikeSample* sample) {
   const fs::path q_file = dir / "q_t.npy";
   if (!fs::exists(q_file) || !s.tube_pose_from_joints) {
-    throw IoError(fmt::format("{}: missing; labels from geometry need the joint log", q_file.string()));
+    throw IoError(
+        fmt::format("{}: missing; labels from geometry need the joint log", q_file.string()));
   }
   const NpyArray q = ReadTable(q_file, 1, {7});
   std::vector<Eigen::Isometry3d> poses;
@@ -112,11 +114,11 @@ StrikeSample LoadTrial(const fs::path& dir, const ImportSettings& s) {
                               label.data.size()));
   }
   if (std::abs(label.data[1]) > kPi + 1e-6) {
-    throw IoError(fmt::format("{}: angle {} rad is outside [-pi, pi]", label_file.string(),
-                              label.data[1]));
+    throw IoError(
+        fmt::format("{}: angle {} rad is outside [-pi, pi]", label_file.string(), label.data[1]));
   }
-  internal::SetLabel(label.data[0], TubeAngleFrom(label.data[1], s.angle), s,
-                     label_file.string(), &sample);
+  internal::SetLabel(label.data[0], TubeAngleFrom(label.data[1], s.angle), s, label_file.string(),
+                     &sample);
   return sample;
 }
 

@@ -11,7 +11,8 @@ namespace sonicboom::hardware {
 
 void TriggerConfig::Validate() const {
   auto positive = [](double v, const char* key) {
-    if (!(v > 0.0) || !std::isfinite(v)) throw ConfigError(fmt::format("trigger {} = {} must be positive", key, v));
+    if (!(v > 0.0) || !std::isfinite(v))
+      throw ConfigError(fmt::format("trigger {} = {} must be positive", key, v));
   };
   positive(sample_rate_hz, "sample_rate_hz");
   positive(channels, "channels");
@@ -19,14 +20,17 @@ void TriggerConfig::Validate() const {
   positive(static_cast<double>(frame), "frame");
   positive(floor_time_s, "floor_time_s");
   if (pre_trigger_frames < 0 || pre_trigger_frames + frame > record_frames) {
-    throw ConfigError(fmt::format("trigger pre_trigger_frames = {} must lie in [0, record_frames - "
-                                  "frame] = [0, {}] (audio.onset_time_s against "
-                                  "audio.record_duration_s)",
-                                  pre_trigger_frames, record_frames - frame));
+    throw ConfigError(
+        fmt::format("trigger pre_trigger_frames = {} must lie in [0, record_frames - "
+                    "frame] = [0, {}] (audio.onset_time_s against "
+                    "audio.record_duration_s)",
+                    pre_trigger_frames, record_frames - frame));
   }
   if (!std::isfinite(threshold_db) || !(min_rms >= 0.0)) {
-    throw ConfigError(fmt::format("trigger threshold_db = {} and min_rms = {} must be finite, "
-                                  "min_rms >= 0", threshold_db, min_rms));
+    throw ConfigError(
+        fmt::format("trigger threshold_db = {} and min_rms = {} must be finite, "
+                    "min_rms >= 0",
+                    threshold_db, min_rms));
   }
 }
 
@@ -37,7 +41,8 @@ OnsetTrigger::OnsetTrigger(const TriggerConfig& config) : config_(config) {
 
 void OnsetTrigger::Push(const Eigen::MatrixXf& block, std::vector<TriggeredRecord>* out) {
   if (block.rows() != config_.channels) {
-    throw IoError(fmt::format("trigger: a block of {} channels, expected {}", block.rows(), config_.channels));
+    throw IoError(fmt::format("trigger: a block of {} channels, expected {}", block.rows(),
+                              config_.channels));
   }
   const auto now = std::chrono::steady_clock::now();
   const int64_t old = buffer_.cols();
@@ -46,7 +51,8 @@ void OnsetTrigger::Push(const Eigen::MatrixXf& block, std::vector<TriggeredRecor
   // find onsets and emit the records that are complete, then forget what no record needs
   for (;;) {
     Scan(now);
-    if (onset_ < 0 || frames_seen() < onset_ - config_.pre_trigger_frames + config_.record_frames) break;
+    if (onset_ < 0 || frames_seen() < onset_ - config_.pre_trigger_frames + config_.record_frames)
+      break;
     Emit(out, /*pad=*/false);
   }
   Trim();
@@ -57,7 +63,8 @@ void OnsetTrigger::Flush(std::vector<TriggeredRecord>* out) {
 }
 
 void OnsetTrigger::Scan(std::chrono::steady_clock::time_point now) {
-  const double alpha = std::min(1.0, config_.frame / (config_.floor_time_s * config_.sample_rate_hz));
+  const double alpha =
+      std::min(1.0, config_.frame / (config_.floor_time_s * config_.sample_rate_hz));
   const double factor = std::pow(10.0, config_.threshold_db / 10.0);
   const double min_ms = config_.min_rms * config_.min_rms;
   while (onset_ < 0 && scanned_ + config_.frame <= frames_seen()) {

@@ -15,9 +15,12 @@ namespace {
 class WavSource final : public AudioSource {
  public:
   WavSource(const std::string& path, bool realtime)
-      : path_(path), clip_(ReadWav(path)), realtime_(realtime),
+      : path_(path),
+        clip_(ReadWav(path)),
+        realtime_(realtime),
         start_(std::chrono::steady_clock::now()) {
-    if (!clip_.samples.allFinite()) throw IoError(fmt::format("{}: holds non-finite samples", path));
+    if (!clip_.samples.allFinite())
+      throw IoError(fmt::format("{}: holds non-finite samples", path));
   }
   int channels() const override { return clip_.channels(); }
   double sample_rate_hz() const override { return clip_.sample_rate_hz; }
@@ -31,7 +34,8 @@ class WavSource final : public AudioSource {
     // a device hands over frames no faster than they are sampled
     if (realtime_) {
       const auto due = start_ + std::chrono::duration<double>(next_ / clip_.sample_rate_hz);
-      std::this_thread::sleep_until(std::chrono::time_point_cast<std::chrono::steady_clock::duration>(due));
+      std::this_thread::sleep_until(
+          std::chrono::time_point_cast<std::chrono::steady_clock::duration>(due));
     }
     return n;
   }

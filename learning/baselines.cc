@@ -1,10 +1,10 @@
 #include "sonicboom/learning/baselines.h"
 
-#include <Eigen/Core>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+#include <Eigen/Core>
 
 #include <algorithm>
 #include <cmath>
@@ -24,8 +24,8 @@ void KnnConfig::Validate() const {
   if (k < 1) fail("k", fmt::format("must be >= 1, got {}", k));
   if (crop_frames < 1) fail("crop_frames", fmt::format("must be >= 1, got {}", crop_frames));
   if (pooled_frames < 1 || pooled_frames > crop_frames) {
-    fail("pooled_frames", fmt::format("must be in [1, crop_frames = {}], got {}", crop_frames,
-                                      pooled_frames));
+    fail("pooled_frames",
+         fmt::format("must be in [1, crop_frames = {}], got {}", crop_frames, pooled_frames));
   }
   if (!(log_floor > 0.0)) fail("log_floor", fmt::format("must be > 0, got {}", log_floor));
   if (gcc_lags < 0) fail("gcc_lags", fmt::format("must be >= 0, got {}", gcc_lags));
@@ -38,8 +38,8 @@ void KnnConfig::Validate() const {
 double CircularMean(const std::vector<double>& theta_rad, const std::vector<double>& weights,
                     double fallback) {
   if (theta_rad.size() != weights.size()) {
-    throw SchemaError(fmt::format("CircularMean: {} angles with {} weights", theta_rad.size(),
-                                  weights.size()));
+    throw SchemaError(
+        fmt::format("CircularMean: {} angles with {} weights", theta_rad.size(), weights.size()));
   }
   double c = 0.0, s = 0.0, total = 0.0;
   for (size_t i = 0; i < theta_rad.size(); ++i) {
@@ -55,8 +55,8 @@ double CircularMean(const std::vector<double>& theta_rad, const std::vector<doub
 Prediction ConstantPrediction(const std::vector<double>& z_m,
                               const std::vector<double>& theta_rad) {
   if (z_m.size() != theta_rad.size()) {
-    throw SchemaError(fmt::format("constant baseline: {} heights for {} angles", z_m.size(),
-                                  theta_rad.size()));
+    throw SchemaError(
+        fmt::format("constant baseline: {} heights for {} angles", z_m.size(), theta_rad.size()));
   }
   double z_sum = 0.0;
   std::vector<double> angles;
@@ -90,29 +90,28 @@ constexpr double kExactDistance = 1e-6;
 
 struct KnnBaseline::Impl {
   KnnConfig config;
-  FeatureSet shapes;                 // shapes of the training set (no rows)
+  FeatureSet shapes;  // shapes of the training set (no rows)
   int64_t crop_start{0};
   int64_t mel_dims{0};
   int64_t gcc_dims{0};
-  Eigen::RowVectorXd mean;           // (D) training mean
-  Eigen::RowVectorXd scale;          // (D) 1 / (std) times the block weight
-  RowMatrix train;                   // (N x D) standardized training rows
-  Eigen::VectorXd train_norm2;       // (N) squared norms
+  Eigen::RowVectorXd mean;      // (D) training mean
+  Eigen::RowVectorXd scale;     // (D) 1 / (std) times the block weight
+  RowMatrix train;              // (N x D) standardized training rows
+  Eigen::VectorXd train_norm2;  // (N) squared norms
   std::vector<double> z_m, theta_rad;
 
   // Checks that `f` can be embedded with this config.
   void CheckShapes(const FeatureSet& f, const char* what) const {
     const int64_t n = f.size();
     if (static_cast<int64_t>(f.theta_rad.size()) != n) {
-      throw SchemaError(fmt::format("kNN {}: {} heights for {} angles", what, n,
-                                    f.theta_rad.size()));
+      throw SchemaError(
+          fmt::format("kNN {}: {} heights for {} angles", what, n, f.theta_rad.size()));
     }
     if (static_cast<int64_t>(f.mel.size()) != n * f.channels * f.mels * f.frames) {
-      throw SchemaError(fmt::format("kNN {}: mel holds {} values, expected {} x {} x {} x {}",
-                                    what, f.mel.size(), n, f.channels, f.mels, f.frames));
+      throw SchemaError(fmt::format("kNN {}: mel holds {} values, expected {} x {} x {} x {}", what,
+                                    f.mel.size(), n, f.channels, f.mels, f.frames));
     }
-    if (config.gcc_lags > 0 &&
-        static_cast<int64_t>(f.gcc.size()) != n * f.gcc_pairs * f.gcc_lags) {
+    if (config.gcc_lags > 0 && static_cast<int64_t>(f.gcc.size()) != n * f.gcc_pairs * f.gcc_lags) {
       throw SchemaError(fmt::format("kNN {}: gcc holds {} values, expected {} x {} x {}", what,
                                     f.gcc.size(), n, f.gcc_pairs, f.gcc_lags));
     }
@@ -157,9 +156,7 @@ struct KnnBaseline::Impl {
     return x;
   }
 
-  int Threads() const {
-    return config.threads > 0 ? config.threads : tbb::task_arena::automatic;
-  }
+  int Threads() const { return config.threads > 0 ? config.threads : tbb::task_arena::automatic; }
 };
 
 KnnBaseline::KnnBaseline(const FeatureSet& train, const KnnConfig& config)
@@ -203,9 +200,9 @@ KnnBaseline::KnnBaseline(const FeatureSet& train, const KnnConfig& config)
   const Eigen::RowVectorXd stdev = (m.train.colwise().squaredNorm() / n).cwiseSqrt();
   m.scale.resize(m.mel_dims + m.gcc_dims);
   for (int64_t d = 0; d < m.scale.size(); ++d) {
-    const double block =
-        d < m.mel_dims ? 1.0 / std::sqrt(static_cast<double>(m.mel_dims))
-                       : std::sqrt(config.gcc_weight / static_cast<double>(m.gcc_dims));
+    const double block = d < m.mel_dims
+                             ? 1.0 / std::sqrt(static_cast<double>(m.mel_dims))
+                             : std::sqrt(config.gcc_weight / static_cast<double>(m.gcc_dims));
     m.scale[d] = (stdev[d] > 1e-12 ? 1.0 / stdev[d] : 1.0) * block;
   }
   m.train.array().rowwise() *= m.scale.array();
@@ -216,8 +213,12 @@ KnnBaseline::~KnnBaseline() = default;
 KnnBaseline::KnnBaseline(KnnBaseline&&) noexcept = default;
 KnnBaseline& KnnBaseline::operator=(KnnBaseline&&) noexcept = default;
 
-int64_t KnnBaseline::dimensions() const { return impl_->mel_dims + impl_->gcc_dims; }
-int64_t KnnBaseline::size() const { return static_cast<int64_t>(impl_->z_m.size()); }
+int64_t KnnBaseline::dimensions() const {
+  return impl_->mel_dims + impl_->gcc_dims;
+}
+int64_t KnnBaseline::size() const {
+  return static_cast<int64_t>(impl_->z_m.size());
+}
 
 std::vector<Prediction> KnnBaseline::Predict(const FeatureSet& test) const {
   const Impl& m = *impl_;
@@ -258,10 +259,9 @@ std::vector<Prediction> KnnBaseline::Predict(const FeatureSet& test) const {
         const double* row = d2.row(i).data();
         // k nearest, ties to the lower training row
         std::iota(order.begin(), order.end(), 0);
-        std::partial_sort(order.begin(), order.begin() + k, order.end(),
-                          [row](int64_t a, int64_t b) {
-                            return row[a] < row[b] || (row[a] == row[b] && a < b);
-                          });
+        std::partial_sort(
+            order.begin(), order.begin() + k, order.end(),
+            [row](int64_t a, int64_t b) { return row[a] < row[b] || (row[a] == row[b] && a < b); });
         std::vector<double> dist(static_cast<size_t>(k));
         for (int64_t j = 0; j < k; ++j) dist[j] = std::sqrt(std::max(row[order[j]], 0.0));
         // weights 1/d; exact matches (d ~ 0) take all the weight, equally

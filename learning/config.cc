@@ -22,7 +22,9 @@ const std::vector<std::string> kModalities = {"audio", "gcc", "proprio"};
 const std::vector<std::string> kGccEncoders = {"mlp", "conv"};
 
 // Bounds of an integer that must be at least 1.
-Bounds AtLeastOne() { return Bounds::Closed(1.0, std::numeric_limits<double>::infinity()); }
+Bounds AtLeastOne() {
+  return Bounds::Closed(1.0, std::numeric_limits<double>::infinity());
+}
 
 [[noreturn]] void Reject(const std::string& key, const std::string& shown, const std::string& why) {
   throw ConfigError(fmt::format("config key '{}' = {}: {}", key, shown, why));
@@ -75,9 +77,9 @@ void ModelConfig::Validate() const {
   std::set<std::string> seen;
   for (const std::string& m : modalities) {
     if (std::find(kModalities.begin(), kModalities.end(), m) == kModalities.end()) {
-      Reject("model.modalities", fmt::format("[{}]", fmt::join(modalities, ", ")),
-             fmt::format("unknown modality '{}' (choose from {})", m,
-                         fmt::join(kModalities, ", ")));
+      Reject(
+          "model.modalities", fmt::format("[{}]", fmt::join(modalities, ", ")),
+          fmt::format("unknown modality '{}' (choose from {})", m, fmt::join(kModalities, ", ")));
     }
     if (!seen.insert(m).second) {
       Reject("model.modalities", fmt::format("[{}]", fmt::join(modalities, ", ")),
@@ -132,9 +134,9 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
                        double surface_radius_m) {
   if (static_cast<int64_t>(predictions.size()) != truth.size() ||
       truth.theta_rad.size() != truth.z_m.size()) {
-    throw SchemaError(fmt::format(
-        "ComputeMetrics: {} predictions for {} heights and {} angles of ground truth",
-        predictions.size(), truth.z_m.size(), truth.theta_rad.size()));
+    throw SchemaError(
+        fmt::format("ComputeMetrics: {} predictions for {} heights and {} angles of ground truth",
+                    predictions.size(), truth.z_m.size(), truth.theta_rad.size()));
   }
   // The published code's cylinder radius (metres), combined with heights in cm.
   constexpr double kReferenceRadius = 0.06;
@@ -177,8 +179,8 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
       theta_in_50 += inside <= 0.5;
       theta_in_90 += inside <= 0.9;
       // z in cm, theta in rad
-      sum_nll += internal::GaussianNll(100.0 * dz, 100.0 * z_std) +
-                 internal::VonMisesNll(dtheta, kappa);
+      sum_nll +=
+          internal::GaussianNll(100.0 * dz, 100.0 * z_std) + internal::VonMisesNll(dtheta, kappa);
     }
   }
   Metrics metrics;

@@ -46,8 +46,8 @@ void RequireSize(const std::string& what, const char* array, size_t size, int64_
 
 void RequireEqual(const std::string& what, const char* field, int64_t expected, int64_t actual) {
   if (expected != actual) {
-    throw SchemaError(fmt::format("{}: {} = {}, but the model expects {}", what, field, actual,
-                                  expected));
+    throw SchemaError(
+        fmt::format("{}: {} = {}, but the model expects {}", what, field, actual, expected));
   }
 }
 
@@ -56,8 +56,8 @@ void RequireEqual(const std::string& what, const char* field, int64_t expected, 
 void CheckFeatureSet(const FeatureSet& f, const ModalitySet& use, const std::string& what) {
   const int64_t n = f.size();
   if (f.theta_rad.size() != f.z_m.size()) {
-    throw SchemaError(fmt::format("{}: {} heights but {} angles", what, f.z_m.size(),
-                                  f.theta_rad.size()));
+    throw SchemaError(
+        fmt::format("{}: {} heights but {} angles", what, f.z_m.size(), f.theta_rad.size()));
   }
   if (use.audio) {
     RequirePositive(what, "channels", f.channels);
@@ -218,8 +218,7 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
   return targets;
 }
 
-std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f,
-                                   int64_t crop_frames) {
+std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames) {
   network.eval();
   // inference mode: no autograd record and no version counters on the tensors made here
   c10::InferenceMode inference;
@@ -319,9 +318,12 @@ json ReadJsonFile(const std::string& path) {
 }
 
 json ShapesToJson(const FeatureSet& f) {
-  return json{{"channels", f.channels},         {"mels", f.mels},
-              {"frames", f.frames},             {"gcc_pairs", f.gcc_pairs},
-              {"gcc_lags", f.gcc_lags},         {"proprio_rows", f.proprio_rows},
+  return json{{"channels", f.channels},
+              {"mels", f.mels},
+              {"frames", f.frames},
+              {"gcc_pairs", f.gcc_pairs},
+              {"gcc_lags", f.gcc_lags},
+              {"proprio_rows", f.proprio_rows},
               {"proprio_features", f.proprio_features}};
 }
 
@@ -372,20 +374,20 @@ json ModelFileToJson(const ModelFile& file, const TrainConfig& train_config,
          {"val_metrics", MetricsToJson(val_metrics)},
          {"software", json{{"name", "sonicboom"}, {"libtorch", TORCH_VERSION}}}};
   if (file.has_calibration) {
-    j["uncertainty"] = json{
-        {"z_std_scale", file.calibration.z_std_scale},
-        {"kappa_scale", file.calibration.kappa_scale},
-        {"method", "scales minimizing the mean NLL of the validation split"},
-        {"records", file.uncalibrated_val_metrics.n},
-        {"uncalibrated_val_metrics", MetricsToJson(file.uncalibrated_val_metrics)}};
+    j["uncertainty"] =
+        json{{"z_std_scale", file.calibration.z_std_scale},
+             {"kappa_scale", file.calibration.kappa_scale},
+             {"method", "scales minimizing the mean NLL of the validation split"},
+             {"records", file.uncalibrated_val_metrics.n},
+             {"uncalibrated_val_metrics", MetricsToJson(file.uncalibrated_val_metrics)}};
   }
   return j;
 }
 
 ModelFile ModelFileFromJson(const json& j, const std::string& origin) {
   if (!j.is_object() || j.value("format", std::string()) != "sonicboom-model") {
-    throw SchemaError(fmt::format("{}: not a SonicBoom model file (format != sonicboom-model)",
-                                  origin));
+    throw SchemaError(
+        fmt::format("{}: not a SonicBoom model file (format != sonicboom-model)", origin));
   }
   if (!j.contains("version") || !j["version"].is_number_integer() || j["version"] != 1) {
     throw SchemaError(fmt::format("{}: unsupported model file version (expected 1)", origin));

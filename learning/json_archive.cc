@@ -44,7 +44,9 @@ void JsonWriteArchive::BeginGroup(std::string_view name) {
   json& group = (*stack_.back())[std::string(name)] = json::object();
   stack_.push_back(&group);
 }
-void JsonWriteArchive::EndGroup() { stack_.pop_back(); }
+void JsonWriteArchive::EndGroup() {
+  stack_.pop_back();
+}
 std::optional<size_t> JsonWriteArchive::BeginList(std::string_view name) {
   json& list = (*stack_.back())[std::string(name)] = json::array();
   stack_.push_back(&list);
@@ -54,8 +56,12 @@ void JsonWriteArchive::BeginItem(size_t) {
   stack_.back()->push_back(json::object());
   stack_.push_back(&stack_.back()->back());
 }
-void JsonWriteArchive::EndItem() { stack_.pop_back(); }
-void JsonWriteArchive::EndList() { stack_.pop_back(); }
+void JsonWriteArchive::EndItem() {
+  stack_.pop_back();
+}
+void JsonWriteArchive::EndList() {
+  stack_.pop_back();
+}
 
 JsonReadArchive::JsonReadArchive(const json& object, std::string origin)
     : origin_(std::move(origin)) {
@@ -83,8 +89,7 @@ const json& JsonReadArchive::Get(std::string_view name) {
   return *it;
 }
 
-void JsonReadArchive::CheckBounds(std::string_view name, double value,
-                                  const Bounds& bounds) const {
+void JsonReadArchive::CheckBounds(std::string_view name, double value, const Bounds& bounds) const {
   if (!bounds.Contains(value)) {
     Fail(name, fmt::format("= {} is outside {}", value, bounds.Describe()));
   }

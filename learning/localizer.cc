@@ -49,8 +49,7 @@ Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>(
   } catch (const c10::Error& e) {
     throw SchemaError(fmt::format("{}: unreadable: {}", weights_path, e.what_without_backtrace()));
   }
-  impl_->network =
-      internal::Network(config, internal::ShapesOf(shapes, config), uncertainty_head);
+  impl_->network = internal::Network(config, internal::ShapesOf(shapes, config), uncertainty_head);
   internal::LoadModuleChecked(*impl_->network, archive,
                               fmt::format("{} (with {})", weights_path, json_path));
   impl_->network->eval();
@@ -58,9 +57,10 @@ Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>(
     spdlog::info("{}: the model has no uncertainty head; predictions are point estimates only",
                  weights_path);
   } else if (!impl_->file.has_calibration) {
-    spdlog::warn("{}: no 'uncertainty' calibration (written before calibration existed); "
-                 "using the uncalibrated distribution (scales 1)",
-                 json_path);
+    spdlog::warn(
+        "{}: no 'uncertainty' calibration (written before calibration existed); "
+        "using the uncalibrated distribution (scales 1)",
+        json_path);
   }
 }
 
@@ -87,13 +87,21 @@ FeatureNeeds Localizer::needs() const {
   return FeatureNeeds{use.audio, use.gcc, use.proprio, CentreCropStart(frames, crop), crop};
 }
 
-bool Localizer::has_uncertainty() const { return impl_->network->has_uncertainty_head(); }
+bool Localizer::has_uncertainty() const {
+  return impl_->network->has_uncertainty_head();
+}
 
-const UncertaintyCalibration& Localizer::calibration() const { return impl_->file.calibration; }
+const UncertaintyCalibration& Localizer::calibration() const {
+  return impl_->file.calibration;
+}
 
-const ModelConfig& Localizer::model_config() const { return impl_->file.model_config; }
+const ModelConfig& Localizer::model_config() const {
+  return impl_->file.model_config;
+}
 
-double Localizer::surface_radius_m() const { return impl_->file.surface_radius_m; }
+double Localizer::surface_radius_m() const {
+  return impl_->file.surface_radius_m;
+}
 
 std::map<std::string, int64_t> Localizer::ParameterCounts() const {
   return internal::CountParametersOf(*impl_->network);

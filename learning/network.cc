@@ -15,8 +15,8 @@ namespace sonicboom::learning::internal {
 namespace nn = torch::nn;
 
 NetworkShapes ShapesOf(const FeatureSet& f, const ModelConfig& config) {
-  return NetworkShapes{f.channels, f.mels, config.crop_frames, f.gcc_pairs, f.gcc_lags,
-                       f.proprio_rows, f.proprio_features};
+  return NetworkShapes{f.channels, f.mels,         config.crop_frames, f.gcc_pairs,
+                       f.gcc_lags, f.proprio_rows, f.proprio_features};
 }
 
 ModalitySet SelectedModalities(const ModelConfig& config) {
@@ -158,17 +158,16 @@ AudioEncoderImpl::AudioEncoderImpl(const ModelConfig& config, const NetworkShape
   const int64_t w = config.width;
   if (config.audio_encoder == "compact") {
     compact_ = register_module("compact", CompactCnn(shapes.channels));
-    projection_ = register_module("projection",
-                                  nn::Sequential(nn::Linear(CompactCnnImpl::kFeatures, w)));
+    projection_ =
+        register_module("projection", nn::Sequential(nn::Linear(CompactCnnImpl::kFeatures, w)));
   } else {
     resnet_ = register_module(
         "resnet", ResNet(shapes.channels, config.audio_encoder == "resnet18" ? 18 : 50));
     // Projection MLP of the paper's model: features -> 4w -> w.
     projection_ = register_module(
-        "projection",
-        nn::Sequential(nn::Linear(resnet_->features(), 4 * w),
-                       nn::LayerNorm(nn::LayerNormOptions({4 * w})), nn::GELU(),
-                       nn::Dropout(config.dropout), nn::Linear(4 * w, w)));
+        "projection", nn::Sequential(nn::Linear(resnet_->features(), 4 * w),
+                                     nn::LayerNorm(nn::LayerNormOptions({4 * w})), nn::GELU(),
+                                     nn::Dropout(config.dropout), nn::Linear(4 * w, w)));
   }
 }
 
@@ -186,10 +185,10 @@ GccEncoderImpl::GccEncoderImpl(const ModelConfig& config, const NetworkShapes& s
     auto conv = [](int64_t from, int64_t to, int64_t stride) {
       return nn::Conv1d(nn::Conv1dOptions(from, to, 5).stride(stride).padding(2));
     };
-    convs_ = register_module(
-        "convs", nn::Sequential(conv(shapes.gcc_pairs, kChannels, 1), nn::GELU(),
-                                conv(kChannels, kChannels, 2), nn::GELU(),
-                                conv(kChannels, kChannels, 2), nn::GELU()));
+    convs_ =
+        register_module("convs", nn::Sequential(conv(shapes.gcc_pairs, kChannels, 1), nn::GELU(),
+                                                conv(kChannels, kChannels, 2), nn::GELU(),
+                                                conv(kChannels, kChannels, 2), nn::GELU()));
     int64_t lags = shapes.gcc_lags;
     for (int i = 0; i < 2; ++i) lags = (lags - 1) / 2 + 1;
     projection_ = register_module("projection", nn::Linear(kChannels * lags, w));
@@ -216,10 +215,10 @@ ProprioEncoderImpl::ProprioEncoderImpl(const ModelConfig& config, const NetworkS
   };
   const int64_t f = shapes.proprio_features;
   convs_ = register_module(
-      "convs", nn::Sequential(nn::BatchNorm1d(f), conv(f, 16), nn::BatchNorm1d(16), nn::ReLU(),
-                              nn::Dropout(config.dropout), conv(16, 32), nn::BatchNorm1d(32),
-                              nn::ReLU(), nn::Dropout(config.dropout), conv(32, 128),
-                              nn::BatchNorm1d(128), nn::ReLU()));
+      "convs",
+      nn::Sequential(nn::BatchNorm1d(f), conv(f, 16), nn::BatchNorm1d(16), nn::ReLU(),
+                     nn::Dropout(config.dropout), conv(16, 32), nn::BatchNorm1d(32), nn::ReLU(),
+                     nn::Dropout(config.dropout), conv(32, 128), nn::BatchNorm1d(128), nn::ReLU()));
   projection_ = register_module("projection", nn::Linear(128, config.width));
 }
 
@@ -300,9 +299,8 @@ NetworkImpl::NetworkImpl(const ModelConfig& config, const NetworkShapes& shapes,
   // Uncertainty head last: its random draws come after those of every other part.
   if (uncertainty_head) {
     uncertainty_head_ = register_module(
-        "uncertainty_head",
-        nn::Sequential(nn::LayerNorm(nn::LayerNormOptions({w})), nn::Linear(w, w), nn::GELU(),
-                       nn::Linear(w, 2)));
+        "uncertainty_head", nn::Sequential(nn::LayerNorm(nn::LayerNormOptions({w})),
+                                           nn::Linear(w, w), nn::GELU(), nn::Linear(w, 2)));
     for (const auto& module : uncertainty_head_->modules(/*include_self=*/false)) {
       if (auto* linear = module->as<nn::Linear>()) {
         nn::init::xavier_uniform_(linear->weight);
@@ -361,8 +359,7 @@ std::map<std::string, int64_t> CountParametersOf(const NetworkImpl& network) {
   for (const auto& item : network.named_parameters(/*recurse=*/true)) {
     const std::string& name = item.key();
     const std::string top = name.substr(0, name.find('.'));
-    const bool encoder =
-        top == "audio_encoder" || top == "gcc_encoder" || top == "proprio_encoder";
+    const bool encoder = top == "audio_encoder" || top == "gcc_encoder" || top == "proprio_encoder";
     counts[encoder ? top : "fusion"] += item.value().numel();
   }
   return counts;
@@ -372,8 +369,8 @@ std::map<std::string, int64_t> CountParametersOf(const NetworkImpl& network) {
 
 namespace sonicboom::learning {
 
-std::map<std::string, int64_t> CountParameters(const ModelConfig& config,
-                                               const FeatureSet& shapes, bool uncertainty_head) {
+std::map<std::string, int64_t> CountParameters(const ModelConfig& config, const FeatureSet& shapes,
+                                               bool uncertainty_head) {
   config.Validate();
   internal::Network network(config, internal::ShapesOf(shapes, config), uncertainty_head);
   return internal::CountParametersOf(*network);

@@ -377,14 +377,13 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
       internal::WriteFileAtomically(
           files.best_json, json{{"epoch", best_epoch}, {"val_loss", best_loss}}.dump() + "\n");
     }
-    internal::WriteFileAtomically(
-        files.checkpoint_json,
-        json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
+    internal::WriteFileAtomically(files.checkpoint_json,
+                                  json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
     SaveCheckpoint(*network, optimizer, epoch + 1, files.checkpoint_pt);
 
     if (show_progress) {
-      const double eta = seconds_sum / double(epoch + 1 - epochs_done) *
-                         double(train_config.epochs - epoch - 1);
+      const double eta =
+          seconds_sum / double(epoch + 1 - epochs_done) * double(train_config.epochs - epoch - 1);
       spdlog::info(
           "epoch {}/{}: train loss {:.4g}, val loss {:.4g}, val MED {:.3f} cm (height {:.3f} cm, "
           "angle {:.2f} deg), lr {:.3g}, {:.1f} s, ETA {}",
@@ -395,7 +394,8 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   // train.keep_best: the best epoch's weights are the model
   if (train_config.keep_best && best_epoch > 0) {
     LoadWeights(network.get(), files.best_pt);
-    if (show_progress) spdlog::info("keeping epoch {} (lowest validation loss {:.4g})", best_epoch, best_loss);
+    if (show_progress)
+      spdlog::info("keeping epoch {} (lowest validation loss {:.4g})", best_epoch, best_loss);
   }
   // Post-hoc calibration of the predictive distribution on the validation split: one scale
   // for sigma_z, one for kappa, each minimizing the mean validation NLL.

@@ -50,8 +50,12 @@ double BesselScaled(int nu, double x) {
 
 }  // namespace
 
-double BesselI0Scaled(double x) { return BesselScaled(0, x); }
-double BesselI1Scaled(double x) { return BesselScaled(1, x); }
+double BesselI0Scaled(double x) {
+  return BesselScaled(0, x);
+}
+double BesselI1Scaled(double x) {
+  return BesselScaled(1, x);
+}
 
 double VonMisesMeanResultant(double kappa) {
   if (std::isinf(kappa)) return 1.0;
@@ -84,8 +88,8 @@ double GaussianIntervalHalfWidth(double probability) {
   const double b = 2.0 / (std::numbers::pi * a) + 0.5 * l;
   double x = std::sqrt(std::sqrt(b * b - l / a) - b);
   for (int i = 0; i < 50; ++i) {
-    const double step = (std::erf(x) - probability) /
-                        (2.0 / std::sqrt(std::numbers::pi) * std::exp(-x * x));
+    const double step =
+        (std::erf(x) - probability) / (2.0 / std::sqrt(std::numbers::pi) * std::exp(-x * x));
     x -= step;
     if (std::abs(step) < 1e-15 * std::max(1.0, x)) break;
   }
@@ -145,9 +149,8 @@ double PeakSpan(double kappa) {
 double PeakIntegral(double kappa, double a) {
   if (a <= 0.0) return 0.0;
   const GaussLegendreRule& rule = Rule();
-  const double panel =
-      kappa > 0.0 ? std::min(std::numbers::pi / 4.0, 1.5 / std::sqrt(kappa))
-                  : std::numbers::pi / 4.0;
+  const double panel = kappa > 0.0 ? std::min(std::numbers::pi / 4.0, 1.5 / std::sqrt(kappa))
+                                   : std::numbers::pi / 4.0;
   const int panels = std::max(1, static_cast<int>(std::ceil(a / panel)));
   const double width = a / panels;
   double sum = 0.0;
@@ -180,10 +183,9 @@ double VonMisesIntervalHalfWidth(double kappa, double probability) {
   const double span = PeakSpan(kappa);
   const double target = probability * PeakIntegral(kappa, span);
   double lo = 0.0, hi = span;
-  double h = kappa > 0.0
-                 ? std::min(GaussianIntervalHalfWidth(probability) / std::sqrt(kappa),
-                            probability * span)
-                 : probability * span;
+  double h = kappa > 0.0 ? std::min(GaussianIntervalHalfWidth(probability) / std::sqrt(kappa),
+                                    probability * span)
+                         : probability * span;
   for (int iteration = 0; iteration < 200; ++iteration) {
     const double f = PeakIntegral(kappa, h) - target;
     (f > 0.0 ? hi : lo) = h;

@@ -89,15 +89,17 @@ IkState EvaluateIk(const JointVector& q, const Eigen::Isometry3d& target, double
   state.error.tail<3>() = rotation.angle() * rotation.axis();
   state.position_error_m = state.error.head<3>().norm();
   state.rotation_error_rad = std::abs(rotation.angle());
-  state.cost = state.position_error_m * state.position_error_m +
-               kRotationWeightM * kRotationWeightM * state.rotation_error_rad *
-                   state.rotation_error_rad;
+  state.cost =
+      state.position_error_m * state.position_error_m +
+      kRotationWeightM * kRotationWeightM * state.rotation_error_rad * state.rotation_error_rad;
   return state;
 }
 
 }  // namespace
 
-const std::array<DhRow, kPandaJoints + 1>& PandaDhRows() { return kPandaDh; }
+const std::array<DhRow, kPandaJoints + 1>& PandaDhRows() {
+  return kPandaDh;
+}
 
 JointVector PandaLowerLimits() {
   JointVector q;
@@ -138,15 +140,15 @@ Eigen::Matrix<double, 6, kPandaJoints> PandaTubeJacobian(const JointVector& q,
 IkResult PandaInverseKinematics(const Eigen::Isometry3d& target, const JointVector& q_seed,
                                 double tube_center_from_flange_m, double tol_m, double tol_rad,
                                 int max_iterations) {
-  constexpr double kMaxStepRad = 0.3;     // largest joint change per iteration
-  constexpr double kNullGain = 0.1;       // fraction of (q_seed - q) pulled per iteration
-  constexpr double kLambdaInit = 1e-3;    // damping, m^2 (J J^T eigenvalues are ~1e-2..1)
+  constexpr double kMaxStepRad = 0.3;   // largest joint change per iteration
+  constexpr double kNullGain = 0.1;     // fraction of (q_seed - q) pulled per iteration
+  constexpr double kLambdaInit = 1e-3;  // damping, m^2 (J J^T eigenvalues are ~1e-2..1)
   constexpr double kLambdaMin = 1e-12;
-  constexpr double kLambdaMax = 1e3;      // beyond this the steps are negligible: stalled
+  constexpr double kLambdaMax = 1e3;  // beyond this the steps are negligible: stalled
   constexpr double kLambdaDown = 0.2, kLambdaUp = 10.0;
-  constexpr double kLimitEps = 1e-12;     // rad: "on the limit"
-  constexpr double kStallRatio = 1e-6;    // relative error decrease below which a step stalls
-  constexpr int kStallSteps = 5;          // consecutive stalled steps that end the solve
+  constexpr double kLimitEps = 1e-12;   // rad: "on the limit"
+  constexpr double kStallRatio = 1e-6;  // relative error decrease below which a step stalls
+  constexpr int kStallSteps = 5;        // consecutive stalled steps that end the solve
 
   const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
   JointVector seed = q_seed;

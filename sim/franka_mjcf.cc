@@ -43,30 +43,37 @@ constexpr int kObjectOnlyMaxConstraints = 150;
 // Ixx, Iyy of link 1 are as published: joint 1 only ever sees its Izz.
 struct PandaLink {
   double mass_kg;
-  std::array<double, 3> com_m;              // link frame
-  std::array<double, 6> inertia_kg_m2;      // Ixx Iyy Izz Ixy Ixz Iyz (MJCF fullinertia order)
+  std::array<double, 3> com_m;          // link frame
+  std::array<double, 6> inertia_kg_m2;  // Ixx Iyy Izz Ixy Ixz Iyz (MJCF fullinertia order)
 };
 constexpr std::array<PandaLink, kPandaJoints> kPandaLinks = {{
-    {4.970684, {0.003875, 0.002081, -0.04762},
+    {4.970684,
+     {0.003875, 0.002081, -0.04762},
      {0.70337, 0.70661, 0.009117, -0.000139, 0.006772, 0.019169}},
-    {0.646926, {-0.003141, -0.02872, 0.003495},
+    {0.646926,
+     {-0.003141, -0.02872, 0.003495},
      {0.007962, 0.02811, 0.025995, -0.003925, 0.010254, 0.000704}},
-    {3.228604, {0.027518, 0.039252, -0.066502},
+    {3.228604,
+     {0.027518, 0.039252, -0.066502},
      {0.037242, 0.036155, 0.01083, -0.004761, -0.011396, -0.012805}},
-    {3.587895, {-0.05317, 0.104419, 0.027454},
+    {3.587895,
+     {-0.05317, 0.104419, 0.027454},
      {0.025853, 0.019552, 0.028323, 0.007796, -0.001332, 0.008641}},
-    {1.225946, {-0.011953, 0.041065, -0.038437},
+    {1.225946,
+     {-0.011953, 0.041065, -0.038437},
      {0.035549, 0.029474, 0.008627, -0.002117, -0.004037, 0.000229}},
-    {1.666555, {0.060149, -0.014117, -0.010517},
+    {1.666555,
+     {0.060149, -0.014117, -0.010517},
      {0.001964, 0.004354, 0.005433, 0.000109, -0.001158, 0.000341}},
-    {0.735522, {0.010517, -0.004252, 0.061597},
+    {0.735522,
+     {0.010517, -0.004252, 0.061597},
      {0.012516, 0.010027, 0.004815, -0.000428, -0.001196, -0.000741}},
 }};
 
 // Collision capsule in a link frame: segment end points (m) and radius (m). Sized by eye from the
 // arm's published outline (housings ~0.12 m across); they bound the links, they do not trace them.
 struct Capsule {
-  int link;                                 // 0 = base (world), 1..7 = panda_link1..7
+  int link;  // 0 = base (world), 1..7 = panda_link1..7
   std::array<double, 6> fromto_m;
   double radius_m;
 };
@@ -89,7 +96,9 @@ std::string Num(double value) {
   return fmt::format("{}", std::abs(value) < 1e-15 ? 0.0 : value);
 }
 
-std::string Indent(int depth) { return std::string(2 * static_cast<size_t>(depth), ' '); }
+std::string Indent(int depth) {
+  return std::string(2 * static_cast<size_t>(depth), ' ');
+}
 
 // Geom name of kCollisionCapsules[index]: panda_link<link>_collision<k>, k counting in its link
 std::string CapsuleName(size_t index) {
@@ -156,11 +165,10 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   // Euler: MuJoCo's Euler already integrates joint damping implicitly, and the motors add no
   // velocity-dependent force, so the "implicit" integrator would only cost more per step
   // "predefined": only the <pair>s below are tested, without the broad phase
-  xml += fmt::format(
-      "  <option timestep=\"{}\" gravity=\"0 0 {}\" integrator=\"Euler\"{}{}/>\n",
-      Num(options.timestep_s), Num(-kGravityMS2),
-      options.elliptic_friction_cones ? " cone=\"elliptic\"" : "",
-      options.object_contacts_only ? " collision=\"predefined\"" : "");
+  xml += fmt::format("  <option timestep=\"{}\" gravity=\"0 0 {}\" integrator=\"Euler\"{}{}/>\n",
+                     Num(options.timestep_s), Num(-kGravityMS2),
+                     options.elliptic_friction_cones ? " cone=\"elliptic\"" : "",
+                     options.object_contacts_only ? " collision=\"predefined\"" : "");
   // object-only detection bounds the contacts by the pairs (one each for capsules and cylinders),
   // so small constraint buffers do; the solver stack MuJoCo derives from them shrinks from ~10 MB
   // (njmax 500) to well under 1 MB, which mj_makeData no longer has to clear
@@ -238,9 +246,9 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
           "      <geom name=\"object{}_{}\" type=\"cylinder\" fromto=\"{} {} {} {} {} {}\" "
           "size=\"{}\" priority=\"1\" condim=\"3\" friction=\"{} {} {}\" solref=\"{} {}\" "
           "solimp=\"{}\" rgba=\"0.6 0.4 0.2 1\"/>\n",
-          i, k, Num(seg.p0.x()), Num(seg.p0.y()), Num(seg.p0.z()), Num(seg.p1.x()),
-          Num(seg.p1.y()), Num(seg.p1.z()), Num(seg.radius_m), Num(object.friction),
-          Num(kObjectTorsionalFriction), Num(kObjectRollingFriction), Num(object.contact_timeconst_s),
+          i, k, Num(seg.p0.x()), Num(seg.p0.y()), Num(seg.p0.z()), Num(seg.p1.x()), Num(seg.p1.y()),
+          Num(seg.p1.z()), Num(seg.radius_m), Num(object.friction), Num(kObjectTorsionalFriction),
+          Num(kObjectRollingFriction), Num(object.contact_timeconst_s),
           Num(object.contact_dampratio), kObjectSolimp);
     }
     xml += "    </body>\n";
@@ -251,7 +259,8 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   xml += "  <contact>\n";
   xml += "    <exclude body1=\"panda_link5\" body2=\"panda_link7\"/>\n";
   // object-only detection: each object geom against the tube and every arm capsule, with the
-  // parameters the object's priority gives these contacts (condim 3, friction slide slide spin roll roll)
+  // parameters the object's priority gives these contacts (condim 3, friction slide slide spin roll
+  // roll)
   if (options.object_contacts_only) {
     std::vector<std::string> arm_geoms = {"tube"};
     if (options.arm_object_pairs) {
@@ -265,8 +274,8 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
               "    <pair geom1=\"{}\" geom2=\"object{}_{}\" condim=\"3\" "
               "friction=\"{} {} {} {} {}\" solref=\"{} {}\" solimp=\"{}\" margin=\"0\" "
               "gap=\"0\"/>\n",
-              geom, i, k, Num(object.friction), Num(object.friction),
-              Num(kObjectTorsionalFriction), Num(kObjectRollingFriction), Num(kObjectRollingFriction),
+              geom, i, k, Num(object.friction), Num(object.friction), Num(kObjectTorsionalFriction),
+              Num(kObjectRollingFriction), Num(kObjectRollingFriction),
               Num(object.contact_timeconst_s), Num(object.contact_dampratio), kObjectSolimp);
         }
       }

@@ -21,8 +21,8 @@ using internal::DataPtr;
 Eigen::Isometry3d SitePose(const mjData* data, int site) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.translation() = Eigen::Map<const Eigen::Vector3d>(data->site_xpos + 3 * site);
-  pose.linear() = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
-      data->site_xmat + 9 * site);
+  pose.linear() =
+      Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(data->site_xmat + 9 * site);
   return pose;
 }
 
@@ -65,18 +65,24 @@ PandaScene::PandaScene(const std::string& mjcf_xml) : impl_(std::make_unique<Imp
   impl_->flange_site = mj_name2id(m, mjOBJ_SITE, kFlangeSite);
   impl_->tube_site = mj_name2id(m, mjOBJ_SITE, kTubeSite);
   if (impl_->flange_site < 0 || impl_->tube_site < 0) {
-    throw ConfigError(fmt::format("MuJoCo Panda MJCF needs sites named {} and {}", kFlangeSite,
-                                  kTubeSite));
+    throw ConfigError(
+        fmt::format("MuJoCo Panda MJCF needs sites named {} and {}", kFlangeSite, kTubeSite));
   }
 }
 
 PandaScene::~PandaScene() = default;
 
-int PandaScene::nq() const { return impl_->model->nq; }
+int PandaScene::nq() const {
+  return impl_->model->nq;
+}
 
-double PandaScene::timestep_s() const { return impl_->model->opt.timestep; }
+double PandaScene::timestep_s() const {
+  return impl_->model->opt.timestep;
+}
 
-double PandaScene::TotalMass() const { return mj_getTotalmass(impl_->model); }
+double PandaScene::TotalMass() const {
+  return mj_getTotalmass(impl_->model);
+}
 
 std::vector<MujocoJointInfo> PandaScene::Joints() const {
   const mjModel* m = impl_->model;
@@ -125,7 +131,9 @@ JointVector PandaScene::GravityTorques(const JointVector& q) const {
   return tau_nm;
 }
 
-const mjModel* PandaScene::model() const { return impl_->model; }
+const mjModel* PandaScene::model() const {
+  return impl_->model;
+}
 
 double PandaScene::FlangeEffectiveMassKg(const JointVector& q, const Eigen::Vector3d& point_m,
                                          const Eigen::Vector3d& normal) const {

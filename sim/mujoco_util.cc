@@ -26,7 +26,9 @@ constexpr const char* kVfsFileName = "sonicboom_scene.xml";
   std::abort();
 }
 
-void MujocoWarningHandler(const char* message) { spdlog::warn("MuJoCo warning: {}", message); }
+void MujocoWarningHandler(const char* message) {
+  spdlog::warn("MuJoCo warning: {}", message);
+}
 
 // Process-global MuJoCo hooks, installed once; handlers someone else installed are kept
 void InstallMujocoHandlers() {

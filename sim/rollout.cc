@@ -102,7 +102,8 @@ double SegmentModalMassKg(const ObjectConfig& object, const ObjectSegment& seg,
   const Eigen::Vector3d axis = seg.p1 - seg.p0;
   const double length_m = axis.norm();
   const double x_m = std::clamp((p_object - seg.p0).dot(axis) / length_m, 0.0, length_m);
-  const double area_scale = (seg.radius_m * seg.radius_m) / (0.25 * object.diameter_m * object.diameter_m);
+  const double area_scale =
+      (seg.radius_m * seg.radius_m) / (0.25 * object.diameter_m * object.diameter_m);
   const double mass_kg = object.LinearDensityKgM() * area_scale * length_m;
   return BeamModalMassKg(mass_kg, length_m, x_m, object.clamp == "both_ends");
 }
@@ -142,11 +143,12 @@ void RolloutConfig::Validate() const {
   RequireInRange(sweep_overshoot_deg, 0.0, 30.0, "rollout.sweep_overshoot_deg");
   RequireInRange(penetration_limit_m, 1e-12, 0.1, "rollout.penetration_limit_m");
   RequireInRange(settle_s, 0.0, 10.0, "rollout.settle_s");
-  for (const auto& [key, gains] : {std::pair{"stiffness_nm_rad", &stiffness_nm_rad},
-                                    std::pair{"lateral_stiffness_nm_rad", &lateral_stiffness_nm_rad}}) {
+  for (const auto& [key, gains] :
+       {std::pair{"stiffness_nm_rad", &stiffness_nm_rad},
+        std::pair{"lateral_stiffness_nm_rad", &lateral_stiffness_nm_rad}}) {
     if (gains->size() != kPandaJoints) {
-      throw ConfigError(fmt::format("rollout.{} needs {} entries, got {}", key, kPandaJoints,
-                                    gains->size()));
+      throw ConfigError(
+          fmt::format("rollout.{} needs {} entries, got {}", key, kPandaJoints, gains->size()));
     }
     for (size_t i = 0; i < gains->size(); ++i) {
       if (!(std::isfinite((*gains)[i]) && (*gains)[i] > 0.0)) {
@@ -163,11 +165,12 @@ void RolloutConfig::Validate() const {
   }
   RequireInRange(static_cast<double>(press_step_multiple), 0.0, 8.0, "rollout.press_step_multiple");
   if (contact_timeconst_s < 2.0 * static_cast<double>(press_step_multiple) * dt_s * (1.0 - 1e-9)) {
-    throw ConfigError(fmt::format(
-        "rollout.press_step_multiple = {} needs rollout.contact_timeconst_s >= 2 x {} x {} s = {} s "
-        "(MuJoCo's contact limit of 2 steps); it is {} s",
-        press_step_multiple, press_step_multiple, dt_s, 2.0 * press_step_multiple * dt_s,
-        contact_timeconst_s));
+    throw ConfigError(
+        fmt::format("rollout.press_step_multiple = {} needs rollout.contact_timeconst_s >= 2 x {} "
+                    "x {} s = {} s "
+                    "(MuJoCo's contact limit of 2 steps); it is {} s",
+                    press_step_multiple, press_step_multiple, dt_s,
+                    2.0 * press_step_multiple * dt_s, contact_timeconst_s));
   }
 }
 
@@ -175,17 +178,17 @@ void RolloutConfig::Validate() const {
 struct StrikeRollout::Variant {
   int object{0};
   int64_t variant{0};
-  std::string name;                          // recorded with every contact
-  ObjectGeometry geometry;                   // object frame
+  std::string name;         // recorded with every contact
+  ObjectGeometry geometry;  // object frame
   std::unique_ptr<PandaScene> scene;
   std::array<int, kPandaJoints> qpos{};      // qpos index of panda_joint1..7
   std::array<int, kPandaJoints> dof{};       // dof index of panda_joint1..7
   std::array<int, kPandaJoints> actuator{};  // panda_motor1..7
   int tube_geom{-1};
-  int object_mocap{-1};                      // index into mjData's mocap arrays
-  int flange_body{-1};                       // body carrying the tube
+  int object_mocap{-1};  // index into mjData's mocap arrays
+  int flange_body{-1};   // body carrying the tube
   int tube_site{-1};
-  std::vector<int> segment_of_geom;          // (ngeom) object segment of a geom, -1 otherwise
+  std::vector<int> segment_of_geom;  // (ngeom) object segment of a geom, -1 otherwise
   // The scene with contacts disabled, stepped instead where no object pair can touch: its steps
   // equal the full model's whenever collision detection would find no contact. Twin k - 1 steps
   // k timesteps at once (free flight needs only the arm's own time scale, see Simulate).
@@ -198,31 +201,31 @@ struct StrikeRollout::Variant {
   int press_multiple{1};
   std::vector<std::array<int, 2>> tube_pairs;  // geoms of the tube-object pairs
   std::vector<std::array<int, 2>> arm_pairs;   // geoms of the arm-object pairs
-  double reach_m{0.0};                       // bound on any geom point's distance to any joint axis
+  double reach_m{0.0};  // bound on any geom point's distance to any joint axis
 };
 
 // Guided sampling: the fixed object pose and the candidate start configurations.
 struct StrikeRollout::Guided {
   Eigen::Isometry3d object_pose{Eigen::Isometry3d::Identity()};
-  std::vector<Eigen::Vector3d> points;       // tube centre, base frame, m
-  std::vector<JointVector> joints;           // start configuration of each point, rad
+  std::vector<Eigen::Vector3d> points;  // tube centre, base frame, m
+  std::vector<JointVector> joints;      // start configuration of each point, rad
 };
 
 // What one rollout does: start, goal and timing of the joint path, gains, object pose, target.
 struct StrikeRollout::Plan {
-  JointVector q_start{JointVector::Zero()};  // rad
-  JointVector q_goal{JointVector::Zero()};   // rad
-  double t_start_s{0.0};                     // path start, audio clock
-  double duration_s{1.0};                    // path duration
-  std::array<double, kPandaJoints> stiffness{};   // N m / rad
+  JointVector q_start{JointVector::Zero()};      // rad
+  JointVector q_goal{JointVector::Zero()};       // rad
+  double t_start_s{0.0};                         // path start, audio clock
+  double duration_s{1.0};                        // path duration
+  std::array<double, kPandaJoints> stiffness{};  // N m / rad
   Eigen::Isometry3d object_pose{Eigen::Isometry3d::Identity()};
   std::string motion;
   double target_z_m{0.0};
   double target_theta_rad{0.0};
   double target_time_s{0.0};
-  bool timed{false};                         // start earlier by the swept joint's lag D/K
+  bool timed{false};  // start earlier by the swept joint's lag D/K
   int swept_joint{0};
-  double s_contact{0.0};                     // path fraction (normalised time) at the target
+  double s_contact{0.0};  // path fraction (normalised time) at the target
   std::string invalid_reason;
 };
 
@@ -235,14 +238,16 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
   scene_.Validate();
   config_.Validate();
   if (scene_.mode != "strike" && scene_.mode != "guided") {
-    throw ConfigError(fmt::format("scene.mode {} has no arm rollout (StrikeRollout runs modes "
-                                  "strike and guided)",
-                                  scene_.mode));
+    throw ConfigError(
+        fmt::format("scene.mode {} has no arm rollout (StrikeRollout runs modes "
+                    "strike and guided)",
+                    scene_.mode));
   }
   if (!(audio_.record_duration_s > 0.0 && audio_.onset_time_s >= 0.0)) {
-    throw ConfigError(fmt::format("audio.record_duration_s = {} and audio.onset_time_s = {} must "
-                                  "be positive",
-                                  audio_.record_duration_s, audio_.onset_time_s));
+    throw ConfigError(
+        fmt::format("audio.record_duration_s = {} and audio.onset_time_s = {} must "
+                    "be positive",
+                    audio_.record_duration_s, audio_.onset_time_s));
   }
   timestep_s_ = config_.ResolvedTimestep();
 
@@ -260,9 +265,10 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
       var->name = count > 1 ? fmt::format("{} #{}", object.DisplayName(), v) : object.DisplayName();
       var->geometry = BuildObjectGeometry(object, v);
       if (var->geometry.targets.empty()) {
-        throw ConfigError(fmt::format("scene.objects.{}: variant {} has no segment to aim at "
-                                      "(see branch.min_target_diameter_m)",
-                                      o, v));
+        throw ConfigError(
+            fmt::format("scene.objects.{}: variant {} has no segment to aim at "
+                        "(see branch.min_target_diameter_m)",
+                        o, v));
       }
       PandaMjcfOptions options;
       options.timestep_s = timestep_s_;
@@ -363,8 +369,8 @@ void StrikeRollout::BuildGuided() {
   const Eigen::Vector3d axis = home.linear().col(2);
 
   // grid on the plane, kept where the tube clears the object by clearance .. clearance + layer
-  const int64_t side = std::max<int64_t>(1, static_cast<int64_t>(std::floor(std::sqrt(
-                                                static_cast<double>(g.grid_points)))));
+  const int64_t side = std::max<int64_t>(
+      1, static_cast<int64_t>(std::floor(std::sqrt(static_cast<double>(g.grid_points)))));
   const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
   for (int64_t ix = 0; ix < side; ++ix) {
     for (int64_t iy = 0; iy < side; ++iy) {
@@ -372,7 +378,8 @@ void StrikeRollout::BuildGuided() {
       const double fy = side > 1 ? static_cast<double>(iy) / (side - 1) : 0.5;
       const Eigen::Vector3d c(g.x_range_m[0] + fx * (g.x_range_m[1] - g.x_range_m[0]),
                               g.y_range_m[0] + fy * (g.y_range_m[1] - g.y_range_m[0]), g.plane_z_m);
-      const Eigen::Vector3d a0 = c - 0.5 * tube_.length_m * axis, a1 = c + 0.5 * tube_.length_m * axis;
+      const Eigen::Vector3d a0 = c - 0.5 * tube_.length_m * axis,
+                            a1 = c + 0.5 * tube_.length_m * axis;
       double gap_m = std::numeric_limits<double>::infinity();
       for (const ObjectSegment& s : geometry.segments) {
         gap_m = std::min(gap_m, SegmentDistance(a0, a1, guided_->object_pose * s.p0,
@@ -499,9 +506,8 @@ StrikeRollout::Plan StrikeRollout::PlanStrike(const StrikeDraw& draw, const Vari
   const ObjectSegment& seg = geometry.segments[target];
   const double seg_length_m = (seg.p1 - seg.p0).norm();
   const bool tip_strike = (object.kind == "rod" && object.clamp == "one_end");
-  const double along =
-      tip_strike ? std::max(0.5, 1.0 - kTipMarginM / seg_length_m)
-                 : kMiddleLo + (kMiddleHi - kMiddleLo) * draw.target_v;
+  const double along = tip_strike ? std::max(0.5, 1.0 - kTipMarginM / seg_length_m)
+                                  : kMiddleLo + (kMiddleHi - kMiddleLo) * draw.target_v;
   const Eigen::Vector3d aim_object = seg.p0 + along * (seg.p1 - seg.p0);
 
   // object frame: the segment axis a_o and the direction b_o to the rest of the object (a cross's
@@ -564,7 +570,8 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
   mjData* d = data.get();
   for (int i = 0; i < kPandaJoints; ++i) d->qpos[var.qpos[i]] = plan.q_start[i];
   const Eigen::Quaterniond object_quat(plan.object_pose.linear());
-  for (int k = 0; k < 3; ++k) d->mocap_pos[3 * var.object_mocap + k] = plan.object_pose.translation()[k];
+  for (int k = 0; k < 3; ++k)
+    d->mocap_pos[3 * var.object_mocap + k] = plan.object_pose.translation()[k];
   d->mocap_quat[4 * var.object_mocap + 0] = object_quat.w();
   d->mocap_quat[4 * var.object_mocap + 1] = object_quat.x();
   d->mocap_quat[4 * var.object_mocap + 2] = object_quat.y();
@@ -611,15 +618,14 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
   // tube-frame pose (from the kinematics in d) and velocity (from its com velocities)
   auto tube_row = [&](bool with_velocity) {
     const mjtNum* pos = d->site_xpos + 3 * var.tube_site;
-    const Eigen::Matrix3d rot =
-        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(d->site_xmat +
-                                                                       9 * var.tube_site);
+    const Eigen::Matrix3d rot = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
+        d->site_xmat + 9 * var.tube_site);
     const Eigen::Quaterniond quat(rot);
     mjtNum velocity[6] = {0, 0, 0, 0, 0, 0};  // angular (3), linear (3), world axes
     if (with_velocity) mj_objectVelocity(m, d, mjOBJ_SITE, var.tube_site, velocity, 0);
     Eigen::Matrix<float, 1, kProprioFeatures> row;
-    row << pos[0], pos[1], pos[2], quat.w(), quat.x(), quat.y(), quat.z(), velocity[3],
-        velocity[4], velocity[5];
+    row << pos[0], pos[1], pos[2], quat.w(), quat.x(), quat.y(), quat.z(), velocity[3], velocity[4],
+        velocity[5];
     return row;
   };
   Eigen::Matrix<float, 1, kProprioFeatures> last_row = tube_row(false);
@@ -640,9 +646,9 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
 
   // contact episode bookkeeping: one open episode per segment and per leaf cluster at most
   const int segments = static_cast<int>(geometry.segments.size());
-  std::vector<int> open_segment(static_cast<size_t>(segments), -1);   // index into contacts
+  std::vector<int> open_segment(static_cast<size_t>(segments), -1);  // index into contacts
   std::vector<int> open_leaf(leaves.size(), -1);
-  std::vector<int64_t> missing_steps(static_cast<size_t>(segments), 0);  // steps without contact
+  std::vector<int64_t> missing_steps(static_cast<size_t>(segments), 0);     // steps without contact
   std::vector<double> missing_since_s(static_cast<size_t>(segments), 0.0);  // first of them, s
   double last_change_s = -1.0;  // when an episode last opened or closed, s
   std::vector<std::vector<int>> segment_contacts(static_cast<size_t>(segments));  // this step
@@ -667,8 +673,8 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
   // the path ends; without a contact, the simulation ends settle_s later
   double t_end_s = std::min(audio_.record_duration_s, t_path_s + duration_s + config_.settle_s);
   std::vector<mjtNum> scratch(static_cast<size_t>(5 * m->nv));
-  int64_t step = 0;   // MuJoCo steps taken
-  int64_t grid = 0;   // timesteps simulated (a free-flight step counts free_multiple)
+  int64_t step = 0;  // MuJoCo steps taken
+  int64_t grid = 0;  // timesteps simulated (a free-flight step counts free_multiple)
   // joint angles of the last step's kinematics; lower bound of the object pairs' gaps (m) at
   // gap_qpos
   std::array<double, kPandaJoints> last_qpos{}, gap_qpos{};
@@ -708,10 +714,9 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
                         t_s - last_change_s >= kSteadyPressS - 0.5 * dt_s &&
                         t_s + press_multiple * dt_s < t_end_s + 0.5 * dt_s;
     const mjModel* step_model =
-        arm_may_touch
-            ? (steady ? var.press.get() : m)
-            : (tube_may_touch ? (steady ? var.press_tube_only.get() : var.tube_only.get())
-                              : (free ? free_model : var.contact_free[0].get()));
+        arm_may_touch ? (steady ? var.press.get() : m)
+                      : (tube_may_touch ? (steady ? var.press_tube_only.get() : var.tube_only.get())
+                                        : (free ? free_model : var.contact_free[0].get()));
     const int64_t advance = free ? free_multiple : (steady ? press_multiple : 1);
     for (int i = 0; i < kPandaJoints; ++i) last_qpos[i] = d->qpos[var.qpos[i]];
 
@@ -749,10 +754,10 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       if (step == 0) {
         fail(fmt::format("the object overlaps {} at the start pose", GeomName(m, other)));
       } else if (c.dist < -config_.penetration_limit_m) {
-        fail(fmt::format("penetration {:.4f} mm of {} into the object at t = {:.4f} s exceeds "
-                         "rollout.penetration_limit_m = {} mm",
-                         -1e3 * c.dist, GeomName(m, other), t_s,
-                         1e3 * config_.penetration_limit_m));
+        fail(
+            fmt::format("penetration {:.4f} mm of {} into the object at t = {:.4f} s exceeds "
+                        "rollout.penetration_limit_m = {} mm",
+                        -1e3 * c.dist, GeomName(m, other), t_s, 1e3 * config_.penetration_limit_m));
       } else if (other == var.tube_geom) {
         segment_contacts[static_cast<size_t>(segment)].push_back(i);
       } else if (first_hard < 0) {
@@ -794,13 +799,13 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       // approach speed: tube-point velocity (J qdot) along the outward normal; the object is
       // fixed. Effective mass: robot side 1 / (n^T J M^-1 J^T n) in series with the segment's
       // modal mass at the contact
-      rec.normal_speed_m_s = internal::PointVelocityAlong(m, d, var.flange_body, c.pos,
-                                                          normal_world, scratch.data());
-      const double robot_inverse_kg =
-          internal::InverseEffectiveMass(m, d, var.flange_body, c.pos, normal_world, scratch.data());
-      const double object_mass_kg = SegmentModalMassKg(
-          object, geometry.segments[static_cast<size_t>(segment)],
-          plan.object_pose.inverse() * rec.point_world_m);
+      rec.normal_speed_m_s =
+          internal::PointVelocityAlong(m, d, var.flange_body, c.pos, normal_world, scratch.data());
+      const double robot_inverse_kg = internal::InverseEffectiveMass(m, d, var.flange_body, c.pos,
+                                                                     normal_world, scratch.data());
+      const double object_mass_kg =
+          SegmentModalMassKg(object, geometry.segments[static_cast<size_t>(segment)],
+                             plan.object_pose.inverse() * rec.point_world_m);
       rec.effective_mass_kg = 1.0 / (robot_inverse_kg + 1.0 / object_mass_kg);
       rec.robot_side_mass_kg = 1.0 / robot_inverse_kg;
       {
@@ -859,8 +864,8 @@ RolloutResult StrikeRollout::Simulate(const Variant& var, const Plan& plan) cons
       const int dof = var.dof[i], act = var.actuator[i];
       const double tau_nm = stiffness[i] * (q_des - d->qpos[var.qpos[i]]) -
                             damping[i] * d->qvel[dof] + d->qfrc_bias[dof];
-      d->ctrl[act] = std::clamp(tau_nm, m->actuator_ctrlrange[2 * act],
-                                m->actuator_ctrlrange[2 * act + 1]);
+      d->ctrl[act] =
+          std::clamp(tau_nm, m->actuator_ctrlrange[2 * act], m->actuator_ctrlrange[2 * act + 1]);
     }
 
     // actuation, constraint forces, integration to t + dt

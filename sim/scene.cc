@@ -99,7 +99,8 @@ void ObjectConfig::Validate(const std::string& key) const {
 std::string ObjectConfig::DisplayName() const {
   if (!name.empty()) return name;
   const std::string dims = PaperName(diameter_m, length_m);
-  if (kind == "cross") return fmt::format("cross {}+{}", dims, PaperName(cross.diameter_m, cross.length_m));
+  if (kind == "cross")
+    return fmt::format("cross {}+{}", dims, PaperName(cross.diameter_m, cross.length_m));
   if (kind == "striker") return fmt::format("striker {} {}", material, dims);
   return fmt::format("{} {}", kind, dims);
 }
@@ -175,8 +176,8 @@ void SceneConfig::Validate() const {
                                    "(kind striker)",
                                    key, o.kind));
     } else {
-      Require(!striker, fmt::format("{}.kind = striker needs scene.mode stationary (mode is {})",
-                                    key, mode));
+      Require(!striker,
+              fmt::format("{}.kind = striker needs scene.mode stationary (mode is {})", key, mode));
     }
   }
   Require(total_weight > 0.0, "scene.objects: the weights sum to zero");
@@ -219,14 +220,16 @@ double BeamModalMassKg(double mass_kg, double length_m, double x_m, bool clamped
   return mass_kg * mean_sq / (phi_x * phi_x);
 }
 
-void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m, ContactEvent* event) {
+void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m,
+                        ContactEvent* event) {
   if (object.kind != "rod" && object.kind != "cross") return;
   // second moment of a solid rod or a pipe: pi (r_out^4 - r_in^4) / 4
   const double r_out = 0.5 * object.diameter_m;
   const double r_in = object.wall_thickness_m > 0.0 ? r_out - object.wall_thickness_m : 0.0;
   const double second_moment_m4 = 0.25 * kPi * (std::pow(r_out, 4) - std::pow(r_in, 4));
   event->beam_length_m = object.length_m;
-  event->beam_contact_from_clamp_m = std::clamp(contact_from_clamp_m, 1e-3 * object.length_m, object.length_m);
+  event->beam_contact_from_clamp_m =
+      std::clamp(contact_from_clamp_m, 1e-3 * object.length_m, object.length_m);
   event->beam_flexural_rigidity_n_m2 = object.youngs_modulus_pa * second_moment_m4;
   event->beam_linear_density_kg_m = object.LinearDensityKgM();
   event->beam_clamped_both_ends = object.clamp == "both_ends";
@@ -283,7 +286,8 @@ ObjectGeometry BuildObjectGeometry(const ObjectConfig& o, int64_t variant) {
     generation = next;
   }
   for (size_t s = 0; s < g.segments.size(); ++s) {
-    if (2.0 * g.segments[s].radius_m >= b.min_target_diameter_m) g.targets.push_back(static_cast<int>(s));
+    if (2.0 * g.segments[s].radius_m >= b.min_target_diameter_m)
+      g.targets.push_back(static_cast<int>(s));
   }
   // foliage clusters spread along every terminal segment, the last one at its tip, each off the
   // axis by up to one cluster radius

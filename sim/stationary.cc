@@ -29,7 +29,9 @@ constexpr double kDeg = kPi / 180.0;
 // the striker starts this far (m) clear of the surface at least
 constexpr double kMinStartGapM = 0.002;
 
-std::string Num(double v) { return fmt::format("{:.17g}", v); }
+std::string Num(double v) {
+  return fmt::format("{:.17g}", v);
+}
 
 // MJCF of the fixed tube and one free striker along its body x (grip at the origin, tip at x = L)
 std::string HandStrikeMjcf(const TubeConfig& tube, const Eigen::Isometry3d& tube_pose,
@@ -85,8 +87,8 @@ std::string HandStrikeMjcf(const TubeConfig& tube, const Eigen::Isometry3d& tube
 struct HandStrikeRollout::Striker {
   ModelPtr model;
   int body{-1};
-  int qpos{-1};                   // free joint: position (3) and quaternion (4)
-  int dof{-1};                    // free joint: linear (3) and angular (3) velocity
+  int qpos{-1};  // free joint: position (3) and quaternion (4)
+  int dof{-1};   // free joint: linear (3) and angular (3) velocity
   int striker_geom{-1};
   int tube_geom{-1};
   double mass_kg{0.0};
@@ -102,8 +104,8 @@ HandStrikeRollout::HandStrikeRollout(const TubeConfig& tube, const AudioConfig& 
   scene_.Validate();
   config_.Validate();
   if (scene_.mode != "stationary") {
-    throw ConfigError(fmt::format("HandStrikeRollout needs scene.mode stationary (mode is {})",
-                                  scene_.mode));
+    throw ConfigError(
+        fmt::format("HandStrikeRollout needs scene.mode stationary (mode is {})", scene_.mode));
   }
   timestep_s_ = config_.ResolvedTimestep();
 
@@ -120,8 +122,9 @@ HandStrikeRollout::HandStrikeRollout(const TubeConfig& tube, const AudioConfig& 
     const ObjectConfig& object = scene_.objects[o];
     auto s = std::make_unique<Striker>();
     if (object.weight > 0.0) {
-      s->model = internal::CompileMjcf(HandStrikeMjcf(tube_, tube_pose_, object, config_, timestep_s_),
-                                       fmt::format("the striker scene of scene.objects.{}", o));
+      s->model =
+          internal::CompileMjcf(HandStrikeMjcf(tube_, tube_pose_, object, config_, timestep_s_),
+                                fmt::format("the striker scene of scene.objects.{}", o));
       const mjModel* m = s->model.get();
       s->body = RequireId(m, mjOBJ_BODY, "striker");
       const int joint = RequireId(m, mjOBJ_JOINT, "striker_joint");
@@ -166,7 +169,8 @@ RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed
   const double tilt_rad = sc.approach_spread_deg * kDeg * std::sqrt(rng.Uniform());
   const double tilt_azimuth_rad = rng.Uniform(0.0, 2.0 * kPi);
   const double grip_side = rng.Uniform() < 0.5 ? -1.0 : 1.0;
-  const double onset_s = audio_.onset_time_s + rng.Uniform(-audio_.onset_jitter_s, audio_.onset_jitter_s);
+  const double onset_s =
+      audio_.onset_time_s + rng.Uniform(-audio_.onset_jitter_s, audio_.onset_jitter_s);
   result.target_z_m = z_m;
   result.target_theta_rad = WrapAngle(theta_rad);
   result.target_time_s = onset_s;
@@ -201,8 +205,7 @@ RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed
   const double t0_s = onset_s - approach_s;
   const Eigen::Vector3d grip_start = grip_touch - approach_m * dir;
   // the hand stops once follow_through_m inside the surface (along the normal)
-  const double stop_m =
-      approach_m + sc.follow_through_m / std::max(-dir.dot(n), 1e-3);
+  const double stop_m = approach_m + sc.follow_through_m / std::max(-dir.dot(n), 1e-3);
   auto hand_at = [&](double t_s, Eigen::Vector3d* pos, Eigen::Vector3d* vel) {
     const double travelled_m = std::clamp(speed_m_s * (t_s - t0_s), 0.0, stop_m);
     *pos = grip_start + travelled_m * dir;
@@ -256,9 +259,10 @@ RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed
     for (int i = 0; i < d->ncon; ++i) {
       const mjContact& c = d->contact[i];
       if (c.dist < -config_.penetration_limit_m) {
-        fail(fmt::format("penetration {:.4f} mm of the striker into the tube at t = {:.4f} s "
-                         "exceeds rollout.penetration_limit_m = {} mm",
-                         -1e3 * c.dist, t_s, 1e3 * config_.penetration_limit_m));
+        fail(
+            fmt::format("penetration {:.4f} mm of the striker into the tube at t = {:.4f} s "
+                        "exceeds rollout.penetration_limit_m = {} mm",
+                        -1e3 * c.dist, t_s, 1e3 * config_.penetration_limit_m));
       }
       tube_contacts.push_back(i);
     }
@@ -314,9 +318,8 @@ RolloutResult HandStrikeRollout::Run(uint64_t sample_index, uint64_t sample_seed
     const Eigen::AngleAxisd error(striker_rot * body_rot.transpose());
     const Eigen::Vector3d error_body = body_rot.transpose() * (error.angle() * error.axis());
     const Eigen::Vector3d omega_body = body_rot.transpose() * omega;
-    const Eigen::Vector3d spring_body =
-        st.inertia_kg_m2.diagonal().cwiseProduct(omega_n * omega_n * error_body -
-                                                 2.0 * sc.hand_damping_ratio * omega_n * omega_body);
+    const Eigen::Vector3d spring_body = st.inertia_kg_m2.diagonal().cwiseProduct(
+        omega_n * omega_n * error_body - 2.0 * sc.hand_damping_ratio * omega_n * omega_body);
     const Eigen::Vector3d torque = body_rot * spring_body + (grip - com).cross(force);
     for (int k = 0; k < 3; ++k) {
       d->xfrc_applied[6 * st.body + k] = force[k];

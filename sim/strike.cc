@@ -85,16 +85,18 @@ void StrikeConfig::Validate() const {
   const JointVector lo = PandaLowerLimits(), hi = PandaUpperLimits();
   for (int i = 0; i < kPandaJoints; ++i) {
     if (home_joints_rad[i] < lo[i] || home_joints_rad[i] > hi[i]) {
-      throw ConfigError(fmt::format("strike.home_joints_rad[{}] = {} is outside the joint limits "
-                                    "[{}, {}] rad",
-                                    i, home_joints_rad[i], lo[i], hi[i]));
+      throw ConfigError(
+          fmt::format("strike.home_joints_rad[{}] = {} is outside the joint limits "
+                      "[{}, {}] rad",
+                      i, home_joints_rad[i], lo[i], hi[i]));
     }
   }
-  if (motions.empty()) throw ConfigError("strike.motions is empty: name sweep, opposite or lateral");
+  if (motions.empty())
+    throw ConfigError("strike.motions is empty: name sweep, opposite or lateral");
   for (const std::string& m : motions) {
     if (m != "sweep" && m != "opposite" && m != "lateral") {
-      throw ConfigError(fmt::format(
-          "strike.motions: '{}' is not one of sweep, opposite, lateral", m));
+      throw ConfigError(
+          fmt::format("strike.motions: '{}' is not one of sweep, opposite, lateral", m));
     }
   }
   if (sweep_min_deg > sweep_max_deg) {
@@ -102,9 +104,9 @@ void StrikeConfig::Validate() const {
                                   sweep_min_deg, sweep_max_deg));
   }
   if (contact_fraction_min > contact_fraction_max) {
-    throw ConfigError(fmt::format(
-        "strike.contact_fraction_min = {} exceeds strike.contact_fraction_max = {}",
-        contact_fraction_min, contact_fraction_max));
+    throw ConfigError(
+        fmt::format("strike.contact_fraction_min = {} exceeds strike.contact_fraction_max = {}",
+                    contact_fraction_min, contact_fraction_max));
   }
 }
 
@@ -115,9 +117,10 @@ StrikeModel::StrikeModel(const StrikeConfig& strike, const SceneConfig& scene,
   scene_.Validate();
   tube_.Validate();
   if (scene_.mode != "strike") {
-    throw ConfigError(fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; use "
-                                  "strike.engine = mujoco",
-                                  scene_.mode));
+    throw ConfigError(
+        fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; use "
+                    "strike.engine = mujoco",
+                    scene_.mode));
   }
 }
 
@@ -220,10 +223,12 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
   }
 
   // joint speed over the whole record, for motor noise
-  const int64_t rows = static_cast<int64_t>(std::ceil(audio_.record_duration_s * c.proprio_rate_hz));
+  const int64_t rows =
+      static_cast<int64_t>(std::ceil(audio_.record_duration_s * c.proprio_rate_hz));
   ev.joint_speed_rate_hz = c.proprio_rate_hz;
   ev.joint_speed_rad_s.resize(rows);
-  for (int64_t k = 0; k < rows; ++k) ev.joint_speed_rad_s[k] = std::abs(joint_rate(k / c.proprio_rate_hz));
+  for (int64_t k = 0; k < rows; ++k)
+    ev.joint_speed_rad_s[k] = std::abs(joint_rate(k / c.proprio_rate_hz));
   return ev;
 }
 

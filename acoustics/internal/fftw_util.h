@@ -27,8 +27,7 @@ std::mutex& PlannerMutex();
 /// element types (float, fftwf_complex) come from fftwf_malloc, the others from fftw_malloc.
 template <typename T>
 class Array {
-  static constexpr bool kSingle =
-      std::is_same_v<T, float> || std::is_same_v<T, fftwf_complex>;
+  static constexpr bool kSingle = std::is_same_v<T, float> || std::is_same_v<T, fftwf_complex>;
 
  public:
   Array() = default;

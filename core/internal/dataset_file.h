@@ -109,8 +109,7 @@ class DatasetFile {
     }
     info_.audio_int16 = audio_dtype == "int16";
     audio_scale_ = h5::ReadDoubleAttr(columns_.audio.get(), "scale", path);
-    const std::vector<hsize_t> proprio_dims =
-        h5::Dims(columns_.proprio.get(), path, kProprioPath);
+    const std::vector<hsize_t> proprio_dims = h5::Dims(columns_.proprio.get(), path, kProprioPath);
     if (proprio_dims.size() != 3 || proprio_dims[2] != kProprioFeatures) {
       throw SchemaError(path + ": /proprio must have shape (N, K, " +
                         std::to_string(kProprioFeatures) + ")");
@@ -146,15 +145,14 @@ class DatasetFile {
     CheckRange(i);
     const hid_t u64 = H5T_NATIVE_UINT64;
     const hid_t u8 = H5T_NATIVE_UINT8;
-    sample->index = ReadOne<uint64_t>(columns_.sample_index.get(), u64, i, path_,
-                                      kSampleIndexPath);
+    sample->index = ReadOne<uint64_t>(columns_.sample_index.get(), u64, i, path_, kSampleIndexPath);
     sample->seed = ReadOne<uint64_t>(columns_.seed.get(), u64, i, path_, kSeedPath);
     sample->valid = ReadOne<uint8_t>(columns_.valid.get(), u8, i, path_, kValidPath) != 0;
     sample->clipped = ReadOne<uint8_t>(columns_.clipped.get(), u8, i, path_, kClippedPath) != 0;
-    sample->invalid_reason = h5::ReadStringRows(columns_.invalid_reason.get(),
-                                                static_cast<hsize_t>(i), 1, path_,
-                                                kInvalidReasonPath)
-                                 .at(0);
+    sample->invalid_reason =
+        h5::ReadStringRows(columns_.invalid_reason.get(), static_cast<hsize_t>(i), 1, path_,
+                           kInvalidReasonPath)
+            .at(0);
     for (size_t f = 0; f < kScalarLabels.size(); ++f) {
       sample->label.*kScalarLabels[f].member = ReadOne<double>(
           columns_.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, i, path_, kScalarLabels[f].path);
@@ -167,15 +165,15 @@ class DatasetFile {
     // (K, 10) row-major in the file.
     const int64_t k = info_.proprio_rows;
     std::vector<float> proprio(static_cast<size_t>(k) * kProprioFeatures);
-    h5::ReadRows(columns_.proprio.get(), H5T_NATIVE_FLOAT, proprio.data(),
-                 static_cast<hsize_t>(i), 1, path_, kProprioPath);
+    h5::ReadRows(columns_.proprio.get(), H5T_NATIVE_FLOAT, proprio.data(), static_cast<hsize_t>(i),
+                 1, path_, kProprioPath);
     sample->proprio =
         Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
             proprio.data(), k, kProprioFeatures);
     sample->contacts = ReadContacts(i);
     if (columns_.provenance.valid()) {
-      sample->provenance = h5::ReadStringRows(columns_.provenance.get(), static_cast<hsize_t>(i),
-                                              1, path_, kProvenancePath)
+      sample->provenance = h5::ReadStringRows(columns_.provenance.get(), static_cast<hsize_t>(i), 1,
+                                              path_, kProvenancePath)
                                .at(0);
     }
     sample->variation.assign(info_.variation_names.size(), 0.0);
@@ -243,12 +241,10 @@ class DatasetFile {
   std::pair<int64_t, int64_t> ContactRange(int64_t i) const {
     CheckRange(i);
     if (!has_contacts_) return {0, 0};
-    const int64_t first =
-        ReadOne<int64_t>(columns_.contact_first.get(), H5T_NATIVE_INT64, i, path_,
-                         kContactFirstPath);
-    const int64_t count =
-        ReadOne<int64_t>(columns_.contact_count.get(), H5T_NATIVE_INT64, i, path_,
-                         kContactCountPath);
+    const int64_t first = ReadOne<int64_t>(columns_.contact_first.get(), H5T_NATIVE_INT64, i, path_,
+                                           kContactFirstPath);
+    const int64_t count = ReadOne<int64_t>(columns_.contact_count.get(), H5T_NATIVE_INT64, i, path_,
+                                           kContactCountPath);
     CheckContactRange(i, first, count);
     return {first, count};
   }
@@ -275,15 +271,14 @@ class DatasetFile {
   // Audio of sample i, (channels x T) in full-scale units.
   Eigen::MatrixXf ReadAudio(int64_t i) const {
     CheckRange(i);
-    using RowMajorInt16 =
-        Eigen::Matrix<int16_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    using RowMajorInt16 = Eigen::Matrix<int16_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     using RowMajorFloat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int64_t c = info_.channels;
     const int64_t t = info_.audio_frames;
     if (info_.audio_int16) {
       RowMajorInt16 pcm(c, t);
-      h5::ReadRows(columns_.audio.get(), H5T_NATIVE_INT16, pcm.data(), static_cast<hsize_t>(i),
-                   1, path_, kAudioPath);
+      h5::ReadRows(columns_.audio.get(), H5T_NATIVE_INT16, pcm.data(), static_cast<hsize_t>(i), 1,
+                   path_, kAudioPath);
       return (pcm.cast<double>() * audio_scale_).cast<float>();
     }
     RowMajorFloat audio(c, t);
@@ -325,8 +320,7 @@ class DatasetFile {
       const std::vector<hsize_t> dims = h5::Dims(dataset, path_, name);
       const bool vector = name == kVectorContacts[0].path || name == kVectorContacts[1].path;
       if (dims.size() != (vector ? 2u : 1u) || (vector && dims[1] != 3)) {
-        throw SchemaError(path_ + ": /" + name + " must have shape " +
-                          (vector ? "(M, 3)" : "(M)"));
+        throw SchemaError(path_ + ": /" + name + " must have shape " + (vector ? "(M, 3)" : "(M)"));
       }
       rows = std::min(rows, dims[0]);
       most_rows = std::max(most_rows, dims[0]);
@@ -358,9 +352,8 @@ class DatasetFile {
   Columns columns_;
   DatasetInfo info_;
   double audio_scale_{1.0};
-  bool has_contacts_{false};   // schema 1.1: the file has a contact table
-  int64_t contact_rows_{0};    // M
+  bool has_contacts_{false};  // schema 1.1: the file has a contact table
+  int64_t contact_rows_{0};   // M
 };
-
 
 }  // namespace sonicboom::internal::dataset

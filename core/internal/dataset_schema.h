@@ -23,7 +23,7 @@ constexpr const char* kValidPath = "index/valid";
 constexpr const char* kInvalidReasonPath = "index/invalid_reason";
 constexpr const char* kClippedPath = "index/clipped";
 constexpr const char* kProvenancePath = "index/provenance";  // recorded datasets only
-constexpr const char* kVariationPath = "variation";  // (N, P) f64, attr `names`
+constexpr const char* kVariationPath = "variation";          // (N, P) f64, attr `names`
 constexpr const char* kContactFirstPath = "index/contact_first";
 constexpr const char* kContactCountPath = "index/contact_count";
 constexpr const char* kContactSampleRowPath = "contacts/sample_row";
@@ -139,19 +139,18 @@ struct Columns {
   h5::Handle contact_first;
   h5::Handle contact_count;
   ContactColumns contacts;
-  h5::Handle variation;  // only in a randomized dataset
+  h5::Handle variation;   // only in a randomized dataset
   h5::Handle provenance;  // only in a recorded dataset
 
   // (handle, path) of every per-sample column (N rows), for checks that apply to all of them.
   std::vector<std::pair<hid_t, std::string>> All() const {
-    std::vector<std::pair<hid_t, std::string>> all = {
-        {audio.get(), kAudioPath},
-        {proprio.get(), kProprioPath},
-        {sample_index.get(), kSampleIndexPath},
-        {seed.get(), kSeedPath},
-        {valid.get(), kValidPath},
-        {invalid_reason.get(), kInvalidReasonPath},
-        {clipped.get(), kClippedPath}};
+    std::vector<std::pair<hid_t, std::string>> all = {{audio.get(), kAudioPath},
+                                                      {proprio.get(), kProprioPath},
+                                                      {sample_index.get(), kSampleIndexPath},
+                                                      {seed.get(), kSeedPath},
+                                                      {valid.get(), kValidPath},
+                                                      {invalid_reason.get(), kInvalidReasonPath},
+                                                      {clipped.get(), kClippedPath}};
     for (size_t f = 0; f < kScalarLabels.size(); ++f) {
       all.emplace_back(scalar_labels[f].get(), kScalarLabels[f].path);
     }

@@ -80,8 +80,7 @@ Handle OpenDataset(hid_t loc, const std::string& path, std::string_view file);
 /// Root or object attributes. Writing replaces an attribute of the same name.
 bool HasAttr(hid_t loc, const char* name, std::string_view file);
 /// Scalar variable-length UTF-8 string (h5py reads it as str).
-void WriteStringAttr(hid_t loc, const char* name, const std::string& value,
-                     std::string_view file);
+void WriteStringAttr(hid_t loc, const char* name, const std::string& value, std::string_view file);
 void WriteDoubleAttr(hid_t loc, const char* name, double value, std::string_view file);
 void WriteInt64Attr(hid_t loc, const char* name, int64_t value, std::string_view file);
 void WriteUint64Attr(hid_t loc, const char* name, uint64_t value, std::string_view file);
@@ -99,10 +98,10 @@ uint64_t ReadUint64Attr(hid_t loc, const char* name, std::string_view file);
 struct AttrValue {
   std::string name;
   enum class Kind { kString, kSigned, kUnsigned, kFloat, kOther } kind{Kind::kOther};
-  std::string text;             // kString
-  int64_t signed_value{0};      // kSigned: scalar signed integer
-  uint64_t unsigned_value{0};   // kUnsigned: scalar unsigned integer
-  double float_value{0.0};      // kFloat: scalar float
+  std::string text;            // kString
+  int64_t signed_value{0};     // kSigned: scalar signed integer
+  uint64_t unsigned_value{0};  // kUnsigned: scalar unsigned integer
+  double float_value{0.0};     // kFloat: scalar float
 };
 /// Every attribute of `loc` in creation-independent (name) order.
 std::vector<AttrValue> ListAttrs(hid_t loc, std::string_view file);

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
 #include <torch/nn.h>
 #include <torch/serialize.h>
+#include <nlohmann/json.hpp>
 
 #include "internal/network.h"
 #include "sonicboom/learning/learning.h"
@@ -67,8 +67,7 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
 /// Predictions for every record of `f` in eval mode without gradients, in batches of
 /// kPredictBatch, with the uncalibrated distribution when the network has an uncertainty head.
 /// Leaves the network in eval mode.
-std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f,
-                                   int64_t crop_frames);
+std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames);
 
 /// Writes `text` to `path` through "<path>.partial" and a rename; IoError names the file.
 void WriteFileAtomically(const std::string& path, const std::string& text);
@@ -96,8 +95,8 @@ struct ModelFile {
   double surface_radius_m{0.0};
   uint64_t seed{0};
   bool has_calibration{false};
-  UncertaintyCalibration calibration;      // scales 1 without "uncertainty"
-  Metrics uncalibrated_val_metrics;        // written with the calibration, not read back
+  UncertaintyCalibration calibration;  // scales 1 without "uncertainty"
+  Metrics uncalibrated_val_metrics;    // written with the calibration, not read back
 };
 nlohmann::json ModelFileToJson(const ModelFile& file, const TrainConfig& train_config,
                                const Metrics& val_metrics, int64_t epochs_trained);

@@ -80,7 +80,7 @@ class JsonReadArchive final : public Archive {
   void CheckBounds(std::string_view name, double value, const Bounds& bounds) const;
 
   std::vector<const nlohmann::json*> stack_;
-  std::vector<std::string> path_;  // keys of the open groups and lists, indices of open items
+  std::vector<std::string> path_;     // keys of the open groups and lists, indices of open items
   std::vector<std::string> visited_;  // dotted keys read so far
   std::string origin_;
 };

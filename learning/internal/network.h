@@ -190,9 +190,9 @@ class NetworkImpl : public torch::nn::Module {
   AudioEncoder audio_encoder_{nullptr};
   GccEncoder gcc_encoder_{nullptr};
   ProprioEncoder proprio_encoder_{nullptr};
-  torch::Tensor mel_mean_, mel_std_;      // (1, channels, 1, 1) buffers
-  torch::Tensor cls_token_;               // (1, 1, width)
-  torch::Tensor modality_embedding_;      // (1, modalities, width)
+  torch::Tensor mel_mean_, mel_std_;  // (1, channels, 1, 1) buffers
+  torch::Tensor cls_token_;           // (1, 1, width)
+  torch::Tensor modality_embedding_;  // (1, modalities, width)
   torch::nn::LayerNorm input_norm_{nullptr};
   std::vector<TransformerBlock> blocks_;
   torch::nn::Sequential head_{nullptr};

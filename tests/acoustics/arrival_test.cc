@@ -37,7 +37,8 @@ Eigen::MatrixXf Wavefront(const TdoaGeometry& g, double z, double theta, double 
       const double u = t / kFs - t0;
       if (u < 0) continue;
       if (u > 0.003) break;
-      x(k, t) += static_cast<float>(gain[k] * 0.1 * std::sin(2 * kPi * 6000 * u) * std::exp(-u / 0.001));
+      x(k, t) +=
+          static_cast<float>(gain[k] * 0.1 * std::sin(2 * kPi * 6000 * u) * std::exp(-u / 0.001));
     }
   }
   return x;
@@ -51,7 +52,8 @@ TEST(ArrivalLocatorTest, RecoversPointAndSpeedOfAWavefront) {
   const TdoaGeometry g = Geometry();
   const ArrivalLocator locator(g, ArrivalConfig{}, kFs);
   const int64_t onset = 20000;
-  for (const auto& [z, theta] : {std::pair{0.05, 0.4}, std::pair{-0.08, 2.5}, std::pair{0.0, -1.9}}) {
+  for (const auto& [z, theta] :
+       {std::pair{0.05, 0.4}, std::pair{-0.08, 2.5}, std::pair{0.0, -1.9}}) {
     SCOPED_TRACE(std::to_string(z) + ", " + std::to_string(theta));
     // channel gains 10x apart: the per-channel threshold keeps the picks
     const Eigen::MatrixXf x = Wavefront(g, z, theta, 600.0, onset, {1, 0.1, 2, 0.5, 1, 3});
@@ -65,7 +67,8 @@ TEST(ArrivalLocatorTest, RecoversPointAndSpeedOfAWavefront) {
 TEST(ArrivalLocatorTest, BadSettingsAndRecordsAreRefused) {
   ArrivalConfig c;
   c.min_speed_m_s = 4000;
-  const std::string m = testing::ThrownMessage<ConfigError>([&] { ArrivalLocator(Geometry(), c, kFs); });
+  const std::string m =
+      testing::ThrownMessage<ConfigError>([&] { ArrivalLocator(Geometry(), c, kFs); });
   EXPECT_NE(m.find("arrival.min_speed_m_s"), std::string::npos) << m;
   c = {};
   c.highpass_hz = 30000;

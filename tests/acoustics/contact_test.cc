@@ -102,8 +102,8 @@ TEST(BeamModesTest, CantileverTipModalMassIsQuarterRodMass) {
   EXPECT_TRUE(std::isinf(tip.rigid_mass_kg));
   for (int n = 0; n < 3; ++n) {
     const double modal_kg = 1.0 / (tip.phi[n] * tip.phi[n]);
-    std::cout << "  mode " << n + 1 << " tip modal mass " << modal_kg * 1e3 << " g (m_rod/4 = "
-              << rod_kg / 4.0 * 1e3 << " g)\n";
+    std::cout << "  mode " << n + 1 << " tip modal mass " << modal_kg * 1e3
+              << " g (m_rod/4 = " << rod_kg / 4.0 * 1e3 << " g)\n";
     EXPECT_NEAR(modal_kg / (rod_kg / 4.0), 1.0, 0.01) << "mode " << n + 1;
     EXPECT_NEAR(tip.zeta[n], 0.5 * beam.loss_factor, 1e-15);
   }
@@ -154,12 +154,12 @@ TEST(ContactTest, RigidTargetMatchesHertzClosedForm) {
         const double e_peak = c.peak_force_n / exact.peak_n - 1.0;
         const double e_impulse = c.impulse_ns / (2.0 * m_kg * v_m_s) - 1.0;
         const double e_rebound = c.rebound_speed_m_s / v_m_s - 1.0;
-        const double worst = std::max({std::abs(e_duration), std::abs(e_peak),
-                                       std::abs(e_impulse), std::abs(e_rebound)});
+        const double worst = std::max(
+            {std::abs(e_duration), std::abs(e_peak), std::abs(e_impulse), std::abs(e_rebound)});
         double& tally = config.substeps_per_duration == 50 ? worst_coarse : worst_default;
         tally = std::max(tally, worst);
         SCOPED_TRACE(::testing::Message() << "m " << m_kg << " kg, v " << v_m_s << " m/s, "
-                                        << config.substeps_per_duration << " substeps/t_c");
+                                          << config.substeps_per_duration << " substeps/t_c");
         EXPECT_LT(std::abs(e_duration), 0.01);
         EXPECT_LT(std::abs(e_peak), 0.01);
         EXPECT_LT(std::abs(e_impulse), 0.01);
@@ -168,8 +168,7 @@ TEST(ContactTest, RigidTargetMatchesHertzClosedForm) {
         EXPECT_EQ(c.first_closure_s, c.duration_s);
         // the sample-averaged force carries the impulse, from the sample holding time_s
         EXPECT_EQ(c.first_sample, static_cast<int64_t>(std::floor(time_s * kFs)));
-        const double carried =
-            std::accumulate(c.force_n.begin(), c.force_n.end(), 0.0) / kFs;
+        const double carried = std::accumulate(c.force_n.begin(), c.force_n.end(), 0.0) / kFs;
         EXPECT_NEAR(carried / c.impulse_ns, 1.0, 1e-12);
         EXPECT_GE(c.force_n.front(), 0.0);
         // trimmed at the release (or one sample before, when the release substep held no force)
@@ -207,8 +206,8 @@ TEST(ContactTest, HuntCrossleyLosesEnergyAndNeverPulls) {
     for (const double lambda_s_m : {0.05, 0.5, 5.0}) {
       ContactConfig config;
       config.hunt_crossley_s_m = lambda_s_m;
-      const ContactForce c = SolveContact(RigidMass(m_kg), kHeld, kWoodOnPvc, v_m_s, 0.001, kFs,
-                                          config);
+      const ContactForce c =
+          SolveContact(RigidMass(m_kg), kHeld, kWoodOnPvc, v_m_s, 0.001, kFs, config);
       SCOPED_TRACE(::testing::Message() << "v " << v_m_s << " m/s, lambda " << lambda_s_m);
       EXPECT_LT(c.rebound_speed_m_s, v_m_s);
       EXPECT_GT(c.rebound_speed_m_s, 0.0);
@@ -253,8 +252,7 @@ TEST(ContactTest, CompliantWallLengthensAndSoftensTheContact) {
   // converged: four times finer substeps change nothing beyond 0.1 %
   ContactConfig fine;
   fine.substeps_per_duration = 800;
-  const ContactForce f =
-      SolveContact(CompliantTube(0.0), kHeld, kWoodOnPvc, v_m_s, 0.0, kFs, fine);
+  const ContactForce f = SolveContact(CompliantTube(0.0), kHeld, kWoodOnPvc, v_m_s, 0.0, kFs, fine);
   EXPECT_NEAR(f.duration_s / c.duration_s, 1.0, 1e-3);
   EXPECT_NEAR(f.peak_force_n / c.peak_force_n, 1.0, 1e-3);
   EXPECT_NEAR(f.impulse_ns / c.impulse_ns, 1.0, 1e-3);

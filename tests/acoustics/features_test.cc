@@ -304,8 +304,8 @@ TEST(GccPhatTest, BandsEachPeakAtTheDelayAndSumToTheFullBand) {
   EXPECT_LT(b.middleRows(8, 4).col(at).sum(), a(2, at));
   EXPECT_GT(b.middleRows(8, 4).col(at).sum(), 0.5f * a(2, at));
   // bad edges are refused naming the key
-  for (const std::vector<double>& bad : {std::vector<double>{1000.0}, {2000.0, 1000.0},
-                                         {1000.0, 30000.0}, {0.0, 1000.0}}) {
+  for (const std::vector<double>& bad :
+       {std::vector<double>{1000.0}, {2000.0, 1000.0}, {1000.0, 30000.0}, {0.0, 1000.0}}) {
     try {
       GccPhat g(n, max_lag, 3, kFs, bad);
       FAIL() << "no ConfigError";
@@ -600,14 +600,12 @@ TEST(FeatureConfigTest, SerializeVisitsEveryMemberByName) {
   config.Serialize(&archive);
   std::vector<std::string> names;
   for (const auto& f : archive.fields) names.push_back(f.name);
-  EXPECT_THAT(names,
-              ::testing::ElementsAre("window_s", "n_fft", "hop", "n_mels", "f_min_hz", "f_max_hz",
-                                     "log_mel", "gcc_max_lag", "gcc_window_s", "gcc_bands_hz",
-                                     "onset_frame_s",
-                                     "onset_threshold",
-                                     "gating", "gating_n_std", "gating_n_fft", "gating_hop",
-                                     "gating_freq_smooth_hz", "gating_time_smooth_s",
-                                     "gating_prop_decrease", "gating_noise_wav"));
+  EXPECT_THAT(names, ::testing::ElementsAre("window_s", "n_fft", "hop", "n_mels", "f_min_hz",
+                                            "f_max_hz", "log_mel", "gcc_max_lag", "gcc_window_s",
+                                            "gcc_bands_hz", "onset_frame_s", "onset_threshold",
+                                            "gating", "gating_n_std", "gating_n_fft", "gating_hop",
+                                            "gating_freq_smooth_hz", "gating_time_smooth_s",
+                                            "gating_prop_decrease", "gating_noise_wav"));
   ASSERT_EQ(archive.fields.size(), 20u);
   // window_s: (0, inf); hop: (0, inf); log_mel: bool; onset_threshold: (0, 1].
   EXPECT_EQ(archive.fields[0].bounds.lo, 0.0);

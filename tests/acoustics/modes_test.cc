@@ -30,12 +30,14 @@ TEST(CylinderModesTest, FluggeMatchesLoyLamBenchmark) {
   mat.poisson_ratio = 0.3;
   mat.youngs_modulus_pa = 1e9;
   mat.density_kg_m3 = 1000.0;
-  const double to_omega = 2 * std::numbers::pi * R * std::sqrt(mat.density_kg_m3 * (1 - 0.09) / mat.youngs_modulus_pa);
+  const double to_omega =
+      2 * std::numbers::pi * R * std::sqrt(mat.density_kg_m3 * (1 - 0.09) / mat.youngs_modulus_pa);
   const auto modes = SimplySupportedModes(tube, mat, 200.0);
   const double table[10] = {0.016101, 0.009382, 0.022105, 0.042095, 0.068008,
                             0.099730, 0.137239, 0.180527, 0.229594, 0.284435};
   for (int n = 1; n <= 10; ++n) {
-    EXPECT_NEAR(Lowest(modes, 1, n) * to_omega, table[n - 1], 1e-4 * table[n - 1] + 5e-6) << "n = " << n;
+    EXPECT_NEAR(Lowest(modes, 1, n) * to_omega, table[n - 1], 1e-4 * table[n - 1] + 5e-6)
+        << "n = " << n;
   }
 }
 

@@ -28,11 +28,12 @@ bool Names(const std::string& message, const std::string& key) {
 TEST(RandomizeConfigTest, BadRangesAreRefusedNamingTheKey) {
   RandomizeConfig c;
   c.youngs_modulus_scale = {1.2, 0.8};
-  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }),
-                    "randomize.youngs_modulus_scale"));
+  EXPECT_TRUE(
+      Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.youngs_modulus_scale"));
   c = {};
   c.channel_gain_db = {-3, 0, 3};
-  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.channel_gain_db"));
+  EXPECT_TRUE(
+      Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.channel_gain_db"));
   // a temperature range that drives the modulus to nothing
   c = {};
   c.temperature_c = {20, 80};
@@ -232,7 +233,9 @@ TEST(RandomizeDaqTest, LevelHighPassAndHumAsDrawn) {
   hum.hum_channel_scale = {1, 0.5, 1, 1, 1, 1.5};
   Eigen::MatrixXf out;
   chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, &hum);
-  const auto rms = [&](int ch) { return std::sqrt(out.row(ch).cast<double>().squaredNorm() / 44100); };
+  const auto rms = [&](int ch) {
+    return std::sqrt(out.row(ch).cast<double>().squaredNorm() / 44100);
+  };
   EXPECT_NEAR(rms(0), 0.01, 2e-4);
   EXPECT_NEAR(rms(1), 0.005, 1e-4);
   EXPECT_NEAR(rms(5), 0.015, 3e-4);
@@ -262,8 +265,8 @@ namespace {
 TEST(RandomizeStructureTest, RangesNeedAPoolAndWholeBoltCounts) {
   RandomizeConfig c;
   c.bolt_stiffness_scale = {0.5, 2.0};
-  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }),
-                    "randomize.structure_variants"));
+  EXPECT_TRUE(
+      Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.structure_variants"));
   c.structure_variants = 4;
   EXPECT_NO_THROW(c.Validate());
   c.bolt_count = {2.5, 4};
@@ -391,13 +394,15 @@ TEST(RandomizeStructureTest, PoolVariantsAreDrawnStructuresWithTheirOwnModes) {
     }
   }
   // a variant renders as the same structure solved in full (the Ritz error, to 1 %)
-  const StructureVariant draw = DrawStructure(c.randomize, c.shell, c.material.poisson_ratio, 11, 1);
+  const StructureVariant draw =
+      DrawStructure(c.randomize, c.shell, c.material.poisson_ratio, 11, 1);
   AcousticModelConfig full = Coarse();
   full.audio.record_duration_s = 0.06;
   full.shell = draw.shell;
   v.structure_variant = 1;
   const RenderedStrike exact = StrikeSynthesizer(full).Render(strike, {}, {}, 0.0, 7, nullptr);
-  const double err = (audio[1] - exact.audio).cast<double>().norm() / exact.audio.cast<double>().norm();
+  const double err =
+      (audio[1] - exact.audio).cast<double>().norm() / exact.audio.cast<double>().norm();
   std::cout << "Ritz variant against its full solve: " << err << " relative\n";
   EXPECT_LT(err, 0.05);
   // the fd rung cannot take a pool

@@ -6,11 +6,11 @@
 #include <filesystem>
 #include <vector>
 
+#include "common/test_util.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/shell_ritz.h"
 #include "sonicboom/core/errors.h"
-#include "common/test_util.h"
 
 namespace sonicboom::acoustics {
 namespace {
@@ -65,8 +65,10 @@ TEST(RitzTest, BoltsMountsAndPoissonMatchAFullSolve) {
   const ShellModes ritz = RitzShellModes(base, base_modes, varied, 8000.0);
   ASSERT_EQ(ritz.shapes.rows(), varied.dofs());
   // mass-normalized
-  const Eigen::MatrixXd gram = ritz.shapes.transpose() * varied.mass_kg().asDiagonal() * ritz.shapes;
-  EXPECT_LT((gram - Eigen::MatrixXd::Identity(gram.rows(), gram.cols())).cwiseAbs().maxCoeff(), 1e-8);
+  const Eigen::MatrixXd gram =
+      ritz.shapes.transpose() * varied.mass_kg().asDiagonal() * ritz.shapes;
+  EXPECT_LT((gram - Eigen::MatrixXd::Identity(gram.rows(), gram.cols())).cwiseAbs().maxCoeff(),
+            1e-8);
   // the variation moved the modes far more than the projection errs
   const double moved = WorstFrequencyError(base_modes, exact, 5000.0);
   const double err = WorstFrequencyError(ritz, exact, 5000.0);
@@ -111,9 +113,11 @@ TEST(RitzTest, CacheReadsBackWhatItWrote) {
   const testing::TempDir dir;
   const auto get = [&projector]() -> const ShellRitzProjector& { return projector; };
   bool hit = true;
-  const ModeRows first = CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
+  const ModeRows first =
+      CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
   EXPECT_FALSE(hit);
-  const ModeRows second = CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
+  const ModeRows second =
+      CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
   EXPECT_TRUE(hit);
   // frequencies exact, shapes stored in single precision
   EXPECT_TRUE(first.omega_rad_s == second.omega_rad_s);
@@ -126,7 +130,8 @@ TEST(RitzTest, CacheReadsBackWhatItWrote) {
   for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
     std::filesystem::resize_file(entry.path(), 100);
   }
-  const ModeRows third = CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
+  const ModeRows third =
+      CachedRitzModes(get, base, varied, 3000.0, rows, dir.path().string(), &hit);
   EXPECT_FALSE(hit);
   EXPECT_TRUE(third.omega_rad_s == first.omega_rad_s);
 }

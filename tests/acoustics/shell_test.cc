@@ -34,7 +34,9 @@ ShellConfig Ideal(const std::string& ends, double arc_m, double axial_m) {
   return s;
 }
 
-double Hz(double omega_rad_s) { return omega_rad_s / (2.0 * kPi); }
+double Hz(double omega_rad_s) {
+  return omega_rad_s / (2.0 * kPi);
+}
 
 // dominant circumferential order of a mode's radial motion on the middle ring
 int CircumferentialOrder(const ShellModel& model, const Eigen::VectorXd& shape) {
@@ -82,11 +84,12 @@ TEST(ShellModesTest, IdealFreeFreeMatchesRayleighWithinTwoPercent) {
     // the lowest mode whose radial motion has order n is Rayleigh's inextensional mode
     double found_hz = 0.0;
     for (Eigen::Index k = 0; k < modes.omega_rad_s.size() && found_hz == 0.0; ++k) {
-      if (CircumferentialOrder(model, modes.shapes.col(k)) == n) found_hz = Hz(modes.omega_rad_s[k]);
+      if (CircumferentialOrder(model, modes.shapes.col(k)) == n)
+        found_hz = Hz(modes.omega_rad_s[k]);
     }
     const double rayleigh_hz = RayleighFrequency(tube, material, n);
-    EXPECT_NEAR(found_hz / rayleigh_hz, 1.0, 0.02) << "n = " << n << ": " << found_hz << " Hz vs "
-                                                  << rayleigh_hz;
+    EXPECT_NEAR(found_hz / rayleigh_hz, 1.0, 0.02)
+        << "n = " << n << ": " << found_hz << " Hz vs " << rayleigh_hz;
   }
   // ascending, mass-normalized
   for (Eigen::Index k = 1; k < modes.omega_rad_s.size(); ++k) {
@@ -140,7 +143,8 @@ TEST(ShellModelTest, SeamAndHolesSplitTheDegeneratePairs) {
   // mass: the sawn tube loses one arc step per seam and the holes their area (within a grid cell)
   const double h = tube.wall_thickness_m, R = tube.mid_radius_m();
   const double ds = R * model.dtheta_rad();
-  const double expected_kg = material.density_kg_m3 * h * tube.length_m * (2.0 * kPi * R - 2.0 * ds);
+  const double expected_kg =
+      material.density_kg_m3 * h * tube.length_m * (2.0 * kPi * R - 2.0 * ds);
   // every grid point carries three DOFs (u, v, w): a third of the lumped mass is the shell's
   EXPECT_NEAR(model.mass_kg().sum() / 3.0, expected_kg, 0.02 * expected_kg);
 }
@@ -314,8 +318,7 @@ TEST(ShellFdTest, DampedModeDecaysAtItsConfiguredT60) {
   const Eigen::VectorXd phi = modes.shapes.col(0);
   const double omega = modes.omega_rad_s[0];
   // the FD rung realizes the Rayleigh curve (the loss law's fit)
-  const double expected_t60_s =
-      3.0 * std::log(10.0) / (model.RayleighDampingRatio(omega) * omega);
+  const double expected_t60_s = 3.0 * std::log(10.0) / (model.RayleighDampingRatio(omega) * omega);
   const ShellFd fd(model, 44100.0, 0);
   ShellFdState state{phi, phi};
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.dofs());
@@ -334,7 +337,8 @@ TEST(ShellFdTest, DampedModeDecaysAtItsConfiguredT60) {
   const int64_t gap_steps = static_cast<int64_t>(0.1 / fd.timestep_s());
   for (int64_t n = 0; n < gap_steps; ++n) fd.Step(&state, zero);
   const double a1 = peak();
-  const double sigma = std::log(a0 / a1) / (static_cast<double>(gap_steps + period_steps) * fd.timestep_s());
+  const double sigma =
+      std::log(a0 / a1) / (static_cast<double>(gap_steps + period_steps) * fd.timestep_s());
   const double t60_s = 3.0 * std::log(10.0) / sigma;
   std::cout << "mode at " << Hz(omega) << " Hz: T60 " << t60_s << " s, configured "
             << expected_t60_s << " s\n";
@@ -379,7 +383,8 @@ TEST(ShellFdTest, FdAndModalAgreeOnTheSameStructure) {
   const ShellFd fd(model, fs, 0);
   const Eigen::MatrixXd y_fd = fd.Run(weights, force, sensors, samples);
   const ShellModes modes = SolveShellModes(model, 15000.0, 0, true);
-  const Eigen::MatrixXd y_modal = ModalRun(model, modes, weights, force, sensors, samples, fs, true);
+  const Eigen::MatrixXd y_modal =
+      ModalRun(model, modes, weights, force, sensors, samples, fs, true);
   ASSERT_TRUE(y_fd.allFinite());
   const double error = RelativeError(y_fd, y_modal);
   std::cout << modes.omega_rad_s.size() << " modes, FD oversampling " << fd.oversampling()
@@ -401,8 +406,10 @@ TEST(ShellSynthTest, ResidualRestoresTheTruncatedModes) {
   const ShellModes all = SolveShellModes(model, 20000.0, 0, true);
   const Eigen::MatrixXd reference = ModalRun(model, all, weights, force, sensors, 600, fs, true);
   const ShellModes band = SolveShellModes(model, 5000.0, 0, true);
-  const double plain = RelativeError(ModalRun(model, band, weights, force, sensors, 600, fs, false), reference);
-  const double corrected = RelativeError(ModalRun(model, band, weights, force, sensors, 600, fs, true), reference);
+  const double plain =
+      RelativeError(ModalRun(model, band, weights, force, sensors, 600, fs, false), reference);
+  const double corrected =
+      RelativeError(ModalRun(model, band, weights, force, sensors, 600, fs, true), reference);
   std::cout << "5 kHz band: error " << plain << " without residual, " << corrected << " with\n";
   EXPECT_LT(corrected, plain);
 }

@@ -3,8 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "common/test_util.h"
 #include <time.h>
+#include "common/test_util.h"
 
 #include <algorithm>
 #include <bit>
@@ -12,8 +12,8 @@
 #include <cmath>
 #include <complex>
 #include <fstream>
-#include <iostream>
 #include <iomanip>
+#include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -87,7 +87,9 @@ double Energy(const float* x, int64_t n) {
   return e;
 }
 
-double Db(double ratio) { return 10.0 * std::log10(ratio); }
+double Db(double ratio) {
+  return 10.0 * std::log10(ratio);
+}
 
 // A measured value for RecordProperty, in scientific notation.
 std::string Sci(double v) {
@@ -290,15 +292,15 @@ TEST(SpectralGateTest, MatchesDirectTriangleSmoothing) {
   };
   constexpr double kRate = 8000.0;  // n_fft 64, hop 16: n_f = floor(hz / 250), n_t = floor(s * 500)
   const std::vector<Case> cases = {
-      {600.0, 0.007, 1.0, 0.05, 1500},   // n_f 2, n_t 3
-      {900.0, 0.011, 0.7, 0.05, 1500},   // n_f 3, n_t 5, partial
-      {100.0, 0.007, 1.0, 0.05, 1500},   // n_f 0
-      {600.0, 0.001, 0.6, 0.05, 1500},   // n_t 0
-      {0.0, 0.0, 1.0, 0.05, 1500},       // no smoothing
-      {1100.0, 0.02, 1.0, 0.05, 40},     // shorter than a frame, kernel wider than it
-      {4000.0, 6.0, 0.8, 0.05, 600},     // n_f 16, n_t 3000: counts past int32
-      {600.0, 0.007, 1.0, 30.0, 1500},   // a loud burst: the top_db floor passes every bin
-      {600.0, 0.007, 1.0, 6.5, 1500},    // the floor between thresholds: some bins
+      {600.0, 0.007, 1.0, 0.05, 1500},  // n_f 2, n_t 3
+      {900.0, 0.011, 0.7, 0.05, 1500},  // n_f 3, n_t 5, partial
+      {100.0, 0.007, 1.0, 0.05, 1500},  // n_f 0
+      {600.0, 0.001, 0.6, 0.05, 1500},  // n_t 0
+      {0.0, 0.0, 1.0, 0.05, 1500},      // no smoothing
+      {1100.0, 0.02, 1.0, 0.05, 40},    // shorter than a frame, kernel wider than it
+      {4000.0, 6.0, 0.8, 0.05, 600},    // n_f 16, n_t 3000: counts past int32
+      {600.0, 0.007, 1.0, 30.0, 1500},  // a loud burst: the top_db floor passes every bin
+      {600.0, 0.007, 1.0, 6.5, 1500},   // the floor between thresholds: some bins
   };
   for (const Case& c : cases) {
     SpectralGateConfig config;
@@ -323,8 +325,8 @@ TEST(SpectralGateTest, MatchesDirectTriangleSmoothing) {
         const double f_hz = 200.0 + 3500.0 * uniform(rng), tau_s = 0.002 + 0.02 * uniform(rng);
         for (int64_t t = onset; t < c.n; ++t) {
           const double s = static_cast<double>(t - onset) / kRate;
-          x[t] += static_cast<float>(amplitude * std::exp(-s / tau_s) *
-                                     std::sin(2 * kPi * f_hz * s));
+          x[t] +=
+              static_cast<float>(amplitude * std::exp(-s / tau_s) * std::sin(2 * kPi * f_hz * s));
         }
       }
       double margin_db = 0.0;
@@ -339,8 +341,8 @@ TEST(SpectralGateTest, MatchesDirectTriangleSmoothing) {
         max_in = std::max(max_in, std::abs(static_cast<double>(x[t])));
       }
       EXPECT_LT(max_err, 1e-6 * max_in)
-          << "n_f " << gate.freq_smooth_bins() << " n_t " << gate.time_smooth_frames()
-          << " prop " << c.prop_decrease << " n " << c.n << " burst " << c.burst;
+          << "n_f " << gate.freq_smooth_bins() << " n_t " << gate.time_smooth_frames() << " prop "
+          << c.prop_decrease << " n " << c.n << " burst " << c.burst;
       EXPECT_GT(max_ref, 0.0);
       checked = true;
     }

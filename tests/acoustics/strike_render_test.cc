@@ -73,7 +73,8 @@ TEST(StrikeRenderTest, ModalRungIsFiniteDeterministicAndCarriesTheCues) {
   EXPECT_GT(a.modes_used, 50);
   EXPECT_EQ(a.touches, 1);
   // the contact is coupled to the wall: close to, but not exactly, the rigid-wall Hertz pulse
-  const HertzImpact rigid = SolveHertzImpact(Dowel(-0.09, 0.0, 0.1), TubeConfig{}, MaterialConfig{});
+  const HertzImpact rigid =
+      SolveHertzImpact(Dowel(-0.09, 0.0, 0.1), TubeConfig{}, MaterialConfig{});
   EXPECT_GT(a.duration_s, 0.9 * rigid.duration_s);
   EXPECT_LT(a.duration_s, 2.0 * rigid.duration_s);
   EXPECT_NE(a.duration_s, rigid.duration_s);
@@ -117,7 +118,8 @@ TEST(StrikeRenderTest, FdRungAgreesWithModalRung) {
   const RenderedStrike fd = StrikeSynthesizer(c).Render(Dowel(0.03, 0.7, 0.3, 0.005), {}, 0.0, 3);
   c.synth.model = "modal";
   c.synth.max_frequency_hz = 12000;
-  const RenderedStrike modal = StrikeSynthesizer(c).Render(Dowel(0.03, 0.7, 0.3, 0.005), {}, 0.0, 3);
+  const RenderedStrike modal =
+      StrikeSynthesizer(c).Render(Dowel(0.03, 0.7, 0.3, 0.005), {}, 0.0, 3);
   ASSERT_TRUE(fd.audio.allFinite());
   const double err = (fd.audio - modal.audio).norm() / fd.audio.norm();
   std::printf("FD vs modal (10 mm grid, 12 kHz band + residual): relative error %.4f\n", err);
@@ -160,7 +162,8 @@ TEST(StrikeRenderTest, EpisodesPlayBouncesPressesAndBrushes) {
   EXPECT_GT((all.audio - alone.audio).middleCols(bounce, 400).norm(), 0.0f);
   // the brush adds energy in its span that the lone impact lacks
   const int64_t b0 = static_cast<int64_t>(0.52 * fs), len = static_cast<int64_t>(0.06 * fs);
-  EXPECT_GT(all.audio.middleCols(b0, len).squaredNorm(), 4 * alone.audio.middleCols(b0, len).squaredNorm());
+  EXPECT_GT(all.audio.middleCols(b0, len).squaredNorm(),
+            4 * alone.audio.middleCols(b0, len).squaredNorm());
   // the first contact's figures are the same with or without the other episodes
   EXPECT_EQ(all.impulse_ns, alone.impulse_ns);
 }
@@ -198,7 +201,7 @@ TEST(StrikeRenderTest, ExtremesStayFiniteAndFlagClipping) {
 
 TEST(DaqChainTest, PerChannelGainAndHighPass) {
   AcousticModelConfig c = Coarse();
-  c.daq.channel_gain_db = {0, 6.0206, 0, 0, 0, 0};   // channel 1 at twice the gain
+  c.daq.channel_gain_db = {0, 6.0206, 0, 0, 0, 0};  // channel 1 at twice the gain
   c.daq.channel_input_resistance_ohm = {1e6, 1e6, 1e6, 1e6, 1e6, 5e4};
   EXPECT_NEAR(c.daq.highpass_hz(5), 1.0 / (2 * kPi * 5e4 * 16e-9), 1e-6);
   // strain equal on channels 0 and 1 (a constant-strain step), converted
@@ -226,7 +229,8 @@ TEST(DaqChainTest, RecordedNoiseIsInjectedAndCheckedWhenLoaded) {
   AudioClip clip;
   clip.sample_rate_hz = 44100;
   clip.samples.resize(1, 22050);
-  for (int64_t k = 0; k < 22050; ++k) clip.samples(0, k) = 0.01f * std::sin(2 * kPi * 1000 * k / 44100.0);
+  for (int64_t k = 0; k < 22050; ++k)
+    clip.samples(0, k) = 0.01f * std::sin(2 * kPi * 1000 * k / 44100.0);
   WriteWav(dir / "bg.wav", clip, false);
   AcousticModelConfig c = Coarse();
   c.noise.wav_files = {dir / "bg.wav"};

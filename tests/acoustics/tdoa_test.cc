@@ -47,12 +47,14 @@ Eigen::MatrixXf DispersiveStrike(const TdoaGeometry& g, double z, double theta,
         if (f > 20000.0) a = 0.5 + 0.5 * std::cos(kPi * (f - 20000.0) / 1000.0);
       }
       const double omega = 2.0 * kPi * f;
-      const double c = f > 0.0 ? speed_factor * FlexuralPhaseVelocity(f, g.material, g.wall_thickness_m) : 1.0;
+      const double c =
+          f > 0.0 ? speed_factor * FlexuralPhaseVelocity(f, g.material, g.wall_thickness_m) : 1.0;
       const double phase = omega * kOnset / kFs + (f > 0.0 ? omega / c * path : 0.0);
       spectrum[k] = a * std::polar(1.0, -phase);
     }
     fft.inv(signal.data(), spectrum.data(), kLength);
-    for (int64_t t = 0; t < kLength; ++t) record(static_cast<int64_t>(m), t) = static_cast<float>(signal[t]);
+    for (int64_t t = 0; t < kLength; ++t)
+      record(static_cast<int64_t>(m), t) = static_cast<float>(signal[t]);
   }
   return record;
 }
@@ -75,8 +77,8 @@ TEST(TdoaTest, SurfacePathsOnClosedAndSeamedTubes) {
   const TdoaGeometry closed = DefaultGeometry(false);
   const double r = closed.radius_m;
   // closed tube: the shorter helix, across theta = +-pi
-  EXPECT_NEAR(SurfacePathLength(closed, 0.0, 3.0, 0.03, -3.0), std::hypot(0.03, r * (2 * kPi - 6.0)),
-              1e-12);
+  EXPECT_NEAR(SurfacePathLength(closed, 0.0, 3.0, 0.03, -3.0),
+              std::hypot(0.03, r * (2 * kPi - 6.0)), 1e-12);
   // seamed tube (cuts at 90 and 270 deg, bolts at z = -0.1, 0, 0.1): inside a half, straight
   const TdoaGeometry seamed = DefaultGeometry(true);
   const double deg = kPi / 180.0;
@@ -98,8 +100,8 @@ TEST(TdoaTest, LocatesSyntheticDispersiveStrikes) {
   for (const bool seamed : {true, false}) {
     const TdoaGeometry g = DefaultGeometry(seamed);
     const TdoaLocator locator(g, TdoaConfig{}, kFs);
-    for (const auto& [z, theta] : {std::pair{0.043, 0.7}, std::pair{-0.081, -2.9},
-                                   std::pair{0.005, 3.1}}) {
+    for (const auto& [z, theta] :
+         {std::pair{0.043, 0.7}, std::pair{-0.081, -2.9}, std::pair{0.005, 3.1}}) {
       const TdoaEstimate e = locator.Locate(DispersiveStrike(g, z, theta), kOnset);
       SCOPED_TRACE(::testing::Message() << "seamed " << seamed << " z " << z << " theta " << theta);
       EXPECT_NEAR(e.z_m, z, 0.003);
@@ -120,8 +122,8 @@ TEST(TdoaTest, DispersionBeatsOneSpeed) {
   flat.dispersive = false;
   const TdoaLocator dispersive(g, per_band, kFs);
   const TdoaLocator single(g, flat, kFs);
-  const std::vector<std::pair<double, double>> strikes{{0.043, 0.7}, {-0.081, -2.9}, {0.06, 2.0},
-                                                       {-0.02, -1.2}};
+  const std::vector<std::pair<double, double>> strikes{
+      {0.043, 0.7}, {-0.081, -2.9}, {0.06, 2.0}, {-0.02, -1.2}};
   const std::vector<double> scales{0.8, 0.9, 1.0, 1.1, 1.25, 1.4, 1.6};
   double err_dispersive = 0.0;
   std::vector<double> err_single(scales.size(), 0.0);
@@ -138,10 +140,10 @@ TEST(TdoaTest, DispersionBeatsOneSpeed) {
   const double analytic_single = err_single[2];
   const double best_single = *std::min_element(err_single.begin(), err_single.end());
   EXPECT_LT(err_dispersive, 0.0025);
-  EXPECT_GT(analytic_single, 4.0 * err_dispersive) << analytic_single << " m against "
-                                                    << err_dispersive << " m";
-  EXPECT_GT(best_single, 1.3 * err_dispersive) << best_single << " m against " << err_dispersive
-                                               << " m";
+  EXPECT_GT(analytic_single, 4.0 * err_dispersive)
+      << analytic_single << " m against " << err_dispersive << " m";
+  EXPECT_GT(best_single, 1.3 * err_dispersive)
+      << best_single << " m against " << err_dispersive << " m";
 }
 
 TEST(TdoaTest, SpeedFitRecoversAScaledMaterial) {

@@ -39,7 +39,8 @@ Impact ZenerReference(double m_kg, double k_n_m15, double v_m_s) {
     *d_u = -f / m_kg;
   };
   // the step: a 200 000th of the half-space Hertz time
-  const double t_hertz = 2.9432 * std::pow(5.0 * m_kg * v_m_s * v_m_s / (4.0 * k_n_m15), 0.4) / v_m_s;
+  const double t_hertz =
+      2.9432 * std::pow(5.0 * m_kg * v_m_s * v_m_s / (4.0 * k_n_m15), 0.4) / v_m_s;
   const double dt = t_hertz / 200000.0;
   double delta = 0.0, u = v_m_s, t = 0.0, peak = 0.0;
   do {
@@ -73,7 +74,8 @@ DrivingPoint PlateCentre(double a_m, double f_max_hz, double loss_factor) {
     }
   }
   DrivingPoint p;
-  p.omega_rad_s = Eigen::Map<Eigen::VectorXd>(omega.data(), static_cast<Eigen::Index>(omega.size()));
+  p.omega_rad_s =
+      Eigen::Map<Eigen::VectorXd>(omega.data(), static_cast<Eigen::Index>(omega.size()));
   p.phi = Eigen::Map<Eigen::VectorXd>(phi.data(), static_cast<Eigen::Index>(phi.size()));
   p.zeta = Eigen::VectorXd::Constant(p.phi.size(), 0.5 * loss_factor);
   return p;
@@ -102,8 +104,8 @@ TEST(ZenerTest, CoupledContactOnAPlateFollowsPlateImpactTheory) {
     // the half-space Hertz time of the same impact, to show how far the plate moves it
     const double delta = std::pow(5.0 * c.m_kg * c.v_m_s * c.v_m_s / (4.0 * k), 0.4);
     const double hertz_s = 2.9432 * delta / c.v_m_s;
-    std::cout << "m = " << c.m_kg * 1e3 << " g, v = " << c.v_m_s << " m/s: Hertz "
-              << hertz_s * 1e6 << " us, Zener " << zener.duration_s * 1e6 << " us, solved "
+    std::cout << "m = " << c.m_kg * 1e3 << " g, v = " << c.v_m_s << " m/s: Hertz " << hertz_s * 1e6
+              << " us, Zener " << zener.duration_s * 1e6 << " us, solved "
               << solved.duration_s * 1e6 << " us; peak " << zener.peak_n << " / "
               << solved.peak_force_n << " N; rebound " << zener.rebound_m_s << " / "
               << solved.rebound_speed_m_s << " m/s\n";

@@ -62,7 +62,9 @@ ConfigLayers TextLayer(const std::string& yaml) {
   return layers;
 }
 
-void WriteFile(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+void WriteFile(const std::string& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
 
 template <typename T = Root>
 std::string ErrorOf(const ConfigLayers& layers) {
@@ -239,8 +241,7 @@ TEST(ConfigListTest, LaterLayerReplacesTheList) {
   WriteFile(dir / "c.yaml", "scene:\n  objects:\n    - {bogus: 1}\n");
   layers.AddFile(dir / "c.yaml");
   const std::string err = ErrorOf<ListRoot>(layers);
-  EXPECT_NE(err.find("'scene.objects.0.bogus' (from " + (dir / "c.yaml") + ")"),
-            std::string::npos)
+  EXPECT_NE(err.find("'scene.objects.0.bogus' (from " + (dir / "c.yaml") + ")"), std::string::npos)
       << err;
 }
 

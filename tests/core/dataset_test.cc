@@ -224,8 +224,8 @@ void ExpectRoundTrip(bool audio_int16) {
     EXPECT_EQ(got.proprio, expected.proprio);
     for (int c = 0; c < 2; ++c) {
       for (int t = 0; t < 64; ++t) {
-        const float want = audio_int16 ? std::clamp(expected.audio(c, t), -1.0f, 1.0f)
-                                       : expected.audio(c, t);
+        const float want =
+            audio_int16 ? std::clamp(expected.audio(c, t), -1.0f, 1.0f) : expected.audio(c, t);
         ASSERT_NEAR(got.audio(c, t), want, tolerance) << "channel " << c << " frame " << t;
       }
     }
@@ -239,9 +239,13 @@ void ExpectRoundTrip(bool audio_int16) {
   EXPECT_NEAR(reader.Read(0).audio(0, 5), audio_int16 ? 1.0f : 1.5f, 1e-6);
 }
 
-TEST(DatasetTest, RoundTripInt16) { ExpectRoundTrip(true); }
+TEST(DatasetTest, RoundTripInt16) {
+  ExpectRoundTrip(true);
+}
 
-TEST(DatasetTest, RoundTripFloat32) { ExpectRoundTrip(false); }
+TEST(DatasetTest, RoundTripFloat32) {
+  ExpectRoundTrip(false);
+}
 
 TEST(DatasetTest, FinalNameAppearsOnlyAtFinish) {
   TempDir dir;
@@ -590,8 +594,7 @@ TEST(MergeTest, JoinsShardsInSampleIndexOrder) {
             (std::vector<float>{0, 0}));
   EXPECT_EQ(ReadArray(out, "index/contact_first").data, (std::vector<float>{0, 3, 3, 4, 7}));
   EXPECT_EQ(ReadArray(out, "index/contact_count").data, (std::vector<float>{3, 0, 1, 3, 0}));
-  EXPECT_EQ(ReadArray(out, "contacts/sample_row").data,
-            (std::vector<float>{0, 0, 0, 2, 3, 3, 3}));
+  EXPECT_EQ(ReadArray(out, "contacts/sample_row").data, (std::vector<float>{0, 0, 0, 2, 3, 3, 3}));
 }
 
 // A randomized dataset stores each sample's draws in /variation, named; merge carries them.
@@ -660,8 +663,7 @@ TEST(MergeTest, RefusesMismatchedConfigAndIncompleteShards) {
   WriteDataset(dir.File("a.h5"), info, {0});
   info.config_yaml = "seed: 43\n";
   WriteDataset(dir.File("b.h5"), info, {1});
-  EXPECT_THROW(MergeDatasets({dir.File("a.h5"), dir.File("b.h5")}, dir.File("m.h5")),
-               SchemaError);
+  EXPECT_THROW(MergeDatasets({dir.File("a.h5"), dir.File("b.h5")}, dir.File("m.h5")), SchemaError);
   EXPECT_FALSE(fs::exists(dir.File("m.h5")));
 
   // A shard whose run did not finish.
@@ -675,8 +677,7 @@ TEST(MergeTest, RefusesMismatchedConfigAndIncompleteShards) {
   // Another audio shape.
   info.audio_frames = 32;
   WriteDataset(dir.File("d.h5"), info, {3});
-  EXPECT_THROW(MergeDatasets({dir.File("a.h5"), dir.File("d.h5")}, dir.File("m.h5")),
-               SchemaError);
+  EXPECT_THROW(MergeDatasets({dir.File("a.h5"), dir.File("d.h5")}, dir.File("m.h5")), SchemaError);
 }
 
 TEST(SummaryTest, CountsValidAndInvalidWithReasons) {
@@ -725,8 +726,7 @@ TEST(SummaryTest, CountsValidAndInvalidWithReasons) {
   EXPECT_DOUBLE_EQ(summary["z_m"]["mean"].get<double>(), 0.5 * (s0.label.z_m + s2.label.z_m));
   EXPECT_DOUBLE_EQ(summary["theta_rad"]["max"].get<double>(), s2.label.theta_rad);
   EXPECT_DOUBLE_EQ(summary["impulse_Ns"]["min"].get<double>(), s0.label.impulse_Ns);
-  EXPECT_DOUBLE_EQ(summary["normal_speed_m_s"]["max"].get<double>(),
-                   s2.label.normal_speed_m_s);
+  EXPECT_DOUBLE_EQ(summary["normal_speed_m_s"]["max"].get<double>(), s2.label.normal_speed_m_s);
   // Sample 0 peaks at full scale (clamped), sample 2 below 0.8 / 3.
   EXPECT_NEAR(summary["audio_peak"]["max"].get<double>(), 1.0, 1e-6);
   EXPECT_NEAR(summary["audio_peak"]["min"].get<double>(), s2.audio.cwiseAbs().maxCoeff(),
@@ -780,9 +780,9 @@ TEST(SummaryTest, CountsContactsByKindAndObjectAndFirstContactCoverage) {
   EXPECT_EQ(contacts["per_sample"]["min"], 0);
   EXPECT_EQ(contacts["per_sample"]["max"], 3);
   EXPECT_DOUBLE_EQ(contacts["per_sample"]["mean"].get<double>(), 6.0 / 5.0);
-  EXPECT_EQ(contacts["kinds"], nlohmann::json({{"impact", 3}, {"bounce", 2}, {"press", 1}, {"brush", 0}}));
-  EXPECT_EQ(contacts["objects"],
-            nlohmann::json({{"rod A", 3}, {"rod B", 2}, {"(unnamed)", 1}}));
+  EXPECT_EQ(contacts["kinds"],
+            nlohmann::json({{"impact", 3}, {"bounce", 2}, {"press", 1}, {"brush", 0}}));
+  EXPECT_EQ(contacts["objects"], nlohmann::json({{"rod A", 3}, {"rod B", 2}, {"(unnamed)", 1}}));
   const nlohmann::json& coverage = contacts["coverage"];
   EXPECT_EQ(coverage["z_bins_m"],
             nlohmann::json({-0.1015, -0.0609, -0.0203, 0.0203, 0.0609, 0.1015}));
@@ -1002,19 +1002,18 @@ TEST(H5pyTest, EncodedChunksMatchHdf5FilterPipeline) {
     const std::string script = dir.File("compare_chunks.py");
     std::ofstream(script) << kCompareChunksPy;
     int status = -1;
-    const std::string output =
-        RunCommand("/usr/bin/python3 " + script + " " + path + " " + dir.File("ref.h5") + " " +
-                       expected_path,
-                   &status);
+    const std::string output = RunCommand(
+        "/usr/bin/python3 " + script + " " + path + " " + dir.File("ref.h5") + " " + expected_path,
+        &status);
     ASSERT_EQ(status, 0) << output;
     const std::string dtype = audio_int16 ? "int16" : "float32";
-    EXPECT_NE(output.find("dtype=" + dtype + " rows=3 shuffle=True compression=gzip level=1 "
+    EXPECT_NE(output.find("dtype=" + dtype +
+                          " rows=3 shuffle=True compression=gzip level=1 "
                           "equal_values=True equal_chunks=3 "),
               std::string::npos)
         << output;
     // h5py, through HDF5's filters, decodes the values that were written.
-    EXPECT_NE(output.find("checksum=" + std::to_string(written_checksum) + "\n"),
-              std::string::npos)
+    EXPECT_NE(output.find("checksum=" + std::to_string(written_checksum) + "\n"), std::string::npos)
         << output << "written checksum " << written_checksum;
   }
 }
@@ -1123,8 +1122,7 @@ TEST(H5pyTest, ReaderRefusesBrokenContactOffsets) {
     reader.Read(2);
     FAIL() << "contacts of another sample were read";
   } catch (const SchemaError& e) {
-    EXPECT_NE(std::string(e.what()).find("belongs to sample row 0"), std::string::npos)
-        << e.what();
+    EXPECT_NE(std::string(e.what()).find("belongs to sample row 0"), std::string::npos) << e.what();
   }
   const std::string past_end = dir.File("past_end.h5");
   WriteDataset(past_end, info, {0, 1, 2});
@@ -1234,8 +1232,7 @@ TEST(H5pyTest, DocumentedExampleReadsDataset) {
 
   // A 1.0 file has no contacts to print.
   EditDataset(dir, "downgrade", path);
-  const std::string old_output =
-      RunCommand("/usr/bin/python3 " + script + " " + path, &status);
+  const std::string old_output = RunCommand("/usr/bin/python3 " + script + " " + path, &status);
   ASSERT_EQ(status, 0) << old_output;
   EXPECT_NE(old_output.find("first: index=0 z_m=-0.050000"), std::string::npos) << old_output;
   EXPECT_NE(old_output.find("contacts: not recorded (schema_version 1.0)"), std::string::npos)

@@ -28,14 +28,15 @@ void Write(const fs::path& path, const std::string& text) {
 TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
   TempDir dir;
   ASSERT_EQ(RunCli(kTiny + "generate --count 24 --out D.h5 -q", dir.path().string()).exit_code, 0);
-  ASSERT_EQ(RunCli(kTiny + "generate --count 8 --first-index 100 --out T.h5 -q",
-                   dir.path().string()).exit_code, 0);
+  ASSERT_EQ(
+      RunCli(kTiny + "generate --count 8 --first-index 100 --out T.h5 -q", dir.path().string())
+          .exit_code,
+      0);
   Write(dir / "abl/01-all.yaml", "# every modality\n{}\n");
   Write(dir / "abl/02-proprio.yaml", "# proprioception only\nmodel:\n  modalities: [proprio]\n");
   Write(dir / "abl/03-no_norm.yaml",
         "# no normalization\ntrain:\n  normalize: false\nfeatures:\n  gcc_window_s: 0.1\n");
-  const std::string cmd =
-      kTiny + "ablate --data D.h5 --test T.h5 --out A --configs abl --json -q";
+  const std::string cmd = kTiny + "ablate --data D.h5 --test T.h5 --out A --configs abl --json -q";
   auto run = RunCli(cmd, dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
@@ -77,8 +78,8 @@ TEST(AblateTest, BadConfigIsRefusedBeforeAnyTraining) {
   ASSERT_EQ(RunCli(kTiny + "generate --count 4 --out D.h5 -q", dir.path().string()).exit_code, 0);
   Write(dir / "abl/01-all.yaml", "{}\n");
   Write(dir / "abl/02-typo.yaml", "model:\n  modalitys: [audio]\n");
-  auto run = RunCli(kTiny + "ablate --data D.h5 --test D.h5 --out A --configs abl",
-                    dir.path().string());
+  auto run =
+      RunCli(kTiny + "ablate --data D.h5 --test D.h5 --out A --configs abl", dir.path().string());
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("02-typo.yaml"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("modalitys"), std::string::npos) << run.err;

@@ -21,8 +21,8 @@ using testing::TempDir;
 const std::string kShort = testing::kShortRecordArgs;
 
 void ExpectMetricsKeys(const json& j) {
-  for (const char* key : {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm",
-                          "method"}) {
+  for (const char* key :
+       {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm", "method"}) {
     EXPECT_TRUE(j.contains(key)) << key << " in " << j.dump();
   }
 }
@@ -33,8 +33,8 @@ TEST(BaselineCliTest, KnnTdoaAndConstantOnATinyDataset) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
 
   // kNN with one neighbour on its own training set recovers every label
-  run = RunCli("baseline --method knn --k 1 --train D.h5 --data D.h5 --json -q",
-               dir.path().string());
+  run =
+      RunCli("baseline --method knn --k 1 --train D.h5 --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   json j = json::parse(run.out);
   ExpectMetricsKeys(j);
@@ -51,8 +51,8 @@ TEST(BaselineCliTest, KnnTdoaAndConstantOnATinyDataset) {
   EXPECT_LT(j["med_cm"].get<double>(), 1e-6);
 
   // the constant predictor
-  run = RunCli("baseline --method constant --train D.h5 --data D.h5 --json -q",
-               dir.path().string());
+  run =
+      RunCli("baseline --method constant --train D.h5 --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   j = json::parse(run.out);
   ExpectMetricsKeys(j);

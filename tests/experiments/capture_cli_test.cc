@@ -2,8 +2,8 @@
 // datasets, and a simulated set exported and imported again gives the same features and answers.
 #include <gtest/gtest.h>
 
-#include <filesystem>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -36,8 +36,8 @@ TEST(CaptureCliTest, ExportImportRoundTripServesEveryDatasetCommand) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_EQ(json::parse(run.out)["trials"], 24);
   // (the seed's 24 strikes have none clipped, so every one is a good capture)
-  run = RunCli(kTiny + "import --layout trial --in trials --out B.h5 --min-duration-s 0.5 --json -q",
-               cwd);
+  run = RunCli(
+      kTiny + "import --layout trial --in trials --out B.h5 --min-duration-s 0.5 --json -q", cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_EQ(json::parse(run.out)["imported"], 24);
 
@@ -47,10 +47,11 @@ TEST(CaptureCliTest, ExportImportRoundTripServesEveryDatasetCommand) {
   EXPECT_EQ(json::parse(run.out)["source"], "hardware");
   run = RunCli(kTiny + "train --data B.h5 --out RUN -q --json", cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
-  for (const std::string& cmd : {kTiny + "features --in B.h5 --out F.h5 -q",
-                                 std::string("baseline --method arrival --data B.h5 -q"),
-                                 kTiny + "baseline --method constant --train B.h5 --data B.h5 -q",
-                                 std::string("localize --model RUN --wav trials/trial0/mic2.wav -q")}) {
+  for (const std::string& cmd :
+       {kTiny + "features --in B.h5 --out F.h5 -q",
+        std::string("baseline --method arrival --data B.h5 -q"),
+        kTiny + "baseline --method constant --train B.h5 --data B.h5 -q",
+        std::string("localize --model RUN --wav trials/trial0/mic2.wav -q")}) {
     run = RunCli(cmd, cwd);
     EXPECT_EQ(run.exit_code, 0) << cmd << ": " << run.err;
   }
@@ -85,7 +86,8 @@ TEST(CaptureCliTest, ExportImportRoundTripServesEveryDatasetCommand) {
     const ContactLabel truth = original.ReadMeta(k).label;
     EXPECT_NEAR(lines[k]["onset_s"].get<double>(), 0.6 * k + truth.time_s, 0.002) << k;
     EXPECT_GT(lines[k]["latency_ms"].get<double>(), 0.0);
-    labels << lines[k]["file"].get<std::string>() << "," << truth.z_m << "," << truth.theta_rad << "\n";
+    labels << lines[k]["file"].get<std::string>() << "," << truth.z_m << "," << truth.theta_rad
+           << "\n";
   }
   labels.close();
   run = RunCli("import --layout capture --in sess --out S.h5 --min-duration-s 0.5 --json -q", cwd);
@@ -148,8 +150,7 @@ TEST(CaptureCliTest, ImportLabelsTrialsFromTheJointLogAndAnObjectMesh) {
   // the arm holds still at q; a rod touches the tube at (z0, theta0) = (0.04 m, 1.0 rad) in
   // trial 0; in trial 1 the base is turned and the tube never comes near it
   const double q[7] = {0.1, -0.3, 0.05, -2.0, 0.02, 1.9, 0.7};
-  const Eigen::Isometry3d tube =
-      sim::PandaForwardKinematics(sim::JointVector(q), 0.155).tube;
+  const Eigen::Isometry3d tube = sim::PandaForwardKinematics(sim::JointVector(q), 0.155).tube;
   const Eigen::Vector3d n(std::cos(1.0), std::sin(1.0), 0.0), t(-std::sin(1.0), std::cos(1.0), 0.0);
   WriteRodStl(dir / "rod.stl", tube * ((0.05355 + 0.011) * n + Eigen::Vector3d(0, 0, 0.04)),
               tube.linear() * (0.8 * t + 0.6 * Eigen::Vector3d::UnitZ()), 0.011, 0.4);
@@ -158,15 +159,17 @@ TEST(CaptureCliTest, ImportLabelsTrialsFromTheJointLogAndAnObjectMesh) {
   hardware::WriteNpy(dir / "trials/trial0/q_t.npy", {200, 7}, log);
   for (int r = 0; r < 200; ++r) log[r * 7] = 1.6;  // the base turned: the tube far from the rod
   hardware::WriteNpy(dir / "trials/trial1/q_t.npy", {200, 7}, log);
-  auto run = RunCli(kTiny + "import --layout trial --in trials --out G.h5 --object rod.stl "
-                            "--min-duration-s 0.5 --skip-bad --json -q",
+  auto run = RunCli(kTiny +
+                        "import --layout trial --in trials --out G.h5 --object rod.stl "
+                        "--min-duration-s 0.5 --skip-bad --json -q",
                     cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json report = json::parse(run.out);
   EXPECT_EQ(report["imported"], 1);
   ASSERT_EQ(report["bad"].size(), 1u);
   EXPECT_NE(report["bad"][0]["reason"].get<std::string>().find("trial1/q_t.npy: no contact"),
-            std::string::npos) << run.out;
+            std::string::npos)
+      << run.out;
   const ContactLabel label = DatasetReader(dir / "G.h5").ReadMeta(0).label;
   EXPECT_NEAR(label.z_m, 0.04, 5e-4);
   EXPECT_NEAR(label.theta_rad, 1.0, 5e-4 / 0.05355);
@@ -174,7 +177,8 @@ TEST(CaptureCliTest, ImportLabelsTrialsFromTheJointLogAndAnObjectMesh) {
 
 TEST(CaptureCliTest, GeometryLabelsAgreeWithTheSimulatorOnMuJoCoStrikes) {
   TempDir dir;
-  const auto run = RunCli("geometry-check --count 12 --scenes scenes --json -q", dir.path().string());
+  const auto run =
+      RunCli("geometry-check --count 12 --scenes scenes --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
   EXPECT_GE(j["labelled"].get<int>(), 10);
@@ -197,7 +201,8 @@ TEST(CaptureCliTest, GeometryLabelsAgreeWithTheSimulatorOnMuJoCoStrikes) {
   const auto again = RunCli("geometry-check --count 1 --scenes scenes", dir.path().string());
   EXPECT_EQ(again.exit_code, 1);
   EXPECT_NE(again.err.find("scenes: exists and is not an empty directory (--scenes)"),
-            std::string::npos) << again.err;
+            std::string::npos)
+      << again.err;
   const auto bad = RunCli("--config " + std::string(SONICBOOM_SOURCE_DIR) +
                               "/configs/ts4.yaml geometry-check --count 2",
                           dir.path().string());

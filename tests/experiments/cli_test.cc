@@ -36,9 +36,11 @@ TEST(CliTest, HelpListsEverySubcommand) {
 // config structs serialize them); scripts/update_docs_defaults.py rewrites a stale one.
 TEST(CliTest, DocsDefaultsTablesAreCurrent) {
   TempDir dir;
-  const std::string begin = "<!-- generated: sonicboom config --markdown ", end = "<!-- end generated -->";
+  const std::string begin = "<!-- generated: sonicboom config --markdown ",
+                    end = "<!-- end generated -->";
   int blocks = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(std::string(SONICBOOM_SOURCE_DIR) + "/docs")) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::string(SONICBOOM_SOURCE_DIR) + "/docs")) {
     if (entry.path().extension() != ".md") continue;
     std::ifstream in(entry.path());
     const std::string text((std::istreambuf_iterator<char>(in)), {});
@@ -51,8 +53,9 @@ TEST(CliTest, DocsDefaultsTablesAreCurrent) {
       const std::string body = text.substr(open_end + 5, close - open_end - 5);
       const auto run = RunCli("config --markdown " + sections, dir.path().string());
       ASSERT_EQ(run.exit_code, 0) << run.err;
-      EXPECT_EQ(body, run.out) << entry.path() << " (" << sections
-                               << ") is stale: run /usr/bin/python3 scripts/update_docs_defaults.py";
+      EXPECT_EQ(body, run.out)
+          << entry.path() << " (" << sections
+          << ") is stale: run /usr/bin/python3 scripts/update_docs_defaults.py";
       ++blocks;
     }
   }
@@ -133,7 +136,8 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
     EXPECT_TRUE(std::isfinite(r["relative_error"].get<double>())) << r.dump();
     EXPECT_GT(r["ms_per_strike"].get<double>(), 0.0) << r.dump();
   }
-  EXPECT_LT(j["rungs"][1]["relative_error"].get<double>(), j["rungs"][12]["relative_error"].get<double>());
+  EXPECT_LT(j["rungs"][1]["relative_error"].get<double>(),
+            j["rungs"][12]["relative_error"].get<double>());
   EXPECT_GT(j["whole_strike_ms"].get<double>(), 0.0);
   EXPECT_TRUE(std::filesystem::exists(dir / "F.md"));
   // a bad option is refused, naming it
@@ -167,9 +171,9 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
   run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json metrics = json::parse(run.out);
-  for (const char* key : {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm",
-                          "z_coverage_50", "z_coverage_90", "theta_coverage_50",
-                          "theta_coverage_90", "nll"}) {
+  for (const char* key :
+       {"n", "med_cm", "height_err_cm", "angle_err_deg", "reference_med_cm", "z_coverage_50",
+        "z_coverage_90", "theta_coverage_50", "theta_coverage_90", "nll"}) {
     EXPECT_TRUE(metrics.contains(key)) << key;
   }
   EXPECT_EQ(metrics["n"], 30);
@@ -259,7 +263,8 @@ TEST(CliErrorTest, CorruptTruncatedAndWrongChannelWav) {
 
 TEST(CliErrorTest, UnknownKeyAndOutOfRangeValue) {
   TempDir dir;
-  auto run = RunCli("generate --count 5 --out D.h5 --set tube.outer_radius=0.05", dir.path().string());
+  auto run =
+      RunCli("generate --count 5 --out D.h5 --set tube.outer_radius=0.05", dir.path().string());
   EXPECT_NE(run.exit_code, 0);
   EXPECT_NE(run.err.find("tube.outer_radius"), std::string::npos) << run.err;
   EXPECT_FALSE(fs::exists(dir / "D.h5"));

@@ -22,14 +22,16 @@ using testing::RunCli;
 using testing::TempDir;
 
 struct Scenario {
-  const char* config;                       // under configs/
-  std::vector<std::string> object_prefixes; // every contact's object starts with one of these
-  const char* extra;                        // more CLI options
-  bool brushes{false};                      // valid samples include foliage brushes
+  const char* config;                        // under configs/
+  std::vector<std::string> object_prefixes;  // every contact's object starts with one of these
+  const char* extra;                         // more CLI options
+  bool brushes{false};                       // valid samples include foliage brushes
 };
 
 // readable test names in gtest and ctest output
-void PrintTo(const Scenario& s, std::ostream* os) { *os << s.config; }
+void PrintTo(const Scenario& s, std::ostream* os) {
+  *os << s.config;
+}
 
 std::string ConfigPath(const char* name) {
   return std::string(SONICBOOM_SOURCE_DIR) + "/configs/" + name;
@@ -50,9 +52,9 @@ TEST_P(ScenarioTest, GeneratesEightSamplesWithContacts) {
   ASSERT_TRUE(fs::exists(config)) << config;
   TempDir dir;
   const std::string out = dir / "D.h5";
-  auto run = RunCli("--config '" + config + "' " + s.extra + " generate --count 8 --out '" + out +
-                        "' -q --json",
-                    dir.path().string());
+  auto run = RunCli(
+      "--config '" + config + "' " + s.extra + " generate --count 8 --out '" + out + "' -q --json",
+      dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json generated = json::parse(run.out);
   EXPECT_EQ(generated["written"], 8);
@@ -93,16 +95,15 @@ TEST_P(ScenarioTest, GeneratesEightSamplesWithContacts) {
 
 INSTANTIATE_TEST_SUITE_P(
     Configs, ScenarioTest,
-    ::testing::Values(Scenario{"ts1.yaml", {"rod T12L42", "rod T22L42", "rod T25L42", "rod T32L42"}, ""},
-                      Scenario{"ts2.yaml", {"rod ", "cross "}, ""},
-                      // guided: the last grid points lie in the canopy (131 points; 4 taps each)
-                      Scenario{"ts3.yaml", {"branch ", "leaves"}, "--set dataset.first_index=504",
-                               true},
-                      Scenario{"ts4.yaml", {"striker wood T"}, ""},
-                      Scenario{"materials.yaml",
-                               {"striker wood T22L40", "striker aluminium T25L40",
-                                "striker pvc T21L40"},
-                               ""}),
+    ::testing::Values(
+        Scenario{"ts1.yaml", {"rod T12L42", "rod T22L42", "rod T25L42", "rod T32L42"}, ""},
+        Scenario{"ts2.yaml", {"rod ", "cross "}, ""},
+        // guided: the last grid points lie in the canopy (131 points; 4 taps each)
+        Scenario{"ts3.yaml", {"branch ", "leaves"}, "--set dataset.first_index=504", true},
+        Scenario{"ts4.yaml", {"striker wood T"}, ""},
+        Scenario{"materials.yaml",
+                 {"striker wood T22L40", "striker aluminium T25L40", "striker pvc T21L40"},
+                 ""}),
     [](const ::testing::TestParamInfo<Scenario>& info) {
       std::string name = info.param.config;
       return name.substr(0, name.find('.'));
@@ -113,11 +114,10 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(RandomizedPresetTest, LayersOverTs4AndStoresTheDraws) {
   TempDir dir;
   const std::string out = dir / "R.h5";
-  auto run = RunCli("--config '" + ConfigPath("ts4.yaml") + "' --config '" +
-                        ConfigPath("randomized.yaml") +
-                        "' --set randomize.structure_variants=2 generate --count 6 --out '" + out +
-                        "' -q --json",
-                    dir.path().string());
+  auto run = RunCli(
+      "--config '" + ConfigPath("ts4.yaml") + "' --config '" + ConfigPath("randomized.yaml") +
+          "' --set randomize.structure_variants=2 generate --count 6 --out '" + out + "' -q --json",
+      dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   DatasetReader reader(out);
   const std::vector<std::string>& names = reader.info().variation_names;
@@ -159,8 +159,10 @@ TEST(RandomizedPresetTest, LayersOverTs4AndStoresTheDraws) {
 
   // min above max: refused naming the key, nothing written
   const std::string bad = dir / "bad.h5";
-  run = RunCli("--config '" + ConfigPath("ts4.yaml") + "' --set 'randomize.density_scale=[1.1, 0.9]' "
-               "generate --count 2 --out '" + bad + "' -q",
+  run = RunCli("--config '" + ConfigPath("ts4.yaml") +
+                   "' --set 'randomize.density_scale=[1.1, 0.9]' "
+                   "generate --count 2 --out '" +
+                   bad + "' -q",
                dir.path().string());
   EXPECT_NE(run.exit_code, 0);
   EXPECT_NE(run.err.find("randomize.density_scale"), std::string::npos) << run.err;

@@ -18,25 +18,29 @@
 namespace sonicboom::hardware {
 namespace {
 
-using ::testing::HasSubstr;
 using sonicboom::testing::TempDir;
 using sonicboom::testing::ThrownMessage;
+using ::testing::HasSubstr;
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kR = 0.05355;
 
 // A tetrahedron in every format.
 void WriteTetra(const TempDir& dir) {
-  std::ofstream(dir / "t.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2/5/5 4\nf -4 3 4\nf 2 3 4\n";
-  std::ofstream(dir / "t.ply") << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
-                                  "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
-                                  "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n";
-  std::ofstream(dir / "t.stl") << "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
-                                  "endloop\nendfacet\nendsolid t\n";
+  std::ofstream(dir / "t.obj")
+      << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2/5/5 4\nf -4 3 4\nf 2 3 4\n";
+  std::ofstream(dir / "t.ply")
+      << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
+         "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n";
+  std::ofstream(dir / "t.stl")
+      << "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+         "endloop\nendfacet\nendsolid t\n";
   std::ofstream(dir / "t.pts") << "4\n0 0 0 9\n1 0 0 9\n0 1 0 9\n0 0 1 9\n";
   std::ofstream(dir / "t.xyz") << "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
   // binary PLY: 4 float vertices, no faces (a cloud)
   std::ofstream bin(dir / "b.ply", std::ios::binary);
-  bin << "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  bin << "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float "
+         "y\nproperty float z\nend_header\n";
   const float v[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
   bin.write(reinterpret_cast<const char*>(v), sizeof(v));
 }
@@ -88,7 +92,8 @@ ObjectGeometry SphereCloud(const Eigen::Vector3d& c, double r, int n) {
   for (int i = 0; i < n; ++i) {
     const double z = 1.0 - 2.0 * (i + 0.5) / n, phi = i * kPi * (3.0 - std::sqrt(5.0));
     const double s = std::sqrt(1.0 - z * z);
-    g.vertices.col(i) = (c + r * Eigen::Vector3d(s * std::cos(phi), s * std::sin(phi), z)).cast<float>();
+    g.vertices.col(i) =
+        (c + r * Eigen::Vector3d(s * std::cos(phi), s * std::sin(phi), z)).cast<float>();
   }
   return g;
 }
@@ -120,8 +125,10 @@ TEST(GeometryTest, LabelsKnownContactsOfSphereScansAndRodMeshes) {
       object = SphereCloud(start * ((kR + gap + r) * normal + Eigen::Vector3d(0, 0, z0)), r, 6000);
     } else {
       const double r = 0.005 + 0.010 * unit(rng), tilt = -1.2 + 2.4 * unit(rng);  // off the axis
-      const Eigen::Vector3d along = start.linear() * (std::cos(tilt) * tangent + std::sin(tilt) * Eigen::Vector3d::UnitZ());
-      object = RodMesh(start * ((kR + gap + r) * normal + Eigen::Vector3d(0, 0, z0)), along, r, 0.4);
+      const Eigen::Vector3d along =
+          start.linear() * (std::cos(tilt) * tangent + std::sin(tilt) * Eigen::Vector3d::UnitZ());
+      object =
+          RodMesh(start * ((kR + gap + r) * normal + Eigen::Vector3d(0, 0, z0)), along, r, 0.4);
     }
     std::vector<Eigen::Isometry3d> poses;
     for (int k = 0; k < 60; ++k) {
@@ -130,7 +137,8 @@ TEST(GeometryTest, LabelsKnownContactsOfSphereScansAndRodMeshes) {
       poses.push_back(pose);
     }
     const GeometryLabel label = ContactLabeler(object, ContactRule{}).Label(poses);
-    errors_mm.push_back(1e3 * SurfaceDistance(TubeConfig{}, label.z_m, label.theta_rad, z0, theta0));
+    errors_mm.push_back(1e3 *
+                        SurfaceDistance(TubeConfig{}, label.z_m, label.theta_rad, z0, theta0));
   }
   std::sort(errors_mm.begin(), errors_mm.end());
   const double median = errors_mm[50], p95 = errors_mm[95];

@@ -19,9 +19,9 @@ namespace sonicboom::hardware {
 namespace {
 
 namespace fs = std::filesystem;
-using ::testing::HasSubstr;
 using sonicboom::testing::TempDir;
 using sonicboom::testing::ThrownMessage;
+using ::testing::HasSubstr;
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr int64_t kFrames = 88200;
@@ -34,7 +34,8 @@ Eigen::MatrixXf StrikeAudio(uint64_t i) {
   for (int c = 0; c < 6; ++c) {
     for (int64_t t = 0; t < kFrames; ++t) {
       const double s = t / 44100.0 - 0.5;
-      const double tone = s < 0 ? 0.0 : 0.4 * std::exp(-s / 0.1) * std::sin(2 * kPi * (800 + 100 * c + i) * s);
+      const double tone =
+          s < 0 ? 0.0 : 0.4 * std::exp(-s / 0.1) * std::sin(2 * kPi * (800 + 100 * c + i) * s);
       a(c, t) = static_cast<float>(tone) + noise(rng);
     }
   }
@@ -54,9 +55,11 @@ void MakeDataset(const std::string& path, int n) {
     s.label.theta_rad = -3.0 + 1.1 * i;
     s.audio = StrikeAudio(s.index);
     s.proprio.resize(50, kProprioFeatures);
-    const Eigen::Quaterniond q = Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * i, Eigen::Vector3d(1, 2, 3).normalized()));
+    const Eigen::Quaterniond q =
+        Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * i, Eigen::Vector3d(1, 2, 3).normalized()));
     for (int r = 0; r < 50; ++r) {
-      s.proprio.row(r) << 0.3f + 0.001f * r, 0.1f * i, 0.5f, q.w(), q.x(), q.y(), q.z(), 0.01f * r, 0, -0.02f;
+      s.proprio.row(r) << 0.3f + 0.001f * r, 0.1f * i, 0.5f, q.w(), q.x(), q.y(), q.z(), 0.01f * r,
+          0, -0.02f;
     }
     writer.Append(s);
   }
@@ -75,7 +78,8 @@ TEST(ImportTest, ExportThenImportReproducesAudioLabelsAndPoses) {
   ASSERT_EQ(ExportTrials(dir / "d.h5", dir / "trials", AngleConvention::kTube), 4);
   EXPECT_TRUE(fs::exists(dir / "trials/trial3/x_t.npy"));
   EXPECT_FALSE(fs::exists(dir / "trials.partial"));
-  const ImportReport report = ImportCaptures(dir / "trials", dir / "back.h5", Trials(), DatasetInfo{});
+  const ImportReport report =
+      ImportCaptures(dir / "trials", dir / "back.h5", Trials(), DatasetInfo{});
   EXPECT_EQ(report.imported, 4);
   EXPECT_TRUE(report.bad.empty());
   DatasetReader a(dir / "d.h5"), b(dir / "back.h5");
@@ -89,10 +93,12 @@ TEST(ImportTest, ExportThenImportReproducesAudioLabelsAndPoses) {
     EXPECT_NEAR(y.label.theta_rad, x.label.theta_rad, 1e-12);
     EXPECT_NEAR(y.label.point_m.x(), 0.05355 * std::cos(x.label.theta_rad), 1e-12);
     EXPECT_LE((x.proprio - y.proprio).cwiseAbs().maxCoeff(), 1e-6f);
-    EXPECT_EQ(y.provenance, (fs::path(dir / "trials") / ("trial" + std::to_string(i)) / "mic2.wav").string());
+    EXPECT_EQ(y.provenance,
+              (fs::path(dir / "trials") / ("trial" + std::to_string(i)) / "mic2.wav").string());
   }
   // the output directory is never overwritten
-  EXPECT_THAT(ThrownMessage<IoError>([&] { ExportTrials(dir / "d.h5", dir / "trials", AngleConvention::kTube); }),
+  EXPECT_THAT(ThrownMessage<IoError>(
+                  [&] { ExportTrials(dir / "d.h5", dir / "trials", AngleConvention::kTube); }),
               HasSubstr("already exists"));
 }
 
@@ -100,7 +106,8 @@ TEST(ImportTest, J7AngleConventionMapsThetaBothWays) {
   EXPECT_NEAR(TubeAngleFrom(0.0, AngleConvention::kJ7), -50.0 * kPi / 180.0, 1e-12);
   EXPECT_NEAR(TubeAngleFrom(-2.7, AngleConvention::kJ7), 2.7 - 50.0 * kPi / 180.0, 1e-12);
   for (double t : {-3.1, -1.0, 0.0, 2.0, 3.1}) {
-    EXPECT_NEAR(TubeAngleFrom(StoredAngleFrom(t, AngleConvention::kJ7), AngleConvention::kJ7), t, 1e-12);
+    EXPECT_NEAR(TubeAngleFrom(StoredAngleFrom(t, AngleConvention::kJ7), AngleConvention::kJ7), t,
+                1e-12);
   }
   TempDir dir;
   MakeDataset(dir / "d.h5", 2);
@@ -159,7 +166,8 @@ TEST(ImportTest, SkipBadImportsTheRestAndReportsEachBadOne) {
   EXPECT_EQ(reader.ReadMeta(0).index, 0u);
   // every capture bad: an error even with skip_bad, and nothing written
   for (const char* gone : {"trial0/mic2.wav"}) fs::remove(dir / (std::string("trials/") + gone));
-  EXPECT_THAT(ThrownMessage<IoError>([&] { ImportCaptures(dir / "trials", dir / "none.h5", s, DatasetInfo{}); }),
+  EXPECT_THAT(ThrownMessage<IoError>(
+                  [&] { ImportCaptures(dir / "trials", dir / "none.h5", s, DatasetInfo{}); }),
               HasSubstr("every capture is bad"));
   EXPECT_FALSE(fs::exists(dir / "none.h5.partial"));
 }
@@ -172,7 +180,8 @@ TEST(ImportTest, PositionOnlyPosesTakeTheirOrientationFromTheJointLog) {
   for (int r = 0; r < 200; ++r) q[r * 7 + 6] = 0.01 * r;  // joint 7 turns
   WriteNpy(dir / "trials/trial0/x_t.npy", {200, 3}, x);
   ImportSettings s = Trials();
-  EXPECT_THAT(ThrownMessage<IoError>([&] { ImportCaptures(dir / "trials", dir / "a.h5", s, DatasetInfo{}); }),
+  EXPECT_THAT(ThrownMessage<IoError>(
+                  [&] { ImportCaptures(dir / "trials", dir / "a.h5", s, DatasetInfo{}); }),
               HasSubstr("no orientation (3 columns) and there is no q_t.npy"));
   WriteNpy(dir / "trials/trial0/q_t.npy", {200, 7}, q);
   s.tube_pose_from_joints = [](const std::array<double, 7>& j) {
@@ -182,16 +191,17 @@ TEST(ImportTest, PositionOnlyPosesTakeTheirOrientationFromTheJointLog) {
   };
   ImportCaptures(dir / "trials", dir / "b.h5", s, DatasetInfo{});
   const StrikeSample back = DatasetReader(dir / "b.h5").ReadMeta(0);
-  EXPECT_NEAR(back.proprio(40, 0), 0.2, 1e-6);                  // x from x_t
-  EXPECT_NEAR(back.proprio(40, 3), std::cos(0.2), 1e-6);        // w of a 0.4 rad turn
-  EXPECT_NEAR(back.proprio(40, 6), std::sin(0.2), 1e-6);        // z
+  EXPECT_NEAR(back.proprio(40, 0), 0.2, 1e-6);            // x from x_t
+  EXPECT_NEAR(back.proprio(40, 3), std::cos(0.2), 1e-6);  // w of a 0.4 rad turn
+  EXPECT_NEAR(back.proprio(40, 6), std::sin(0.2), 1e-6);  // z
 }
 
 TEST(ImportTest, CaptureLayoutReadsLabelsLogsAndNoiseAndFlagsUnlabelledFiles) {
   TempDir dir;
   fs::create_directory(dir / "cap");
   AudioClip clip{StrikeAudio(1), 44100.0};
-  for (const char* name : {"a.wav", "b.wav", "c.wav", "d.wav"}) WriteWav(dir / (std::string("cap/") + name), clip);
+  for (const char* name : {"a.wav", "b.wav", "c.wav", "d.wav"})
+    WriteWav(dir / (std::string("cap/") + name), clip);
   clip.samples = StrikeAudio(2) * 0.01f;
   WriteWav(dir / "cap/noise.wav", clip);
   Eigen::MatrixXf log = Eigen::MatrixXf::Zero(60, kProprioFeatures);
@@ -217,13 +227,14 @@ TEST(ImportTest, CaptureLayoutReadsLabelsLogsAndNoiseAndFlagsUnlabelledFiles) {
   ASSERT_EQ(a.contacts.size(), 1u);
   EXPECT_EQ(a.contacts[0].object, "rod T22L42");
   EXPECT_EQ(a.contacts[0].material, "wood");
-  EXPECT_NEAR(a.proprio(49, 0), 4.9, 1e-5);    // the log's row 49
-  EXPECT_EQ(b.proprio(10, 3), 1.0f);           // no log: the held identity pose
+  EXPECT_NEAR(a.proprio(49, 0), 4.9, 1e-5);  // the log's row 49
+  EXPECT_EQ(b.proprio(10, 3), 1.0f);         // no log: the held identity pose
   EXPECT_NEAR(b.label.theta_rad, -2.0, 1e-12);
   // a header with an unknown column is refused whole
   std::ofstream(dir / "cap/labels.csv") << "file,z_m,theta_rad,height\n";
-  EXPECT_THAT(ThrownMessage<IoError>([&] { ImportCaptures(dir / "cap", dir / "x.h5", s, DatasetInfo{}); }),
-              HasSubstr("column 'height' is unknown"));
+  EXPECT_THAT(
+      ThrownMessage<IoError>([&] { ImportCaptures(dir / "cap", dir / "x.h5", s, DatasetInfo{}); }),
+      HasSubstr("column 'height' is unknown"));
 }
 
 }  // namespace

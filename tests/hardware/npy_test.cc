@@ -11,9 +11,9 @@
 namespace sonicboom::hardware {
 namespace {
 
-using ::testing::HasSubstr;
 using sonicboom::testing::TempDir;
 using sonicboom::testing::ThrownMessage;
+using ::testing::HasSubstr;
 
 // A version-1.0 .npy file with `header` (padded to 16 bytes) and raw payload bytes.
 void WriteRaw(const std::string& path, std::string header, const std::string& payload) {
@@ -21,7 +21,8 @@ void WriteRaw(const std::string& path, std::string header, const std::string& pa
   header += '\n';
   std::ofstream out(path, std::ios::binary);
   out.write("\x93NUMPY\x01\x00", 8);
-  const char len[2] = {static_cast<char>(header.size() & 0xff), static_cast<char>(header.size() >> 8)};
+  const char len[2] = {static_cast<char>(header.size() & 0xff),
+                       static_cast<char>(header.size() >> 8)};
   out.write(len, 2);
   out << header << payload;
 }

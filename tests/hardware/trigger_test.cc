@@ -6,10 +6,10 @@
 #include <random>
 
 #include "common/test_util.h"
+#include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/hardware/stream.h"
 #include "sonicboom/hardware/trigger.h"
-#include "sonicboom/core/audio_io.h"
 
 namespace sonicboom::hardware {
 namespace {
@@ -36,7 +36,8 @@ Eigen::MatrixXf Stream(int64_t frames, const std::vector<int64_t>& onsets) {
   }
   for (int64_t onset : onsets) {
     for (int64_t t = onset; t < std::min(frames, onset + 2000); ++t) {
-      for (int c = 0; c < 3; ++c) x(c, t) += 0.3f * std::exp(-(t - onset) / 300.0f) * std::sin(0.3f * (t - onset) + c);
+      for (int c = 0; c < 3; ++c)
+        x(c, t) += 0.3f * std::exp(-(t - onset) / 300.0f) * std::sin(0.3f * (t - onset) + c);
     }
   }
   return x;
@@ -60,7 +61,8 @@ std::vector<TriggeredRecord> Feed(const TriggerConfig& c, const Eigen::MatrixXf&
 TEST(TriggerTest, CutsOneRecordPerStrikeAtItsOnsetForAnyBlockSize) {
   const std::vector<int64_t> onsets = {5000, 12000, 20010};
   const Eigen::MatrixXf x = Stream(30000, onsets);
-  for (const std::vector<int64_t>& sizes : std::vector<std::vector<int64_t>>{{1024}, {7, 333, 4096}, {30000}}) {
+  for (const std::vector<int64_t>& sizes :
+       std::vector<std::vector<int64_t>>{{1024}, {7, 333, 4096}, {30000}}) {
     const std::vector<TriggeredRecord> records = Feed(Small(), x, sizes);
     ASSERT_EQ(records.size(), onsets.size()) << sizes.size();
     for (size_t k = 0; k < onsets.size(); ++k) {

@@ -79,8 +79,9 @@ TEST(KnnTest, CircularMeanAcrossTheSeam) {
   train.z_m[2] = 0.06;
   const KnnBaseline knn(train, SmallConfig(3));
   const Prediction p = knn.Predict(train.SelectRows({0})).front();
-  const double expected = std::atan2(std::sin(kPi - 0.1) + std::sin(-kPi + 0.1) + std::sin(kPi - 0.05),
-                                     std::cos(kPi - 0.1) + std::cos(-kPi + 0.1) + std::cos(kPi - 0.05));
+  const double expected =
+      std::atan2(std::sin(kPi - 0.1) + std::sin(-kPi + 0.1) + std::sin(kPi - 0.05),
+                 std::cos(kPi - 0.1) + std::cos(-kPi + 0.1) + std::cos(kPi - 0.05));
   EXPECT_NEAR(p.theta_rad, expected, 1e-9);
   EXPECT_GT(std::abs(p.theta_rad), kPi - 0.05);
   EXPECT_NEAR(p.z_m, 0.03, 1e-12);  // equal weights for exact matches

@@ -144,9 +144,9 @@ TEST(ConfigTest, ModelConfigKeysAreMemberNames) {
   ModelConfig config;
   RecordingArchive archive;
   config.Serialize(&archive);
-  EXPECT_THAT(archive.names, ::testing::ElementsAre("audio_encoder", "width", "blocks", "heads",
-                                                    "dropout", "modalities", "crop_frames",
-                                                    "gcc_encoder"));
+  EXPECT_THAT(archive.names,
+              ::testing::ElementsAre("audio_encoder", "width", "blocks", "heads", "dropout",
+                                     "modalities", "crop_frames", "gcc_encoder"));
   EXPECT_EQ(archive.kinds[0], "choice");
   EXPECT_EQ(archive.kinds[7], "choice");
   EXPECT_THAT(archive.choices, ::testing::ElementsAre("mlp", "conv"));  // the last choice visited
@@ -165,16 +165,15 @@ TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
   config.Serialize(&archive);
   EXPECT_THAT(archive.names,
               ::testing::ElementsAre("epochs", "batch_size", "learning_rate", "lr_step_epochs",
-                                     "lr_gamma", "val_fraction", "loss_weight_z",
-                                     "loss_weight_cos", "loss_weight_sin",
-                                     "uncertainty_weight", "augment", "time_shift_frames",
-                                     "time_mask_frames", "freq_mask_bands", "normalize",
-                                     "keep_best", "threads"));
-  EXPECT_FALSE(archive.bounds[1].Contains(0.0));   // batch_size
-  EXPECT_FALSE(archive.bounds[2].Contains(0.0));   // learning_rate
-  EXPECT_TRUE(archive.bounds[9].Contains(0.0));    // uncertainty_weight: 0 disables
+                                     "lr_gamma", "val_fraction", "loss_weight_z", "loss_weight_cos",
+                                     "loss_weight_sin", "uncertainty_weight", "augment",
+                                     "time_shift_frames", "time_mask_frames", "freq_mask_bands",
+                                     "normalize", "keep_best", "threads"));
+  EXPECT_FALSE(archive.bounds[1].Contains(0.0));  // batch_size
+  EXPECT_FALSE(archive.bounds[2].Contains(0.0));  // learning_rate
+  EXPECT_TRUE(archive.bounds[9].Contains(0.0));   // uncertainty_weight: 0 disables
   EXPECT_FALSE(archive.bounds[9].Contains(-0.1));
-  EXPECT_TRUE(archive.bounds[16].Contains(0.0));   // threads
+  EXPECT_TRUE(archive.bounds[16].Contains(0.0));  // threads
 }
 
 // Runs `f` and returns the ConfigError message ("" when nothing was thrown).
@@ -309,9 +308,8 @@ TEST(JsonArchiveTest, ListsRoundTripAsArraysOfObjects) {
   EXPECT_EQ(internal::ConfigToJson(internal::ConfigFromJson<ListConfig>(j, "model.json")), j);
   // the read list replaces the defaults, also when empty
   config.objects.clear();
-  EXPECT_TRUE(
-      internal::ConfigFromJson<ListConfig>(internal::ConfigToJson(config), "model.json")
-          .objects.empty());
+  EXPECT_TRUE(internal::ConfigFromJson<ListConfig>(internal::ConfigToJson(config), "model.json")
+                  .objects.empty());
 }
 
 TEST(JsonArchiveTest, ListErrorsNameFileAndIndexedKey) {
@@ -331,8 +329,8 @@ TEST(JsonArchiveTest, ListErrorsNameFileAndIndexedKey) {
   j = good;
   j["objects"][0]["diameter_m"] = -1.0;
   EXPECT_THAT(error_of(j), HasSubstr("key 'objects.0.diameter_m' = -1"));
-  for (const nlohmann::json& bad : {nlohmann::json(3), nlohmann::json::object(),
-                                    nlohmann::json::array({1, 2})}) {
+  for (const nlohmann::json& bad :
+       {nlohmann::json(3), nlohmann::json::object(), nlohmann::json::array({1, 2})}) {
     j = good;
     j["objects"] = bad;
     EXPECT_THAT(error_of(j), HasSubstr("model.json: key 'objects' must be a list of objects"))
@@ -350,8 +348,8 @@ TEST(CountParametersTest, EncodersHaveTheirTextbookSizes) {
   config.heads = 2;
   config.blocks = 1;
   // Compact CNN: convs 6-16-32-64-128 (3x3, no bias) + BN, then Linear(128, 32).
-  const int64_t compact = 9 * (6 * 16 + 16 * 32 + 32 * 64 + 64 * 128) +
-                          2 * (16 + 32 + 64 + 128) + 128 * 32 + 32;
+  const int64_t compact =
+      9 * (6 * 16 + 16 * 32 + 32 * 64 + 64 * 128) + 2 * (16 + 32 + 64 + 128) + 128 * 32 + 32;
   EXPECT_EQ(CountParameters(config, shapes).at("audio_encoder"), compact);
   // ResNet-18 trunk with a 6-channel stem: 11 176 512 (3-channel, no fc) + 3 * 64 * 49.
   const int64_t projection18 = 512 * 128 + 128 + 2 * 128 + 128 * 32 + 32;

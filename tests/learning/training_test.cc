@@ -17,11 +17,11 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "internal/data.h"
+#include "internal/network.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/learning/learning.h"
-#include "internal/data.h"
-#include "internal/network.h"
 
 namespace sonicboom::learning {
 namespace {
@@ -110,9 +110,8 @@ class RunDirTest : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    root_ = fs::temp_directory_path() /
-            ("sonicboom_learning_" + std::string(info->name()) + "_" +
-             std::to_string(static_cast<long>(::getpid())));
+    root_ = fs::temp_directory_path() / ("sonicboom_learning_" + std::string(info->name()) + "_" +
+                                         std::to_string(static_cast<long>(::getpid())));
     fs::remove_all(root_);
     fs::create_directories(root_);
   }
@@ -214,7 +213,7 @@ TEST_F(TrainingTest, ResumeMatchesStraightRun) {
   TrainConfig config = TinyTraining(4);
   config.lr_step_epochs = 3;  // the schedule changes inside the resumed part
   ModelConfig model = TinyModel();
-  model.dropout = 0.1;        // dropout draws must resume too
+  model.dropout = 0.1;  // dropout draws must resume too
 
   const std::string straight = Dir("straight");
   const Metrics m_straight = Train(train, val, model, config, kRadius, 11, straight, false, false);
@@ -226,7 +225,8 @@ TEST_F(TrainingTest, ResumeMatchesStraightRun) {
   ASSERT_EQ(ReadMetricsLines(resumed).size(), 2u);
   // A line of an epoch whose checkpoint never got written (as after a crash) is dropped.
   std::ofstream(fs::path(resumed) / "metrics.jsonl", std::ios::app)
-      << R"({"epoch": 3, "train_loss": 999.0})" << "\n";
+      << R"({"epoch": 3, "train_loss": 999.0})"
+      << "\n";
   const Metrics m_resumed = Train(train, val, model, config, kRadius, 11, resumed, true, false);
 
   EXPECT_NEAR(m_resumed.med_cm, m_straight.med_cm, 1e-6);
@@ -359,8 +359,7 @@ TEST_F(TrainingTest, ModalitySubsetsTrainAndBuildOnlyTheirEncoders) {
     v.gcc.clear();
     ModelConfig model = TinyModel();
     model.modalities = {"proprio"};
-    const Metrics m =
-        Train(t, v, model, TinyTraining(1), kRadius, 1, Dir("proprio"), false, false);
+    const Metrics m = Train(t, v, model, TinyTraining(1), kRadius, 1, Dir("proprio"), false, false);
     EXPECT_TRUE(std::isfinite(m.med_cm));
     const auto counts = Localizer(Dir("proprio")).ParameterCounts();
     EXPECT_EQ(counts.size(), 2u);
@@ -406,9 +405,8 @@ TEST_F(TrainingTest, UncertaintyIsFiniteAndCalibratedOnValidation) {
   }
   // Calibrated on this split, the 90 % intervals hold most of it (uncalibrated, the tiny model's
   // intervals hold anything from none to all).
-  std::cout << "validation coverage z " << m.z_coverage_50 << " / " << m.z_coverage_90
-            << ", theta " << m.theta_coverage_50 << " / " << m.theta_coverage_90 << ", NLL "
-            << m.nll << "\n";
+  std::cout << "validation coverage z " << m.z_coverage_50 << " / " << m.z_coverage_90 << ", theta "
+            << m.theta_coverage_50 << " / " << m.theta_coverage_90 << ", NLL " << m.nll << "\n";
   EXPECT_GE(m.z_coverage_90, 0.7);
   EXPECT_LE(m.z_coverage_90, 1.0);
   EXPECT_GE(m.theta_coverage_90, 0.7);
@@ -421,8 +419,8 @@ TEST_F(TrainingTest, UncertaintyIsFiniteAndCalibratedOnValidation) {
   ASSERT_TRUE(j.contains("uncertainty")) << j.dump(2);
   const double z_scale = j["uncertainty"]["z_std_scale"].get<double>();
   const double kappa_scale = j["uncertainty"]["kappa_scale"].get<double>();
-  std::cout << "scales: sigma_z x " << z_scale << ", kappa x " << kappa_scale
-            << "; uncalibrated " << j["uncertainty"]["uncalibrated_val_metrics"].dump() << "\n";
+  std::cout << "scales: sigma_z x " << z_scale << ", kappa x " << kappa_scale << "; uncalibrated "
+            << j["uncertainty"]["uncalibrated_val_metrics"].dump() << "\n";
   EXPECT_EQ(localizer.calibration().z_std_scale, z_scale);
   EXPECT_EQ(localizer.calibration().kappa_scale, kappa_scale);
   EXPECT_LE(m.nll, j["uncertainty"]["uncalibrated_val_metrics"]["nll"].get<double>() + 1e-9);
@@ -605,8 +603,8 @@ TEST_F(TrainingTest, FineTuneTrainsOnlyWhatIsNotFrozen) {
 TEST_F(TrainingTest, FineTuneRefusesAMissingOrMismatchedPretrainedRun) {
   const FeatureSet train = MakeFeatures(16, 51), val = MakeFeatures(8, 52);
   EXPECT_THAT(sonicboom::testing::ThrownMessage<IoError>([&] {
-                Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, Dir("a"), false,
-                      false, FineTune{Dir("none"), FineTune::Freeze::kNone, false});
+                Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, Dir("a"), false, false,
+                      FineTune{Dir("none"), FineTune::Freeze::kNone, false});
               }),
               HasSubstr("none/model.pt: missing"));
   Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, Dir("pre"), false, false);

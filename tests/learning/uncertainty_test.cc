@@ -86,8 +86,7 @@ TEST(UncertaintyMathTest, VonMisesIntervalHoldsItsProbability) {
 
 TEST(UncertaintyMathTest, BesselFunctionsAndCircularStd) {
   for (double k : {0.0, 0.1, 1.0, 5.0, 50.0, 99.9, 100.1, 300.0, 700.0}) {
-    EXPECT_NEAR(LogBesselI0(k), std::log(std::cyl_bessel_i(0.0, k)), 1e-12 * std::max(1.0, k))
-        << k;
+    EXPECT_NEAR(LogBesselI0(k), std::log(std::cyl_bessel_i(0.0, k)), 1e-12 * std::max(1.0, k)) << k;
     EXPECT_NEAR(internal::VonMisesMeanResultant(k),
                 k == 0.0 ? 0.0 : std::cyl_bessel_i(1.0, k) / std::cyl_bessel_i(0.0, k), 1e-13)
         << k;
@@ -162,8 +161,8 @@ TEST(UncertaintyMetricsTest, CoverageOfTheTrueDistributionIsNominal) {
   EXPECT_NEAR(m.theta_coverage_50, 0.5, 4.0 * std::sqrt(0.25 / n));
   EXPECT_NEAR(m.theta_coverage_90, 0.9, 4.0 * std::sqrt(0.09 / n));
   EXPECT_TRUE(std::isfinite(m.nll));
-  std::cout << "true distribution: z " << m.z_coverage_50 << " / " << m.z_coverage_90
-            << ", theta " << m.theta_coverage_50 << " / " << m.theta_coverage_90 << "\n";
+  std::cout << "true distribution: z " << m.z_coverage_50 << " / " << m.z_coverage_90 << ", theta "
+            << m.theta_coverage_50 << " / " << m.theta_coverage_90 << "\n";
 
   // Stds three times too small, kappas nine times too large: the intervals hold far less.
   // (A normal within 1.645 / 3 std: 0.42.)
@@ -193,8 +192,7 @@ TEST(UncertaintyMetricsTest, NllOfOneRecordByHand) {
   truth.theta_rad = {0.3};
   const Metrics m = ComputeMetrics({p}, truth, 0.05);
   const double z_nll = std::log(2.0) + 0.5 * std::log(2.0 * kPi) + 0.5 * 0.75 * 0.75;
-  const double theta_nll =
-      -4.0 * std::cos(0.3) + std::log(2.0 * kPi * std::cyl_bessel_i(0.0, 4.0));
+  const double theta_nll = -4.0 * std::cos(0.3) + std::log(2.0 * kPi * std::cyl_bessel_i(0.0, 4.0));
   EXPECT_NEAR(m.nll, z_nll + theta_nll, 1e-12);
   EXPECT_EQ(m.z_coverage_50, 0.0);  // 1.5 cm > 0.674 * 2 cm
   EXPECT_EQ(m.z_coverage_90, 1.0);

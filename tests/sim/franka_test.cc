@@ -18,12 +18,10 @@ namespace {
 
 // Craig's link matrix written out element by element (independent of the Eigen composition)
 Eigen::Matrix4d CraigMatrix(double a, double d, double alpha, double theta) {
-  const double ct = std::cos(theta), st = std::sin(theta), ca = std::cos(alpha), sa = std::sin(alpha);
+  const double ct = std::cos(theta), st = std::sin(theta), ca = std::cos(alpha),
+               sa = std::sin(alpha);
   Eigen::Matrix4d t;
-  t << ct, -st, 0, a,
-      st * ca, ct * ca, -sa, -d * sa,
-      st * sa, ct * sa, ca, d * ca,
-      0, 0, 0, 1;
+  t << ct, -st, 0, a, st * ca, ct * ca, -sa, -d * sa, st * sa, ct * sa, ca, d * ca, 0, 0, 0, 1;
   return t;
 }
 
@@ -193,8 +191,8 @@ TEST(FrankaTest, InverseKinematicsReachesTheRecordingGridFromHome) {
   for (int ix = 0; ix < kNx; ++ix) {
     for (int iy = 0; iy < kNy; ++iy) {
       Eigen::Isometry3d target = home;
-      target.translation() = Eigen::Vector3d(-0.22 + 0.44 * ix / (kNx - 1),
-                                             0.20 + 0.35 * iy / (kNy - 1), 0.315);
+      target.translation() =
+          Eigen::Vector3d(-0.22 + 0.44 * ix / (kNx - 1), 0.20 + 0.35 * iy / (kNy - 1), 0.315);
       const auto start = std::chrono::steady_clock::now();
       const IkResult ik = PandaInverseKinematics(target, HomeJoints(), offset_m);
       total_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -203,8 +201,8 @@ TEST(FrankaTest, InverseKinematicsReachesTheRecordingGridFromHome) {
       if (ik.converged) {
         ++converged;
       } else {
-        std::cout << "[ info     ] IK not converged at " << target.translation().transpose()
-                  << ": " << ik.position_error_m << " m, " << ik.rotation_error_rad << " rad\n";
+        std::cout << "[ info     ] IK not converged at " << target.translation().transpose() << ": "
+                  << ik.position_error_m << " m, " << ik.rotation_error_rad << " rad\n";
       }
     }
   }

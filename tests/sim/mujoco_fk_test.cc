@@ -28,12 +28,13 @@ JointVector HomeJoints() {
 double PotentialEnergyJ(const JointVector& q, const TubeConfig& tube) {
   const std::array<double, 7> mass_kg = {4.970684, 0.646926, 3.228604, 3.587895,
                                          1.225946, 1.666555, 0.735522};
-  const std::array<Eigen::Vector3d, 7> com_m = {
-      Eigen::Vector3d(0.003875, 0.002081, -0.04762), Eigen::Vector3d(-0.003141, -0.02872, 0.003495),
-      Eigen::Vector3d(0.027518, 0.039252, -0.066502), Eigen::Vector3d(-0.05317, 0.104419, 0.027454),
-      Eigen::Vector3d(-0.011953, 0.041065, -0.038437),
-      Eigen::Vector3d(0.060149, -0.014117, -0.010517),
-      Eigen::Vector3d(0.010517, -0.004252, 0.061597)};
+  const std::array<Eigen::Vector3d, 7> com_m = {Eigen::Vector3d(0.003875, 0.002081, -0.04762),
+                                                Eigen::Vector3d(-0.003141, -0.02872, 0.003495),
+                                                Eigen::Vector3d(0.027518, 0.039252, -0.066502),
+                                                Eigen::Vector3d(-0.05317, 0.104419, 0.027454),
+                                                Eigen::Vector3d(-0.011953, 0.041065, -0.038437),
+                                                Eigen::Vector3d(0.060149, -0.014117, -0.010517),
+                                                Eigen::Vector3d(0.010517, -0.004252, 0.061597)};
   constexpr double kG = 9.81;
   double energy_j = 0.0;
   for (int k = 0; k < kPandaJoints; ++k) {

@@ -8,11 +8,11 @@
 #include <thread>
 #include <vector>
 
+#include "rollout_expect.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/sim/rollout.h"
 #include "sonicboom/sim/strike.h"
-#include "rollout_expect.h"
 
 namespace sonicboom::sim {
 namespace {
@@ -35,7 +35,9 @@ const std::vector<RolloutResult>& DefaultResults() {
   return results;
 }
 
-double AngleDistance(double a_rad, double b_rad) { return std::abs(WrapAngle(a_rad - b_rad)); }
+double AngleDistance(double a_rad, double b_rad) {
+  return std::abs(WrapAngle(a_rad - b_rad));
+}
 
 TEST(RolloutTest, ContactsLieOnTheTubeWhereTheRodWasPlaced) {
   const TubeConfig tube;
@@ -128,7 +130,8 @@ TEST(RolloutTest, TubeStaysPressedAgainstTheRod) {
   }
   std::cout << "pressed " << pressed << " / " << valid << "; first episode " << min_duration_s
             << " .. " << max_duration_s << " s; kinds:";
-  for (const auto& [kind, count] : kinds) std::cout << " " << static_cast<int>(kind) << " " << count;
+  for (const auto& [kind, count] : kinds)
+    std::cout << " " << static_cast<int>(kind) << " " << count;
   std::cout << "\n";
   EXPECT_EQ(pressed, valid);
 }
@@ -241,10 +244,12 @@ TEST(RolloutTest, ContactTimeConstantBelowTwoTimestepsIsAConfigError) {
   }
   // the derived timestep (timeconst / 4) always satisfies the rule
   config.timestep_s = 0.0;
-  EXPECT_DOUBLE_EQ(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config).timestep_s(),
+  EXPECT_DOUBLE_EQ(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config)
+                       .timestep_s(),
                    0.0015 / 4);
   config.stiffness_nm_rad.pop_back();
-  EXPECT_THROW(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config), ConfigError);
+  EXPECT_THROW(StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{}, config),
+               ConfigError);
 }
 
 }  // namespace

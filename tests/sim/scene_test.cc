@@ -12,13 +12,13 @@
 #include <thread>
 #include <vector>
 
+#include "rollout_expect.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/sim/rollout.h"
 #include "sonicboom/sim/scene.h"
 #include "sonicboom/sim/stationary.h"
 #include "sonicboom/sim/strike.h"
-#include "rollout_expect.h"
 
 namespace sonicboom::sim {
 namespace {
@@ -215,8 +215,8 @@ TEST(SceneTest, BranchForksByLeonardoFromParentEnds) {
   ObjectConfig tree = Rod(0.025, 0.30);
   tree.kind = "branch";
   BranchConfig& b = tree.branch;
-  for (const auto& [levels, forks] : {std::pair{2, 2}, std::pair{3, 3}, std::pair{0, 2},
-                                      std::pair{1, 4}}) {
+  for (const auto& [levels, forks] :
+       {std::pair{2, 2}, std::pair{3, 3}, std::pair{0, 2}, std::pair{1, 4}}) {
     b.levels = levels;
     b.forks = forks;
     b.fork_angle_deg = 35;
@@ -260,7 +260,7 @@ TEST(SceneTest, BranchForksByLeonardoFromParentEnds) {
       EXPECT_EQ(g.segments[i].free_tip, i >= starts[levels]) << "segment " << i;
     }
     EXPECT_EQ(g.targets.size(), g.segments.size());  // no minimum diameter
-    EXPECT_TRUE(g.leaves.empty());                     // no leaf radius
+    EXPECT_TRUE(g.leaves.empty());                   // no leaf radius
   }
 }
 
@@ -412,12 +412,15 @@ TEST(SceneTest, ValidateNamesTheOffendingKey) {
   scene = SceneConfig{};
   scene.mode = "stationary";
   scene.objects = MaterialStrikers();
-  ExpectConfigError([&] { StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, scene,
-                                        RolloutConfig{}); },
-                    {"stationary"});
-  ExpectConfigError([&] { HandStrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{},
-                                            SceneConfig{}, RolloutConfig{}); },
-                    {"stationary"});
+  ExpectConfigError(
+      [&] { StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, scene, RolloutConfig{}); },
+      {"stationary"});
+  ExpectConfigError(
+      [&] {
+        HandStrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{},
+                          RolloutConfig{});
+      },
+      {"stationary"});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -496,7 +499,8 @@ TEST(SceneRolloutTest, LateralStrikesSweepJointSix) {
     results.push_back(rollout.Run(i, SampleSeed(41, i)));
     const RolloutResult& r = results.back();
     EXPECT_EQ(r.motion, "lateral");
-    if (r.valid && !r.contacts.empty() && r.contacts.front().kind == ContactEpisode::Kind::kImpact &&
+    if (r.valid && !r.contacts.empty() &&
+        r.contacts.front().kind == ContactEpisode::Kind::kImpact &&
         r.contacts.front().normal_speed_m_s > 1e-3) {
       ++impacts;
     }
@@ -580,7 +584,8 @@ TEST(SceneRolloutTest, HandStrikesHitTheCommandedGridPoints) {
     EXPECT_LT(std::abs(std::hypot(first.point_m.x(), first.point_m.y()) - tube.outer_radius_m),
               1e-3);
     EXPECT_LT(std::abs(WrapAngle(first.theta_rad - r.target_theta_rad)), 5 * kDeg);
-    EXPECT_GE(first.normal_speed_m_s, sc.speed_min_m_s * std::cos(sc.approach_spread_deg * kDeg) / 1.2);
+    EXPECT_GE(first.normal_speed_m_s,
+              sc.speed_min_m_s * std::cos(sc.approach_spread_deg * kDeg) / 1.2);
     EXPECT_LE(first.normal_speed_m_s, sc.speed_max_m_s * 1.2);
     speed_lo = std::min(speed_lo, first.normal_speed_m_s);
     speed_hi = std::max(speed_hi, first.normal_speed_m_s);
@@ -700,9 +705,9 @@ TEST(SceneRolloutTest, ObjectOverlappingTheArmAtTheStartIsInvalid) {
 TEST(SceneRolloutTest, GuidedWithoutFeasiblePointIsAConfigError) {
   SceneConfig scene = Ts3Scene();
   scene.guided.clearance_m = 10.0;
-  ExpectConfigError([&] { StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, scene,
-                                        RolloutConfig{}); },
-                    {"scene.guided", "clearance_m"});
+  ExpectConfigError(
+      [&] { StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, scene, RolloutConfig{}); },
+      {"scene.guided", "clearance_m"});
   // an object position without three entries
   scene = Ts3Scene();
   scene.guided.object_position_m = {0.0, 0.4};

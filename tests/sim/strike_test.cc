@@ -60,7 +60,8 @@ TEST(StrikeTest, ProprioceptionIsConsistent) {
     EXPECT_NEAR(ev.proprio.row(k).segment<4>(3).norm(), 1.0, 1e-5);
     // velocity agrees with the position difference to first order
     const Eigen::Vector3f dp = (ev.proprio.row(k + 1).head<3>() - ev.proprio.row(k).head<3>()) / dt;
-    const Eigen::Vector3f v = 0.5f * (ev.proprio.row(k).tail<3>() + ev.proprio.row(k + 1).tail<3>());
+    const Eigen::Vector3f v =
+        0.5f * (ev.proprio.row(k).tail<3>() + ev.proprio.row(k + 1).tail<3>());
     EXPECT_LT((dp - v).norm(), 0.01 + 0.05 * v.norm()) << "row " << k;
   }
   // the tube moves before the contact at ~0.5 s

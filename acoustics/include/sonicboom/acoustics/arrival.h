@@ -25,13 +25,14 @@ namespace sonicboom::acoustics {
 
 /// Picking and search settings; keys under "arrival".
 struct ArrivalConfig {
-  double highpass_hz{2000.0};            // second-order Butterworth high-pass before picking
-  double pre_onset_s{0.004};             // picking window around the record's onset
+  double highpass_hz{2000.0};  // second-order Butterworth high-pass before picking
+  double pre_onset_s{0.004};   // picking window around the record's onset
   double post_onset_s{0.006};
-  double noise_window_s{0.05};           // pre-onset noise estimate ends where the window starts
-  double noise_sigmas{5.0};              // arrival: above this many noise rms ...
-  double peak_fraction{0.2};             // ... and above this fraction of the channel's peak (chosen on a validation set: scripts/arrival_sweep.sh)
-  double min_speed_m_s{150.0};           // fitted wave speed kept in [min, max]
+  double noise_window_s{0.05};  // pre-onset noise estimate ends where the window starts
+  double noise_sigmas{5.0};     // arrival: above this many noise rms ...
+  double peak_fraction{0.2};    // ... and above this fraction of the channel's peak (chosen on a
+                                // validation set: scripts/arrival_sweep.sh)
+  double min_speed_m_s{150.0};  // fitted wave speed kept in [min, max]
   double max_speed_m_s{3000.0};
   double grid_z_step_m{0.001};
   double grid_theta_step_deg{1.0};
@@ -43,11 +44,11 @@ struct ArrivalConfig {
 
 /// One strike's picks and the located point.
 struct ArrivalEstimate {
-  std::vector<double> arrival_s;         // (mics) first arrival from the window start, s
+  std::vector<double> arrival_s;  // (mics) first arrival from the window start, s
   double z_m{0.0};
   double theta_rad{0.0};
-  double speed_m_s{0.0};                 // fitted wave speed at the estimate
-  double residual_s{0.0};                // rms of the arrival-time residuals at the estimate
+  double speed_m_s{0.0};   // fitted wave speed at the estimate
+  double residual_s{0.0};  // rms of the arrival-time residuals at the estimate
 };
 
 /// Immutable (path tables per grid point precomputed); Locate is const and thread-safe.

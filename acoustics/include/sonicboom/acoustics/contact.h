@@ -18,12 +18,12 @@ namespace sonicboom::acoustics {
 
 /// Keys under "acoustics.contact".
 struct ContactConfig {
-  int64_t substeps_per_duration{200};      // substeps per rigid-target Hertz duration (>= 50)
-  int64_t min_substeps{4};                 // per audio sample, at least
-  double hunt_crossley_s_m{0.0};           // lambda, s/m; 0 = elastic Hertz
-  double separation_window_s{0.002};       // stop once apart this long without re-contact
-  double max_duration_s{0.05};             // a contact still closed after this is an error
-  double beam_max_frequency_hz{20000.0};   // striker beam modes kept up to here
+  int64_t substeps_per_duration{200};     // substeps per rigid-target Hertz duration (>= 50)
+  int64_t min_substeps{4};                // per audio sample, at least
+  double hunt_crossley_s_m{0.0};          // lambda, s/m; 0 = elastic Hertz
+  double separation_window_s{0.002};      // stop once apart this long without re-contact
+  double max_duration_s{0.05};            // a contact still closed after this is an error
+  double beam_max_frequency_hz{20000.0};  // striker beam modes kept up to here
   // the tube side of the contact: "coupled" (the wall's modes at the point, so the wall yields)
   // or "rigid" (a held half-space: the classic Hertz pulse, the wall's modes only listen)
   std::string wall{"coupled"};
@@ -35,19 +35,19 @@ struct ContactConfig {
 /// q_n'' + 2 zeta_n omega_n q_n' + omega_n^2 q_n = phi_n F (mass-normalized modes).
 struct DrivingPoint {
   double rigid_mass_kg{std::numeric_limits<double>::infinity()};  // inf = held (no rigid motion)
-  Eigen::VectorXd omega_rad_s;             // (modes)
-  Eigen::VectorXd zeta;                    // (modes) damping ratio
-  Eigen::VectorXd phi;                     // (modes) mass-normalized shape at the contact, 1/sqrt(kg)
+  Eigen::VectorXd omega_rad_s;                                    // (modes)
+  Eigen::VectorXd zeta;                                           // (modes) damping ratio
+  Eigen::VectorXd phi;  // (modes) mass-normalized shape at the contact, 1/sqrt(kg)
 };
 
 /// Euler-Bernoulli rod clamped at one end (cantilever) or both.
 struct BeamSpec {
   double length_m{0.42};
-  double flexural_rigidity_n_m2{0.0};      // E I
-  double linear_density_kg_m{0.0};         // rho A
-  double contact_from_clamp_m{0.37};       // where the tube touches it
+  double flexural_rigidity_n_m2{0.0};  // E I
+  double linear_density_kg_m{0.0};     // rho A
+  double contact_from_clamp_m{0.37};   // where the tube touches it
   bool clamped_both_ends{false};
-  double loss_factor{0.01};                // eta = 2 zeta, every mode
+  double loss_factor{0.01};  // eta = 2 zeta, every mode
 };
 
 /// Modes of the rod by Hermite-cubic finite elements (`elements` of them, consistent mass, a node
@@ -66,17 +66,17 @@ DrivingPoint BeamDrivingPoint(const BeamSpec& beam, double max_frequency_hz);
 /// each audio sample interval [k T, (k+1) T) from first_sample (the sample holding time_s) to
 /// the final release: force_n[j] T = the impulse within sample first_sample + j.
 struct ContactForce {
-  int64_t first_sample{0};                 // audio sample index of force_n[0]
-  std::vector<double> force_n;             // N, one per audio sample
-  double duration_s{0.0};                  // first touch to final release
-  double first_closure_s{0.0};             // first touch to first release (the impact proper;
-                                           // = duration_s without chatter)
+  int64_t first_sample{0};      // audio sample index of force_n[0]
+  std::vector<double> force_n;  // N, one per audio sample
+  double duration_s{0.0};       // first touch to final release
+  double first_closure_s{0.0};  // first touch to first release (the impact proper;
+                                // = duration_s without chatter)
   double peak_force_n{0.0};
   double impulse_ns{0.0};
-  int64_t touches{0};                      // closures: 1 = clean impact, > 1 = chatter
-  double rebound_speed_m_s{0.0};           // relative separation speed at the final release
-  int64_t substeps{0};                     // integration steps over all passes (substeps,
-                                           // free strides and whole free samples)
+  int64_t touches{0};             // closures: 1 = clean impact, > 1 = chatter
+  double rebound_speed_m_s{0.0};  // relative separation speed at the final release
+  int64_t substeps{0};            // integration steps over all passes (substeps,
+                                  // free strides and whole free samples)
 };
 
 /// Solves the contact of `tube` (moving towards `striker` at approach_speed_m_s at first touch,

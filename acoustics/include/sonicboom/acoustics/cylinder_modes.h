@@ -17,7 +17,7 @@ namespace sonicboom::acoustics {
 struct ShellMode {
   int m{1};
   int n{0};
-  int root{0};              // 0 = lowest (flexural for n >= 2)
+  int root{0};  // 0 = lowest (flexural for n >= 2)
   double frequency_hz{0.0};
   double u{0.0}, v{0.0}, w{0.0};
 };

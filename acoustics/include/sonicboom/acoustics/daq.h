@@ -21,16 +21,16 @@ namespace sonicboom::acoustics {
 /// Piezo disc, preamp and converter. Per-channel lists override the scalar for that channel;
 /// an empty list means every channel takes the scalar.
 struct DaqConfig {
-  double sensitivity_v_per_strain{2000.0}; // open-circuit volts per unit surface strain
-  double gain_mismatch_db{1.0};            // per-channel gain spread (std dev, dB), drawn per strike
-  double input_resistance_ohm{1.0e6};      // with the disc capacitance sets the high-pass
+  double sensitivity_v_per_strain{2000.0};  // open-circuit volts per unit surface strain
+  double gain_mismatch_db{1.0};        // per-channel gain spread (std dev, dB), drawn per strike
+  double input_resistance_ohm{1.0e6};  // with the disc capacitance sets the high-pass
   double disc_capacitance_f{16e-9};
-  double preamp_noise_v{2e-5};             // white, rms
-  double full_scale_v{1.0};                // ADC full scale
+  double preamp_noise_v{2e-5};  // white, rms
+  double full_scale_v{1.0};     // ADC full scale
   int64_t adc_bits{24};
-  int64_t output_bits{16};                 // the paper's recordings were 16-bit PCM
+  int64_t output_bits{16};  // the paper's recordings were 16-bit PCM
   // per channel (mics entries each, or empty)
-  std::vector<double> channel_gain_db;     // fixed gain offsets; replaces the random mismatch
+  std::vector<double> channel_gain_db;  // fixed gain offsets; replaces the random mismatch
   std::vector<double> channel_input_resistance_ohm;
   std::vector<double> channel_capacitance_f;
   std::vector<double> channel_preamp_noise_v;
@@ -44,18 +44,18 @@ struct DaqConfig {
 
 /// Background vibration picked up by the discs.
 struct NoiseConfig {
-  double ambient_rms_v{3e-5};              // broadband floor, rms
-  double motor_rms_v_per_rad_s{3e-3};      // motor and gear tones, rms per rad/s of joint speed
-  double motor_base_hz{110.0};             // fundamental of the gear tones
+  double ambient_rms_v{3e-5};          // broadband floor, rms
+  double motor_rms_v_per_rad_s{3e-3};  // motor and gear tones, rms per rad/s of joint speed
+  double motor_base_hz{110.0};         // fundamental of the gear tones
   int64_t motor_harmonics{8};
   // foliage brushing (canopy scenes): a random radial force at the brushed point
-  double foliage_force_rms_n{0.05};        // rms force while leaves sweep the tube
-  double foliage_low_hz{200.0};            // band of the rustle force
+  double foliage_force_rms_n{0.05};  // rms force while leaves sweep the tube
+  double foliage_low_hz{200.0};      // band of the rustle force
   double foliage_high_hz{4000.0};
   // recorded background: WAV files at the audio rate, 1 channel (to all) or one per mic, in
   // converter full-scale units; each strike takes one file and offset from its seed
   std::vector<std::string> wav_files;
-  double wav_gain{1.0};                    // scale applied to the recording
+  double wav_gain{1.0};  // scale applied to the recording
 
   void Serialize(Archive* a);
   void Validate() const;

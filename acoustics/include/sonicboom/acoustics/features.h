@@ -17,27 +17,27 @@
 namespace sonicboom::acoustics {
 
 struct FeatureConfig {
-  double window_s{1.5};            // analysis window, onset at its centre
-  int64_t n_fft{512};              // mel STFT size = window length (periodic Hann)
+  double window_s{1.5};  // analysis window, onset at its centre
+  int64_t n_fft{512};    // mel STFT size = window length (periodic Hann)
   int64_t hop{128};
-  int64_t n_mels{50};              // HTK mel, norm none
+  int64_t n_mels{50};  // HTK mel, norm none
   double f_min_hz{0.0};
-  double f_max_hz{0.0};            // 0 = Nyquist
-  bool log_mel{false};             // paper: power mel, no log; log10(power + 1e-10) when true
-  int64_t gcc_max_lag{441};        // lags -max..+max samples (883 values)
-  double gcc_window_s{0.0};        // GCC-PHAT over this span centred on the onset (the centre
-                                   // of the window); 0 = the whole window (the paper)
+  double f_max_hz{0.0};      // 0 = Nyquist
+  bool log_mel{false};       // paper: power mel, no log; log10(power + 1e-10) when true
+  int64_t gcc_max_lag{441};  // lags -max..+max samples (883 values)
+  double gcc_window_s{0.0};  // GCC-PHAT over this span centred on the onset (the centre
+                             // of the window); 0 = the whole window (the paper)
   // band-limited GCC-PHAT: edges of contiguous bands (cos^2 weights in log frequency, half
   // power at the edges); each pair gives one row per band. Empty = one full-band row per pair
   std::vector<double> gcc_bands_hz;
-  double onset_frame_s{0.0029};    // energy-envelope frame (~128 samples at 44.1 kHz)
-  double onset_threshold{0.1};     // fraction of the envelope peak that marks the onset
+  double onset_frame_s{0.0029};  // energy-envelope frame (~128 samples at 44.1 kHz)
+  double onset_threshold{0.1};   // fraction of the envelope peak that marks the onset
   // stationary spectral gating of the window against a reference noise clip (spectral_gate.h),
   // per channel, before mel/GCC-PHAT; noisereduce's defaults (docs/reference.md, "Spectral gating")
   bool gating{true};
-  double gating_n_std{2.5};        // threshold: mean + n_std * std of the noise dB, per bin
-  int64_t gating_n_fft{1024};      // gate STFT size (periodic Hann), <= window samples
-  int64_t gating_hop{256};         // in [1, gating_n_fft / 2]
+  double gating_n_std{2.5};             // threshold: mean + n_std * std of the noise dB, per bin
+  int64_t gating_n_fft{1024};           // gate STFT size (periodic Hann), <= window samples
+  int64_t gating_hop{256};              // in [1, gating_n_fft / 2]
   double gating_freq_smooth_hz{500.0};  // mask smoothing span (5 bins each side at 44.1 kHz)
   double gating_time_smooth_s{0.05};    // mask smoothing span (8 frames each side)
   double gating_prop_decrease{1.0};     // 1: gated bins removed; 0: gate is a no-op
@@ -52,12 +52,12 @@ struct FeatureConfig {
 
 /// Features of one strike. Shapes: mel (C x n_mels x frames), gcc (C(C-1)/2 x 2*max_lag+1).
 struct StrikeFeatures {
-  int64_t onset_sample{0};         // onset in the input record, samples
-  int64_t window_start{0};         // first input sample of the window (may be negative: zero-padded)
-  int64_t mel_first_frame{0};      // frame of the whole-window spectrogram that mel[c] starts at
+  int64_t onset_sample{0};     // onset in the input record, samples
+  int64_t window_start{0};     // first input sample of the window (may be negative: zero-padded)
+  int64_t mel_first_frame{0};  // frame of the whole-window spectrogram that mel[c] starts at
   std::vector<Eigen::MatrixXf> mel;  // per channel (n_mels x frames); empty when not requested
-  Eigen::MatrixXf gcc;             // (pairs x bands, lags), pairs in itertools.combinations
-                                   // order, bands within a pair; 0 x 0 when not requested
+  Eigen::MatrixXf gcc;               // (pairs x bands, lags), pairs in itertools.combinations
+                                     // order, bands within a pair; 0 x 0 when not requested
 };
 
 /// What one FeatureExtractor::Compute call produces; the rest is not computed. The default is
@@ -67,8 +67,8 @@ struct StrikeFeatures {
 struct FeatureRequest {
   bool mel{true};
   bool gcc{true};
-  int64_t mel_first_frame{0};      // first frame of the whole-window spectrogram
-  int64_t mel_frames{-1};          // frames from mel_first_frame; -1: through the last frame
+  int64_t mel_first_frame{0};  // first frame of the whole-window spectrogram
+  int64_t mel_frames{-1};      // frames from mel_first_frame; -1: through the last frame
 };
 
 /// Row-major float matrix: one contiguous row per channel.

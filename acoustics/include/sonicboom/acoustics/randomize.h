@@ -27,46 +27,46 @@ namespace sonicboom::acoustics {
 /// Keys under "randomize". Ranges are [min, max] (inclusive); [] = not randomized.
 struct RandomizeConfig {
   // material of the tube
-  std::vector<double> youngs_modulus_scale;   // x material.youngs_modulus_pa, uniform
-  std::vector<double> density_scale;          // x material.density_kg_m3, uniform
-  std::vector<double> temperature_c;          // uniform; E x (1 + modulus_per_c (T - reference))
-  double modulus_per_c{-0.004};               // relative modulus change per kelvin (rigid PVC)
-  double reference_temperature_c{20.0};       // the temperature material.youngs_modulus_pa holds at
+  std::vector<double> youngs_modulus_scale;  // x material.youngs_modulus_pa, uniform
+  std::vector<double> density_scale;         // x material.density_kg_m3, uniform
+  std::vector<double> temperature_c;         // uniform; E x (1 + modulus_per_c (T - reference))
+  double modulus_per_c{-0.004};              // relative modulus change per kelvin (rigid PVC)
+  double reference_temperature_c{20.0};      // the temperature material.youngs_modulus_pa holds at
   // either range replaces the shell's Rayleigh damping by the law
   // eta(f) = material.loss_factor x scale x (f / loss_reference_hz)^exponent for every mode
-  std::vector<double> loss_factor_scale;      // log-uniform
-  std::vector<double> loss_exponent;          // uniform
+  std::vector<double> loss_factor_scale;  // log-uniform
+  std::vector<double> loss_exponent;      // uniform
   double loss_reference_hz{2000.0};
   // the striker at the first contact and every other impact of the record
-  std::vector<double> striker_mass_scale;     // x effective mass (rigid strikers), log-uniform
-  std::vector<double> striker_radius_m;       // tip radius of curvature, log-uniform
+  std::vector<double> striker_mass_scale;         // x effective mass (rigid strikers), log-uniform
+  std::vector<double> striker_radius_m;           // tip radius of curvature, log-uniform
   std::vector<double> striker_youngs_modulus_pa;  // tip modulus, log-uniform
-  std::vector<double> speed_scale;            // x approach speed, uniform
+  std::vector<double> speed_scale;                // x approach speed, uniform
   // sensor chain, drawn per channel where the name says so
-  std::vector<double> sensitivity_scale;      // per channel: disc bonding, log-uniform
-  std::vector<double> channel_gain_db;        // per channel: preamp gain offset, uniform
-  std::vector<double> highpass_hz;            // per channel: input high-pass corner, log-uniform
-  std::vector<double> noise_floor_v;          // ambient + preamp floor (rms), log-uniform
-  std::vector<double> hum_hz;                 // mains fundamental, uniform (e.g. [49.8, 60.2])
-  std::vector<double> hum_rms_v;              // hum level (rms of all harmonics), log-uniform
-  int64_t hum_harmonics{5};                   // odd and even harmonics 1..N, amplitudes 1/k
-  std::vector<double> record_level_db;        // gain of every channel, uniform
-  std::vector<double> full_scale_scale;       // x daq.full_scale_v (converter scaling), uniform
+  std::vector<double> sensitivity_scale;  // per channel: disc bonding, log-uniform
+  std::vector<double> channel_gain_db;    // per channel: preamp gain offset, uniform
+  std::vector<double> highpass_hz;        // per channel: input high-pass corner, log-uniform
+  std::vector<double> noise_floor_v;      // ambient + preamp floor (rms), log-uniform
+  std::vector<double> hum_hz;             // mains fundamental, uniform (e.g. [49.8, 60.2])
+  std::vector<double> hum_rms_v;          // hum level (rms of all harmonics), log-uniform
+  int64_t hum_harmonics{5};               // odd and even harmonics 1..N, amplitudes 1/k
+  std::vector<double> record_level_db;    // gain of every channel, uniform
+  std::vector<double> full_scale_scale;   // x daq.full_scale_v (converter scaling), uniform
   // microphone placement, drawn per sample and channel (the cheap, exact part of a build's
   // variation: only the sensor rows change)
-  std::vector<double> mic_z_offset_m;         // per channel: axial offset of the disc, uniform
-  std::vector<double> mic_theta_offset_deg;   // per channel: angular offset, uniform
-  std::vector<double> disc_diameter_m;        // per channel: the bonded disc's diameter, uniform
+  std::vector<double> mic_z_offset_m;        // per channel: axial offset of the disc, uniform
+  std::vector<double> mic_theta_offset_deg;  // per channel: angular offset, uniform
+  std::vector<double> disc_diameter_m;       // per channel: the bonded disc's diameter, uniform
   // the structure itself: a pool of `structure_variants` structures, each drawn once from the
   // global seed and its variant number, their modes by a Ritz projection onto the base modes
   // (shell_ritz.h); every sample picks one variant. 0 = the configured structure only.
   int64_t structure_variants{0};
-  std::vector<double> bolt_count;             // bolts per seam, integer, uniform
-  std::vector<double> bolt_z_jitter_m;        // offset of each bolt from even spacing, uniform
-  std::vector<double> bolt_stiffness_scale;   // per bolt: x shell.bolt_stiffness_n_m, log-uniform
-  std::vector<double> flange_mount_scale;     // x shell.flange_mount_stiffness_n_m2, log-uniform
-  std::vector<double> tool_mount_scale;       // x shell.tool_mount_stiffness_n_m2, log-uniform
-  std::vector<double> poisson_ratio;          // material.poisson_ratio, uniform
+  std::vector<double> bolt_count;            // bolts per seam, integer, uniform
+  std::vector<double> bolt_z_jitter_m;       // offset of each bolt from even spacing, uniform
+  std::vector<double> bolt_stiffness_scale;  // per bolt: x shell.bolt_stiffness_n_m, log-uniform
+  std::vector<double> flange_mount_scale;    // x shell.flange_mount_stiffness_n_m2, log-uniform
+  std::vector<double> tool_mount_scale;      // x shell.tool_mount_stiffness_n_m2, log-uniform
+  std::vector<double> poisson_ratio;         // material.poisson_ratio, uniform
 
   void Serialize(Archive* a);
   /// Ranges have 0 or 2 entries with min <= max, inside physical limits; throws ConfigError
@@ -106,7 +106,7 @@ StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig&
 
 /// The draws of one sample. Fields hold the configured value where a range is not set.
 struct Variation {
-  double youngs_modulus_scale{1.0};          // total, temperature included
+  double youngs_modulus_scale{1.0};  // total, temperature included
   double density_scale{1.0};
   double temperature_c{20.0};
   // loss law eta(f) = loss_factor (f / loss_reference_hz)^loss_exponent for every mode;
@@ -115,17 +115,17 @@ struct Variation {
   double loss_exponent{0.0};
   double loss_reference_hz{2000.0};
   double striker_mass_scale{1.0};
-  double striker_radius_m{0.0};              // 0 = as the contact says
-  double striker_youngs_modulus_pa{0.0};     // 0 = as the contact says
+  double striker_radius_m{0.0};           // 0 = as the contact says
+  double striker_youngs_modulus_pa{0.0};  // 0 = as the contact says
   double speed_scale{1.0};
-  std::vector<double> sensitivity_scale;     // (channels)
-  std::vector<double> channel_gain_db;       // (channels); empty = the DAQ's own draw
-  std::vector<double> highpass_hz;           // (channels); empty = daq's R C corner
-  double noise_floor_v{-1.0};                // < 0 = as configured
+  std::vector<double> sensitivity_scale;  // (channels)
+  std::vector<double> channel_gain_db;    // (channels); empty = the DAQ's own draw
+  std::vector<double> highpass_hz;        // (channels); empty = daq's R C corner
+  double noise_floor_v{-1.0};             // < 0 = as configured
   double hum_hz{50.0};
-  double hum_rms_v{0.0};                     // 0 = no hum
-  std::vector<double> hum_phase_rad;         // (hum harmonics) not stored
-  std::vector<double> hum_channel_scale;     // (channels) pickup of each cable, not stored
+  double hum_rms_v{0.0};                  // 0 = no hum
+  std::vector<double> hum_phase_rad;      // (hum harmonics) not stored
+  std::vector<double> hum_channel_scale;  // (channels) pickup of each cable, not stored
   double record_level_db{0.0};
   double full_scale_scale{1.0};
   std::vector<double> mic_z_offset_m;        // (channels); empty = the configured placement
@@ -138,7 +138,7 @@ struct Variation {
   /// Damping ratio of a mode at f Hz (the varied frequency) under the loss law; only when
   /// loss_factor > 0.
   double DampingRatio(double frequency_hz) const;
-  std::vector<double> values;                // the set ranges' draws, as VariationNames
+  std::vector<double> values;  // the set ranges' draws, as VariationNames
 };
 
 /// Names of the stored draws: one per set range, per-channel ranges one per channel with the

@@ -6,8 +6,8 @@
 ///
 /// Theory: Sanders' thin-shell strains (membrane u_x, (v_th + w)/R, v_x + u_th/R; bending -w_xx,
 /// (v_th - w_thth)/R^2 and Sanders' twist), w radial outward. Grid: a staggered (z, theta) grid,
-/// w at nodes (i dz, j dth), u at (i + 1/2, j), v at (i, j + 1/2); strains sampled at nodes and cell
-/// corners, so the discrete strain energy is U = 1/2 sum_r w_r (b_r q)^2 and K = B^T W B is
+/// w at nodes (i dz, j dth), u at (i + 1/2, j), v at (i, j + 1/2); strains sampled at nodes and
+/// cell corners, so the discrete strain energy is U = 1/2 sum_r w_r (b_r q)^2 and K = B^T W B is
 /// symmetric positive semi-definite by construction. Second order in dz and dth in the interior.
 ///
 /// Structure: the tube is sawn lengthwise along seam lines; each seam leaves two free edges (the
@@ -33,13 +33,13 @@ namespace sonicboom::acoustics {
 
 /// Keys under "shell": the discretized tube structure.
 struct ShellConfig {
-  double grid_spacing_m{0.0025};           // target arc spacing of the grid
-  double axial_spacing_m{0.005};           // target axial spacing; 0 = grid_spacing_m
-  std::string ends{"free"};                // free | simply-supported (both ends)
-  bool ideal{false};                       // uniform tube: no seam, holes, bolts or mounts
+  double grid_spacing_m{0.0025};                    // target arc spacing of the grid
+  double axial_spacing_m{0.005};                    // target axial spacing; 0 = grid_spacing_m
+  std::string ends{"free"};                         // free | simply-supported (both ends)
+  bool ideal{false};                                // uniform tube: no seam, holes, bolts or mounts
   std::vector<double> seam_theta_deg{90.0, 270.0};  // saw cuts (the tube is split in halves)
   std::vector<double> bolt_z_m{-0.1, 0.0, 0.1};     // bolts along every seam, tube frame
-  double bolt_stiffness_n_m{2.0e6};        // per bolt and direction (axial, arc, radial)
+  double bolt_stiffness_n_m{2.0e6};                 // per bolt and direction (axial, arc, radial)
   std::vector<double> bolt_stiffness_scale;  // per bolt_z_m entry: x bolt_stiffness_n_m; [] = 1
   // "point": each bolt is three springs at one grid row; "tie": its stiffness spread evenly over
   // the rows within bolt_tie_length_m (a clamped washer, or a glued or riveted seam strip)
@@ -47,7 +47,7 @@ struct ShellConfig {
   double bolt_tie_length_m{0.02};
   std::vector<double> hole_z_m{-0.146, -0.146, -0.146, 0.146, 0.146, 0.146};
   std::vector<double> hole_theta_deg{0.0, 120.0, 240.0, 0.0, 120.0, 240.0};
-  double hole_diameter_m{0.006};           // cable holes beside the discs
+  double hole_diameter_m{0.006};              // cable holes beside the discs
   double flange_mount_stiffness_n_m2{5.0e6};  // springs to ground per metre of the flange-end rim
   double tool_mount_stiffness_n_m2{1.0e6};    // the same at the tool end (cap)
   // loss, eta(f) = 2 zeta(f). "law": every mode of the modal rung has the loss of the law
@@ -76,7 +76,7 @@ class ShellModel {
   ShellModel(const TubeConfig& tube, const MaterialConfig& material, const ShellConfig& shell);
 
   int64_t dofs() const { return static_cast<int64_t>(mass_kg_.size()); }
-  int axial_points() const { return nz_ + 1; }      // node rows, ends included
+  int axial_points() const { return nz_ + 1; }  // node rows, ends included
   int circumferential_points() const { return nth_; }
   double dz_m() const { return dz_m_; }
   double dtheta_rad() const { return dth_rad_; }
@@ -134,13 +134,13 @@ class ShellModel {
   TubeConfig tube_;
   MaterialConfig material_;
   ShellConfig shell_;
-  int nz_{0}, nth_{0};                     // axial intervals, circumferential points
+  int nz_{0}, nth_{0};  // axial intervals, circumferential points
   double dz_m_{0.0}, dth_rad_{0.0}, radius_m_{0.0};
   std::vector<int64_t> w_index_, u_index_, v_index_;  // grid -> DOF (or kAbsent / kFixed)
   Eigen::VectorXd mass_kg_;
   Eigen::SparseMatrix<double> stiffness_;
   double alpha_{0.0}, beta_{0.0};
-  bool loss_law_{true};                    // shell.damping == "law"
+  bool loss_law_{true};  // shell.damping == "law"
   std::string key_;
 };
 

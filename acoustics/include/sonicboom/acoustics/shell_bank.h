@@ -33,10 +33,10 @@ struct ForceInput {
 /// Mode shapes at a subset of the DOFs: what a bank reads (ShellModalBank::RowsRead), so that a
 /// structure variant never needs its shapes at every DOF.
 struct ModeRows {
-  Eigen::VectorXd omega_rad_s;   // (modes) ascending
+  Eigen::VectorXd omega_rad_s;  // (modes) ascending
   int64_t rigid_body_modes{0};
-  std::vector<int64_t> dofs;     // ascending DOF of every row
-  Eigen::MatrixXd shapes;        // (rows x modes) mass-normalized
+  std::vector<int64_t> dofs;  // ascending DOF of every row
+  Eigen::MatrixXd shapes;     // (rows x modes) mass-normalized
   /// The rows of full modes (with shapes) at `dofs`.
   static ModeRows Of(const ShellModes& modes, std::vector<int64_t> dofs);
 };

@@ -19,9 +19,9 @@ namespace sonicboom::acoustics {
 constexpr double kRigidBodyHz = 20.0;
 
 struct ShellModes {
-  Eigen::VectorXd omega_rad_s;   // (modes) elastic modes, ascending
-  Eigen::MatrixXd shapes;        // (dofs x modes) mass-normalized: phi^T M phi = 1
-  int64_t rigid_body_modes{0};   // modes below kRigidBodyHz, not listed
+  Eigen::VectorXd omega_rad_s;  // (modes) elastic modes, ascending
+  Eigen::MatrixXd shapes;       // (dofs x modes) mass-normalized: phi^T M phi = 1
+  int64_t rigid_body_modes{0};  // modes below kRigidBodyHz, not listed
 };
 
 /// The elastic modes with frequency <= max_frequency_hz, or the lowest max_count of them

@@ -59,9 +59,9 @@ class ShellRitzProjector {
 /// the band, the enrichment and the rows, and read back as they were computed. `projector` is
 /// called (once, from any thread) only when the file is missing or does not match.
 ModeRows CachedRitzModes(const std::function<const ShellRitzProjector&()>& projector,
-                         const ShellModel& base, const ShellModel& varied,
-                         double max_frequency_hz, const std::vector<int64_t>& rows,
-                         const std::string& cache_dir, bool* hit = nullptr);
+                         const ShellModel& base, const ShellModel& varied, double max_frequency_hz,
+                         const std::vector<int64_t>& rows, const std::string& cache_dir,
+                         bool* hit = nullptr);
 
 /// One variant's modes by a projector made for it alone.
 ShellModes RitzShellModes(const ShellModel& base, const ShellModes& base_modes,

@@ -20,7 +20,7 @@ namespace sonicboom::acoustics {
 /// a structure without rigid-body modes). Modal damping: model.DampingRatio(omega_n).
 Eigen::MatrixXd ModalRun(const ShellModel& model, const ShellModes& modes,
                          const Eigen::VectorXd& force_weights, std::span<const double> force_n,
-                         const Eigen::MatrixXd& sensor_rows, int64_t samples,
-                         double sample_rate_hz, bool residual);
+                         const Eigen::MatrixXd& sensor_rows, int64_t samples, double sample_rate_hz,
+                         bool residual);
 
 }  // namespace sonicboom::acoustics

@@ -51,9 +51,9 @@ class SpectralGate {
   void Apply(const float* x, int64_t n, int channel, float* out) const;
 
   int channels() const;
-  int64_t frames(int64_t n) const;          // STFT frames of n samples: 1 + n / hop
-  int64_t freq_smooth_bins() const;         // n_f: kernel half width in bins
-  int64_t time_smooth_frames() const;       // n_t: kernel half width in frames
+  int64_t frames(int64_t n) const;     // STFT frames of n samples: 1 + n / hop
+  int64_t freq_smooth_bins() const;    // n_f: kernel half width in bins
+  int64_t time_smooth_frames() const;  // n_t: kernel half width in frames
   /// Threshold per channel and frequency bin, dB: (channels x n_fft / 2 + 1).
   const Eigen::MatrixXd& threshold_db() const;
   const SpectralGateConfig& config() const;

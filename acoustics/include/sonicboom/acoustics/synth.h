@@ -27,17 +27,17 @@ struct SynthConfig {
   // fd: the finite-difference solver of the same shell, the reference;
   // modal-closed-form: ideal simply-supported tube, Flügge modes (the first rung, no seam)
   std::string model{"modal"};
-  double max_frequency_hz{0.0};            // mode band; 0 = derive from the contact (and Nyquist)
-  int64_t mode_count{0};                   // modal: play the lowest N modes (overrides the band)
-  double band_factor{8.0};                 // auto band = band_factor x first spectral minimum (1.8 / t_c);
-                                           // 8 keeps the arrival-time cues (docs/fidelity.md)
-  double decay_floor_db{-100.0};           // a mode (the FD run) stops once it decayed this far
-  int64_t force_substeps{8};               // modal-closed-form: force averaged over this many points
-  bool residual{true};                     // modal: static part of the modes above the band
-  double mode_band_hz{0.0};                // modes solved (and cached) up to here; 0 = min(20 kHz, 0.95 Nyquist)
-  int64_t fd_oversampling{0};              // fd: steps per audio sample; 0 = smallest stable
-  std::string mode_cache_dir;              // "" = $SONICBOOM_CACHE_DIR or ~/.cache/sonicboom/modes
-  ContactConfig contact;                   // the striker-tube contact solve
+  double max_frequency_hz{0.0};   // mode band; 0 = derive from the contact (and Nyquist)
+  int64_t mode_count{0};          // modal: play the lowest N modes (overrides the band)
+  double band_factor{8.0};        // auto band = band_factor x first spectral minimum (1.8 / t_c);
+                                  // 8 keeps the arrival-time cues (docs/fidelity.md)
+  double decay_floor_db{-100.0};  // a mode (the FD run) stops once it decayed this far
+  int64_t force_substeps{8};      // modal-closed-form: force averaged over this many points
+  bool residual{true};            // modal: static part of the modes above the band
+  double mode_band_hz{0.0};  // modes solved (and cached) up to here; 0 = min(20 kHz, 0.95 Nyquist)
+  int64_t fd_oversampling{0};  // fd: steps per audio sample; 0 = smallest stable
+  std::string mode_cache_dir;  // "" = $SONICBOOM_CACHE_DIR or ~/.cache/sonicboom/modes
+  ContactConfig contact;       // the striker-tube contact solve
 
   void Serialize(Archive* a);
 };
@@ -52,17 +52,17 @@ struct AcousticModelConfig {
   SynthConfig synth;
   DaqConfig daq;
   NoiseConfig noise;
-  RandomizeConfig randomize;               // the structure pool and the placement margin
-  uint64_t seed{0};                        // global seed: the structure pool's draws
+  RandomizeConfig randomize;  // the structure pool and the placement margin
+  uint64_t seed{0};           // global seed: the structure pool's draws
 };
 
 /// The Hertz impact of a striker on the wall (rigid target): docs/physics.md, "Hertz impact".
 struct HertzImpact {
-  double stiffness_n_m15{0.0};             // K in F = K delta^1.5
+  double stiffness_n_m15{0.0};  // K in F = K delta^1.5
   double max_compression_m{0.0};
   double peak_force_n{0.0};
   double duration_s{0.0};
-  double impulse_ns{0.0};                  // 0.5436 F_max t_c
+  double impulse_ns{0.0};  // 0.5436 F_max t_c
 };
 HertzImpact SolveHertzImpact(const ContactEvent& contact, const TubeConfig& tube,
                              const MaterialConfig& material);
@@ -71,16 +71,16 @@ double HertzForce(const HertzImpact& impact, double t_s);
 
 /// Result of rendering one strike.
 struct RenderedStrike {
-  Eigen::MatrixXf audio;                   // (mics x T), full scale 1, quantized to output_bits
+  Eigen::MatrixXf audio;  // (mics x T), full scale 1, quantized to output_bits
   bool clipped{false};
-  double impulse_ns{0.0};                  // of the first (localized) contact
+  double impulse_ns{0.0};  // of the first (localized) contact
   double duration_s{0.0};
   double peak_force_n{0.0};
-  int64_t touches{0};                      // closures of the first contact (> 1: chatter)
-  double band_hz{0.0};                     // mode band used (modal rungs)
+  int64_t touches{0};   // closures of the first contact (> 1: chatter)
+  double band_hz{0.0};  // mode band used (modal rungs)
   int64_t modes_used{0};
-  int64_t forces_played{0};                // impacts, bounces, presses and brushes rendered
-  double vibration_s{0.0};                 // wall time of the vibration model alone, s
+  int64_t forces_played{0};  // impacts, bounces, presses and brushes rendered
+  double vibration_s{0.0};   // wall time of the vibration model alone, s
 };
 
 /// Immutable acoustic model of one tube + sensor set-up, shared across threads; Render is const

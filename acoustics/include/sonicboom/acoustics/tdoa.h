@@ -37,15 +37,15 @@ double FlexuralGroupVelocity(double frequency_hz, const MaterialConfig& material
 
 /// Where waves travel and where the microphones and the contact region are.
 struct TdoaGeometry {
-  double radius_m{0.05202};              // wave path radius: the wall's mid-surface
+  double radius_m{0.05202};  // wave path radius: the wall's mid-surface
   double wall_thickness_m{0.00305};
   MaterialConfig material;
-  double z_min_m{-0.1015};               // search region (the contact region)
+  double z_min_m{-0.1015};  // search region (the contact region)
   double z_max_m{0.1015};
-  std::vector<double> mic_z_m;           // per microphone (channel order)
+  std::vector<double> mic_z_m;  // per microphone (channel order)
   std::vector<double> mic_theta_rad;
-  std::vector<double> seam_theta_rad;    // saw cuts along the tube; empty: a closed tube
-  std::vector<double> bolt_z_m;          // where every seam is bolted across (paths cross here)
+  std::vector<double> seam_theta_rad;  // saw cuts along the tube; empty: a closed tube
+  std::vector<double> bolt_z_m;        // where every seam is bolted across (paths cross here)
 
   /// Throws ConfigError naming the field as "tdoa.<field>".
   void Validate() const;
@@ -59,8 +59,8 @@ TdoaGeometry MakeTdoaGeometry(const TubeConfig& tube, const MaterialConfig& mate
 /// Length of the shortest surface path between two points (z, theta) on the geometry's
 /// mid-surface, m: a straight line on the unrolled cylinder, and on a seamed tube the shortest
 /// chain of such lines that crosses saw cuts only at bolts.
-double SurfacePathLength(const TdoaGeometry& geometry, double z1_m, double theta1_rad,
-                         double z2_m, double theta2_rad);
+double SurfacePathLength(const TdoaGeometry& geometry, double z1_m, double theta1_rad, double z2_m,
+                         double theta2_rad);
 
 /// SurfacePathLength from every point (z_m[i], theta_rad[i]) to one point (z2, theta2), m; the
 /// seam graph built once.
@@ -73,19 +73,19 @@ struct TdoaConfig {
   /// Band b spans [band_edges_hz[b], band_edges_hz[b+1]]: a cos^2 weight in log frequency,
   /// centred at the geometric mean, half power at the edges (neighbouring bands sum to one).
   std::vector<double> band_edges_hz{1000.0, 2000.0, 4000.0, 8000.0, 16000.0};
-  std::vector<double> band_weights;      // per band (empty: all 1)
-  bool dispersive{true};                 // per-band group velocity; false: one speed for all
-  double speed_m_s{0.0};                 // the non-dispersive speed (0: group velocity at the
-                                         // geometric centre of all bands)
-  double speed_scale{1.0};               // multiplies every band's speed
-  double min_speed_scale{0.25};          // lags are kept for speeds down to this scale
-  double pre_onset_s{0.003};             // analysis window around the onset
+  std::vector<double> band_weights;  // per band (empty: all 1)
+  bool dispersive{true};             // per-band group velocity; false: one speed for all
+  double speed_m_s{0.0};             // the non-dispersive speed (0: group velocity at the
+                                     // geometric centre of all bands)
+  double speed_scale{1.0};           // multiplies every band's speed
+  double min_speed_scale{0.25};      // lags are kept for speeds down to this scale
+  double pre_onset_s{0.003};         // analysis window around the onset
   double post_onset_s{0.005};
-  double taper_s{0.0005};                // raised-cosine ends of the analysis window
-  int64_t upsample{4};                   // lag grid step 1 / upsample samples
-  double grid_z_step_m{0.002};           // coarse search grid
+  double taper_s{0.0005};       // raised-cosine ends of the analysis window
+  int64_t upsample{4};          // lag grid step 1 / upsample samples
+  double grid_z_step_m{0.002};  // coarse search grid
   double grid_theta_step_deg{2.0};
-  double refine_tolerance_m{5e-5};       // local refinement stops at this step (arc for theta)
+  double refine_tolerance_m{5e-5};  // local refinement stops at this step (arc for theta)
 
   /// Throws ConfigError naming the field as "tdoa.<field>".
   void Validate() const;
@@ -94,7 +94,7 @@ struct TdoaConfig {
 /// Band GCC-PHAT envelopes of one strike: envelope[b] is (pairs x lags), column u is lag
 /// (u / upsample - max_lag) samples, normalized so that a perfectly coherent pair reaches 1.
 struct TdoaCorrelations {
-  int64_t max_lag{0};                    // samples each side
+  int64_t max_lag{0};  // samples each side
   int64_t upsample{1};
   std::vector<Eigen::MatrixXf> envelope;
 };
@@ -103,7 +103,7 @@ struct TdoaCorrelations {
 struct TdoaEstimate {
   double z_m{0.0};
   double theta_rad{0.0};
-  double score{0.0};                     // steered response at the estimate
+  double score{0.0};  // steered response at the estimate
 };
 
 /// Immutable; every method is const and thread-safe.

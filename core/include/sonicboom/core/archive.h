@@ -1,6 +1,7 @@
 #pragma once
 /// Drake-style config serialization: every config struct has
-///   void Serialize(sonicboom::Archive* a) { a->Visit("name_unit", &name_unit, Bounds::Positive()); ... }
+///   void Serialize(sonicboom::Archive* a) { a->Visit("name_unit", &name_unit, Bounds::Positive());
+///   ... }
 /// and the same function drives YAML reading (strict: unknown keys are errors), YAML writing
 /// (resolved configs beside every output) and docs. Archive implementations live in .cc files.
 
@@ -23,7 +24,9 @@ struct Bounds {
 
   static Bounds Any() { return {}; }
   static Bounds Positive() { return {0.0, std::numeric_limits<double>::infinity(), true, false}; }
-  static Bounds NonNegative() { return {0.0, std::numeric_limits<double>::infinity(), false, false}; }
+  static Bounds NonNegative() {
+    return {0.0, std::numeric_limits<double>::infinity(), false, false};
+  }
   static Bounds Closed(double lo, double hi) { return {lo, hi, false, false}; }
   static Bounds Open(double lo, double hi) { return {lo, hi, true, true}; }
   bool Contains(double v) const;

@@ -12,7 +12,7 @@ namespace sonicboom {
 
 /// One array: `data` holds product(shape) values in row-major order; an empty shape is a scalar.
 struct NamedArray {
-  std::string name;            // HDF5 path below the root, e.g. "encoder/weight"
+  std::string name;  // HDF5 path below the root, e.g. "encoder/weight"
   std::vector<int64_t> shape;
   std::vector<float> data;
 };

@@ -3,8 +3,8 @@
 /// core/internal/.
 ///
 /// Layout (N samples, C channels, T audio frames, K proprio rows):
-///   /audio                  (N, C, T) int16 or float32; attr `scale` maps stored values to full scale 1
-///   /label/z_m (N) f64, /label/theta_rad (N) f64, /label/point_m (N,3) f64 tube frame,
+///   /audio                  (N, C, T) int16 or float32; attr `scale` maps stored values to full
+///   scale 1 /label/z_m (N) f64, /label/theta_rad (N) f64, /label/point_m (N,3) f64 tube frame,
 ///   /label/normal (N,3) f64, /label/impulse_Ns (N) f64, /label/time_s (N) f64,
 ///   /label/normal_speed_m_s (N) f64, /label/duration_s (N) f64
 ///   /proprio                (N, K, 10) f32: position m (3), quaternion wxyz (4), velocity m/s (3)
@@ -43,21 +43,21 @@ inline constexpr const char* kDatasetSchemaVersionWithoutContacts = "1.0";
 
 /// File-level metadata of a dataset.
 struct DatasetInfo {
-  std::string source{"sim"};         // "sim" or "hardware"
-  std::string config_yaml;           // resolved config that produced the file
-  std::string software_version;      // filled by the writer when empty
+  std::string source{"sim"};     // "sim" or "hardware"
+  std::string config_yaml;       // resolved config that produced the file
+  std::string software_version;  // filled by the writer when empty
   double sample_rate_hz{44100.0};
   double proprio_rate_hz{100.0};
   int channels{6};
-  int64_t audio_frames{0};           // T
-  int64_t proprio_rows{0};           // K
-  bool audio_int16{true};            // store audio as int16 PCM (the DAQ's output) or float32
+  int64_t audio_frames{0};  // T
+  int64_t proprio_rows{0};  // K
+  bool audio_int16{true};   // store audio as int16 PCM (the DAQ's output) or float32
   uint64_t global_seed{0};
   int64_t shard{0};
   int64_t num_shards{1};
-  int64_t num_samples{0};            // reader: samples in the file
-  bool complete{false};              // reader: the `complete` attribute
-  std::string schema_version;        // reader: the file's version; the writer writes the current
+  int64_t num_samples{0};      // reader: samples in the file
+  bool complete{false};        // reader: the `complete` attribute
+  std::string schema_version;  // reader: the file's version; the writer writes the current
   std::vector<std::string> variation_names;  // (P) randomized draws stored per sample; empty: none
 };
 

@@ -40,7 +40,7 @@ namespace internal {
 }  // namespace sonicboom
 
 /// Invariant check, armed in every build type.
-#define SONICBOOM_DEMAND(cond)                                                  \
-  do {                                                                          \
+#define SONICBOOM_DEMAND(cond)                                                          \
+  do {                                                                                  \
     if (!(cond)) ::sonicboom::internal::AbortOnFailedDemand(#cond, __FILE__, __LINE__); \
   } while (0)

@@ -22,9 +22,16 @@ constexpr uint64_t SampleSeed(uint64_t global_seed, uint64_t index) {
 
 /// Named sub-streams of one sample (geometry, noise, ...), so adding draws to one stage
 /// does not shift the numbers of another.
-enum class Stream : uint64_t { kStrike = 1, kAcoustics = 2, kDaq = 3, kNoise = 4, kSplit = 5, kTrain = 6,
-                             kScene = 7,       // object drawn per strike, scene shapes
-                             kRandomize = 8 }; // randomized structure and sensor chain
+enum class Stream : uint64_t {
+  kStrike = 1,
+  kAcoustics = 2,
+  kDaq = 3,
+  kNoise = 4,
+  kSplit = 5,
+  kTrain = 6,
+  kScene = 7,  // object drawn per strike, scene shapes
+  kRandomize = 8
+};  // randomized structure and sensor chain
 
 /// xoshiro256** generator with its own uniform and normal draws (no implementation-defined
 /// std distributions, so numbers are identical across standard libraries).
@@ -57,8 +64,8 @@ class Rng {
   /// uniforms from one 64-bit draw (Irwin-Hall, tails end at +-3.46). ~10x faster than Normal.
   double NoiseSample() {
     const uint64_t x = NextU64();
-    const double sum = static_cast<double>((x & 0xFFFF) + ((x >> 16) & 0xFFFF) +
-                                           ((x >> 32) & 0xFFFF) + (x >> 48));
+    const double sum =
+        static_cast<double>((x & 0xFFFF) + ((x >> 16) & 0xFFFF) + ((x >> 32) & 0xFFFF) + (x >> 48));
     // mean 4 * 32767.5, variance 4 * (65536^2 - 1) / 12
     return (sum - 131070.0) * 2.6428997921303014e-05;
   }

@@ -13,11 +13,11 @@ namespace sonicboom {
 
 /// 4" SDR35 PVC pipe by default.
 struct TubeConfig {
-  double outer_radius_m{0.05355};          // OD 107.1 mm
+  double outer_radius_m{0.05355};  // OD 107.1 mm
   double wall_thickness_m{0.00305};
   double length_m{0.3048};
-  double center_from_flange_m{0.155};      // along the flange z axis
-  double contact_z_min_m{-0.1015};         // contact region, from the tube centre
+  double center_from_flange_m{0.155};  // along the flange z axis
+  double contact_z_min_m{-0.1015};     // contact region, from the tube centre
   double contact_z_max_m{0.1015};
 
   void Serialize(Archive* a);
@@ -31,7 +31,7 @@ struct MaterialConfig {
   double youngs_modulus_pa{3.0e9};
   double poisson_ratio{0.38};
   double density_kg_m3{1400.0};
-  double loss_factor{0.02};                // eta; modal damping ratio = eta / 2
+  double loss_factor{0.02};  // eta; modal damping ratio = eta / 2
 
   void Serialize(Archive* a);
 };
@@ -51,12 +51,12 @@ struct MicArrayConfig {
 /// Audio clock.
 struct AudioConfig {
   double sample_rate_hz{44100.0};
-  double record_duration_s{2.0};           // one strike record
-  double onset_time_s{0.5};                // nominal time of first contact in the record
-  double onset_jitter_s{0.05};             // first contact drawn uniformly in onset_time_s +- this
+  double record_duration_s{2.0};  // one strike record
+  double onset_time_s{0.5};       // nominal time of first contact in the record
+  double onset_jitter_s{0.05};    // first contact drawn uniformly in onset_time_s +- this
 
   void Serialize(Archive* a);
-  int64_t num_samples() const;             // record length in samples
+  int64_t num_samples() const;  // record length in samples
 };
 
 /// Wraps an angle to (-pi, pi].

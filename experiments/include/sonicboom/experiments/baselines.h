@@ -39,11 +39,9 @@ std::vector<learning::Prediction> LocateAll(const acoustics::TdoaLocator& locato
 /// The arrival-time locator over every valid sample of a dataset (onsets as CorrelateDataset
 /// finds them), on `threads` workers; `labels` (optional) receives their labels, `estimates`
 /// (optional) the picks and fitted speeds.
-std::vector<learning::Prediction> LocateByArrival(const std::string& dataset_path,
-                                                  const SonicBoomConfig& config,
-                                                  const acoustics::ArrivalLocator& locator,
-                                                  int threads, bool show_progress,
-                                                  learning::FeatureSet* labels,
-                                                  std::vector<acoustics::ArrivalEstimate>* estimates);
+std::vector<learning::Prediction> LocateByArrival(
+    const std::string& dataset_path, const SonicBoomConfig& config,
+    const acoustics::ArrivalLocator& locator, int threads, bool show_progress,
+    learning::FeatureSet* labels, std::vector<acoustics::ArrivalEstimate>* estimates);
 
 }  // namespace sonicboom::experiments

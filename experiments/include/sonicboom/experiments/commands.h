@@ -13,15 +13,15 @@ namespace sonicboom::experiments {
 /// Options shared by every subcommand.
 struct GlobalOptions {
   ConfigSources sources;
-  int threads{0};                          // 0 = all cores
+  int threads{0};  // 0 = all cores
   bool quiet{false};
   bool json{false};
 };
 
 /// What a command produced.
 struct CommandResult {
-  std::string json;                        // one JSON object
-  std::string text;                        // human-readable report
+  std::string json;  // one JSON object
+  std::string text;  // human-readable report
 };
 
 CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir);
@@ -55,12 +55,12 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
                           const std::string& proprio_csv);
 /// `train`: a fresh run, or a fine-tune of a pretrained run (--init-from).
 struct TrainOptions {
-  std::string data;           // dataset (.h5)
-  std::string out;            // run directory
+  std::string data;  // dataset (.h5)
+  std::string out;   // run directory
   bool resume{false};
-  std::string init_from;      // pretrained run directory; empty: from scratch
-  std::string freeze{"none"}; // none | encoders | all-but-head
-  std::string norm{"keep"};   // keep | refit: the per-mic mel statistics of a fine-tune
+  std::string init_from;       // pretrained run directory; empty: from scratch
+  std::string freeze{"none"};  // none | encoders | all-but-head
+  std::string norm{"keep"};    // keep | refit: the per-mic mel statistics of a fine-tune
 };
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
@@ -72,16 +72,16 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
                           const std::string& wav, const std::string& proprio_csv, int64_t repeat);
 /// Options of `sonicboom baseline` (docs/baselines.md).
 struct BaselineOptions {
-  std::string method;                      // knn | tdoa | constant
-  std::string train;                       // training dataset: knn and constant need it; tdoa
-                                           // fits its speed scale on it when given
-  std::string data;                        // held-out dataset
-  int64_t k{5};                            // knn: neighbours
-  int64_t knn_gcc_lags{0};                 // knn: GCC-PHAT lags each side in the vector (0: none)
-  std::vector<double> bands_hz;            // tdoa: band edges (empty: the default octaves)
-  bool non_dispersive{false};              // tdoa: one speed for every band
-  bool no_fit{false};                      // tdoa: keep the analytic speeds (scale 1)
-  int64_t fit_strikes{300};                // tdoa: training strikes used by the speed fit
+  std::string method;            // knn | tdoa | constant
+  std::string train;             // training dataset: knn and constant need it; tdoa
+                                 // fits its speed scale on it when given
+  std::string data;              // held-out dataset
+  int64_t k{5};                  // knn: neighbours
+  int64_t knn_gcc_lags{0};       // knn: GCC-PHAT lags each side in the vector (0: none)
+  std::vector<double> bands_hz;  // tdoa: band edges (empty: the default octaves)
+  bool non_dispersive{false};    // tdoa: one speed for every band
+  bool no_fit{false};            // tdoa: keep the analytic speeds (scale 1)
+  int64_t fit_strikes{300};      // tdoa: training strikes used by the speed fit
 };
 /// A baseline's metrics on `data`, with the keys of `eval --json` plus "method" and the
 /// method's own fields. The config's base layer is the test dataset's own config.
@@ -96,11 +96,11 @@ struct ImportOptions {
   std::string out;                       // dataset (.h5)
   std::string angle_convention{"tube"};  // tube | j7
   double min_duration_s{1.5};
-  std::string object;                    // labels from geometry: mesh or point cloud (trial layout)
-  double object_scale{1.0};              // object file units to metres (0.001: millimetres)
-  double contact_tolerance_m{0.002};     // contact when the object comes this close
+  std::string object;                 // labels from geometry: mesh or point cloud (trial layout)
+  double object_scale{1.0};           // object file units to metres (0.001: millimetres)
+  double contact_tolerance_m{0.002};  // contact when the object comes this close
   bool skip_bad{false};
-  bool force{false};                     // replace an existing output
+  bool force{false};  // replace an existing output
 };
 CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o);
 /// `listen`: live localization. Strikes are cut from a device stream (or a WAV read as one) by

@@ -23,36 +23,36 @@ namespace sonicboom::experiments {
 
 /// Dataset generation.
 struct DatasetConfig {
-  int64_t count{1000};                     // samples in a generated dataset
-  int64_t first_index{0};                  // global index of the first sample
-  bool audio_int16{true};                  // store the DAQ's 16-bit output losslessly as int16
+  int64_t count{1000};     // samples in a generated dataset
+  int64_t first_index{0};  // global index of the first sample
+  bool audio_int16{true};  // store the DAQ's 16-bit output losslessly as int16
 
   void Serialize(Archive* a);
 };
 
 /// The demo's dataset sizes.
 struct DemoConfig {
-  int64_t train_count{1600};               // training strikes (a fifth held for validation)
-  int64_t test_count{400};                 // held-out strikes, disjoint sample indices
+  int64_t train_count{1600};  // training strikes (a fifth held for validation)
+  int64_t test_count{400};    // held-out strikes, disjoint sample indices
 
   void Serialize(Archive* a);
 };
 
 struct SonicBoomConfig {
-  uint64_t seed{1};                        // global seed: sample i uses SampleSeed(seed, i)
+  uint64_t seed{1};  // global seed: sample i uses SampleSeed(seed, i)
   TubeConfig tube;
   MaterialConfig material;
   MicArrayConfig mics;
   AudioConfig audio;
   sim::StrikeConfig strike;
-  sim::SceneConfig scene;                  // objects and strike mode
-  sim::RolloutConfig rollout;              // used when strike.engine = mujoco or the scene needs it
-  acoustics::ShellConfig shell;             // the discretized tube (numerical modes, FD)
+  sim::SceneConfig scene;        // objects and strike mode
+  sim::RolloutConfig rollout;    // used when strike.engine = mujoco or the scene needs it
+  acoustics::ShellConfig shell;  // the discretized tube (numerical modes, FD)
   acoustics::SynthConfig acoustics;
   acoustics::DaqConfig daq;
   acoustics::NoiseConfig noise;
-  acoustics::RandomizeConfig randomize;    // per-sample structure, striker and sensor draws
-  acoustics::ArrivalConfig arrival;        // the training-free arrival locator (a baseline)
+  acoustics::RandomizeConfig randomize;  // per-sample structure, striker and sensor draws
+  acoustics::ArrivalConfig arrival;      // the training-free arrival locator (a baseline)
   acoustics::FeatureConfig features;
   learning::ModelConfig model;
   learning::TrainConfig train;
@@ -66,13 +66,13 @@ struct SonicBoomConfig {
 
 /// Where a config comes from: embedded defaults (+ an optional embedded layer), files, overrides.
 struct ConfigSources {
-  std::vector<std::string> files;          // --config, merged in order
-  std::vector<std::string> overrides;      // --set key=value
-  std::string embedded_yaml;               // e.g. the demo's defaults, applied before files
+  std::vector<std::string> files;      // --config, merged in order
+  std::vector<std::string> overrides;  // --set key=value
+  std::string embedded_yaml;           // e.g. the demo's defaults, applied before files
   std::string embedded_name{"embedded defaults"};
   // further embedded layers (name, YAML), after embedded_yaml and before the files
   std::vector<std::pair<std::string, std::string>> embedded_layers;
-  int64_t seed{-1};                        // --seed, >= 0 overrides `seed`
+  int64_t seed{-1};  // --seed, >= 0 overrides `seed`
 };
 
 /// Resolves and validates a config. Throws ConfigError / IoError naming the culprit.

@@ -9,9 +9,9 @@ namespace sonicboom::hardware {
 
 /// One recorded strike.
 struct Capture {
-  Eigen::MatrixXf audio;            // (channels x T), full scale 1
+  Eigen::MatrixXf audio;  // (channels x T), full scale 1
   double sample_rate_hz{0.0};
-  Eigen::MatrixXf proprio;          // (K x 10) pos m, quat wxyz, vel m/s in the base frame; empty if none
+  Eigen::MatrixXf proprio;  // (K x 10) pos m, quat wxyz, vel m/s in the base frame; empty if none
 };
 
 /// Reads a robot log CSV: a header line naming the columns, then one row per 100 Hz tick with

@@ -12,8 +12,8 @@ namespace sonicboom::hardware {
 
 /// An object in the robot base frame (m): a triangle mesh, or a point cloud (no triangles).
 struct ObjectGeometry {
-  Eigen::Matrix3Xf vertices;     // (3 x V)
-  Eigen::Matrix3Xi triangles;    // (3 x F) vertex indices; empty for a point cloud
+  Eigen::Matrix3Xf vertices;   // (3 x V)
+  Eigen::Matrix3Xi triangles;  // (3 x F) vertex indices; empty for a point cloud
   bool is_cloud() const { return triangles.cols() == 0; }
 };
 
@@ -44,11 +44,11 @@ struct ContactRule {
 
 /// Where and when the object first met the tube.
 struct GeometryLabel {
-  double z_m{0.0};                  // tube frame (docs/conventions.md)
+  double z_m{0.0};  // tube frame (docs/conventions.md)
   double theta_rad{0.0};
-  int64_t step{0};                  // first pose with the object within tolerance
-  double distance_m{0.0};           // the closest surface point's distance at that step
-  int64_t patch_points{0};          // surface samples averaged into the label
+  int64_t step{0};          // first pose with the object within tolerance
+  double distance_m{0.0};   // the closest surface point's distance at that step
+  int64_t patch_points{0};  // surface samples averaged into the label
 };
 
 /// An object prepared once (a bounding-volume hierarchy over its triangles or points) for

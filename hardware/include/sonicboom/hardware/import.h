@@ -26,7 +26,7 @@ enum class Layout { kTrial, kCapture };
 /// angle θ_j7 with θ_tube = −θ_j7 − 50°.
 enum class AngleConvention { kTube, kJ7 };
 
-Layout ParseLayout(const std::string& name);                   // ConfigError naming the value
+Layout ParseLayout(const std::string& name);                    // ConfigError naming the value
 AngleConvention ParseAngleConvention(const std::string& name);  // ConfigError naming the value
 /// θ_tube from a stored angle and back (wrapped to (−π, π]).
 double TubeAngleFrom(double stored_rad, AngleConvention convention);
@@ -38,13 +38,13 @@ struct ImportSettings {
   AngleConvention angle{AngleConvention::kTube};
   double sample_rate_hz{44100.0};
   int channels{6};
-  int64_t record_frames{88200};     // every record padded (last value repeated) or trimmed to this
-  double min_duration_s{1.5};       // shorter captures are bad
-  int64_t proprio_rows{50};         // rows kept from a pose log (at least this many needed)
-  double outer_radius_m{0.05355};   // label point on the surface
-  double z_limit_m{0.1524};         // |z| beyond this (half the tube length) is not on the tube
-  bool skip_bad{false};             // import the good captures when some are bad
-  int threads{1};                   // reading and compression workers (0: all cores)
+  int64_t record_frames{88200};    // every record padded (last value repeated) or trimmed to this
+  double min_duration_s{1.5};      // shorter captures are bad
+  int64_t proprio_rows{50};        // rows kept from a pose log (at least this many needed)
+  double outer_radius_m{0.05355};  // label point on the surface
+  double z_limit_m{0.1524};        // |z| beyond this (half the tube length) is not on the tube
+  bool skip_bad{false};            // import the good captures when some are bad
+  int threads{1};                  // reading and compression workers (0: all cores)
   /// Tube pose (base frame) for a joint vector, used when x_t.npy has no orientation
   /// (3 columns) and q_t.npy is present; unset: such trials are bad.
   std::function<Eigen::Isometry3d(const std::array<double, 7>&)> tube_pose_from_joints;
@@ -62,8 +62,8 @@ struct BadCapture {
 
 struct ImportReport {
   int64_t imported{0};
-  std::vector<BadCapture> bad;       // listed in input order
-  std::string noise_wav;             // the copied no-contact clip, "" when the layout had none
+  std::vector<BadCapture> bad;  // listed in input order
+  std::string noise_wav;        // the copied no-contact clip, "" when the layout had none
 };
 
 /// Imports `in_dir` into `out_path` with `info` as the file's metadata (config_yaml, rates; its

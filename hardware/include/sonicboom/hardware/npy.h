@@ -10,9 +10,9 @@ namespace sonicboom::hardware {
 
 /// A numeric array read from a .npy file, converted to float64 in C (row-major) order.
 struct NpyArray {
-  std::vector<int64_t> shape;   // empty: a scalar (one value)
-  std::vector<double> data;     // product(shape) values, row-major
-  std::string dtype;            // the file's descr, e.g. "<f8", ">i4", "|u1"
+  std::vector<int64_t> shape;  // empty: a scalar (one value)
+  std::vector<double> data;    // product(shape) values, row-major
+  std::string dtype;           // the file's descr, e.g. "<f8", ">i4", "|u1"
   int64_t rows() const { return shape.empty() ? 1 : shape[0]; }
   int64_t cols() const { return shape.size() < 2 ? 1 : shape[1]; }
 };

@@ -25,8 +25,8 @@ struct TriggerConfig {
 
 /// One triggered record.
 struct TriggeredRecord {
-  Eigen::MatrixXf audio;              // (channels x record_frames)
-  int64_t onset_frame{0};             // stream frame of the onset (from the first frame pushed)
+  Eigen::MatrixXf audio;   // (channels x record_frames)
+  int64_t onset_frame{0};  // stream frame of the onset (from the first frame pushed)
   std::chrono::steady_clock::time_point onset_seen;  // when the onset's block arrived
 };
 
@@ -49,12 +49,12 @@ class OnsetTrigger {
   void Trim();
 
   TriggerConfig config_;
-  Eigen::MatrixXf buffer_;            // (channels x n) the recent stream
-  int64_t buffer_start_{0};           // stream frame of buffer_ column 0
-  int64_t scanned_{0};                // stream frame up to which energy frames were scanned
-  double floor_ms_{-1.0};             // noise floor (mean square); < 0: not yet set
-  int64_t onset_{-1};                 // onset of the record being filled; -1: none
-  int64_t quiet_until_{0};            // no onset before this stream frame
+  Eigen::MatrixXf buffer_;   // (channels x n) the recent stream
+  int64_t buffer_start_{0};  // stream frame of buffer_ column 0
+  int64_t scanned_{0};       // stream frame up to which energy frames were scanned
+  double floor_ms_{-1.0};    // noise floor (mean square); < 0: not yet set
+  int64_t onset_{-1};        // onset of the record being filled; -1: none
+  int64_t quiet_until_{0};   // no onset before this stream frame
   std::chrono::steady_clock::time_point onset_seen_;
 };
 

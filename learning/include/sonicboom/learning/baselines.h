@@ -13,15 +13,15 @@ namespace sonicboom::learning {
 
 /// The k-nearest-neighbour baseline's feature vector and neighbourhood.
 struct KnnConfig {
-  int64_t k{5};                    // neighbours
-  int64_t crop_frames{345};        // centre crop of the mel frames (the network's view)
-  int64_t pooled_frames{23};       // the crop average-pooled to this many time bins per mel band
-  bool mel_is_log{false};          // features.log_mel: the mel is log10 already (no log taken)
-  double log_floor{1e-10};         // log10(mel + log_floor)
-  int64_t gcc_lags{0};             // GCC-PHAT lags kept each side of zero (0: no GCC block)
-  double gcc_weight{1.0};          // the GCC block's share of the distance against the mel block's
-  bool distance_weighted{true};    // weights 1 / distance, else uniform
-  int threads{0};                  // TBB workers for Predict (0 = all cores)
+  int64_t k{5};                  // neighbours
+  int64_t crop_frames{345};      // centre crop of the mel frames (the network's view)
+  int64_t pooled_frames{23};     // the crop average-pooled to this many time bins per mel band
+  bool mel_is_log{false};        // features.log_mel: the mel is log10 already (no log taken)
+  double log_floor{1e-10};       // log10(mel + log_floor)
+  int64_t gcc_lags{0};           // GCC-PHAT lags kept each side of zero (0: no GCC block)
+  double gcc_weight{1.0};        // the GCC block's share of the distance against the mel block's
+  bool distance_weighted{true};  // weights 1 / distance, else uniform
+  int threads{0};                // TBB workers for Predict (0 = all cores)
 
   /// Throws ConfigError naming the field as "knn.<field>".
   void Validate() const;
@@ -42,8 +42,8 @@ class KnnBaseline {
 
   /// One prediction per row of `test`; its shapes must equal the training set's (SchemaError).
   std::vector<Prediction> Predict(const FeatureSet& test) const;
-  int64_t dimensions() const;      // length of the feature vector
-  int64_t size() const;            // training rows kept
+  int64_t dimensions() const;  // length of the feature vector
+  int64_t size() const;        // training rows kept
 
  private:
   struct Impl;

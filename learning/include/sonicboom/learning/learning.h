@@ -16,13 +16,13 @@ namespace sonicboom::learning {
 
 /// Network shape. Cheaper settings trade accuracy for speed.
 struct ModelConfig {
-  std::string audio_encoder{"compact"};    // compact | resnet18 | resnet50 (6 input channels)
-  int64_t width{256};                      // transformer width (token size)
-  int64_t blocks{6};                       // pre-norm transformer blocks
+  std::string audio_encoder{"compact"};  // compact | resnet18 | resnet50 (6 input channels)
+  int64_t width{256};                    // transformer width (token size)
+  int64_t blocks{6};                     // pre-norm transformer blocks
   int64_t heads{8};
   double dropout{0.1};
   std::vector<std::string> modalities{"audio", "gcc", "proprio"};  // any non-empty subset
-  int64_t crop_frames{345};                // mel frames seen by the network (centre crop)
+  int64_t crop_frames{345};  // mel frames seen by the network (centre crop)
   // GCC-PHAT token: "mlp" (the whole (rows x lags) map flattened into three linear layers) or
   // "conv" (three 1-D convolutions over the lags, the rows as channels, then one linear layer:
   // far fewer weights, less room to memorize one structure's correlation details)
@@ -38,11 +38,11 @@ struct ModelConfig {
 struct TrainConfig {
   int64_t epochs{100};
   int64_t batch_size{64};
-  double learning_rate{5e-3};              // Adam
-  int64_t lr_step_epochs{20};              // StepLR period
+  double learning_rate{5e-3};  // Adam
+  int64_t lr_step_epochs{20};  // StepLR period
   double lr_gamma{0.5};
-  double val_fraction{0.2};                // of the training file, split by sample seed
-  double loss_weight_z{1.0};               // z in cm
+  double val_fraction{0.2};   // of the training file, split by sample seed
+  double loss_weight_z{1.0};  // z in cm
   double loss_weight_cos{5.0};
   double loss_weight_sin{5.0};
   // Weight of the uncertainty loss: Gaussian NLL of z (cm) plus von Mises NLL of theta around
@@ -50,15 +50,15 @@ struct TrainConfig {
   // no uncertainty head: the paper's network, point estimates only. Only that head learns from
   // this term, and Adam ignores a constant gradient scale, so any positive value trains alike.
   double uncertainty_weight{1.0};
-  bool augment{true};                      // time shift + time/frequency masking (train only)
-  int64_t time_shift_frames{34};           // +- mel frames, applied to every time-aligned input
+  bool augment{true};             // time shift + time/frequency masking (train only)
+  int64_t time_shift_frames{34};  // +- mel frames, applied to every time-aligned input
   int64_t time_mask_frames{40};
   int64_t freq_mask_bands{5};
-  bool normalize{true};                    // per-mic normalization, train-split statistics
+  bool normalize{true};  // per-mic normalization, train-split statistics
   // Save the epoch with the lowest validation loss instead of the last (early stopping without
   // stopping: every epoch still runs). Meant for fine-tuning on few strikes.
   bool keep_best{false};
-  int64_t threads{0};                      // intra-op threads, 0 = all cores
+  int64_t threads{0};  // intra-op threads, 0 = all cores
 
   void Serialize(Archive* a);
   /// Checks every field; throws ConfigError naming the key as "train.<field>".
@@ -74,11 +74,11 @@ struct FeatureSet {
   int64_t gcc_lags{883};
   int64_t proprio_rows{50};
   int64_t proprio_features{10};
-  std::vector<float> mel;                  // (N x channels x mels x frames)
-  std::vector<float> gcc;                  // (N x gcc_pairs x gcc_lags)
-  std::vector<float> proprio;              // (N x proprio_rows x proprio_features)
-  std::vector<double> z_m;                 // (N) labels (may be NaN when unknown)
-  std::vector<double> theta_rad;           // (N)
+  std::vector<float> mel;         // (N x channels x mels x frames)
+  std::vector<float> gcc;         // (N x gcc_pairs x gcc_lags)
+  std::vector<float> proprio;     // (N x proprio_rows x proprio_features)
+  std::vector<double> z_m;        // (N) labels (may be NaN when unknown)
+  std::vector<double> theta_rad;  // (N)
   int64_t size() const { return static_cast<int64_t>(z_m.size()); }
   /// The same shapes with no rows.
   FeatureSet ShapesOnly() const;
@@ -91,10 +91,10 @@ struct FeatureSet {
 /// labelled prediction carries a predictive distribution (Prediction::has_uncertainty).
 struct Metrics {
   int64_t n{0};
-  double med_cm{0.0};                      // mean 3-D distance between surface points, cm
-  double height_err_cm{0.0};               // mean |dz|, cm
-  double angle_err_deg{0.0};               // mean wrapped |dtheta|, degrees
-  double reference_med_cm{0.0};            // published code's mixed-unit MED (z in cm, r in m)
+  double med_cm{0.0};            // mean 3-D distance between surface points, cm
+  double height_err_cm{0.0};     // mean |dz|, cm
+  double angle_err_deg{0.0};     // mean wrapped |dtheta|, degrees
+  double reference_med_cm{0.0};  // published code's mixed-unit MED (z in cm, r in m)
   // Fractions of records whose truth lies in the central 50 % / 90 % predictive interval:
   // Gaussian for z, von Mises for theta.
   double z_coverage_50{std::numeric_limits<double>::quiet_NaN()};
@@ -157,10 +157,10 @@ struct FineTune {
     kEncoders,    // the modality encoders stay as pretrained (their BatchNorm statistics too)
     kAllButHead,  // only the output heads (point and uncertainty) train
   };
-  std::string init_from;              // run directory; empty: train from scratch
+  std::string init_from;  // run directory; empty: train from scratch
   Freeze freeze{Freeze::kNone};
-  bool refit_normalization{false};    // false: keep the pretrained per-mic mel statistics;
-                                      // true: recompute them on the target's training split
+  bool refit_normalization{false};  // false: keep the pretrained per-mic mel statistics;
+                                    // true: recompute them on the target's training split
 };
 /// "none" | "encoders" | "all-but-head"; ConfigError naming the value otherwise.
 FineTune::Freeze ParseFreeze(const std::string& name);

@@ -33,7 +33,7 @@ struct PandaMjcfOptions {
   double timestep_s{0.001};
   double tube_density_kg_m3{1400.0};  // PVC, as MaterialConfig's default; sets the tube's inertial
   std::vector<MjcfObject> objects;    // struck objects; none in the default model
-  bool elliptic_friction_cones{false}; // MuJoCo's elliptic friction cones (default: pyramidal)
+  bool elliptic_friction_cones{false};  // MuJoCo's elliptic friction cones (default: pyramidal)
   // Only object contacts: collision detection tests predefined pairs alone, each object geom
   // against the tube and against every arm capsule (no broad phase, no arm self-collision). The
   // pairs carry the object's contact parameters, as its priority gives them in the default

@@ -61,16 +61,16 @@ namespace sonicboom::sim {
 
 /// Settings of the dynamic rollout (keys under "rollout").
 struct RolloutConfig {
-  double timestep_s{0.0};            // 0 = derived: contact_timeconst_s / 4
-  double contact_timeconst_s{0.002}; // solref time constant of object contacts, >= 2 timesteps
-  double contact_dampratio{1.0};     // solref damping ratio of object contacts
-  double contact_friction{0.4};      // sliding friction of object contacts (wood on PVC)
-  std::vector<double> stiffness_nm_rad{1000, 1000, 1000, 4000, 1000, 1000, 4000};  // (7)
+  double timestep_s{0.0};             // 0 = derived: contact_timeconst_s / 4
+  double contact_timeconst_s{0.002};  // solref time constant of object contacts, >= 2 timesteps
+  double contact_dampratio{1.0};      // solref damping ratio of object contacts
+  double contact_friction{0.4};       // sliding friction of object contacts (wood on PVC)
+  std::vector<double> stiffness_nm_rad{1000, 1000, 1000, 4000, 1000, 1000, 4000};          // (7)
   std::vector<double> lateral_stiffness_nm_rad{4000, 4000, 4000, 4000, 4000, 1000, 4000};  // (7)
-  double damping_ratio{1.0};         // joint damping = 2 ratio sqrt(K M_ii), M at the start
-  double sweep_overshoot_deg{4.0};   // joint-1 goal this far beyond the contact angle
-  double penetration_limit_m{0.001}; // a deeper object contact makes the sample invalid
-  double settle_s{0.3};              // simulate this long after the first contact (or the motion)
+  double damping_ratio{1.0};          // joint damping = 2 ratio sqrt(K M_ii), M at the start
+  double sweep_overshoot_deg{4.0};    // joint-1 goal this far beyond the contact angle
+  double penetration_limit_m{0.001};  // a deeper object contact makes the sample invalid
+  double settle_s{0.3};               // simulate this long after the first contact (or the motion)
   // a steady press (no contact episode opened or closed for 50 ms) steps this many timesteps at
   // once; 1 = every step at timestep_s; 0 = derived: the largest of 1 and 2 that the contact
   // allows. Needs contact_timeconst_s >= 2 x multiple x timestep (MuJoCo's 2-step limit)
@@ -102,22 +102,22 @@ struct ContactRecord : ContactEpisode {
 /// Outcome of one rollout.
 struct RolloutResult {
   bool valid{true};
-  std::string invalid_reason;               // empty when valid
-  std::vector<ContactRecord> contacts;      // in time order
-  Eigen::MatrixXf proprio;                  // (proprio_rows x 10) tube frame in the base frame:
-                                            // pos m, quat wxyz, lin vel m/s; row k at k / rate
-  Eigen::MatrixXd joints;                   // (proprio_rows x 7) arm joint angles, rad, same rows
-                                            // (MuJoCo strikes only; empty where the arm is held)
-  std::vector<double> joint_speed_rad_s;    // (ceil(record s x rate)) |qdot| 2-norm, rad/s
+  std::string invalid_reason;             // empty when valid
+  std::vector<ContactRecord> contacts;    // in time order
+  Eigen::MatrixXf proprio;                // (proprio_rows x 10) tube frame in the base frame:
+                                          // pos m, quat wxyz, lin vel m/s; row k at k / rate
+  Eigen::MatrixXd joints;                 // (proprio_rows x 7) arm joint angles, rad, same rows
+                                          // (MuJoCo strikes only; empty where the arm is held)
+  std::vector<double> joint_speed_rad_s;  // (ceil(record s x rate)) |qdot| 2-norm, rad/s
   double joint_speed_rate_hz{100.0};
   // the sampled strike
-  double target_z_m{0.0};                   // intended first contact, tube frame
+  double target_z_m{0.0};  // intended first contact, tube frame
   double target_theta_rad{0.0};
-  double target_time_s{0.0};                // intended onset, audio clock
-  int object{0};                            // index into scene.objects
-  int64_t variant{0};                       // its geometry variant
+  double target_time_s{0.0};                                     // intended onset, audio clock
+  int object{0};                                                 // index into scene.objects
+  int64_t variant{0};                                            // its geometry variant
   Eigen::Isometry3d object_pose{Eigen::Isometry3d::Identity()};  // object frame -> base frame
-  std::string motion;                       // sweep, opposite, lateral; guided: tap name
+  std::string motion;  // sweep, opposite, lateral; guided: tap name
   // the simulation
   double timestep_s{0.0};
   int64_t steps{0};

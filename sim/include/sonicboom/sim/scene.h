@@ -36,15 +36,15 @@ struct CrossConfig {
 /// A procedural branch structure: a trunk that forks `levels` times into `forks` children each,
 /// child diameters by Leonardo's rule (d^2 = sum of the children's d^2), leaves at the tips.
 struct BranchConfig {
-  int64_t levels{3};                       // fork generations below the trunk
-  int64_t forks{2};                        // children per fork
-  double fork_angle_deg{35.0};             // child axis off the parent axis
-  double length_ratio{0.7};                // child length / parent length
-  int64_t variants{4};                     // distinct trees; each is compiled once
-  int64_t shape_seed{1};                   // tree v is drawn from (shape_seed, v)
-  double min_target_diameter_m{0.006};     // thinner twigs are not aimed at (still touchable)
-  double leaf_cluster_radius_m{0.0};       // foliage spheres; 0 = no leaves
-  int64_t leaf_clusters_per_tip{1};        // spread along each terminal segment, last at its tip
+  int64_t levels{3};                    // fork generations below the trunk
+  int64_t forks{2};                     // children per fork
+  double fork_angle_deg{35.0};          // child axis off the parent axis
+  double length_ratio{0.7};             // child length / parent length
+  int64_t variants{4};                  // distinct trees; each is compiled once
+  int64_t shape_seed{1};                // tree v is drawn from (shape_seed, v)
+  double min_target_diameter_m{0.006};  // thinner twigs are not aimed at (still touchable)
+  double leaf_cluster_radius_m{0.0};    // foliage spheres; 0 = no leaves
+  int64_t leaf_clusters_per_tip{1};     // spread along each terminal segment, last at its tip
 
   void Serialize(Archive* a);
 };
@@ -52,21 +52,21 @@ struct BranchConfig {
 /// One object of a scene: a clamped rod, a cross, a branch structure or a hand-held striker.
 /// Materials: wood (side-grain contact modulus), aluminium, pvc; values are per object.
 struct ObjectConfig {
-  std::string kind{"rod"};                 // rod | cross | branch | striker
-  std::string name;                        // "" = derived, e.g. "rod T22L42"
-  double weight{1.0};                      // relative probability of being drawn
-  double diameter_m{0.022};                // rod, trunk or striker outer diameter
+  std::string kind{"rod"};   // rod | cross | branch | striker
+  std::string name;          // "" = derived, e.g. "rod T22L42"
+  double weight{1.0};        // relative probability of being drawn
+  double diameter_m{0.022};  // rod, trunk or striker outer diameter
   double length_m{0.42};
-  double wall_thickness_m{0.0};            // 0 = solid; a pipe otherwise
-  std::string clamp{"one_end"};            // one_end | both_ends (rods and crosses)
-  std::string material{"wood"};            // wood | aluminium | pvc
-  double youngs_modulus_pa{1.0e10};        // bending stiffness (along the grain for wood)
-  double contact_youngs_modulus_pa{1.0e9}; // at the contact surface (side grain for wood)
+  double wall_thickness_m{0.0};             // 0 = solid; a pipe otherwise
+  std::string clamp{"one_end"};             // one_end | both_ends (rods and crosses)
+  std::string material{"wood"};             // wood | aluminium | pvc
+  double youngs_modulus_pa{1.0e10};         // bending stiffness (along the grain for wood)
+  double contact_youngs_modulus_pa{1.0e9};  // at the contact surface (side grain for wood)
   double poisson_ratio{0.35};
   double density_kg_m3{650.0};
   double loss_factor{0.01};
-  CrossConfig cross;                       // kind cross only
-  BranchConfig branch;                     // kind branch only
+  CrossConfig cross;    // kind cross only
+  BranchConfig branch;  // kind branch only
 
   void Serialize(Archive* a);
   /// Throws ConfigError naming `key` (e.g. "scene.objects.2") and the offending field.
@@ -80,15 +80,15 @@ struct ObjectConfig {
 
 /// The robot holds still; a hand-held striker hits commanded points (scene.mode stationary).
 struct StationaryConfig {
-  double speed_min_m_s{0.3};               // hand speed at the strike, uniform in [min, max]
+  double speed_min_m_s{0.3};  // hand speed at the strike, uniform in [min, max]
   double speed_max_m_s{1.5};
-  double z_grid_m{0.02};                   // commanded heights on this grid (0 = continuous)
-  double approach_spread_deg{20.0};        // approach direction off the surface normal
-  double hand_stiffness_n_m{3000.0};       // grip: spring from the hand to the striker
+  double z_grid_m{0.02};              // commanded heights on this grid (0 = continuous)
+  double approach_spread_deg{20.0};   // approach direction off the surface normal
+  double hand_stiffness_n_m{3000.0};  // grip: spring from the hand to the striker
   double hand_damping_ratio{0.7};
-  double follow_through_m{0.003};          // the hand aims this far inside the surface
-  double tip_margin_m{0.05};               // contact this far from the striker's free tip
-  double approach_s{0.05};                 // the striker starts this long before the contact
+  double follow_through_m{0.003};  // the hand aims this far inside the surface
+  double tip_margin_m{0.05};       // contact this far from the striker's free tip
+  double approach_s{0.05};         // the striker starts this long before the contact
 
   void Serialize(Archive* a);
   void Validate() const;
@@ -100,23 +100,23 @@ struct StationaryConfig {
 /// i / 4 (cyclically) and direction i % 4.
 struct GuidedConfig {
   std::vector<double> object_position_m{0.005, 0.40, 0.31};  // (3) object origin, base frame
-  double object_yaw_deg{0.0};              // object x axis about base z from base x
-  double plane_z_m{0.315};                 // tube-centre plane
+  double object_yaw_deg{0.0};                  // object x axis about base z from base x
+  double plane_z_m{0.315};                     // tube-centre plane
   std::vector<double> x_range_m{-0.22, 0.22};  // (2)
   std::vector<double> y_range_m{0.20, 0.55};   // (2)
-  int64_t grid_points{484};                // floor(sqrt(n))^2 points
-  double clearance_m{0.0715};              // tube axis to object surface, at least
-  double layer_m{0.10};                    // and at most this farther than the clearance
-  double joint7_rad{-2.1};                 // joint 7 during mapping
-  double tap_deg{15.0};                    // joint 1 or 6 travel of a tap
-  double amplitude_threshold{0.02};        // audio peak (full scale) below which a tap is dropped
+  int64_t grid_points{484};                    // floor(sqrt(n))^2 points
+  double clearance_m{0.0715};                  // tube axis to object surface, at least
+  double layer_m{0.10};                        // and at most this farther than the clearance
+  double joint7_rad{-2.1};                     // joint 7 during mapping
+  double tap_deg{15.0};                        // joint 1 or 6 travel of a tap
+  double amplitude_threshold{0.02};  // audio peak (full scale) below which a tap is dropped
 
   void Serialize(Archive* a);
   void Validate() const;
 };
 
 struct SceneConfig {
-  std::string mode{"strike"};              // strike | stationary | guided
+  std::string mode{"strike"};                         // strike | stationary | guided
   std::vector<ObjectConfig> objects{ObjectConfig{}};  // default: one T22L42 wooden rod
   StationaryConfig stationary;
   GuidedConfig guided;
@@ -127,17 +127,17 @@ struct SceneConfig {
 
 /// One cylinder of an object, object frame, m.
 struct ObjectSegment {
-  Eigen::Vector3d p0{Eigen::Vector3d::Zero()};   // (3) base end (towards the clamp or trunk)
-  Eigen::Vector3d p1{Eigen::Vector3d::Zero()};   // (3) far end
+  Eigen::Vector3d p0{Eigen::Vector3d::Zero()};  // (3) base end (towards the clamp or trunk)
+  Eigen::Vector3d p1{Eigen::Vector3d::Zero()};  // (3) far end
   double radius_m{0.0};
-  bool free_tip{true};                           // p1 is a free end (no child)
+  bool free_tip{true};  // p1 is a free end (no child)
 };
 
 /// An object as the simulation sees it (object frame, m).
 struct ObjectGeometry {
   std::vector<ObjectSegment> segments;
-  std::vector<int> targets;                      // segments a strike may aim at
-  std::vector<Eigen::Vector4d> leaves;           // (x, y, z, radius) foliage spheres
+  std::vector<int> targets;             // segments a strike may aim at
+  std::vector<Eigen::Vector4d> leaves;  // (x, y, z, radius) foliage spheres
 };
 
 /// The geometry of `object` (variant v of a branch structure; other kinds have one variant).
@@ -157,6 +157,7 @@ double BeamModalMassKg(double mass_kg, double length_m, double x_m, bool clamped
 /// Describes the struck rod of a rod or cross object as a beam for acoustics (its bending modes
 /// take part in the contact): length, E I, rho A, clamping, loss, and the contact's distance from
 /// the clamped base. Other kinds (branches, strikers) are left as rigid bodies.
-void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m, ContactEvent* event);
+void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m,
+                        ContactEvent* event);
 
 }  // namespace sonicboom::sim

@@ -23,19 +23,19 @@ namespace sonicboom::sim {
 /// opposite (joint 1 towards -, the paper's opposite-side strikes) and lateral (joint 6, either
 /// way, the paper's lateral variant). Tilted strikes: tilt_max_deg > 0.
 struct StrikeConfig {
-  std::string engine{"mujoco"};            // mujoco: dynamic rollout (rollout.h); kinematic: DH only
+  std::string engine{"mujoco"};  // mujoco: dynamic rollout (rollout.h); kinematic: DH only
   std::vector<double> home_joints_rad{1.2614, -0.8973, -0.0474, -2.3464, -0.0790, 1.4341, -1.7109};
   std::vector<std::string> motions{"sweep", "opposite"};  // drawn uniformly per strike
-  double sweep_min_deg{12.0};              // joint goal beyond the object, uniform in [min, max]
+  double sweep_min_deg{12.0};  // joint goal beyond the object, uniform in [min, max]
   double sweep_max_deg{16.0};
-  double sweep_duration_s{1.0};            // minimum-jerk profile to the goal
-  double contact_fraction_min{0.35};       // contact at this fraction of the sweep (object place)
+  double sweep_duration_s{1.0};       // minimum-jerk profile to the goal
+  double contact_fraction_min{0.35};  // contact at this fraction of the sweep (object place)
   double contact_fraction_max{0.65};
-  double contact_angle_spread_deg{40.0};   // object offset from the motion direction, +- this
-  double tilt_max_deg{0.0};                // joint-2/4 tilt of the strike, uniform in [-max, 0]
+  double contact_angle_spread_deg{40.0};  // object offset from the motion direction, +- this
+  double tilt_max_deg{0.0};               // joint-2/4 tilt of the strike, uniform in [-max, 0]
   // proprioception
   double proprio_rate_hz{100.0};
-  int64_t proprio_rows{50};                // window length fed to the model (0.5 s)
+  int64_t proprio_rows{50};  // window length fed to the model (0.5 s)
 
   void Serialize(Archive* a);
   void Validate() const;
@@ -43,20 +43,20 @@ struct StrikeConfig {
 
 /// The random part of one strike, drawn from its sample seed; both strike engines start here.
 struct StrikeDraw {
-  Eigen::Matrix<double, 7, 1> q0;          // rad: home pose with the drawn joint 7 and tilt
-  std::string motion{"sweep"};             // one of StrikeConfig::motions
-  int joint{0};                            // swept joint, 0-based (0: joint 1, 5: joint 6)
-  double side{1.0};                        // sweep direction (+-1)
-  double sweep_rad{0.0};                   // goal magnitude of the swept joint
-  double contact_fraction{0.5};            // contact at this fraction of the sweep time
-  double z_m{0.0};                         // contact height, tube frame
-  double angle_offset_rad{0.0};            // object offset from the motion direction
-  double onset_s{0.0};                     // contact time on the audio clock
+  Eigen::Matrix<double, 7, 1> q0;  // rad: home pose with the drawn joint 7 and tilt
+  std::string motion{"sweep"};     // one of StrikeConfig::motions
+  int joint{0};                    // swept joint, 0-based (0: joint 1, 5: joint 6)
+  double side{1.0};                // sweep direction (+-1)
+  double sweep_rad{0.0};           // goal magnitude of the swept joint
+  double contact_fraction{0.5};    // contact at this fraction of the sweep time
+  double z_m{0.0};                 // contact height, tube frame
+  double angle_offset_rad{0.0};    // object offset from the motion direction
+  double onset_s{0.0};             // contact time on the audio clock
   // the object (stream Stream::kScene)
-  int object{0};                           // index into scene.objects
-  int64_t variant{0};                      // its geometry variant (branch structures)
-  double target_u{0.0};                    // uniform in [0, 1): which target segment
-  double target_v{0.0};                    // uniform in [0, 1): where along it
+  int object{0};         // index into scene.objects
+  int64_t variant{0};    // its geometry variant (branch structures)
+  double target_u{0.0};  // uniform in [0, 1): which target segment
+  double target_v{0.0};  // uniform in [0, 1): where along it
 };
 /// Draws a strike (deterministic in sample_seed; streams Stream::kStrike and Stream::kScene).
 StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& strike, const SceneConfig& scene,
@@ -70,13 +70,14 @@ double MinJerkRate(double s);
 struct StrikeEvents {
   bool valid{true};
   std::string invalid_reason;
-  ContactLabel label;                      // tube frame; impulse and duration filled by acoustics
-  ContactEvent contact;                    // what acoustics needs to play the contact
-  std::string object;                      // the struck object's name and material
+  ContactLabel label;    // tube frame; impulse and duration filled by acoustics
+  ContactEvent contact;  // what acoustics needs to play the contact
+  std::string object;    // the struck object's name and material
   std::string material;
   Eigen::Vector3d point_world_m{Eigen::Vector3d::Zero()};
-  Eigen::MatrixXf proprio;                 // (proprio_rows x 10): pos m, quat wxyz, vel m/s (base)
-  std::vector<double> joint_speed_rad_s;   // (record duration x proprio rate) |qdot|, for motor noise
+  Eigen::MatrixXf proprio;  // (proprio_rows x 10): pos m, quat wxyz, vel m/s (base)
+  std::vector<double>
+      joint_speed_rad_s;  // (record duration x proprio rate) |qdot|, for motor noise
   double joint_speed_rate_hz{100.0};
 };
 
