@@ -77,8 +77,49 @@ ConfigLayers::~ConfigLayers() = default;
 ConfigLayers::ConfigLayers(ConfigLayers&&) noexcept = default;
 ConfigLayers& ConfigLayers::operator=(ConfigLayers&&) noexcept = default;
 
+namespace {
+
+// Deepest nesting a config may have; the config structs nest four levels at most.
+constexpr int kMaxConfigDepth = 32;
+
+// Refuses what a YAML parser accepts but a config cannot mean: a key twice in one mapping, and
+// nesting without end (an alias that refers to its own ancestor makes a cycle).
+void CheckTree(const YAML::Node& node, const std::string& path, const std::string& origin,
+               int depth) {
+  if (depth > kMaxConfigDepth) {
+    const std::string shown = path.size() > 60 ? path.substr(0, 60) + "..." : path;
+    throw ConfigError(
+        fmt::format("{}: key '{}' nests deeper than {} levels (an alias that refers to itself?)",
+                    origin, shown, kMaxConfigDepth));
+  }
+  if (node.IsSequence()) {
+    for (size_t i = 0; i < node.size(); ++i) {
+      CheckTree(node[i], fmt::format("{}[{}]", path, i), origin, depth + 1);
+    }
+    return;
+  }
+  if (!node.IsMap()) return;
+  std::set<std::string> keys;
+  for (const auto& kv : node) {
+    if (!kv.first.IsScalar()) {
+      throw ConfigError(fmt::format("{}: a key under '{}' is not a plain name", origin, path));
+    }
+    const std::string key = kv.first.Scalar();
+    const std::string child = path.empty() ? key : path + "." + key;
+    if (!keys.insert(key).second) {
+      throw ConfigError(fmt::format("{}: key '{}' appears twice", origin, child));
+    }
+    CheckTree(kv.second, child, origin, depth + 1);
+  }
+}
+
+}  // namespace
+
 void ConfigLayers::AddFile(const std::string& path) {
   if (!std::filesystem::exists(path)) throw IoError(fmt::format("{}: no such config file", path));
+  if (std::filesystem::is_directory(path)) {
+    throw IoError(fmt::format("{}: is a directory, not a config file", path));
+  }
   std::ifstream in(path);
   if (!in) throw IoError(fmt::format("{}: cannot read config file", path));
   std::stringstream text;
@@ -96,6 +137,7 @@ void ConfigLayers::AddText(const std::string& yaml_text, const std::string& orig
   }
   if (node.IsNull()) return;
   if (!node.IsMap()) throw ConfigError(fmt::format("{}: a config must be a YAML mapping", origin));
+  CheckTree(node, "", origin, 0);
   impl_->Merge(impl_->merged, node, "", origin);
 }
 
@@ -127,6 +169,7 @@ void ConfigLayers::AddOverride(const std::string& assignment) {
     node.reset(parent);
   }
   const YAML::Node root = node;
+  CheckTree(root, "", "--set " + assignment, 0);
   impl_->Merge(impl_->merged, root, "", "--set " + assignment);
 }
 

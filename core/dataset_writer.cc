@@ -290,6 +290,12 @@ void DatasetWriter::Impl::CheckSample(const StrikeSample& sample, bool raw_audio
   if (!raw_audio && sample.valid && !sample.audio.allFinite()) {
     throw SchemaError(where + ": valid sample has non-finite audio");
   }
+  // Labels: finite, or NaN when not known.
+  for (const auto& field : kScalarLabels) {
+    if (std::isinf(sample.label.*field.member)) {
+      throw SchemaError(where + ": label " + field.path + " is infinite");
+    }
+  }
   // Randomized draws: one finite value per name.
   if (sample.variation.size() != info.variation_names.size()) {
     throw SchemaError(where + ": has " + std::to_string(sample.variation.size()) +

@@ -25,6 +25,8 @@ using nlohmann::json;
 
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv) {
+  RefuseOverwritingInput(out, in, "--in");
+  RefuseOverwritingInput(out, proprio_csv, "--proprio");
   const SonicBoomConfig config = Resolve(g);
   RequireParentDir(out);
   std::vector<NamedArray> arrays;

@@ -3,6 +3,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <limits>
+
 #include <algorithm>
 
 #include <fmt/format.h>
@@ -18,14 +20,15 @@ namespace sonicboom::experiments {
 
 using nlohmann::json;
 
+// --count and --first-index not given: the config's dataset.count and dataset.first_index
+constexpr int64_t kUnset = std::numeric_limits<int64_t>::min();
+
 CommandResult RunGenerate(const GlobalOptions& g, const std::string& out, int64_t count,
                           int64_t first_index, int64_t shard, int64_t num_shards) {
   const SonicBoomConfig config = Resolve(g);
   RequireParentDir(out);
-  const int64_t n = count > 0 ? count : config.dataset.count;
-  if (count == 0 || count < -1)
-    throw ConfigError(fmt::format("--count must be >= 1, got {}", count));
-  const int64_t first = first_index >= 0 ? first_index : config.dataset.first_index;
+  const int64_t n = count == kUnset ? config.dataset.count : count;
+  const int64_t first = first_index == kUnset ? config.dataset.first_index : first_index;
   WriteConfigBeside(out, config);
   const GenerateResult r =
       GenerateDataset(config, out, n, first, shard, num_shards, g.threads, !g.quiet);
@@ -39,7 +42,7 @@ CommandResult RunGenerate(const GlobalOptions& g, const std::string& out, int64_
 void RegisterGenerate(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
     std::string out;
-    int64_t count = -1, first_index = -1, shard = 0, num_shards = 1;
+    int64_t count = kUnset, first_index = kUnset, shard = 0, num_shards = 1;
   };
   auto o = std::make_shared<Options>();
   auto* generate = app.add_subcommand("generate", "simulate strikes into an HDF5 dataset");

@@ -60,7 +60,11 @@ CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wa
 
 CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
                           const std::string& wav, const std::string& proprio_csv, int64_t repeat) {
-  if (repeat < 1) throw ConfigError(fmt::format("--repeat must be >= 1, got {}", repeat));
+  // a timing loop, not a workload: 10 000 runs give a stable median in well under an hour
+  constexpr int64_t kMaxRepeat = 10000;
+  if (repeat < 1 || repeat > kMaxRepeat) {
+    throw ConfigError(fmt::format("--repeat must be in [1, {}], got {}", kMaxRepeat, repeat));
+  }
   // set-up, once per process: the model, the gate's reference clip, FFT plans
   const auto setup_start = std::chrono::steady_clock::now();
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);

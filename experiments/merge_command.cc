@@ -19,6 +19,7 @@ using nlohmann::json;
 
 CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
                        const std::vector<std::string>& shards) {
+  for (const std::string& shard : shards) RefuseOverwritingInput(out, shard, "shard");
   RequireParentDir(out);
   MergeDatasets(shards, out);
   DatasetReader reader(out);

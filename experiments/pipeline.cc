@@ -197,14 +197,22 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
   if (shard < 0 || shard >= num_shards) {
     throw ConfigError(fmt::format("--shard must be in [0, {}), got {}", num_shards, shard));
   }
+  // the config's own limits on dataset.count and dataset.first_index, so that no index overflows
+  if (count < 1 || count > kMaxGenerateCount) {
+    throw ConfigError(fmt::format("--count must be in [1, {}], got {}", kMaxGenerateCount, count));
+  }
+  if (first_index < 0 || first_index > kMaxFirstIndex) {
+    throw ConfigError(
+        fmt::format("--first-index must be in [0, {}], got {}", kMaxFirstIndex, first_index));
+  }
   const auto start = std::chrono::steady_clock::now();
   StrikePipeline pipeline(config);
 
-  // the indices this shard owns
-  std::vector<uint64_t> indices;
-  for (int64_t i = first_index; i < first_index + count; ++i) {
-    if (i % num_shards == shard) indices.push_back(static_cast<uint64_t>(i));
-  }
+  // the indices this shard owns, i in [first_index, first_index + count) with
+  // i % num_shards == shard, produced one at a time: a large count allocates nothing up front
+  const int64_t end = first_index + count;
+  int64_t next = first_index + (shard - first_index % num_shards + num_shards) % num_shards;
+  const int64_t owned = next < end ? (end - next + num_shards - 1) / num_shards : 0;
 
   DatasetInfo info;
   info.source = "sim";
@@ -224,19 +232,20 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
   // simulate and compress the audio in parallel, write in index order from one thread
   GenerateResult result;
   result.path = out_path;
-  Progress progress("generate", static_cast<int64_t>(indices.size()), show_progress);
-  size_t next = 0;
+  Progress progress("generate", owned, show_progress);
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   arena.execute([&] {
     tbb::parallel_pipeline(
         static_cast<size_t>(4 * std::max(1, arena.max_concurrency())),
         tbb::make_filter<void, uint64_t>(tbb::filter_mode::serial_in_order,
                                          [&](tbb::flow_control& fc) -> uint64_t {
-                                           if (next >= indices.size()) {
+                                           if (next >= end) {
                                              fc.stop();
                                              return 0;
                                            }
-                                           return indices[next++];
+                                           const int64_t index = next;
+                                           next += num_shards;
+                                           return static_cast<uint64_t>(index);
                                          }) &
             tbb::make_filter<uint64_t, std::shared_ptr<DatasetWriter::EncodedSample>>(
                 tbb::filter_mode::parallel,

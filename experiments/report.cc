@@ -38,6 +38,23 @@ void RequireParentDir(const std::string& path) {
   }
 }
 
+void RefuseOverwritingInput(const std::string& out, const std::string& in,
+                            const std::string& in_option) {
+  if (in.empty()) return;
+  // the output and its config sidecar, against the input as it is (or would be) on disk
+  for (const std::string& target : {out, out + ".config.yaml"}) {
+    std::error_code ec;
+    const bool same = fs::exists(in) && fs::exists(target)
+                          ? fs::equivalent(in, target, ec)
+                          : fs::weakly_canonical(in, ec) == fs::weakly_canonical(target, ec);
+    if (same) {
+      throw IoError(fmt::format("{}: {} is an input ({} {}); writing it would destroy it", target,
+                                target == out ? "--out" : "the output's config sidecar", in_option,
+                                in));
+    }
+  }
+}
+
 // NaN (no labelled strike, or a model without predictive uncertainty) prints as null
 json LabelJson(const ContactLabel& l) {
   return {{"z_m", l.z_m},

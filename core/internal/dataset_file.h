@@ -3,6 +3,7 @@
 // per-sample reads of metadata, contacts and audio. Shared by the reader and merge.
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -154,8 +155,14 @@ class DatasetFile {
                            kInvalidReasonPath)
             .at(0);
     for (size_t f = 0; f < kScalarLabels.size(); ++f) {
-      sample->label.*kScalarLabels[f].member = ReadOne<double>(
-          columns_.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, i, path_, kScalarLabels[f].path);
+      const double value = ReadOne<double>(columns_.scalar_labels[f].get(), H5T_NATIVE_DOUBLE, i,
+                                           path_, kScalarLabels[f].path);
+      // NaN means "not known"; an infinite label is damage, refused before it becomes a result
+      if (std::isinf(value)) {
+        throw SchemaError(path_ + ": /" + kScalarLabels[f].path + " of sample row " +
+                          std::to_string(i) + " is infinite (labels are finite, or NaN when unknown)");
+      }
+      sample->label.*kScalarLabels[f].member = value;
     }
     for (size_t f = 0; f < kVectorLabels.size(); ++f) {
       Eigen::Vector3d& v = sample->label.*kVectorLabels[f].member;

@@ -24,6 +24,11 @@ void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config)
 /// IoError unless the parent directory of an output exists.
 void RequireParentDir(const std::string& path);
 
+/// IoError when `out` (or its OUT.config.yaml sidecar) is the input file `in` given by
+/// `in_option`: a command never writes over what it reads. An empty `in` passes.
+void RefuseOverwritingInput(const std::string& out, const std::string& in,
+                            const std::string& in_option);
+
 /// A label as JSON; NaN (no labelled strike) prints as null.
 nlohmann::json LabelJson(const ContactLabel& l);
 

@@ -1,6 +1,7 @@
 // Config layers: defaults, files merged in order, --set overrides, strict reading.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 
 #include "common/test_util.h"
@@ -152,6 +153,35 @@ TEST(ConfigTest, BadYamlAndMissingFile) {
   EXPECT_THROW(layers.AddFile(dir / "missing.yaml"), IoError);
   EXPECT_THROW(layers.AddOverride("=3"), ConfigError);
   EXPECT_THROW(layers.AddOverride("tube..length_m=3"), ConfigError);
+}
+
+// What a YAML parser accepts but a config cannot mean is refused, naming the file and the key:
+// a key twice, an alias that refers to its own ancestor (once a stack overflow), a directory.
+TEST(ConfigTest, DuplicateKeysSelfAliasesAndDirectoriesAreRefused) {
+  testing::TempDir dir;
+  auto message = [&](const std::string& file) {
+    try {
+      ConfigLayers().AddFile(dir / file);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  WriteFile(dir / "twice.yaml", "tube:\n  length_m: 0.3\n  length_m: 0.4\n");
+  EXPECT_NE(message("twice.yaml").find("twice.yaml: key 'tube.length_m' appears twice"),
+            std::string::npos)
+      << message("twice.yaml");
+  WriteFile(dir / "self.yaml", "tube: &t\n  length_m: 0.3\n  self: *t\n");
+  EXPECT_NE(message("self.yaml").find("self.yaml: key 'tube.self.self."), std::string::npos)
+      << message("self.yaml");
+  EXPECT_NE(message("self.yaml").find("(an alias that refers to itself?)"), std::string::npos);
+  std::filesystem::create_directory(dir / "configs.yaml");
+  EXPECT_NE(message("configs.yaml").find("configs.yaml: is a directory, not a config file"),
+            std::string::npos)
+      << message("configs.yaml");
+  // an alias to a sibling is plain YAML and stays accepted
+  WriteFile(dir / "alias.yaml", "tube: &t\n  length_m: 0.3\ncopy: *t\n");
+  EXPECT_EQ(message("alias.yaml"), "(accepted)");
 }
 
 TEST(ConfigTest, WrittenYamlReadsBackIdentically) {

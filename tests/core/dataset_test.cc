@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -1020,7 +1021,8 @@ TEST(H5pyTest, EncodedChunksMatchHdf5FilterPipeline) {
 
 // Edits a dataset file in place with h5py: argv[1] "downgrade" turns a 1.1 file into a 1.0 one
 // (no contact table, schema_version "1.0"); "wrong_owner" points sample row 2 at sample 0's
-// first contact; "past_end" gives sample row 0 more contacts than the table holds.
+// first contact; "past_end" gives sample row 0 more contacts than the table holds;
+// "infinite_theta" sets sample row 1's theta label to +inf.
 constexpr const char* kEditDatasetPy = R"py(
 import sys
 import h5py
@@ -1036,6 +1038,8 @@ with h5py.File(path, "r+") as f:
         f["index/contact_first"][2] = 0
     elif mode == "past_end":
         f["index/contact_count"][0] = 99
+    elif mode == "infinite_theta":
+        f["label/theta_rad"][1] = float("inf")
     else:
         sys.exit("unknown mode " + mode)
 print("edited", mode)
@@ -1050,6 +1054,42 @@ void EditDataset(const TempDir& dir, const std::string& mode, const std::string&
       RunCommand("/usr/bin/python3 " + script + " " + mode + " " + path, &status);
   ASSERT_EQ(status, 0) << output;
   ASSERT_NE(output.find("edited " + mode), std::string::npos) << output;
+}
+
+// An infinite label is refused where it is written and where it is read (eval once aborted on
+// one); NaN stays the mark of an unknown label.
+TEST(H5pyTest, InfiniteLabelsAreRefusedOnWriteAndOnRead) {
+  TempDir dir;
+  const DatasetInfo info = MakeInfo(true);
+  {
+    DatasetWriter writer(dir.File("w.h5"), info);
+    StrikeSample infinite = MakeSample(0, info);
+    infinite.label.theta_rad = std::numeric_limits<double>::infinity();
+    try {
+      writer.Append(infinite);
+      ADD_FAILURE() << "an infinite label was written";
+    } catch (const SchemaError& e) {
+      EXPECT_NE(std::string(e.what()).find("sample 0: label label/theta_rad is infinite"),
+                std::string::npos)
+          << e.what();
+    }
+    StrikeSample unknown = MakeSample(1, info);
+    unknown.label.z_m = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_NO_THROW(writer.Append(unknown));
+  }
+  const std::string path = dir.File("edited.h5");
+  WriteDataset(path, info, {0, 1, 2});
+  EditDataset(dir, "infinite_theta", path);
+  DatasetReader reader(path);
+  EXPECT_NO_THROW(reader.ReadMeta(0));
+  try {
+    reader.ReadMeta(1);
+    ADD_FAILURE() << "an infinite label was read";
+  } catch (const SchemaError& e) {
+    EXPECT_NE(std::string(e.what()).find("edited.h5: /label/theta_rad of sample row 1 is infinite"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(H5pyTest, Version10FilesReadWithoutContacts) {

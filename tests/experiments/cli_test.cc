@@ -295,5 +295,56 @@ TEST(CliErrorTest, FailedRunKeepsThePreviousFile) {
   EXPECT_NO_THROW(DatasetReader(dir / "D.h5"));
 }
 
+// Counts and indices outside their limits are refused before anything is written (--first-index -1
+// once wrote index 0, a huge --first-index overflowed, --repeat 1e12 ran for ever).
+TEST(CliErrorTest, CountsAndIndicesOutsideTheirLimitsNameTheOption) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  const std::pair<std::string, std::string> cases[] = {
+      {"generate --count 2 --first-index -1 --out G.h5", "--first-index must be in [0, "},
+      {"generate --count 3 --first-index 9223372036854775806 --out G.h5",
+       "--first-index must be in [0, 1000000000000000], got 9223372036854775806"},
+      {"generate --count -1 --out G.h5", "--count must be in [1, 1000000000], got -1"},
+      {"generate --count 0 --out G.h5", "--count must be in [1, 1000000000], got 0"},
+      {"localize --model RUN --wav S.wav --repeat 1000000000000",
+       "--repeat must be in [1, 10000], got 1000000000000"},
+  };
+  for (const auto& [args, message] : cases) {
+    const auto run = RunCli(kShort + args, cwd);
+    EXPECT_EQ(run.exit_code, 1) << args;
+    EXPECT_NE(run.err.find(message), std::string::npos) << args << ": " << run.err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "G.h5"));
+}
+
+// A command never writes over its own input: features onto its dataset or WAV, merge onto one of
+// its shards (each once destroyed the input and exited 0).
+TEST(CliErrorTest, OutputThatIsAnInputIsRefusedAndTheInputKept) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  ASSERT_EQ(RunCli(kShort + "generate --count 2 --out D.h5 -q", cwd).exit_code, 0);
+  ASSERT_EQ(RunCli(kShort + "generate --count 2 --first-index 2 --out E.h5 -q", cwd).exit_code, 0);
+  ASSERT_EQ(RunCli("synth --out S.wav -q", cwd).exit_code, 0);
+  auto bytes = [&](const char* name) {
+    std::ifstream in(dir / name, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), {});
+  };
+  const std::string d = bytes("D.h5"), w = bytes("S.wav");
+  auto run = RunCli("features --in D.h5 --out ./D.h5", cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("./D.h5: --out is an input (--in D.h5)"), std::string::npos) << run.err;
+  run = RunCli("features --in S.wav --out S.wav", cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("S.wav: --out is an input (--in S.wav)"), std::string::npos) << run.err;
+  run = RunCli("merge --out D.h5 D.h5 E.h5", cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("D.h5: --out is an input (shard D.h5)"), std::string::npos) << run.err;
+  EXPECT_EQ(bytes("D.h5"), d);
+  EXPECT_EQ(bytes("S.wav"), w);
+  EXPECT_NO_THROW(DatasetReader(dir / "D.h5"));
+  // a different output still works
+  EXPECT_EQ(RunCli("merge --out M.h5 D.h5 E.h5 -q", cwd).exit_code, 0);
+}
+
 }  // namespace
 }  // namespace sonicboom
