@@ -8,12 +8,12 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "internal/report.h"
 #include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/hardware/import.h"
-#include "sonicboom/sim/franka.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -40,10 +40,7 @@ hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const Import
   s.skip_bad = o.skip_bad;
   s.threads = threads;
   // the tube's orientation from the joint log where x_t.npy has none
-  const double center_m = config.tube.center_from_flange_m;
-  s.tube_pose_from_joints = [center_m](const std::array<double, 7>& q) {
-    return sim::PandaForwardKinematics(sim::JointVector(q.data()), center_m).tube;
-  };
+  s.tube_pose_from_joints = PandaTubePose(config.tube.center_from_flange_m);
   // labels from geometry: the object prepared once for every trial
   if (!o.object.empty()) {
     if (s.layout != hardware::Layout::kTrial) {

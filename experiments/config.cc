@@ -8,8 +8,8 @@
 namespace sonicboom::experiments {
 
 void DatasetConfig::Serialize(Archive* a) {
-  a->Visit("count", &count, Bounds::Closed(1, 1e9));
-  a->Visit("first_index", &first_index, Bounds::Closed(0, 1e15));
+  a->Visit("count", &count, Bounds::Closed(1, double(kMaxCount)));
+  a->Visit("first_index", &first_index, Bounds::Closed(0, double(kMaxFirstIndex)));
   a->Visit("audio_int16", &audio_int16);
 }
 

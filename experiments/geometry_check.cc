@@ -16,6 +16,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "internal/report.h"
 #include "internal/subcommands.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
@@ -23,8 +24,8 @@
 #include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/hardware/geometry.h"
+#include "sonicboom/hardware/import.h"
 #include "sonicboom/hardware/npy.h"
-#include "sonicboom/sim/franka.h"
 #include "sonicboom/sim/rollout.h"
 
 namespace sonicboom::experiments {
@@ -50,19 +51,6 @@ void ExportScene(const std::filesystem::path& dir, const hardware::ObjectGeometr
   const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = joints;
   hardware::WriteNpy((dir / "q_t.npy").string(), {rows.rows(), rows.cols()},
                      std::vector<double>(rows.data(), rows.data() + rows.size()));
-}
-
-// The tube poses of a joint log file by forward kinematics, as `import --object` places them.
-std::vector<Eigen::Isometry3d> PosesFromJointLog(const std::filesystem::path& file,
-                                                 double tube_center_from_flange_m) {
-  const hardware::NpyArray q = hardware::ReadNpy(file.string());
-  SONICBOOM_DEMAND(q.cols() == sim::kPandaJoints);
-  std::vector<Eigen::Isometry3d> poses;
-  for (int64_t r = 0; r < q.rows(); ++r) {
-    const sim::JointVector joints(&q.data[static_cast<size_t>(r * sim::kPandaJoints)]);
-    poses.push_back(sim::PandaForwardKinematics(joints, tube_center_from_flange_m).tube);
-  }
-  return poses;
 }
 
 // Largest distance (m) between the logged tube origins (proprio rows) and the poses from FK.
@@ -150,8 +138,8 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
                 r.joints);
     const hardware::ObjectGeometry mesh =
         hardware::ReadObjectGeometry((dir / "object.ply").string());
-    const std::vector<Eigen::Isometry3d> poses =
-        PosesFromJointLog(dir / "q_t.npy", config.tube.center_from_flange_m);
+    const std::vector<Eigen::Isometry3d> poses = hardware::TubePosesFromJointLog(
+        (dir / "q_t.npy").string(), PandaTubePose(config.tube.center_from_flange_m));
     kinematics_gap_m = std::max(kinematics_gap_m, KinematicsGap(r.proprio, poses));
     try {
       const hardware::GeometryLabel label = hardware::ContactLabeler(mesh, rule).Label(poses);

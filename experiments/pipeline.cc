@@ -198,12 +198,13 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
     throw ConfigError(fmt::format("--shard must be in [0, {}), got {}", num_shards, shard));
   }
   // the config's own limits on dataset.count and dataset.first_index, so that no index overflows
-  if (count < 1 || count > kMaxGenerateCount) {
-    throw ConfigError(fmt::format("--count must be in [1, {}], got {}", kMaxGenerateCount, count));
+  constexpr int64_t kMaxCount = DatasetConfig::kMaxCount, kMaxFirst = DatasetConfig::kMaxFirstIndex;
+  if (count < 1 || count > kMaxCount) {
+    throw ConfigError(fmt::format("--count must be in [1, {}], got {}", kMaxCount, count));
   }
-  if (first_index < 0 || first_index > kMaxFirstIndex) {
+  if (first_index < 0 || first_index > kMaxFirst) {
     throw ConfigError(
-        fmt::format("--first-index must be in [0, {}], got {}", kMaxFirstIndex, first_index));
+        fmt::format("--first-index must be in [0, {}], got {}", kMaxFirst, first_index));
   }
   const auto start = std::chrono::steady_clock::now();
   StrikePipeline pipeline(config);

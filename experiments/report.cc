@@ -15,6 +15,7 @@
 #include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
+#include "sonicboom/sim/franka.h"
 
 namespace sonicboom::experiments {
 
@@ -43,16 +44,29 @@ void RefuseOverwritingInput(const std::string& out, const std::string& in,
   if (in.empty()) return;
   // the output and its config sidecar, against the input as it is (or would be) on disk
   for (const std::string& target : {out, out + ".config.yaml"}) {
-    std::error_code ec;
-    const bool same = fs::exists(in) && fs::exists(target)
-                          ? fs::equivalent(in, target, ec)
-                          : fs::weakly_canonical(in, ec) == fs::weakly_canonical(target, ec);
+    // existing files by identity (links, other spellings); otherwise by normalized path; a path
+    // that cannot be resolved is not claimed to be the input
+    std::error_code ec_in, ec_target;
+    bool same = false;
+    if (fs::exists(in) && fs::exists(target)) {
+      same = fs::equivalent(in, target, ec_in);
+    } else {
+      const fs::path a = fs::weakly_canonical(in, ec_in),
+                     b = fs::weakly_canonical(target, ec_target);
+      same = !ec_in && !ec_target && a == b;
+    }
     if (same) {
       throw IoError(fmt::format("{}: {} is an input ({} {}); writing it would destroy it", target,
                                 target == out ? "--out" : "the output's config sidecar", in_option,
                                 in));
     }
   }
+}
+
+hardware::TubePoseFromJoints PandaTubePose(double tube_center_from_flange_m) {
+  return [tube_center_from_flange_m](const std::array<double, 7>& q) {
+    return sim::PandaForwardKinematics(sim::JointVector(q.data()), tube_center_from_flange_m).tube;
+  };
 }
 
 // NaN (no labelled strike, or a model without predictive uncertainty) prints as null

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 
 namespace sonicboom::hardware {
 namespace {
@@ -241,27 +242,17 @@ void WriteNpy(const std::string& path, const std::vector<int64_t>& shape,
   header.append((64 - total % 64) % 64, ' ');
   header += '\n';
 
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial, std::ios::binary);
-    if (!out) throw IoError(fmt::format("{}: cannot write .npy file", path));
-    out.write(kMagic, kMagicSize);
-    const char version[2] = {1, 0};
-    out.write(version, 2);
-    const auto n = static_cast<uint16_t>(header.size());
-    const char len[2] = {static_cast<char>(n & 0xff), static_cast<char>(n >> 8)};
-    out.write(len, 2);
-    out << header;
-    for (double v : data) {
-      unsigned char b[8];
-      uint64_t bits;
-      std::memcpy(&bits, &v, 8);
-      for (int i = 0; i < 8; ++i) b[i] = static_cast<unsigned char>(bits >> (8 * i));
-      out.write(reinterpret_cast<const char*>(b), 8);
-    }
-    if (!out) throw IoError(fmt::format("{}: write failed", path));
+  // magic, version 1.0, little-endian header length, header, then the values little endian
+  std::string bytes(kMagic, kMagicSize);
+  const auto n = static_cast<uint16_t>(header.size());
+  bytes += {char(1), char(0), static_cast<char>(n & 0xff), static_cast<char>(n >> 8)};
+  bytes += header;
+  for (double v : data) {
+    uint64_t bits;
+    std::memcpy(&bits, &v, 8);
+    for (int i = 0; i < 8; ++i) bytes.push_back(static_cast<char>(bits >> (8 * i)));
   }
-  std::filesystem::rename(partial, path);
+  WriteTextAtomic(path, bytes);
 }
 
 }  // namespace sonicboom::hardware

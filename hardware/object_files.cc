@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/hardware/geometry.h"
 
 namespace fs = std::filesystem;
@@ -282,15 +283,7 @@ void WriteObjectPly(const std::string& path, const ObjectGeometry& object) {
     body.append(reinterpret_cast<const char*>(object.triangles.col(f).data()), 3 * sizeof(int));
   }
   // written beside the target and renamed: a reader never sees half a mesh
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-    out.write(body.data(), static_cast<std::streamsize>(body.size()));
-    if (!out.flush()) throw IoError(fmt::format("{}: cannot write", partial));
-  }
-  std::error_code ec;
-  fs::rename(partial, path, ec);
-  if (ec) throw IoError(fmt::format("{}: cannot rename into place: {}", path, ec.message()));
+  WriteTextAtomic(path, body);
 }
 
 ObjectGeometry ReadObjectGeometry(const std::string& path, double scale) {

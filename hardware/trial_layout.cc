@@ -37,11 +37,11 @@ NpyArray ReadTable(const fs::path& file, int64_t min_rows, std::initializer_list
   return a;
 }
 
-// The tube pose (base frame) at row r of a joint log q_t (rows x 7).
-Eigen::Isometry3d TubePoseAt(const NpyArray& q, int64_t r, const ImportSettings& s) {
+// The tube pose (base frame) at row r of a joint log q (rows x 7).
+Eigen::Isometry3d TubePoseAt(const NpyArray& q, int64_t r, const TubePoseFromJoints& tube_pose) {
   std::array<double, 7> joints;
   std::copy_n(&q.data[r * 7], 7, joints.begin());
-  return s.tube_pose_from_joints(joints);
+  return tube_pose(joints);
 }
 
 // Rows of the published pose logs as proprio rows: position, quaternion w x y z, velocity.
@@ -65,7 +65,7 @@ Eigen::MatrixXf TrialProprio(const fs::path& dir, const ImportSettings& s) {
     const double* xr = &x.data[r * x.cols()];
     Eigen::Quaterniond quat;
     if (q) {
-      quat = Eigen::Quaterniond(TubePoseAt(*q, r, s).linear());
+      quat = Eigen::Quaterniond(TubePoseAt(*q, r, s.tube_pose_from_joints).linear());
     } else {
       quat = Eigen::Quaterniond(xr[6], xr[3], xr[4], xr[5]);
       const double norm = quat.norm();
@@ -88,9 +88,8 @@ void LabelFromGeometry(const fs::path& dir, const ImportSettings& s, StrikeSampl
     throw IoError(
         fmt::format("{}: missing; labels from geometry need the joint log", q_file.string()));
   }
-  const NpyArray q = ReadTable(q_file, 1, {7});
-  std::vector<Eigen::Isometry3d> poses;
-  for (int64_t r = 0; r < q.rows(); ++r) poses.push_back(TubePoseAt(q, r, s));
+  const std::vector<Eigen::Isometry3d> poses =
+      TubePosesFromJointLog(q_file.string(), s.tube_pose_from_joints);
   try {
     const GeometryLabel label = s.labeler->Label(poses);
     internal::SetLabel(label.z_m, label.theta_rad, s, q_file.string(), sample);
@@ -123,6 +122,14 @@ StrikeSample LoadTrial(const fs::path& dir, const ImportSettings& s) {
 }
 
 }  // namespace
+
+std::vector<Eigen::Isometry3d> TubePosesFromJointLog(const std::string& path,
+                                                     const TubePoseFromJoints& tube_pose) {
+  const NpyArray q = ReadTable(path, 1, {7});
+  std::vector<Eigen::Isometry3d> poses;
+  for (int64_t r = 0; r < q.rows(); ++r) poses.push_back(TubePoseAt(q, r, tube_pose));
+  return poses;
+}
 
 namespace internal {
 

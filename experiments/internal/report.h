@@ -8,6 +8,7 @@
 
 #include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/commands.h"
+#include "sonicboom/hardware/import.h"
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::experiments {
@@ -28,6 +29,10 @@ void RequireParentDir(const std::string& path);
 /// `in_option`: a command never writes over what it reads. An empty `in` passes.
 void RefuseOverwritingInput(const std::string& out, const std::string& in,
                             const std::string& in_option);
+
+/// The Panda's tube pose for joint angles, the tube centre `tube_center_from_flange_m` along the
+/// flange axis: how `import` and `geometry-check` place the tube from a joint log.
+hardware::TubePoseFromJoints PandaTubePose(double tube_center_from_flange_m);
 
 /// A label as JSON; NaN (no labelled strike) prints as null.
 nlohmann::json LabelJson(const ContactLabel& l);

@@ -82,7 +82,7 @@ TEST(GeometryTest, WrittenPlyReadsBackExactly) {
   EXPECT_EQ(back.vertices, rod.vertices);
   EXPECT_EQ(back.triangles, rod.triangles);
   EXPECT_THAT(ThrownMessage<IoError>([&] { WriteObjectPly(dir / "no/such/dir/x.ply", rod); }),
-              HasSubstr("x.ply.partial: cannot write"));
+              HasSubstr("x.ply: cannot write"));
 }
 
 // A sphere scan (Fibonacci points) of radius r around c.

@@ -5,7 +5,8 @@
 
 namespace sonicboom {
 
-/// Writes `text` to "<path>.partial" and renames it to `path`. Throws IoError naming the path.
+/// Writes `text` (any bytes: the file is opened in binary mode) to "<path>.partial" and renames it
+/// to `path`. Throws IoError naming the path.
 void WriteTextAtomic(const std::string& path, const std::string& text);
 /// Reads a whole text file. Throws IoError naming the path when missing or unreadable.
 std::string ReadText(const std::string& path);

@@ -23,6 +23,10 @@ namespace sonicboom::experiments {
 
 /// Dataset generation.
 struct DatasetConfig {
+  // limits of count and first_index, for the config and for `generate --count/--first-index`
+  static constexpr int64_t kMaxCount = 1'000'000'000;
+  static constexpr int64_t kMaxFirstIndex = 1'000'000'000'000'000;
+
   int64_t count{1000};     // samples in a generated dataset
   int64_t first_index{0};  // global index of the first sample
   bool audio_int16{true};  // store the DAQ's 16-bit output losslessly as int16

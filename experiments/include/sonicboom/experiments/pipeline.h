@@ -43,14 +43,10 @@ struct GenerateResult {
   double wall_s{0.0};
 };
 
-/// Limits of `generate` (those of dataset.count and dataset.first_index).
-inline constexpr int64_t kMaxGenerateCount = 1'000'000'000;
-inline constexpr int64_t kMaxFirstIndex = 1'000'000'000'000'000;
-
 /// Writes samples first_index .. first_index + count - 1 that belong to `shard` of `num_shards`
 /// (index % num_shards == shard) into `out_path`, in index order, using `threads` workers.
 /// The file appears under its final name only when complete. ConfigError for a count or first
-/// index outside the limits, naming --count or --first-index.
+/// index outside DatasetConfig's limits, naming --count or --first-index.
 GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string& out_path,
                                int64_t count, int64_t first_index, int64_t shard,
                                int64_t num_shards, int threads, bool show_progress);

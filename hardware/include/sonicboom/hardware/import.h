@@ -33,6 +33,14 @@ double TubeAngleFrom(double stored_rad, AngleConvention convention);
 double StoredAngleFrom(double tube_rad, AngleConvention convention);
 
 /// What an import needs to know about the rig (from the resolved config).
+/// Tube pose (base frame) for the seven joint angles (rad) of the arm.
+using TubePoseFromJoints = std::function<Eigen::Isometry3d(const std::array<double, 7>&)>;
+
+/// The tube poses of every row of a joint log (.npy, rows x 7, rad), as `import --object` places
+/// the tube to label a trial from geometry. IoError naming the file for a bad file or shape.
+std::vector<Eigen::Isometry3d> TubePosesFromJointLog(const std::string& path,
+                                                     const TubePoseFromJoints& tube_pose);
+
 struct ImportSettings {
   Layout layout{Layout::kTrial};
   AngleConvention angle{AngleConvention::kTube};
@@ -47,7 +55,7 @@ struct ImportSettings {
   int threads{1};                  // reading and compression workers (0: all cores)
   /// Tube pose (base frame) for a joint vector, used when x_t.npy has no orientation
   /// (3 columns) and q_t.npy is present; unset: such trials are bad.
-  std::function<Eigen::Isometry3d(const std::array<double, 7>&)> tube_pose_from_joints;
+  TubePoseFromJoints tube_pose_from_joints;
   /// Labels from geometry (trial layout): when set, each trial's label is where the tube, placed
   /// by forward kinematics of every row of its q_t.npy, first meets this object; gt_label.npy is
   /// not read, and a trial without q_t.npy or without a contact is bad.
