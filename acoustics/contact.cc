@@ -438,7 +438,7 @@ void ContactConfig::Serialize(Archive* a) {
   a->Visit("separation_window_s", &separation_window_s, Bounds{0.0, 1.0, true, false});
   a->Visit("max_duration_s", &max_duration_s, Bounds{0.0, 10.0, true, false});
   a->Visit("beam_max_frequency_hz", &beam_max_frequency_hz, Bounds::Positive());
-  a->VisitChoice("wall", &wall, {"coupled", "rigid"});
+  a->Visit("wall", &wall);
 }
 
 Eigen::VectorXd BeamFrequenciesHz(const BeamSpec& beam, int elements, double max_frequency_hz) {

@@ -75,10 +75,10 @@ double RayleighFrequency(const TubeConfig& tube, const MaterialConfig& material,
 }
 
 std::vector<double> ClosedFormFrequencies(const TubeConfig& tube, const MaterialConfig& material,
-                                          const std::string& boundary, int count) {
+                                          TubeEnds ends, int count) {
   if (count < 1) throw ConfigError(fmt::format("--count must be >= 1, got {}", count));
   std::vector<double> freqs;
-  if (boundary == "simply-supported") {
+  if (ends == TubeEnds::kSimplySupported) {
     // widen the band until it holds `count` modes (pairs counted twice)
     for (double f_max = 2000.0;; f_max *= 2) {
       freqs.clear();
@@ -88,7 +88,7 @@ std::vector<double> ClosedFormFrequencies(const TubeConfig& tube, const Material
       }
       if (static_cast<int>(freqs.size()) >= count || f_max > 1e7) break;
     }
-  } else if (boundary == "free") {
+  } else {
     // Rayleigh families: f_n0 and f_n1 = f_n0 sqrt((1 + 24 (1 - nu) R^2 / (n^2 L^2)) /
     // (1 + 12 R^2 / (n^2 (n^2 + 1) L^2))), each a degenerate pair
     const double R = tube.mid_radius_m(), L = tube.length_m, nu = material.poisson_ratio;
@@ -99,8 +99,6 @@ std::vector<double> ClosedFormFrequencies(const TubeConfig& tube, const Material
                                        (1 + 12 * R * R / (nn * nn * (nn * nn + 1) * L * L)));
       freqs.insert(freqs.end(), {f0, f0, f1, f1});
     }
-  } else {
-    throw ConfigError(fmt::format("boundary '{}' is not one of: simply-supported, free", boundary));
   }
   std::sort(freqs.begin(), freqs.end());
   if (static_cast<int>(freqs.size()) > count) freqs.resize(count);

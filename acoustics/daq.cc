@@ -312,4 +312,18 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
   return clipped;
 }
 
+Eigen::MatrixXf NoiseModelClip(const DaqChain& daq, int channels, int64_t frames,
+                               std::span<const double> joint_speed_rad_s,
+                               double joint_speed_rate_hz, uint64_t seed) {
+  // kReferenceNoiseRecords records end to end, each with its own draw of the sensor chain
+  Eigen::MatrixXf clip(channels, kReferenceNoiseRecords * frames);
+  Eigen::MatrixXf audio;
+  for (int64_t r = 0; r < kReferenceNoiseRecords; ++r) {
+    daq.Convert(Eigen::MatrixXd::Zero(channels, frames), joint_speed_rad_s, joint_speed_rate_hz,
+                SampleSeed(seed, kReferenceNoiseIndex - r), &audio);
+    clip.middleCols(r * frames, frames) = audio;
+  }
+  return clip;
+}
+
 }  // namespace sonicboom::acoustics

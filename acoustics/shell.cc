@@ -44,14 +44,14 @@ void ShellConfig::Serialize(Archive* a) {
   a->Visit("bolt_z_m", &bolt_z_m);
   a->Visit("bolt_stiffness_n_m", &bolt_stiffness_n_m, Bounds::Closed(0.0, 1e12));
   a->Visit("bolt_stiffness_scale", &bolt_stiffness_scale, Bounds::Closed(0.0, 1e6));
-  a->VisitChoice("bolt_model", &bolt_model, {"point", "tie"});
+  a->Visit("bolt_model", &bolt_model);
   a->Visit("bolt_tie_length_m", &bolt_tie_length_m, Bounds::Open(0.0, 1.0));
   a->Visit("hole_z_m", &hole_z_m);
   a->Visit("hole_theta_deg", &hole_theta_deg, Bounds::Closed(-360.0, 360.0));
   a->Visit("hole_diameter_m", &hole_diameter_m, Bounds::Closed(0.0, 0.1));
   a->Visit("flange_mount_stiffness_n_m2", &flange_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
   a->Visit("tool_mount_stiffness_n_m2", &tool_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
-  a->VisitChoice("damping", &damping, {"law", "rayleigh"});
+  a->Visit("damping", &damping);
   a->Visit("loss_exponent", &loss_exponent, Bounds{-1.0, 2.0, false, true});
   a->Visit("loss_reference_hz", &loss_reference_hz, Bounds::Open(0.0, 1e6));
   a->Visit("loss_low_hz", &loss_low_hz, Bounds::Open(0.0, 1e6));
@@ -60,9 +60,6 @@ void ShellConfig::Serialize(Archive* a) {
 }
 
 void ShellConfig::Validate(const TubeConfig& tube) const {
-  if (ends != "free" && ends != "simply-supported") {
-    throw ConfigError(fmt::format("shell.ends = '{}' must be free or simply-supported", ends));
-  }
   const double half_length_m = 0.5 * tube.length_m;
   for (const auto& [key, value] : {std::pair{"grid_spacing_m", grid_spacing_m},
                                    std::pair{"axial_spacing_m", AxialSpacing()}}) {
@@ -153,7 +150,7 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
     }
     return false;
   };
-  const bool supported = shell.ends == "simply-supported";
+  const bool supported = shell.ends == TubeEnds::kSimplySupported;
 
   // DOF numbering: w, u, v point by point; lumped masses from the area each point carries
   std::vector<double> mass;
@@ -326,7 +323,7 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
         const double z = shell.bolt_z_m[b];
         const double k = shell.bolt_stiffness_n_m *
                          (shell.bolt_stiffness_scale.empty() ? 1.0 : shell.bolt_stiffness_scale[b]);
-        if (shell.bolt_model == "point") {
+        if (shell.bolt_model == BoltModel::kPoint) {
           bolt_springs(js, z, k);
           continue;
         }
@@ -362,7 +359,7 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
 
   // Rayleigh damping through (f_low, eta) and (f_high, eta_high): zeta = alpha/(2 w) + beta w / 2;
   // under the loss law, through the law's own values there
-  loss_law_ = shell.damping == "law";
+  loss_law_ = shell.damping == DampingModel::kLaw;
   auto law = [&](double f_hz) {
     return material.loss_factor * std::pow(f_hz / shell.loss_reference_hz, shell.loss_exponent);
   };
@@ -392,16 +389,17 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   key_ = fmt::format(
       "shell-v1 R={:.17g} h={:.17g} L={:.17g} E={:.17g} nu={:.17g} rho={:.17g} nz={} nth={} "
       "ends={} ideal={} seams={} bolts={} kb={:.17g} holes={}/{} dh={:.17g} kf={:.17g} kt={:.17g}",
-      tube.outer_radius_m, h, tube.length_m, E, nu, material.density_kg_m3, nz, nth, shell.ends,
-      shell.ideal, fmt::join(shell.seam_theta_deg, ","), fmt::join(shell.bolt_z_m, ","),
-      shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","),
+      tube.outer_radius_m, h, tube.length_m, E, nu, material.density_kg_m3, nz, nth,
+      NameOf(shell.ends), shell.ideal, fmt::join(shell.seam_theta_deg, ","),
+      fmt::join(shell.bolt_z_m, ","), shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","),
       fmt::join(shell.hole_theta_deg, ","), shell.hole_diameter_m,
       shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
   // keys of structures made before per-bolt scales and ties existed stay as they were
   if (!shell.bolt_stiffness_scale.empty()) {
     key_ += fmt::format(" kbs={:.17g}", fmt::join(shell.bolt_stiffness_scale, ","));
   }
-  if (shell.bolt_model != "point") key_ += fmt::format(" tie={:.17g}", shell.bolt_tie_length_m);
+  if (shell.bolt_model != BoltModel::kPoint)
+    key_ += fmt::format(" tie={:.17g}", shell.bolt_tie_length_m);
 }
 
 Eigen::SparseMatrix<double> ShellModel::MassScaledStiffness() const {

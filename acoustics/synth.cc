@@ -43,7 +43,7 @@ struct ModeBank {
 }  // namespace
 
 void SynthConfig::Serialize(Archive* a) {
-  a->VisitChoice("model", &model, {"modal", "fd", "modal-closed-form"});
+  a->Visit("model", &model);
   a->Visit("max_frequency_hz", &max_frequency_hz, Bounds::NonNegative());
   a->Visit("mode_count", &mode_count, Bounds::Closed(0, 20000));
   a->Visit("band_factor", &band_factor, Bounds::Open(0.0, 100.0));
@@ -92,7 +92,7 @@ struct StrikeSynthesizer::Impl {
     const double widest =
         mode_band_hz > 0 ? std::min(limit_band_hz, mode_band_hz * frequency_scale) : limit_band_hz;
     if (c.synth.max_frequency_hz > 0) return widest;
-    return std::min(widest, c.synth.band_factor * 1.8 / contact_duration_s);
+    return std::min(widest, ContactBandHz(c.synth.band_factor, contact_duration_s));
   }
   // modal-closed-form
   std::vector<ModeBank> modes;    // ascending frequency, up to the widest band
@@ -284,7 +284,7 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   }
   m.daq = std::make_unique<DaqChain>(config.daq, config.noise, config.mics.count(),
                                      audio.sample_rate_hz, audio.num_samples());
-  if (synth.model == "modal-closed-form") {
+  if (synth.model == VibrationModel::kModalClosedForm) {
     m.BuildClosedForm();
     return;
   }
@@ -310,15 +310,15 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   m.bank = std::make_unique<ShellModalBank>(*m.shell, modes, config.mics, audio.sample_rate_hz,
                                             synth.decay_floor_db, synth.residual, margin);
   if (config.randomize.structure()) {
-    if (synth.model != "modal") {
+    if (synth.model != VibrationModel::kModal) {
       throw ConfigError(
           fmt::format("randomize.structure_variants = {} needs acoustics.model = "
                       "modal (the variants are Ritz projections of its modes), not {}",
-                      config.randomize.structure_variants, synth.model));
+                      config.randomize.structure_variants, NameOf(synth.model)));
     }
     m.BuildPool(modes, margin);
   }
-  if (synth.model == "fd") {
+  if (synth.model == VibrationModel::kFd) {
     m.fd = std::make_unique<ShellFd>(*m.shell, audio.sample_rate_hz, synth.fd_oversampling);
     m.sensor_rows = m.shell->SensorRows(config.mics);
   }
@@ -490,7 +490,7 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
                             double tube_side_kg, const DrivingPoint& other) {
       // a rigid wall is a held half-space: no modes, no rigid motion
       DrivingPoint wall;
-      if (m.c.synth.contact.wall == "coupled") {
+      if (m.c.synth.contact.wall == ContactWall::kCoupled) {
         wall = bank->WallAt(z_m, theta_rad, contact_band, varied_structure ? variation : nullptr);
         wall.rigid_mass_kg =
             tube_side_kg > 0 ? tube_side_kg : std::numeric_limits<double>::infinity();

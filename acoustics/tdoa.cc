@@ -1,6 +1,6 @@
 #include "sonicboom/acoustics/tdoa.h"
 
-#include "internal/band_weights.h"
+#include "sonicboom/dsp/band_weights.h"
 
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
@@ -432,8 +432,8 @@ TdoaLocator::TdoaLocator(const TdoaGeometry& geometry, const TdoaConfig& config,
   // per band: cos^2 weight in log2 frequency, half power at the band edges
   for (size_t b = 0; b < bands; ++b) {
     std::vector<double> w =
-        internal::LogBandWeights(config.band_edges_hz[b], config.band_edges_hz[b + 1], m.fft_size,
-                                 sample_rate_hz, "tdoa.band_edges_hz");
+        dsp::LogBandWeights(config.band_edges_hz[b], config.band_edges_hz[b + 1], m.fft_size,
+                            sample_rate_hz, "tdoa.band_edges_hz");
     double sum = 0.0;
     for (double x : w) sum += x;
     m.bin_weight.push_back(std::move(w));

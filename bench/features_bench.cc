@@ -6,8 +6,8 @@
 #include <cmath>
 #include <random>
 
-#include "sonicboom/acoustics/features.h"
-#include "sonicboom/acoustics/spectral_gate.h"
+#include "sonicboom/dsp/features.h"
+#include "sonicboom/dsp/spectral_gate.h"
 
 namespace sonicboom {
 namespace {
@@ -34,10 +34,10 @@ Eigen::MatrixXf Signal(int64_t n, double level, int64_t onset, double burst_ampl
 
 // spectral gate: all six channels of one window (default keys: STFT 1024 / 256)
 void BM_SpectralGate(benchmark::State& state) {
-  const acoustics::FeatureConfig features;
+  const dsp::FeatureConfig features;
   const int64_t n = std::llround(features.window_s * kRateHz);
-  const acoustics::SpectralGate gate(acoustics::GatingConfig(features),
-                                     Signal(22050, 0.01, 0, 0.0, 1), kRateHz);
+  const dsp::SpectralGate gate(dsp::GatingConfig(features), Signal(22050, 0.01, 0, 0.0, 1),
+                               kRateHz);
   const Eigen::MatrixXf x = Signal(n, 0.01, n / 2, 0.5, 2);
   Eigen::VectorXf row(n), out(n);
   for (auto _ : state) {
@@ -52,9 +52,9 @@ BENCHMARK(BM_SpectralGate)->Unit(benchmark::kMillisecond);
 
 // mel spectrograms: all six channels of one window (n_fft 512, hop 128, 50 bands)
 void BM_MelSpectrogram(benchmark::State& state) {
-  const acoustics::FeatureConfig f;
+  const dsp::FeatureConfig f;
   const int64_t n = std::llround(f.window_s * kRateHz);
-  const acoustics::MelSpectrogram mel(f.n_fft, f.hop, f.n_mels, f.f_min_hz, kRateHz / 2.0, kRateHz);
+  const dsp::MelSpectrogram mel(f.n_fft, f.hop, f.n_mels, f.f_min_hz, kRateHz / 2.0, kRateHz);
   const Eigen::MatrixXf x = Signal(n, 0.01, n / 2, 0.5, 3);
   Eigen::VectorXf row(n);
   Eigen::MatrixXf out;
@@ -70,9 +70,9 @@ BENCHMARK(BM_MelSpectrogram)->Unit(benchmark::kMillisecond);
 
 // GCC-PHAT: the 15 pairs of one window, +-441 lags
 void BM_GccPhat(benchmark::State& state) {
-  const acoustics::FeatureConfig f;
+  const dsp::FeatureConfig f;
   const int64_t n = std::llround(f.window_s * kRateHz);
-  const acoustics::GccPhat gcc(n, f.gcc_max_lag, kChannels);
+  const dsp::GccPhat gcc(n, f.gcc_max_lag, kChannels);
   const Eigen::MatrixXf x = Signal(n, 0.01, n / 2, 0.5, 4);
   Eigen::MatrixXf out;
   for (auto _ : state) {
@@ -84,10 +84,10 @@ BENCHMARK(BM_GccPhat)->Unit(benchmark::kMillisecond);
 
 // the whole extractor on a 2 s record; arg 1: gated against a 0.5 s noise clip, 0: no gate
 void BM_FeatureExtractor(benchmark::State& state) {
-  acoustics::FeatureConfig f;
+  dsp::FeatureConfig f;
   f.gating = state.range(0) != 0;
   const Eigen::MatrixXf noise = Signal(22050, 0.01, 0, 0.0, 5);
-  const acoustics::FeatureExtractor extractor(f, kRateHz, kChannels, &noise);
+  const dsp::FeatureExtractor extractor(f, kRateHz, kChannels, &noise);
   const Eigen::MatrixXf record = Signal(88200, 0.01, 30000, 0.5, 6);
   for (auto _ : state) benchmark::DoNotOptimize(extractor.Compute(record));
 }

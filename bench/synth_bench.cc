@@ -20,7 +20,7 @@ BENCHMARK(BM_StrikeKinematics)->Unit(benchmark::kMicrosecond);
 // 2 s, 6-channel record at 44.1 kHz; arg = mode band in Hz (0 = derived from the contact)
 void BM_RenderStrike(benchmark::State& state) {
   acoustics::AcousticModelConfig config;
-  config.synth.model = "modal-closed-form";
+  config.synth.model = acoustics::VibrationModel::kModalClosedForm;
   config.synth.max_frequency_hz = static_cast<double>(state.range(0));
   const acoustics::StrikeSynthesizer synthesizer(config);
   const sim::StrikeModel model(sim::StrikeConfig{}, sim::SceneConfig{}, TubeConfig{},

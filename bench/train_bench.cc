@@ -20,7 +20,7 @@ namespace {
 int64_t g_steps = 8;
 int64_t g_warmup = 2;
 
-void TrainStep(benchmark::State& state, const std::string& encoder, int64_t batch,
+void TrainStep(benchmark::State& state, learning::AudioEncoderKind encoder, int64_t batch,
                int64_t threads) {
   learning::ModelConfig model;  // the paper's fusion: width 256, 6 blocks, 8 heads, all modalities
   model.audio_encoder = encoder;
@@ -61,10 +61,10 @@ int main(int argc, char** argv) {
   const int64_t hw = std::max<int64_t>(1, std::thread::hardware_concurrency());
   std::vector<int64_t> thread_counts{1, 2};
   if (hw > 2) thread_counts.push_back(hw);
-  for (const char* encoder : {"compact", "resnet18", "resnet50"}) {
+  for (const auto& [encoder, name] : learning::kAudioEncoderKindNames) {
     for (int64_t batch : {16, 32, 64, 128}) {
       for (int64_t threads : thread_counts) {
-        benchmark::RegisterBenchmark((std::string("TrainStep/") + encoder + "/" +
+        benchmark::RegisterBenchmark((std::string("TrainStep/") + std::string(name) + "/" +
                                       std::to_string(batch) + "/" + std::to_string(threads))
                                          .c_str(),
                                      [encoder, batch, threads](benchmark::State& s) {

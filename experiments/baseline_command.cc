@@ -9,9 +9,9 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/baselines.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/baselines.h"
@@ -26,12 +26,10 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
-  if (o.method != "knn" && o.method != "tdoa" && o.method != "constant" && o.method != "arrival") {
-    throw ConfigError(
-        fmt::format("--method '{}' must be knn, tdoa, arrival or constant", o.method));
-  }
-  if ((o.method == "knn" || o.method == "constant") && o.train.empty()) {
-    throw ConfigError(fmt::format("--method {} needs --train TRAIN.h5", o.method));
+  const std::string method(NameOf(o.method));
+  if ((o.method == BaselineMethod::kKnn || o.method == BaselineMethod::kConstant) &&
+      o.train.empty()) {
+    throw ConfigError(fmt::format("--method {} needs --train TRAIN.h5", method));
   }
   for (const std::string& path : {o.data, o.train}) {
     if (!path.empty() && !fs::exists(path)) throw IoError(fmt::format("{}: no such dataset", path));
@@ -43,14 +41,14 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
   json extra;
   std::string detail;
 
-  if (o.method == "constant") {
+  if (o.method == BaselineMethod::kConstant) {
     // mean height and circular mean angle of the training labels
     const learning::FeatureSet train = DatasetLabels(o.train);
     const learning::Prediction p = learning::ConstantPrediction(train.z_m, train.theta_rad);
     truth = DatasetLabels(o.data);
     predictions.assign(static_cast<size_t>(truth.size()), p);
     extra = {{"train_n", train.size()}, {"z_m", p.z_m}, {"theta_rad", p.theta_rad}};
-  } else if (o.method == "arrival") {
+  } else if (o.method == BaselineMethod::kArrival) {
     // first arrivals per channel, fitted by surface paths and one free wave speed; no training
     const double fs = DatasetReader(o.data).info().sample_rate_hz;
     const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival, fs);
@@ -62,7 +60,7 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
     const double median_speed = speeds.empty() ? 0.0 : speeds[speeds.size() / 2];
     extra = {{"median_speed_m_s", median_speed}};
     detail = fmt::format(" (no training; median fitted speed {:.0f} m/s)", median_speed);
-  } else if (o.method == "knn") {
+  } else if (o.method == BaselineMethod::kKnn) {
     // pooled log-mel (+ GCC lags) of the training strikes, k nearest by standardized distance
     const learning::FeatureSet train = ComputeDatasetFeatures(o.train, config, g.threads, !g.quiet);
     truth = ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet);
@@ -124,11 +122,11 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
 
   const learning::Metrics m = learning::ComputeMetrics(predictions, truth, radius);
   json j = MetricsJson(m);
-  j["method"] = o.method;
+  j["method"] = method;
   j.update(extra);
   return {j.dump(), fmt::format("{} baseline, {} strikes: MED {:.2f} cm, height {:.2f} cm, angle "
                                 "{:.1f} deg (published-code MED {:.2f}){}\n",
-                                o.method, m.n, m.med_cm, m.height_err_cm, m.angle_err_deg,
+                                method, m.n, m.med_cm, m.height_err_cm, m.angle_err_deg,
                                 m.reference_med_cm, detail)};
 }
 
@@ -137,7 +135,7 @@ void RegisterBaseline(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto* baseline = app.add_subcommand("baseline",
                                       "a baseline's errors on a dataset: kNN on "
                                       "pooled log-mel, analytic TDOA, or a constant");
-  baseline->add_option("--method", o->method, "knn | tdoa | arrival | constant")->required();
+  AddEnumOption(baseline, "--method", &o->method, "knn | tdoa | arrival | constant")->required();
   baseline->add_option("--train", o->train,
                        "training dataset (.h5): knn and constant need it; tdoa fits its speed "
                        "scale on it");

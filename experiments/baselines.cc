@@ -9,9 +9,9 @@
 
 #include <fmt/format.h>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/dsp/features.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -68,12 +68,12 @@ std::vector<acoustics::TdoaCorrelations> CorrelateDataset(const std::string& dat
 
   // the onset of the feature path (the all-channel energy envelope), then the locator's band
   // correlations around it
-  const acoustics::FeatureConfig& fc = config.features;
+  const dsp::FeatureConfig& fc = config.features;
   std::vector<acoustics::TdoaCorrelations> out(static_cast<size_t>(n));
   ForEachRecord(reader, picked_rows, threads, "tdoa", show_progress,
                 [&](int64_t i, const StrikeSample& sample) {
-                  const int64_t onset = acoustics::DetectOnset(
-                      sample.audio, info.sample_rate_hz, fc.onset_frame_s, fc.onset_threshold);
+                  const int64_t onset = dsp::DetectOnset(sample.audio, info.sample_rate_hz,
+                                                         fc.onset_frame_s, fc.onset_threshold);
                   out[i] = locator.Correlate(sample.audio, onset);
                 });
   return out;
@@ -88,12 +88,12 @@ std::vector<learning::Prediction> LocateByArrival(
   const ValidRecords valid = ReadValidRecords(reader, dataset_path);
   if (labels) *labels = LabelsOf(valid);
   // the feature path's onset, then the picks and the fit around it
-  const acoustics::FeatureConfig& fc = config.features;
+  const dsp::FeatureConfig& fc = config.features;
   std::vector<acoustics::ArrivalEstimate> found(valid.rows.size());
   ForEachRecord(reader, valid.rows, threads, "arrival", show_progress,
                 [&](int64_t i, const StrikeSample& sample) {
-                  const int64_t onset = acoustics::DetectOnset(
-                      sample.audio, info.sample_rate_hz, fc.onset_frame_s, fc.onset_threshold);
+                  const int64_t onset = dsp::DetectOnset(sample.audio, info.sample_rate_hz,
+                                                         fc.onset_frame_s, fc.onset_threshold);
                   found[static_cast<size_t>(i)] = locator.Locate(sample.audio, onset);
                 });
   std::vector<learning::Prediction> out(found.size());

@@ -25,8 +25,8 @@ using nlohmann::json;
 hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const ImportOptions& o,
                                      int threads) {
   hardware::ImportSettings s;
-  s.layout = hardware::ParseLayout(o.layout);
-  s.angle = hardware::ParseAngleConvention(o.angle_convention);
+  s.layout = o.layout;
+  s.angle = o.angle_convention;
   s.sample_rate_hz = config.audio.sample_rate_hz;
   s.channels = config.mics.count();
   s.record_frames = config.audio.num_samples();
@@ -59,7 +59,7 @@ hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const Import
 }  // namespace
 
 CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
-  const hardware::Layout layout = hardware::ParseLayout(o.layout);
+  const hardware::Layout layout = o.layout;
   if (!fs::is_directory(o.in)) throw IoError(fmt::format("{}: no such directory (--in)", o.in));
   if (fs::exists(o.out) && !o.force) {
     throw IoError(
@@ -112,12 +112,8 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
   return {j.dump(), text};
 }
 
-CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
-                        const std::string& out, const std::string& angle_convention) {
-  if (hardware::ParseLayout(layout) != hardware::Layout::kTrial) {
-    throw ConfigError(fmt::format("export --layout '{}': only trial is written", layout));
-  }
-  const hardware::AngleConvention angle = hardware::ParseAngleConvention(angle_convention);
+CommandResult RunExport(const GlobalOptions& g, const std::string& in, const std::string& out,
+                        hardware::AngleConvention angle) {
   if (!fs::exists(in)) throw IoError(fmt::format("{}: no such dataset (--in)", in));
   const int64_t n = hardware::ExportTrials(in, out, angle);
   const json j = {{"out", out}, {"trials", n}};
@@ -129,11 +125,11 @@ void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto* import = app.add_subcommand("import",
                                     "recorded strikes (published trial layout or our "
                                     "capture layout) into a dataset");
-  import->add_option("--layout", o->layout, "trial | capture")->required();
+  AddEnumOption(import, "--layout", &o->layout, "trial | capture")->required();
   import->add_option("--in", o->in, "capture directory")->required();
   import->add_option("--out", o->out, "dataset file (.h5)")->required();
-  import->add_option("--angle-convention", o->angle_convention,
-                     "tube (docs/conventions.md) | j7 (published joint-7 angle)");
+  AddEnumOption(import, "--angle-convention", &o->angle_convention,
+                "tube (docs/conventions.md) | j7 (published joint-7 angle)");
   import->add_option("--min-duration-s", o->min_duration_s,
                      "shorter captures are bad (default 1.5)");
   import->add_option("--object", o->object,
@@ -154,16 +150,23 @@ void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run) {
 
 void RegisterExport(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
-    std::string layout = "trial", in, out, angle_convention = "tube";
+    hardware::Layout layout = hardware::Layout::kTrial;
+    std::string in, out;
+    hardware::AngleConvention angle_convention = hardware::AngleConvention::kTube;
   };
   auto o = std::make_shared<Options>();
   auto* export_cmd = app.add_subcommand("export", "a dataset in the published trial layout");
-  export_cmd->add_option("--layout", o->layout, "trial");
+  AddEnumOption(export_cmd, "--layout", &o->layout, "trial (the only layout written)");
   export_cmd->add_option("--in", o->in, "dataset (.h5)")->required();
   export_cmd->add_option("--out", o->out, "new directory")->required();
-  export_cmd->add_option("--angle-convention", o->angle_convention, "tube | j7");
+  AddEnumOption(export_cmd, "--angle-convention", &o->angle_convention, "tube | j7");
   export_cmd->callback([&g, run, o] {
-    *run = [&g, o] { return RunExport(g, o->layout, o->in, o->out, o->angle_convention); };
+    *run = [&g, o] {
+      if (o->layout != hardware::Layout::kTrial) {
+        throw ConfigError("export --layout capture: only the trial layout is written");
+      }
+      return RunExport(g, o->in, o->out, o->angle_convention);
+    };
   });
 }
 

@@ -49,11 +49,11 @@ void SonicBoomConfig::Validate() const {
   strike.Validate();
   scene.Validate();
   rollout.Validate();
-  if (strike.engine == "kinematic" && scene.mode != "strike") {
+  if (strike.engine == sim::StrikeEngine::kKinematic && scene.mode != sim::SceneMode::kStrike) {
     throw ConfigError(
         fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; set "
                     "strike.engine = mujoco",
-                    scene.mode));
+                    NameOf(scene.mode)));
   }
   model.Validate();
   train.Validate();
@@ -84,12 +84,12 @@ void SonicBoomConfig::Validate() const {
   randomize.Validate();
   arrival.Validate(audio.sample_rate_hz);
   randomize.CheckLossLaw(material.loss_factor);
-  if (randomize.material() && acoustics.model != "modal") {
+  if (randomize.material() && acoustics.model != acoustics::VibrationModel::kModal) {
     throw ConfigError(
         fmt::format("randomize: the material ranges (youngs_modulus_scale, "
                     "density_scale, temperature_c, loss_*) scale the numerical "
                     "modes and need acoustics.model = modal, not {}",
-                    acoustics.model));
+                    NameOf(acoustics.model)));
   }
   if (randomize.highpass_hz.size() == 2 &&
       !(randomize.highpass_hz[1] < 0.5 * audio.sample_rate_hz)) {
@@ -118,7 +118,8 @@ SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
   layers.ReadInto(&config);
   config.Validate();
   // the resolved config states the integrator step that the contact time scale implies
-  if (config.strike.engine == "mujoco" || config.scene.mode != "strike") {
+  if (config.strike.engine == sim::StrikeEngine::kMujoco ||
+      config.scene.mode != sim::SceneMode::kStrike) {
     config.rollout.timestep_s = config.rollout.ResolvedTimestep();
   }
   return config;

@@ -11,10 +11,10 @@
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
 
@@ -129,7 +129,7 @@ CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
 
   std::string text = fmt::format(
       "\nSonicBoom demo: {} held-out strikes (trained on {}, {} epochs, {} encoder, width {})\n\n",
-      model_metrics.n, gen_train.valid, config.train.epochs, config.model.audio_encoder,
+      model_metrics.n, gen_train.valid, config.train.epochs, NameOf(config.model.audio_encoder),
       config.model.width);
   text += "| method                       | 3-D MED (cm)  | height err (cm) | angle err (deg) |\n";
   text += "|------------------------------|---------------|-----------------|-----------------|\n";

@@ -8,8 +8,8 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
 

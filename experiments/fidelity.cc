@@ -197,8 +197,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   // discretization and truncation alone; the law's own fit error is the section below the table
   MaterialConfig rayleigh_material = config.material;
   acoustics::ShellConfig rayleigh_shell = config.shell;
-  rayleigh_shell.damping = "rayleigh";
-  if (config.shell.damping == "law") {
+  rayleigh_shell.damping = acoustics::DampingModel::kRayleigh;
+  if (config.shell.damping == acoustics::DampingModel::kLaw) {
     // the Rayleigh curve through the law at the anchors, as the FD rung builds it
     const acoustics::ShellModel law(config.tube, config.material, config.shell);
     rayleigh_material.loss_factor =
@@ -231,14 +231,15 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
     const acoustics::HertzImpact hz = acoustics::SolveHertzImpact(ev, config.tube, config.material);
     acoustics::DrivingPoint striker;
     striker.rigid_mass_kg = ev.effective_mass_kg;
-    const double band = std::min(full_band, config.acoustics.band_factor * 1.8 / hz.duration_s);
+    const double band =
+        std::min(full_band, acoustics::ContactBandHz(config.acoustics.band_factor, hz.duration_s));
     const acoustics::DrivingPoint wall =
         main_bank.WallAt(ev.z_m, ev.theta_rad, std::min(full_band, 2 * band));
     acoustics::ContactForce cf =
         acoustics::SolveContact(wall, striker, hz.stiffness_n_m15, ev.normal_speed_m_s, ev.time_s,
                                 fs, config.acoustics.contact);
-    derived_band[static_cast<size_t>(s)] =
-        std::min(full_band, config.acoustics.band_factor * 1.8 / cf.first_closure_s);
+    derived_band[static_cast<size_t>(s)] = std::min(
+        full_band, acoustics::ContactBandHz(config.acoustics.band_factor, cf.first_closure_s));
     forces[static_cast<size_t>(s)].push_back(
         {ev.z_m, ev.theta_rad, cf.first_sample, std::move(cf.force_n)});
   }
@@ -387,11 +388,11 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
       "with "
       "the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike = "
       "{:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
-      config.acoustics.model, whole_ms, 1e3 / whole_ms, 1e3 * vibration_s / reps);
+      NameOf(config.acoustics.model), whole_ms, 1e3 / whole_ms, 1e3 * vibration_s / reps);
   // the FD rung's damping against the loss law (shell.damping = law): the Rayleigh curve meets
   // the law at shell.loss_low_hz and loss_high_hz and departs from it elsewhere
   json damping_json = json::array();
-  if (config.shell.damping == "law") {
+  if (config.shell.damping == acoustics::DampingModel::kLaw) {
     const acoustics::ShellModel law(config.tube, config.material, config.shell);
     md +=
         "\nDamping: the modal rung gives every mode the loss law's eta(f); the FD rung's Rayleigh "

@@ -101,11 +101,12 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
                                const std::string& scenes_dir) {
   if (count < 1) throw ConfigError(fmt::format("--count {} must be >= 1", count));
   SonicBoomConfig config = ResolveConfig(g.sources);
-  if (config.scene.mode != "strike" && config.scene.mode != "guided") {
+  if (config.scene.mode != sim::SceneMode::kStrike &&
+      config.scene.mode != sim::SceneMode::kGuided) {
     throw ConfigError(
         fmt::format("geometry-check needs scene.mode strike or guided (the arm "
                     "meets a fixed object), not '{}'",
-                    config.scene.mode));
+                    NameOf(config.scene.mode)));
   }
   // the pose log covers the whole record, at the proprio rate
   config.strike.proprio_rows = static_cast<int64_t>(

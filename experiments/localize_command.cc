@@ -10,9 +10,9 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/tube.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/baselines.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/hardware/capture.h"
@@ -25,6 +25,18 @@ namespace sonicboom::experiments {
 
 using nlohmann::json;
 
+namespace {
+
+// localize's answer: a trained run's, or the training-free arrival locator's
+enum class LocalizeMethod { kNetwork, kArrival };
+constexpr EnumName<LocalizeMethod> kLocalizeMethodNames[] = {{LocalizeMethod::kNetwork, "network"},
+                                                             {LocalizeMethod::kArrival, "arrival"}};
+std::span<const EnumName<LocalizeMethod>> EnumNames(LocalizeMethod) {
+  return kLocalizeMethodNames;
+}
+
+}  // namespace
+
 CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav) {
   const SonicBoomConfig config = Resolve(g);
   const auto start = std::chrono::steady_clock::now();
@@ -33,8 +45,8 @@ CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wa
   const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival,
                                           config.audio.sample_rate_hz);
   const int64_t onset =
-      acoustics::DetectOnset(cap.audio, config.audio.sample_rate_hz, config.features.onset_frame_s,
-                             config.features.onset_threshold);
+      dsp::DetectOnset(cap.audio, config.audio.sample_rate_hz, config.features.onset_frame_s,
+                       config.features.onset_threshold);
   acoustics::ArrivalEstimate e;
   try {
     e = locator.Locate(cap.audio, onset);
@@ -119,13 +131,14 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
 
 void RegisterLocalize(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
-    std::string method = "network", model, wav, proprio;
+    LocalizeMethod method = LocalizeMethod::kNetwork;
+    std::string model, wav, proprio;
     int64_t repeat = 1;
   };
   auto o = std::make_shared<Options>();
   auto* localize = app.add_subcommand("localize", "locate the contact of one recorded strike");
-  localize->add_option("--method", o->method,
-                       "network (a trained run, --model) | arrival (no training: first arrivals)");
+  AddEnumOption(localize, "--method", &o->method,
+                "network (a trained run, --model) | arrival (no training: first arrivals)");
   localize->add_option("--model", o->model, "run directory (--method network)");
   localize->add_option("--wav", o->wav, "6-channel WAV")->required();
   localize->add_option("--proprio", o->proprio, "robot log CSV");
@@ -133,13 +146,9 @@ void RegisterLocalize(CLI::App& app, GlobalOptions& g, Runner* run) {
                        "time the WAV-read-to-answer path this many times (median reported)");
   localize->callback([&g, run, o] {
     *run = [&g, o] {
-      if (o->method == "arrival") {
+      if (o->method == LocalizeMethod::kArrival) {
         if (!o->model.empty()) throw ConfigError("localize --method arrival uses no --model");
         return RunLocalizeByArrival(g, o->wav);
-      }
-      if (o->method != "network") {
-        throw ConfigError(
-            fmt::format("localize --method '{}' must be network or arrival", o->method));
       }
       if (o->model.empty()) throw ConfigError("localize --method network needs --model RUN");
       return RunLocalize(g, o->model, o->wav, o->proprio, o->repeat);

@@ -9,10 +9,10 @@
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/dsp/features.h"
 
 #include "internal/report.h"
 #include "internal/subcommands.h"
@@ -21,15 +21,12 @@ namespace sonicboom::experiments {
 
 using nlohmann::json;
 
-CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool ideal,
-                       int64_t count) {
+CommandResult RunModes(const GlobalOptions& g, TubeEnds ends, bool ideal, int64_t count) {
   SonicBoomConfig config = Resolve(g);
   if (count < 1 || count > 5000)
     throw ConfigError(fmt::format("--count must be in [1, 5000], got {}", count));
-  if (boundary != "free" && boundary != "simply-supported") {
-    throw ConfigError(fmt::format("--boundary '{}' must be free or simply-supported", boundary));
-  }
-  config.shell.ends = boundary;
+  const std::string boundary(NameOf(ends));
+  config.shell.ends = ends;
   if (ideal) config.shell.ideal = true;
   const acoustics::ShellModel model(config.tube, config.material, config.shell);
   bool cached = false;
@@ -60,17 +57,17 @@ CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool
 
 void RegisterModes(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
-    std::string boundary = "simply-supported";
+    TubeEnds ends = TubeEnds::kSimplySupported;
     bool ideal = false;
     int64_t count = 20;
   };
   auto o = std::make_shared<Options>();
   auto* modes = app.add_subcommand("modes", "natural frequencies of the tube");
-  modes->add_option("--boundary", o->boundary, "simply-supported | free");
+  AddEnumOption(modes, "--boundary", &o->ends, "simply-supported | free");
   modes->add_flag("--ideal", o->ideal, "ideal uniform tube (no seam, no holes)");
   modes->add_option("--count", o->count, "number of modes (pairs count twice)");
   modes->callback(
-      [&g, run, o] { *run = [&g, o] { return RunModes(g, o->boundary, o->ideal, o->count); }; });
+      [&g, run, o] { *run = [&g, o] { return RunModes(g, o->ends, o->ideal, o->count); }; });
 }
 
 }  // namespace sonicboom::experiments

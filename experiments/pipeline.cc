@@ -14,52 +14,23 @@
 #include <spdlog/spdlog.h>
 
 #include "sonicboom/acoustics/daq.h"
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/progress.h"
 #include "sonicboom/core/rng.h"
-#include "sonicboom/sim/rollout.h"
-#include "sonicboom/sim/stationary.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/sim/strike.h"
+#include "sonicboom/sim/strike_source.h"
 
 namespace sonicboom::experiments {
 
 struct StrikePipeline::Impl {
   SonicBoomConfig config;
-  std::unique_ptr<sim::StrikeModel> strikes;     // kinematic engine
-  std::unique_ptr<sim::StrikeRollout> rollout;   // mujoco engine: the arm strikes
-  std::unique_ptr<sim::HandStrikeRollout> hand;  // stationary robot, hand-held striker
+  std::unique_ptr<sim::StrikeSource> strikes;  // the engine the scene asks for
   std::unique_ptr<acoustics::StrikeSynthesizer> synth;
 };
-
-namespace {
-
-// a dynamic rollout in the form the acoustics stage plays: its first hard tube contact
-sim::StrikeEvents RolloutEvents(const sim::RolloutResult& r, const sim::SceneConfig& scene) {
-  sim::StrikeEvents ev;
-  ev.valid = r.valid;
-  ev.invalid_reason = r.invalid_reason;
-  ev.proprio = r.proprio;
-  ev.joint_speed_rad_s = r.joint_speed_rad_s;
-  ev.joint_speed_rate_hz = r.joint_speed_rate_hz;
-  if (!sim::FirstHardContact(r, scene, &ev.contact, &ev.label)) {
-    if (ev.valid) {
-      ev.valid = false;
-      ev.invalid_reason = "the tube never touched the object";
-    }
-    return ev;
-  }
-  if (ev.valid && !(ev.label.normal_speed_m_s > 1e-4)) {
-    ev.valid = false;
-    ev.invalid_reason = "no approach speed at the first contact";
-  }
-  return ev;
-}
-
-}  // namespace
 
 acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config) {
   acoustics::AcousticModelConfig a;
@@ -78,17 +49,8 @@ acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config) {
 
 StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_unique<Impl>()) {
   impl_->config = config;
-  // build only the engine the scene asks for
-  if (config.scene.mode == "stationary") {
-    impl_->hand = std::make_unique<sim::HandStrikeRollout>(config.tube, config.audio, config.strike,
-                                                           config.scene, config.rollout);
-  } else if (config.strike.engine == "mujoco") {
-    impl_->rollout = std::make_unique<sim::StrikeRollout>(config.tube, config.audio, config.strike,
-                                                          config.scene, config.rollout);
-  } else {
-    impl_->strikes =
-        std::make_unique<sim::StrikeModel>(config.strike, config.scene, config.tube, config.audio);
-  }
+  impl_->strikes =
+      sim::MakeStrikeSource(config.tube, config.audio, config.strike, config.scene, config.rollout);
   impl_->synth = std::make_unique<acoustics::StrikeSynthesizer>(AcousticModel(config));
 }
 
@@ -105,16 +67,10 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   sample.seed = SampleSeed(c.seed, index);
 
   // strike motion, its contacts, and the first tube contact that acoustics plays
-  sim::StrikeEvents ev;
-  const bool dynamic = impl_->rollout || impl_->hand;
-  if (dynamic) {
-    const sim::RolloutResult rollout = impl_->rollout ? impl_->rollout->Run(index, sample.seed)
-                                                      : impl_->hand->Run(index, sample.seed);
-    ev = RolloutEvents(rollout, c.scene);
-    sample.contacts.assign(rollout.contacts.begin(), rollout.contacts.end());
-  } else {
-    ev = impl_->strikes->Generate(sample.seed);
-  }
+  sim::SimulatedStrike strike = impl_->strikes->Strike(index, sample.seed);
+  const sim::StrikeEvents& ev = strike.events;
+  // contacts whose forces acoustics gives are known once it has played them
+  if (!strike.forces_from_acoustics) sample.contacts = strike.contacts;
   sample.label = ev.label;
   sample.proprio = ev.proprio;
   sample.valid = ev.valid;
@@ -138,14 +94,14 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   try {
     if (!sample.valid) throw NumericalError("no contact to play");
     acoustics::RenderedStrike r = impl_->synth->Render(
-        ev.contact, sample.contacts, ev.joint_speed_rad_s, ev.joint_speed_rate_hz, sample.seed,
+        ev.contact, strike.contacts, ev.joint_speed_rad_s, ev.joint_speed_rate_hz, sample.seed,
         randomized ? &variation : nullptr);
     sample.audio = std::move(r.audio);
     sample.clipped = r.clipped;
     sample.label.impulse_Ns = r.impulse_ns;
     sample.label.duration_s = r.duration_s;
     // guided sampling keeps only taps whose sound exceeds the threshold
-    if (c.scene.mode == "guided") {
+    if (c.scene.mode == sim::SceneMode::kGuided) {
       const float peak = sample.audio.cwiseAbs().maxCoeff();
       if (peak < c.scene.guided.amplitude_threshold) {
         sample.valid = false;
@@ -154,22 +110,14 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
                         c.scene.guided.amplitude_threshold);
       }
     }
-    // the kinematic engine knows one contact: the impact acoustics played
-    if (!dynamic) {
-      ContactEpisode e;
-      e.time_s = sample.label.time_s;
-      e.duration_s = r.duration_s;
-      e.z_m = sample.label.z_m;
-      e.theta_rad = sample.label.theta_rad;
-      e.point_m = sample.label.point_m;
-      e.normal = sample.label.normal;
-      e.normal_speed_m_s = sample.label.normal_speed_m_s;
-      e.effective_mass_kg = ev.contact.effective_mass_kg;
-      e.impulse_Ns = r.impulse_ns;
-      e.peak_force_N = r.peak_force_n;
-      e.object = ev.object;
-      e.material = ev.material;
-      sample.contacts = {e};
+    // an engine without contact forces: its one contact has the forces acoustics played
+    if (strike.forces_from_acoustics) {
+      sample.contacts = strike.contacts;
+      for (ContactEpisode& e : sample.contacts) {
+        e.duration_s = r.duration_s;
+        e.impulse_Ns = r.impulse_ns;
+        e.peak_force_N = r.peak_force_n;
+      }
     }
   } catch (const NumericalError& e) {
     if (sample.valid) {
@@ -273,7 +221,7 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
 namespace {
 
 // allocates a feature set of n rows with the extractor's shapes
-learning::FeatureSet AllocateFeatures(const acoustics::FeatureExtractor& fx, int64_t n,
+learning::FeatureSet AllocateFeatures(const dsp::FeatureExtractor& fx, int64_t n,
                                       int64_t proprio_rows) {
   learning::FeatureSet set;
   set.channels = fx.channels();
@@ -289,7 +237,7 @@ learning::FeatureSet AllocateFeatures(const acoustics::FeatureExtractor& fx, int
 }
 
 // stores one record's features in row `row` (arrays sized on the first call)
-void StoreFeatures(const acoustics::StrikeFeatures& f, const Eigen::MatrixXf& proprio, int64_t row,
+void StoreFeatures(const dsp::StrikeFeatures& f, const Eigen::MatrixXf& proprio, int64_t row,
                    learning::FeatureSet* set) {
   const int64_t mel_size = set->channels * set->mels * set->frames;
   const int64_t gcc_size = set->gcc_pairs * set->gcc_lags;
@@ -333,7 +281,7 @@ void ResizeArrays(int64_t n, learning::FeatureSet* set) {
 Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config) {
   const double fs = config.audio.sample_rate_hz;
   const int channels = config.mics.count();
-  const acoustics::FeatureConfig& features = config.features;
+  const dsp::FeatureConfig& features = config.features;
 
   // a recording: checked against the audio config
   if (!features.gating_noise_wav.empty()) {
@@ -381,24 +329,10 @@ Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config) {
   // with its own draw of the per-strike channel gains and tone phases
   const int64_t frames = config.audio.num_samples();
   const acoustics::DaqChain daq(config.daq, config.noise, channels, fs, frames);
-  std::vector<double> joint_speed_rad_s;
-  const sim::StrikeConfig& strike = config.strike;
-  if (config.scene.mode != "stationary") {
-    const double sweep_rad =
-        0.5 * (strike.sweep_min_deg + strike.sweep_max_deg) * std::numbers::pi / 180.0;
-    const double peak_speed = sweep_rad * sim::MinJerkRate(0.5) / strike.sweep_duration_s;
-    const auto rows =
-        static_cast<int64_t>(std::ceil(config.audio.record_duration_s * strike.proprio_rate_hz));
-    joint_speed_rad_s.assign(static_cast<size_t>(rows), peak_speed);
-  }
-  Eigen::MatrixXf clip(channels, kReferenceNoiseRecords * frames);
-  Eigen::MatrixXf audio;
-  for (int64_t r = 0; r < kReferenceNoiseRecords; ++r) {
-    daq.Convert(Eigen::MatrixXd::Zero(channels, frames), joint_speed_rad_s, strike.proprio_rate_hz,
-                SampleSeed(config.seed, kReferenceNoiseIndex - r), &audio);
-    clip.middleCols(r * frames, frames) = audio;
-  }
-  return clip;
+  const std::vector<double> joint_speed_rad_s =
+      sim::NoContactJointSpeed(config.strike, config.scene, config.audio);
+  return acoustics::NoiseModelClip(daq, channels, frames, joint_speed_rad_s,
+                                   config.strike.proprio_rate_hz, config.seed);
 }
 
 namespace {
@@ -440,8 +374,8 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
   }
   const Eigen::MatrixXf noise =
       GatingClipFor(config, info.sample_rate_hz, info.channels, dataset_path);
-  acoustics::FeatureExtractor fx(config.features, info.sample_rate_hz, info.channels,
-                                 noise.size() > 0 ? &noise : nullptr);
+  dsp::FeatureExtractor fx(config.features, info.sample_rate_hz, info.channels,
+                           noise.size() > 0 ? &noise : nullptr);
 
   // valid rows only
   const ValidRecords valid = ReadValidRecords(reader, dataset_path);
@@ -506,7 +440,7 @@ void ForEachRecord(const DatasetReader& reader, const std::vector<int64_t>& rows
 
 struct RecordFeaturizer::Impl {
   Impl(const SonicBoomConfig& config, double sample_rate_hz, int channels,
-       const acoustics::FeatureRequest& request)
+       const dsp::FeatureRequest& request)
       : noise(request.mel || request.gcc ? GatingClipFor(config, sample_rate_hz, channels, "record")
                                          : Eigen::MatrixXf()),
         fx(config.features, sample_rate_hz, channels, noise.size() > 0 ? &noise : nullptr),
@@ -514,28 +448,27 @@ struct RecordFeaturizer::Impl {
         n_mels(config.features.n_mels),
         proprio_rows(config.strike.proprio_rows) {}
   Eigen::MatrixXf noise;  // (C x T) reference clip of the gate, empty without gating
-  acoustics::FeatureExtractor fx;
-  acoustics::FeatureRequest request;
+  dsp::FeatureExtractor fx;
+  dsp::FeatureRequest request;
   int64_t n_mels, proprio_rows;
 };
 
 RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
                                    int channels)
-    : impl_(std::make_unique<Impl>(config, sample_rate_hz, channels, acoustics::FeatureRequest{})) {
-}
+    : impl_(std::make_unique<Impl>(config, sample_rate_hz, channels, dsp::FeatureRequest{})) {}
 
 RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
                                    int channels, const learning::FeatureNeeds& needs)
-    : impl_(std::make_unique<Impl>(
-          config, sample_rate_hz, channels,
-          acoustics::FeatureRequest{needs.audio, needs.gcc, needs.mel_first_frame,
-                                    needs.audio ? needs.mel_frames : 0})) {}
+    : impl_(
+          std::make_unique<Impl>(config, sample_rate_hz, channels,
+                                 dsp::FeatureRequest{needs.audio, needs.gcc, needs.mel_first_frame,
+                                                     needs.audio ? needs.mel_frames : 0})) {}
 
 RecordFeaturizer::~RecordFeaturizer() = default;
 
 learning::FeatureSet RecordFeaturizer::Compute(const Eigen::MatrixXf& audio,
                                                const Eigen::MatrixXf& proprio) const {
-  const acoustics::FeatureRequest& request = impl_->request;
+  const dsp::FeatureRequest& request = impl_->request;
   learning::FeatureSet set = AllocateFeatures(impl_->fx, 1, impl_->proprio_rows);
   set.mels = impl_->n_mels;
   if (request.mel_frames >= 0) set.frames = request.mel_frames;

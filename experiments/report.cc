@@ -8,11 +8,11 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/core/tube.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
 #include "sonicboom/sim/franka.h"

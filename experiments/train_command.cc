@@ -25,12 +25,10 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   // user's layers; a fresh run from the defaults
   learning::FineTune fine_tune;
   fine_tune.init_from = o.init_from;
-  fine_tune.freeze = learning::ParseFreeze(o.freeze);
-  if (o.norm != "keep" && o.norm != "refit") {
-    throw ConfigError(fmt::format("--norm '{}' must be keep or refit", o.norm));
-  }
-  fine_tune.refit_normalization = o.norm == "refit";
-  if (o.init_from.empty() && (o.freeze != "none" || o.norm != "keep")) {
+  fine_tune.freeze = o.freeze;
+  fine_tune.refit_normalization = o.norm == NormPolicy::kRefit;
+  if (o.init_from.empty() &&
+      (o.freeze != learning::FineTune::Freeze::kNone || o.norm != NormPolicy::kKeep)) {
     throw ConfigError("--freeze and --norm apply to a fine-tune: give --init-from RUN");
   }
   if (!o.init_from.empty() && fs::absolute(o.init_from) == fs::absolute(o.out)) {
@@ -42,7 +40,8 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   MakeDirectories(o.out);
   WriteTextAtomic((fs::path(o.out) / "config.yaml").string(), ConfigToYaml(config));
   if (!o.init_from.empty()) {
-    const json init{{"init_from", o.init_from}, {"freeze", o.freeze}, {"norm", o.norm}};
+    const json init{
+        {"init_from", o.init_from}, {"freeze", NameOf(o.freeze)}, {"norm", NameOf(o.norm)}};
     WriteTextAtomic((fs::path(o.out) / "fine_tune.json").string(), init.dump(2) + "\n");
   }
   const learning::Metrics m =
@@ -69,10 +68,10 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
   train->add_flag("--resume", o->train.resume, "continue from the run directory's checkpoint");
   train->add_option("--init-from", o->train.init_from,
                     "pretrained run directory: start from its weights and config");
-  train->add_option("--freeze", o->train.freeze,
-                    "none | encoders | all-but-head (with --init-from)");
-  train->add_option("--norm", o->train.norm,
-                    "keep | refit the per-mic mel statistics (with --init-from; default keep)");
+  AddEnumOption(train, "--freeze", &o->train.freeze,
+                "none | encoders | all-but-head (with --init-from)");
+  AddEnumOption(train, "--norm", &o->train.norm,
+                "keep | refit the per-mic mel statistics (with --init-from; default keep)");
   train->add_option("--lr", o->lr, "learning rate (sets train.learning_rate)")
       ->check(CLI::PositiveNumber);
   train->add_option("--epochs", o->epochs, "epochs (sets train.epochs)")

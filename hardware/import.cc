@@ -54,18 +54,6 @@ Eigen::MatrixXf ReadNoiseClip(const std::string& in_dir, const ImportSettings& s
 
 }  // namespace
 
-Layout ParseLayout(const std::string& name) {
-  if (name == "trial") return Layout::kTrial;
-  if (name == "capture") return Layout::kCapture;
-  throw ConfigError(fmt::format("--layout '{}' must be trial or capture", name));
-}
-
-AngleConvention ParseAngleConvention(const std::string& name) {
-  if (name == "tube") return AngleConvention::kTube;
-  if (name == "j7") return AngleConvention::kJ7;
-  throw ConfigError(fmt::format("--angle-convention '{}' must be tube or j7", name));
-}
-
 double TubeAngleFrom(double stored_rad, AngleConvention convention) {
   return WrapAngle(convention == AngleConvention::kTube ? stored_rad : -stored_rad - kJ7OffsetRad);
 }

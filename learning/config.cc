@@ -17,9 +17,7 @@
 namespace sonicboom::learning {
 namespace {
 
-const std::vector<std::string> kAudioEncoders = {"compact", "resnet18", "resnet50"};
 const std::vector<std::string> kModalities = {"audio", "gcc", "proprio"};
-const std::vector<std::string> kGccEncoders = {"mlp", "conv"};
 
 // Bounds of an integer that must be at least 1.
 Bounds AtLeastOne() {
@@ -45,22 +43,17 @@ void RequireIn(const std::string& key, double value, const Bounds& bounds) {
 }  // namespace
 
 void ModelConfig::Serialize(Archive* a) {
-  a->VisitChoice("audio_encoder", &audio_encoder, kAudioEncoders);
+  a->Visit("audio_encoder", &audio_encoder);
   a->Visit("width", &width, AtLeastOne());
   a->Visit("blocks", &blocks, AtLeastOne());
   a->Visit("heads", &heads, AtLeastOne());
   a->Visit("dropout", &dropout, Bounds{0.0, 1.0, false, true});
   a->Visit("modalities", &modalities);
   a->Visit("crop_frames", &crop_frames, AtLeastOne());
-  a->VisitChoice("gcc_encoder", &gcc_encoder, kGccEncoders);
+  a->Visit("gcc_encoder", &gcc_encoder);
 }
 
 void ModelConfig::Validate() const {
-  if (std::find(kAudioEncoders.begin(), kAudioEncoders.end(), audio_encoder) ==
-      kAudioEncoders.end()) {
-    Reject("model.audio_encoder", "'" + audio_encoder + "'",
-           fmt::format("must be one of {}", fmt::join(kAudioEncoders, ", ")));
-  }
   RequireAtLeast("model.width", width, 1);
   RequireAtLeast("model.blocks", blocks, 1);
   RequireAtLeast("model.heads", heads, 1);

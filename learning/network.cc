@@ -156,13 +156,14 @@ torch::Tensor ResNetImpl::forward(torch::Tensor x) {
 
 AudioEncoderImpl::AudioEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
   const int64_t w = config.width;
-  if (config.audio_encoder == "compact") {
+  if (config.audio_encoder == AudioEncoderKind::kCompact) {
     compact_ = register_module("compact", CompactCnn(shapes.channels));
     projection_ =
         register_module("projection", nn::Sequential(nn::Linear(CompactCnnImpl::kFeatures, w)));
   } else {
     resnet_ = register_module(
-        "resnet", ResNet(shapes.channels, config.audio_encoder == "resnet18" ? 18 : 50));
+        "resnet",
+        ResNet(shapes.channels, config.audio_encoder == AudioEncoderKind::kResnet18 ? 18 : 50));
     // Projection MLP of the paper's model: features -> 4w -> w.
     projection_ = register_module(
         "projection", nn::Sequential(nn::Linear(resnet_->features(), 4 * w),
@@ -179,7 +180,7 @@ torch::Tensor AudioEncoderImpl::forward(torch::Tensor mel) {
 
 GccEncoderImpl::GccEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
   const int64_t w = config.width, in = shapes.gcc_pairs * shapes.gcc_lags;
-  if (config.gcc_encoder == "conv") {
+  if (config.gcc_encoder == GccEncoderKind::kConv) {
     // rows as channels; two stride-2 convolutions quarter the lag axis
     constexpr int64_t kChannels = 64;
     auto conv = [](int64_t from, int64_t to, int64_t stride) {

@@ -232,13 +232,6 @@ std::string FormatDuration(double seconds) {
 
 }  // namespace
 
-FineTune::Freeze ParseFreeze(const std::string& name) {
-  if (name == "none") return FineTune::Freeze::kNone;
-  if (name == "encoders") return FineTune::Freeze::kEncoders;
-  if (name == "all-but-head") return FineTune::Freeze::kAllButHead;
-  throw ConfigError(fmt::format("--freeze '{}' must be none, encoders or all-but-head", name));
-}
-
 Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
               const std::string& run_dir, bool resume, bool show_progress,

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Golden reference values for the feature tests (tests/acoustics/features_test.cc).
+"""Golden reference values for the feature tests (tests/dsp/features_test.cc).
 
 Run on purpose only, from the repository root (tests never regenerate the files):
 
@@ -21,7 +21,7 @@ Arrays:
   gate_input    (2, 12000)     new draws of the same noises plus a strike at 0.1 s
   gate_threshold_db (2, 513)   per-channel, per-bin gate threshold, dB (numpy, float64)
   gate_output   (2, 12000)     gate_input through the spectral gate (spectral_gate_numpy below),
-                               for tests/acoustics/spectral_gate_test.cc
+                               for tests/dsp/spectral_gate_test.cc
 """
 
 import argparse
@@ -82,7 +82,7 @@ def mel(x, n_fft=512, hop=128, n_mels=50, f_min=0.0, f_max=None):
 
 def gcc_fft_size(n):
     """Smallest multiple of 512 >= n whose other prime factors are 2, 3, 5 (same rule as
-    acoustics/features.cc)."""
+    dsp/features.cc)."""
     k = max((n + 511) // 512, 1)
     while True:
         r = k
@@ -108,7 +108,7 @@ def gcc_phat(x, max_lag):
     return np.array(rows, dtype=np.float32), size
 
 
-# Spectral gate (acoustics/spectral_gate.h): stationary gating against a reference noise clip,
+# Spectral gate (dsp/spectral_gate.h): stationary gating against a reference noise clip,
 # the noisereduce stationary algorithm written out in numpy. One deliberate difference from
 # noisereduce: the mask smoothing is renormalized at the spectrogram's borders (divided by the
 # same convolution of ones), so that a mask of ones stays ones.
@@ -231,7 +231,7 @@ def main():
         "gate_output": np.stack(gated),
     }
     manifest = {
-        "description": "goldens for tests/acoustics/features_test.cc; made by "
+        "description": "goldens for tests/dsp/features_test.cc; made by "
                        "scripts/make_goldens.py; raw float32 little-endian, C order",
         "torch": torch.__version__,
         "torchaudio": torchaudio.__version__,

@@ -65,21 +65,21 @@ void BranchConfig::Serialize(Archive* a) {
 
 void ObjectConfig::Serialize(Archive* a) {
   // kind first: the kind-specific groups below exist only for their kind
-  a->VisitChoice("kind", &kind, {"rod", "cross", "branch", "striker"});
+  a->Visit("kind", &kind);
   a->Visit("name", &name);
   a->Visit("weight", &weight, Bounds::NonNegative());
   a->Visit("diameter_m", &diameter_m, Bounds::Open(0.0, 0.5));
   a->Visit("length_m", &length_m, Bounds::Open(0.0, 5.0));
   a->Visit("wall_thickness_m", &wall_thickness_m, Bounds::NonNegative());
-  if (kind == "rod" || kind == "cross") a->VisitChoice("clamp", &clamp, {"one_end", "both_ends"});
-  a->VisitChoice("material", &material, {"wood", "aluminium", "pvc"});
-  a->Visit("youngs_modulus_pa", &youngs_modulus_pa, Bounds::Open(1e6, 1e13));
+  if (kind == ObjectKind::kRod || kind == ObjectKind::kCross) a->Visit("clamp", &clamp);
+  a->Visit("material", &material);
+  a->Visit("youngs_modulus_pa", &elastic.youngs_modulus_pa, Bounds::Open(1e6, 1e13));
   a->Visit("contact_youngs_modulus_pa", &contact_youngs_modulus_pa, Bounds::Open(1e6, 1e13));
-  a->Visit("poisson_ratio", &poisson_ratio, Bounds::Open(-1.0, 0.5));
-  a->Visit("density_kg_m3", &density_kg_m3, Bounds::Open(1.0, 1e5));
-  a->Visit("loss_factor", &loss_factor, Bounds::Open(0.0, 1.0));
-  if (kind == "cross") a->Visit("cross", &cross);
-  if (kind == "branch") a->Visit("branch", &branch);
+  a->Visit("poisson_ratio", &elastic.poisson_ratio, Bounds::Open(-1.0, 0.5));
+  a->Visit("density_kg_m3", &elastic.density_kg_m3, Bounds::Open(1.0, 1e5));
+  a->Visit("loss_factor", &elastic.loss_factor, Bounds::Open(0.0, 1.0));
+  if (kind == ObjectKind::kCross) a->Visit("cross", &cross);
+  if (kind == ObjectKind::kBranch) a->Visit("branch", &branch);
 }
 
 void ObjectConfig::Validate(const std::string& key) const {
@@ -88,7 +88,7 @@ void ObjectConfig::Validate(const std::string& key) const {
                       key, wall_thickness_m, diameter_m));
   Require(std::isfinite(weight) && weight >= 0.0,
           fmt::format("{}.weight = {} must be non-negative", key, weight));
-  if (kind == "branch") {
+  if (kind == ObjectKind::kBranch) {
     Require(branch.min_target_diameter_m <= diameter_m,
             fmt::format("{}.branch.min_target_diameter_m = {} exceeds the trunk diameter_m = {}: "
                         "no segment could be aimed at",
@@ -99,16 +99,16 @@ void ObjectConfig::Validate(const std::string& key) const {
 std::string ObjectConfig::DisplayName() const {
   if (!name.empty()) return name;
   const std::string dims = PaperName(diameter_m, length_m);
-  if (kind == "cross")
+  if (kind == ObjectKind::kCross)
     return fmt::format("cross {}+{}", dims, PaperName(cross.diameter_m, cross.length_m));
-  if (kind == "striker") return fmt::format("striker {} {}", material, dims);
-  return fmt::format("{} {}", kind, dims);
+  if (kind == ObjectKind::kStriker) return fmt::format("striker {} {}", NameOf(material), dims);
+  return fmt::format("{} {}", NameOf(kind), dims);
 }
 
 double ObjectConfig::LinearDensityKgM() const {
   const double r_out = 0.5 * diameter_m;
   const double r_in = wall_thickness_m > 0.0 ? r_out - wall_thickness_m : 0.0;
-  return density_kg_m3 * kPi * (r_out * r_out - r_in * r_in);
+  return elastic.density_kg_m3 * kPi * (r_out * r_out - r_in * r_in);
 }
 
 void StationaryConfig::Serialize(Archive* a) {
@@ -155,7 +155,7 @@ void GuidedConfig::Validate() const {
 }
 
 void SceneConfig::Serialize(Archive* a) {
-  a->VisitChoice("mode", &mode, {"strike", "stationary", "guided"});
+  a->Visit("mode", &mode);
   a->VisitList("objects", &objects);
   a->Visit("stationary", &stationary);
   a->Visit("guided", &guided);
@@ -170,14 +170,14 @@ void SceneConfig::Validate() const {
     o.Validate(key);
     total_weight += o.weight;
     // the mode decides which kinds make sense
-    const bool striker = o.kind == "striker";
-    if (mode == "stationary") {
+    const bool striker = o.kind == ObjectKind::kStriker;
+    if (mode == SceneMode::kStationary) {
       Require(striker, fmt::format("{}.kind = {}: scene.mode stationary needs hand-held strikers "
                                    "(kind striker)",
-                                   key, o.kind));
+                                   key, NameOf(o.kind)));
     } else {
-      Require(!striker,
-              fmt::format("{}.kind = striker needs scene.mode stationary (mode is {})", key, mode));
+      Require(!striker, fmt::format("{}.kind = striker needs scene.mode stationary (mode is {})",
+                                    key, NameOf(mode)));
     }
   }
   Require(total_weight > 0.0, "scene.objects: the weights sum to zero");
@@ -186,7 +186,7 @@ void SceneConfig::Validate() const {
 }
 
 int64_t ObjectVariants(const ObjectConfig& object) {
-  return object.kind == "branch" ? object.branch.variants : 1;
+  return object.kind == ObjectKind::kBranch ? object.branch.variants : 1;
 }
 
 int DrawObjectIndex(const std::vector<ObjectConfig>& objects, double u) {
@@ -222,7 +222,7 @@ double BeamModalMassKg(double mass_kg, double length_m, double x_m, bool clamped
 
 void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m,
                         ContactEvent* event) {
-  if (object.kind != "rod" && object.kind != "cross") return;
+  if (object.kind != ObjectKind::kRod && object.kind != ObjectKind::kCross) return;
   // second moment of a solid rod or a pipe: pi (r_out^4 - r_in^4) / 4
   const double r_out = 0.5 * object.diameter_m;
   const double r_in = object.wall_thickness_m > 0.0 ? r_out - object.wall_thickness_m : 0.0;
@@ -230,22 +230,22 @@ void DescribeStruckBeam(const ObjectConfig& object, double contact_from_clamp_m,
   event->beam_length_m = object.length_m;
   event->beam_contact_from_clamp_m =
       std::clamp(contact_from_clamp_m, 1e-3 * object.length_m, object.length_m);
-  event->beam_flexural_rigidity_n_m2 = object.youngs_modulus_pa * second_moment_m4;
+  event->beam_flexural_rigidity_n_m2 = object.elastic.youngs_modulus_pa * second_moment_m4;
   event->beam_linear_density_kg_m = object.LinearDensityKgM();
-  event->beam_clamped_both_ends = object.clamp == "both_ends";
-  event->beam_loss_factor = object.loss_factor;
+  event->beam_clamped_both_ends = object.clamp == Clamp::kBothEnds;
+  event->beam_loss_factor = object.elastic.loss_factor;
 }
 
 ObjectGeometry BuildObjectGeometry(const ObjectConfig& o, int64_t variant) {
   ObjectGeometry g;
   const double radius_m = 0.5 * o.diameter_m;
   const Eigen::Vector3d x_axis = Eigen::Vector3d::UnitX();
-  if (o.kind == "rod" || o.kind == "striker") {
+  if (o.kind == ObjectKind::kRod || o.kind == ObjectKind::kStriker) {
     g.segments.push_back({Eigen::Vector3d::Zero(), o.length_m * x_axis, radius_m, true});
     g.targets = {0};
     return g;
   }
-  if (o.kind == "cross") {
+  if (o.kind == ObjectKind::kCross) {
     // struck rod along x; the second rod behind it (+y, touching) at its middle, along z
     g.segments.push_back({Eigen::Vector3d::Zero(), o.length_m * x_axis, radius_m, true});
     const double r2_m = 0.5 * o.cross.diameter_m;
@@ -255,7 +255,7 @@ ObjectGeometry BuildObjectGeometry(const ObjectConfig& o, int64_t variant) {
     g.targets = {0};
     return g;
   }
-  SONICBOOM_DEMAND(o.kind == "branch");
+  SONICBOOM_DEMAND(o.kind == ObjectKind::kBranch);
   // trunk along x from the origin; every fork turns its children off the parent axis by the fork
   // angle at evenly spaced azimuths (random start), with +-20 % jitter of angle and length
   const BranchConfig& b = o.branch;

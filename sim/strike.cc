@@ -35,14 +35,17 @@ StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& c, const SceneCo
   StrikeDraw d;
   for (int i = 0; i < kPandaJoints; ++i) d.q0[i] = c.home_joints_rad[i];
   d.q0[6] = rng.Uniform(PandaLowerLimits()[6], PandaUpperLimits()[6]);
-  d.motion = c.motions[rng.UniformInt(c.motions.size())];
+  const std::optional<StrikeMotion> motion =
+      EnumFromName<StrikeMotion>(c.motions[rng.UniformInt(c.motions.size())]);
+  SONICBOOM_DEMAND(motion.has_value());  // StrikeConfig::Validate checked the names
+  d.motion = *motion;
   const double coin = rng.Uniform();
-  if (d.motion == "lateral") {
+  if (d.motion == StrikeMotion::kLateral) {
     d.joint = 5;
     d.side = coin < 0.5 ? -1.0 : 1.0;
   } else {
     d.joint = 0;
-    d.side = d.motion == "opposite" ? -1.0 : 1.0;
+    d.side = d.motion == StrikeMotion::kOpposite ? -1.0 : 1.0;
   }
   const double tilt = rng.Uniform(-c.tilt_max_deg, 0.0) * kDeg;
   d.q0[1] += 0.5 * tilt;
@@ -62,8 +65,19 @@ StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& c, const SceneCo
   return d;
 }
 
+std::vector<double> NoContactJointSpeed(const StrikeConfig& strike, const SceneConfig& scene,
+                                        const AudioConfig& audio) {
+  if (scene.mode == SceneMode::kStationary) return {};
+  const double sweep_rad =
+      0.5 * (strike.sweep_min_deg + strike.sweep_max_deg) * std::numbers::pi / 180.0;
+  const double peak_speed = sweep_rad * MinJerkRate(0.5) / strike.sweep_duration_s;
+  const auto rows =
+      static_cast<int64_t>(std::ceil(audio.record_duration_s * strike.proprio_rate_hz));
+  return std::vector<double>(static_cast<size_t>(rows), peak_speed);
+}
+
 void StrikeConfig::Serialize(Archive* a) {
-  a->VisitChoice("engine", &engine, {"mujoco", "kinematic"});
+  a->Visit("engine", &engine);
   a->Visit("home_joints_rad", &home_joints_rad);
   a->Visit("motions", &motions);
   a->Visit("sweep_min_deg", &sweep_min_deg, Bounds::Open(0.0, 90.0));
@@ -94,7 +108,7 @@ void StrikeConfig::Validate() const {
   if (motions.empty())
     throw ConfigError("strike.motions is empty: name sweep, opposite or lateral");
   for (const std::string& m : motions) {
-    if (m != "sweep" && m != "opposite" && m != "lateral") {
+    if (!EnumFromName<StrikeMotion>(m)) {
       throw ConfigError(
           fmt::format("strike.motions: '{}' is not one of sweep, opposite, lateral", m));
     }
@@ -116,11 +130,11 @@ StrikeModel::StrikeModel(const StrikeConfig& strike, const SceneConfig& scene,
   strike_.Validate();
   scene_.Validate();
   tube_.Validate();
-  if (scene_.mode != "strike") {
+  if (scene_.mode != SceneMode::kStrike) {
     throw ConfigError(
         fmt::format("strike.engine = kinematic cannot simulate scene.mode {}; use "
                     "strike.engine = mujoco",
-                    scene_.mode));
+                    NameOf(scene_.mode)));
   }
 }
 
@@ -194,7 +208,7 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
   }
 
   // struck object: its fundamental's modal mass near the free tip (docs/physics.md, "Beam modes")
-  const bool both_ends = object.clamp == "both_ends";
+  const bool both_ends = object.clamp == Clamp::kBothEnds;
   const double aim_m = both_ends ? 0.5 * object.length_m : std::max(object.length_m - 0.05, 0.0);
   ContactEvent& contact = ev.contact;
   contact.time_s = t_contact;
@@ -205,10 +219,10 @@ StrikeEvents StrikeModel::Generate(uint64_t sample_seed) const {
                                               object.length_m, aim_m, both_ends);
   contact.striker_radius_m = 0.5 * object.diameter_m;
   contact.striker_youngs_modulus_pa = object.contact_youngs_modulus_pa;
-  contact.striker_poisson_ratio = object.poisson_ratio;
+  contact.striker_poisson_ratio = object.elastic.poisson_ratio;
   DescribeStruckBeam(object, aim_m, &contact);
   ev.object = object.DisplayName();
-  ev.material = object.material;
+  ev.material = std::string(NameOf(object.material));
 
   // proprioception rows on the audio clock: tube pose (wxyz) and velocity in the base frame
   ev.proprio.resize(c.proprio_rows, kProprioFeatures);

@@ -7,12 +7,31 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <optional>
+#include <string>
 
+#include "sonicboom/core/archive.h"
 #include "sonicboom/experiments/commands.h"
 
 namespace sonicboom::experiments {
 
 using Runner = std::function<CommandResult()>;
+
+/// An option whose value is one of an enum's names (EnumNames); any other value is a usage error
+/// (exit 2) naming the option and the names it takes.
+template <typename E>
+CLI::Option* AddEnumOption(CLI::App* app, const std::string& name, E* value,
+                           const std::string& help) {
+  const std::string names = EnumNameList<E>();
+  return app->add_option_function<std::string>(
+      name,
+      [name, names, value](const std::string& given) {
+        const std::optional<E> e = EnumFromName<E>(given);
+        if (!e) throw CLI::ValidationError(name, "'" + given + "' is not one of: " + names);
+        *value = *e;
+      },
+      help);
+}
 
 void RegisterDemo(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterGenerate(CLI::App& app, GlobalOptions& g, Runner* run);

@@ -60,7 +60,7 @@ TEST(CylinderModesTest, RayleighFreeFreeValues) {
                 0.005 * expected[n - 2]);
   }
   // the free list is ascending, each frequency twice (degenerate pairs), starting at f_20
-  const auto f = ClosedFormFrequencies(TubeConfig{}, MaterialConfig{}, "free", 8);
+  const auto f = ClosedFormFrequencies(TubeConfig{}, MaterialConfig{}, TubeEnds::kFree, 8);
   ASSERT_EQ(f.size(), 8u);
   EXPECT_NEAR(f[0], 220, 1.5);
   EXPECT_EQ(f[0], f[1]);
@@ -69,13 +69,14 @@ TEST(CylinderModesTest, RayleighFreeFreeValues) {
 }
 
 TEST(CylinderModesTest, SimplySupportedListCountsPairsTwice) {
-  const auto f = ClosedFormFrequencies(TubeConfig{}, MaterialConfig{}, "simply-supported", 10);
+  const auto f =
+      ClosedFormFrequencies(TubeConfig{}, MaterialConfig{}, TubeEnds::kSimplySupported, 10);
   ASSERT_EQ(f.size(), 10u);
   EXPECT_NEAR(f[0], 356, 1.5);
   EXPECT_EQ(f[0], f[1]);
   for (size_t i = 1; i < f.size(); ++i) EXPECT_LE(f[i - 1], f[i]);
-  EXPECT_THROW(ClosedFormFrequencies(TubeConfig{}, MaterialConfig{}, "clamped", 5), ConfigError);
-  EXPECT_THROW(ClosedFormFrequencies(TubeConfig{}, MaterialConfig{}, "free", 0), ConfigError);
+  EXPECT_THROW(ClosedFormFrequencies(TubeConfig{}, MaterialConfig{}, TubeEnds::kFree, 0),
+               ConfigError);
 }
 
 }  // namespace

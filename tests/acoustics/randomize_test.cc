@@ -121,7 +121,7 @@ AcousticModelConfig Coarse() {
   AcousticModelConfig c;
   c.shell.grid_spacing_m = 0.01;
   c.shell.axial_spacing_m = 0.01;
-  c.synth.model = "modal";
+  c.synth.model = VibrationModel::kModal;
   c.synth.mode_band_hz = 8000;
   c.synth.mode_cache_dir = Cache().path().string();
   c.noise.ambient_rms_v = 0;
@@ -407,7 +407,7 @@ TEST(RandomizeStructureTest, PoolVariantsAreDrawnStructuresWithTheirOwnModes) {
   EXPECT_LT(err, 0.05);
   // the fd rung cannot take a pool
   AcousticModelConfig fd = c;
-  fd.synth.model = "fd";
+  fd.synth.model = VibrationModel::kFd;
   EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(fd); }),
                     "randomize.structure_variants"));
 }

@@ -1,5 +1,6 @@
 // The discretized shell (K, M, seams, holes, mounts), its numerical modes, and the FD solver:
 // theory checks (Flügge, Rayleigh), grid convergence order, energy conservation, decay, stability.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -18,14 +19,17 @@
 #include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/shell_synth.h"
+#include "sonicboom/core/config_io.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
+using ::testing::HasSubstr;
+
 constexpr double kPi = std::numbers::pi;
 
-ShellConfig Ideal(const std::string& ends, double arc_m, double axial_m) {
+ShellConfig Ideal(TubeEnds ends, double arc_m, double axial_m) {
   ShellConfig s;
   s.ideal = true;
   s.ends = ends;
@@ -60,12 +64,13 @@ int CircumferentialOrder(const ShellModel& model, const Eigen::VectorXd& shape) 
 TEST(ShellModesTest, IdealSimplySupportedMatchesFluggeWithinOnePercent) {
   const TubeConfig tube;
   const MaterialConfig material;
-  const ShellModel model(tube, material, Ideal("simply-supported", 0.0025, 0.005));
+  const ShellModel model(tube, material, Ideal(TubeEnds::kSimplySupported, 0.0025, 0.005));
   const ShellModes modes = SolveShellModes(model, 0.0, 10, false);
   ASSERT_EQ(modes.omega_rad_s.size(), 10);
   // the axial rigid translation (u is free at a shear diaphragm) is the only rigid-body mode
   EXPECT_EQ(modes.rigid_body_modes, 1);
-  const std::vector<double> flugge = ClosedFormFrequencies(tube, material, "simply-supported", 10);
+  const std::vector<double> flugge =
+      ClosedFormFrequencies(tube, material, TubeEnds::kSimplySupported, 10);
   for (int k = 0; k < 10; ++k) {
     EXPECT_NEAR(Hz(modes.omega_rad_s[k]) / flugge[k], 1.0, 0.01)
         << "mode " << k << ": " << Hz(modes.omega_rad_s[k]) << " Hz vs Flügge " << flugge[k];
@@ -77,7 +82,7 @@ TEST(ShellModesTest, IdealSimplySupportedMatchesFluggeWithinOnePercent) {
 TEST(ShellModesTest, IdealFreeFreeMatchesRayleighWithinTwoPercent) {
   const TubeConfig tube;
   const MaterialConfig material;
-  const ShellModel model(tube, material, Ideal("free", 0.0025, 0.006));
+  const ShellModel model(tube, material, Ideal(TubeEnds::kFree, 0.0025, 0.006));
   const ShellModes modes = SolveShellModes(model, 2900.0, 0, true);
   EXPECT_EQ(modes.rigid_body_modes, 6);  // 3 translations, 3 rotations
   for (int n = 2; n <= 6; ++n) {
@@ -107,7 +112,7 @@ TEST(ShellModesTest, GridConvergesAtSecondOrder) {
   const MaterialConfig material;
   std::vector<double> f;
   for (double h : {0.012, 0.006, 0.003}) {
-    const ShellModel model(tube, material, Ideal("simply-supported", h, h));
+    const ShellModel model(tube, material, Ideal(TubeEnds::kSimplySupported, h, h));
     f.push_back(Hz(SolveShellModes(model, 0.0, 1, false).omega_rad_s[0]));
   }
   const double ratio = (f[0] - f[1]) / (f[1] - f[2]);
@@ -187,10 +192,15 @@ TEST(ShellModelTest, BadSettingsAreConfigErrors) {
   const TubeConfig tube;
   MaterialConfig material;
   ShellConfig s;
-  s.ends = "clamped";
-  EXPECT_THROW(ShellModel(tube, material, s), ConfigError);
-  s = ShellConfig{};
-  s.damping = "rayleigh";
+  // ends outside the enum are refused where the config is read, naming the key and the names
+  try {
+    FromYaml<ShellConfig>("ends: clamped\n", "test.yaml");
+    ADD_FAILURE() << "ends: clamped was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("ends"));
+    EXPECT_THAT(e.what(), HasSubstr("free, simply-supported"));
+  }
+  s.damping = DampingModel::kRayleigh;
   s.loss_factor_high = 1.0;  // 50x the low-frequency loss over a 5x band: no Rayleigh fit
   try {
     ShellModel model(tube, material, s);
@@ -210,7 +220,7 @@ TEST(ShellModelTest, RayleighDampingHitsBothAnchors) {
   material.loss_factor = 0.02;
   ShellConfig s;
   s.grid_spacing_m = 0.02;
-  s.damping = "rayleigh";
+  s.damping = DampingModel::kRayleigh;
   s.loss_factor_high = 0.04;
   const ShellModel model(tube, material, s);
   EXPECT_NEAR(2.0 * model.DampingRatio(2.0 * kPi * s.loss_low_hz), 0.02, 1e-12);
@@ -313,7 +323,7 @@ TEST(ShellFdTest, DampedModeDecaysAtItsConfiguredT60) {
   const TubeConfig tube;
   MaterialConfig material;
   material.loss_factor = 0.02;
-  const ShellModel model(tube, material, Ideal("simply-supported", 0.01, 0.01));
+  const ShellModel model(tube, material, Ideal(TubeEnds::kSimplySupported, 0.01, 0.01));
   const ShellModes modes = SolveShellModes(model, 0.0, 1, true);
   const Eigen::VectorXd phi = modes.shapes.col(0);
   const double omega = modes.omega_rad_s[0];
@@ -365,7 +375,7 @@ const ShellModel& SeamedTube10mm() {
     ShellConfig s;
     s.grid_spacing_m = 0.01;
     s.axial_spacing_m = 0.01;
-    s.damping = "rayleigh";  // the damping both rungs realize, so that they compare
+    s.damping = DampingModel::kRayleigh;  // the damping both rungs realize, so that they compare
     return ShellModel(TubeConfig{}, MaterialConfig{}, s);
   }();
   return model;

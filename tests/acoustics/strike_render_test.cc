@@ -25,11 +25,12 @@ const testing::TempDir& Cache() {
 }
 
 // a coarse seamed tube (10 mm grid), modes to 12 kHz, noise off, gain mismatch off
-AcousticModelConfig Coarse(const std::string& model = "modal") {
+AcousticModelConfig Coarse(VibrationModel model = VibrationModel::kModal) {
   AcousticModelConfig c;
   c.shell.grid_spacing_m = 0.01;
   c.shell.axial_spacing_m = 0.01;
-  c.shell.damping = "rayleigh";  // the damping the FD rung realizes too, so that rungs compare
+  c.shell.damping =
+      DampingModel::kRayleigh;  // the damping the FD rung realizes too, so that rungs compare
   c.synth.model = model;
   c.synth.mode_band_hz = 12000;
   c.synth.mode_cache_dir = Cache().path().string();
@@ -109,14 +110,14 @@ TEST(StrikeRenderTest, BandFollowsTheContactUnlessOverridden) {
 
 TEST(StrikeRenderTest, FdRungAgreesWithModalRung) {
   // the same structure, force and sensors: only time integration and truncation differ
-  AcousticModelConfig c = Coarse("fd");
+  AcousticModelConfig c = Coarse(VibrationModel::kFd);
   c.audio.record_duration_s = 0.03;
   c.audio.onset_time_s = 0.005;
   c.daq.input_resistance_ohm = 1e9;  // high-pass far below the record's band
   c.daq.adc_bits = 32;
   c.daq.output_bits = 32;
   const RenderedStrike fd = StrikeSynthesizer(c).Render(Dowel(0.03, 0.7, 0.3, 0.005), {}, 0.0, 3);
-  c.synth.model = "modal";
+  c.synth.model = VibrationModel::kModal;
   c.synth.max_frequency_hz = 12000;
   const RenderedStrike modal =
       StrikeSynthesizer(c).Render(Dowel(0.03, 0.7, 0.3, 0.005), {}, 0.0, 3);

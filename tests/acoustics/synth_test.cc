@@ -26,7 +26,7 @@ ContactEvent DowelContact(double z_m, double theta_rad, double speed) {
 // the closed-form rung (ideal simply-supported tube) with default sensors
 AcousticModelConfig ClosedForm(NoiseConfig noise = {}, DaqConfig daq = {}) {
   AcousticModelConfig c;
-  c.synth.model = "modal-closed-form";
+  c.synth.model = VibrationModel::kModalClosedForm;
   c.noise = noise;
   c.daq = daq;
   return c;

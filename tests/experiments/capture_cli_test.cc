@@ -110,12 +110,20 @@ TEST(CaptureCliTest, RefusesToOverwriteAndNamesBadInput) {
   run = RunCli("import --layout capture --in cap --out C.h5", cwd);
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("capture.yaml: missing"), std::string::npos) << run.err;
+  // a value outside a choice is a usage error naming the option and the names it takes
   run = RunCli("import --layout tape --in cap --out C.h5", cwd);
-  EXPECT_EQ(run.exit_code, 1);
-  EXPECT_NE(run.err.find("--layout 'tape' must be trial or capture"), std::string::npos) << run.err;
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.err.find("--layout: 'tape' is not one of: trial, capture"), std::string::npos)
+      << run.err;
   run = RunCli("export --in B.h5 --out T --angle-convention j8", cwd);
-  EXPECT_EQ(run.exit_code, 1);
-  EXPECT_NE(run.err.find("'j8' must be tube or j7"), std::string::npos) << run.err;
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.err.find("--angle-convention: 'j8' is not one of: tube, j7"), std::string::npos)
+      << run.err;
+  run = RunCli("baseline --method nearest --data B.h5", cwd);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.err.find("--method: 'nearest' is not one of: knn, tdoa, arrival, constant"),
+            std::string::npos)
+      << run.err;
   std::ifstream kept(dir / "B.h5");
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(kept), {}), "keep");
   EXPECT_FALSE(fs::exists(dir / "C.h5"));

@@ -10,11 +10,11 @@
 #include <vector>
 
 #include "common/test_util.h"
-#include "sonicboom/acoustics/features.h"
-#include "sonicboom/acoustics/spectral_gate.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/dsp/features.h"
+#include "sonicboom/dsp/spectral_gate.h"
 #include "sonicboom/experiments/pipeline.h"
 
 namespace sonicboom::experiments {
@@ -40,7 +40,7 @@ TEST(ReferenceNoiseClipTest, RecordsOfTheNoiseModelDeterministicInTheSeed) {
   const SonicBoomConfig config = Config();
   const Eigen::MatrixXf a = ReferenceNoiseClip(config);
   ASSERT_EQ(a.rows(), config.mics.count());
-  ASSERT_EQ(a.cols(), kReferenceNoiseRecords * config.audio.num_samples());
+  ASSERT_EQ(a.cols(), acoustics::kReferenceNoiseRecords * config.audio.num_samples());
   EXPECT_TRUE(a.allFinite());
   EXPECT_TRUE(a == ReferenceNoiseClip(config));  // bit for bit
   // the 16-bit converter's output: whole steps of 1 / 32767
@@ -61,7 +61,7 @@ TEST(ReferenceNoiseClipTest, RecordsOfTheNoiseModelDeterministicInTheSeed) {
   // a robot that holds still has no motor tones: the floor alone (3.6e-5 rms plus the
   // converter's rounding)
   SonicBoomConfig still = config;
-  still.scene.mode = "stationary";
+  still.scene.mode = sim::SceneMode::kStationary;
   const Eigen::MatrixXf c = ReferenceNoiseClip(still);
   const double still_rms = std::sqrt(c.squaredNorm() / c.size());
   RecordProperty("stationary_rms", Sci(still_rms));
@@ -74,8 +74,8 @@ TEST(ReferenceNoiseClipTest, RecordsOfTheNoiseModelDeterministicInTheSeed) {
 // noise) is attenuated by more than 20 dB over a 1.5 s window, on every channel.
 TEST(ReferenceNoiseClipTest, NoiseOfAnotherSeedIsGatedByMoreThan20Db) {
   const SonicBoomConfig config = Config();
-  const acoustics::SpectralGate gate(acoustics::GatingConfig(config.features),
-                                     ReferenceNoiseClip(config), config.audio.sample_rate_hz);
+  const dsp::SpectralGate gate(dsp::GatingConfig(config.features), ReferenceNoiseClip(config),
+                               config.audio.sample_rate_hz);
   const int64_t n = std::llround(config.features.window_s * config.audio.sample_rate_hz);
   for (const char* seed : {"seed=2", "seed=3"}) {
     const Eigen::MatrixXf other = ReferenceNoiseClip(Config({seed}));

@@ -58,9 +58,9 @@ TEST(PipelineTest, ShardsMergeToTheSingleFile) {
 TEST(PipelineTest, MujocoEngineHitsWhereTheKinematicStrikeAims) {
   // the default engine is the dynamic rollout; it lands within 1 mm of the kinematic target
   SonicBoomConfig dynamic = ShortConfig();
-  ASSERT_EQ(dynamic.strike.engine, "mujoco");
+  ASSERT_EQ(dynamic.strike.engine, sim::StrikeEngine::kMujoco);
   SonicBoomConfig kinematic = dynamic;
-  kinematic.strike.engine = "kinematic";
+  kinematic.strike.engine = sim::StrikeEngine::kKinematic;
   const StrikePipeline a(dynamic), b(kinematic);
   for (uint64_t i = 0; i < 4; ++i) {
     const StrikeSample sa = a.Simulate(i), sb = b.Simulate(i);

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "internal/json_archive.h"
+#include "sonicboom/core/config_io.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/learning/learning.h"
 
@@ -219,9 +220,13 @@ TEST(ConfigTest, HeadsMustDivideWidth) {
 
 TEST(ConfigTest, OtherModelFieldsAreChecked) {
   ModelConfig config;
-  config.audio_encoder = "vgg";
-  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.audio_encoder"));
-  config = ModelConfig();
+  // an encoder outside the enum is refused where the config is read, naming the key and the names
+  const std::string unknown =
+      ConfigErrorOf([] { FromYaml<ModelConfig>("audio_encoder: vgg\n", "test.yaml"); });
+  EXPECT_THAT(unknown, HasSubstr("audio_encoder"));
+  EXPECT_THAT(unknown, HasSubstr("compact, resnet18, resnet50"));
+  EXPECT_EQ(FromYaml<ModelConfig>("audio_encoder: resnet18\n", "test.yaml").audio_encoder,
+            AudioEncoderKind::kResnet18);
   config.dropout = 1.0;
   EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.dropout"));
   config = ModelConfig();
@@ -353,12 +358,12 @@ TEST(CountParametersTest, EncodersHaveTheirTextbookSizes) {
   EXPECT_EQ(CountParameters(config, shapes).at("audio_encoder"), compact);
   // ResNet-18 trunk with a 6-channel stem: 11 176 512 (3-channel, no fc) + 3 * 64 * 49.
   const int64_t projection18 = 512 * 128 + 128 + 2 * 128 + 128 * 32 + 32;
-  config.audio_encoder = "resnet18";
+  config.audio_encoder = AudioEncoderKind::kResnet18;
   EXPECT_EQ(CountParameters(config, shapes).at("audio_encoder"),
             11176512 + 3 * 64 * 49 + projection18);
   // ResNet-50 trunk: 23 508 032 (3-channel, no fc) + 3 * 64 * 49.
   const int64_t projection50 = 2048 * 128 + 128 + 2 * 128 + 128 * 32 + 32;
-  config.audio_encoder = "resnet50";
+  config.audio_encoder = AudioEncoderKind::kResnet50;
   EXPECT_EQ(CountParameters(config, shapes).at("audio_encoder"),
             23508032 + 3 * 64 * 49 + projection50);
 }

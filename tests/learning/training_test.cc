@@ -81,7 +81,7 @@ FeatureSet MakeFeatures(int64_t n, uint64_t seed) {
 
 ModelConfig TinyModel() {
   ModelConfig config;
-  config.audio_encoder = "compact";
+  config.audio_encoder = AudioEncoderKind::kCompact;
   config.width = 32;
   config.blocks = 1;
   config.heads = 2;
@@ -523,15 +523,17 @@ TEST_F(TrainingTest, UncertaintyHeadLeavesPointsUnchangedAndOldModelFilesLoad) {
 TEST_F(TrainingTest, ResNetEncodersTrainOneEpoch) {
   const FeatureSet train = MakeFeatures(4, 5);
   const FeatureSet val = MakeFeatures(2, 6);
-  for (const char* encoder : {"resnet18", "resnet50"}) {
+  for (const AudioEncoderKind encoder :
+       {AudioEncoderKind::kResnet18, AudioEncoderKind::kResnet50}) {
     ModelConfig model = TinyModel();
     model.audio_encoder = encoder;
     model.modalities = {"audio"};
     TrainConfig config = TinyTraining(1);
     config.batch_size = 4;
     config.threads = 0;
-    const Metrics m = Train(train, val, model, config, kRadius, 1, Dir(encoder), false, false);
-    EXPECT_TRUE(std::isfinite(m.med_cm)) << encoder;
+    const std::string name(NameOf(encoder));
+    const Metrics m = Train(train, val, model, config, kRadius, 1, Dir(name), false, false);
+    EXPECT_TRUE(std::isfinite(m.med_cm)) << name;
   }
 }
 
@@ -615,7 +617,9 @@ TEST_F(TrainingTest, FineTuneRefusesAMissingOrMismatchedPretrainedRun) {
                       FineTune{Dir("pre"), FineTune::Freeze::kNone, false});
               }),
               HasSubstr("pre/model.pt: tensor"));
-  EXPECT_THROW(ParseFreeze("all"), ConfigError);
+  // the freeze choices by name, as --freeze takes them
+  EXPECT_EQ(EnumNameList<FineTune::Freeze>(), "none, encoders, all-but-head");
+  EXPECT_FALSE(EnumFromName<FineTune::Freeze>("all").has_value());
 }
 
 TEST_F(TrainingTest, KeepBestSavesTheEpochWithTheLowestValidationLoss) {

@@ -190,7 +190,7 @@ TEST(MujocoFkTest, ObjectContactsOnlyPairsEachObjectGeomWithTheTubeAndEveryCapsu
   PandaMjcfOptions options;
   // a rod and a cross (two segments)
   ObjectConfig cross;
-  cross.kind = "cross";
+  cross.kind = ObjectKind::kCross;
   options.objects.resize(2);
   options.objects[0].segments = BuildObjectGeometry(ObjectConfig{}, 0).segments;
   options.objects[1].segments = BuildObjectGeometry(cross, 0).segments;

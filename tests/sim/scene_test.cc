@@ -28,7 +28,7 @@ constexpr double kDeg = kPi / 180.0;
 
 ObjectConfig Rod(double diameter_m, double length_m) {
   ObjectConfig o;
-  o.kind = "rod";
+  o.kind = ObjectKind::kRod;
   o.diameter_m = diameter_m;
   o.length_m = length_m;
   return o;
@@ -36,32 +36,32 @@ ObjectConfig Rod(double diameter_m, double length_m) {
 
 // the three strikers of configs/materials.yaml
 std::vector<ObjectConfig> MaterialStrikers() {
-  auto striker = [](const std::string& material, double diameter_m, double wall_m, double e_pa,
+  auto striker = [](ObjectMaterial material, double diameter_m, double wall_m, double e_pa,
                     double contact_e_pa, double poisson, double density, double loss) {
     ObjectConfig o;
-    o.kind = "striker";
+    o.kind = ObjectKind::kStriker;
     o.material = material;
     o.diameter_m = diameter_m;
     o.length_m = 0.40;
     o.wall_thickness_m = wall_m;
-    o.youngs_modulus_pa = e_pa;
+    o.elastic.youngs_modulus_pa = e_pa;
     o.contact_youngs_modulus_pa = contact_e_pa;
-    o.poisson_ratio = poisson;
-    o.density_kg_m3 = density;
-    o.loss_factor = loss;
+    o.elastic.poisson_ratio = poisson;
+    o.elastic.density_kg_m3 = density;
+    o.elastic.loss_factor = loss;
     return o;
   };
-  return {striker("wood", 0.022, 0.0, 1.2e10, 1.0e9, 0.35, 650, 0.01),
-          striker("aluminium", 0.025, 0.0015, 6.9e10, 6.9e10, 0.33, 2700, 0.001),
-          striker("pvc", 0.0213, 0.0028, 3.0e9, 3.0e9, 0.38, 1400, 0.02)};
+  return {striker(ObjectMaterial::kWood, 0.022, 0.0, 1.2e10, 1.0e9, 0.35, 650, 0.01),
+          striker(ObjectMaterial::kAluminium, 0.025, 0.0015, 6.9e10, 6.9e10, 0.33, 2700, 0.001),
+          striker(ObjectMaterial::kPvc, 0.0213, 0.0028, 3.0e9, 3.0e9, 0.38, 1400, 0.02)};
 }
 
 // configs/ts3.yaml's scene: one branch structure with foliage, guided sampling around it
 SceneConfig Ts3Scene() {
   SceneConfig scene;
-  scene.mode = "guided";
+  scene.mode = SceneMode::kGuided;
   ObjectConfig branch;
-  branch.kind = "branch";
+  branch.kind = ObjectKind::kBranch;
   branch.diameter_m = 0.025;
   branch.length_m = 0.30;
   branch.branch.levels = 2;
@@ -187,7 +187,7 @@ TEST(SceneTest, RodIsOneSegmentOfItsLengthAndRadius) {
 
 TEST(SceneTest, CrossSecondRodTouchesTheFirstAtItsMiddleAtRightAngles) {
   ObjectConfig cross = Rod(0.022, 0.42);
-  cross.kind = "cross";
+  cross.kind = ObjectKind::kCross;
   cross.cross.diameter_m = 0.012;
   cross.cross.length_m = 0.50;
   const ObjectGeometry g = BuildObjectGeometry(cross, 0);
@@ -213,7 +213,7 @@ TEST(SceneTest, CrossSecondRodTouchesTheFirstAtItsMiddleAtRightAngles) {
 
 TEST(SceneTest, BranchForksByLeonardoFromParentEnds) {
   ObjectConfig tree = Rod(0.025, 0.30);
-  tree.kind = "branch";
+  tree.kind = ObjectKind::kBranch;
   BranchConfig& b = tree.branch;
   for (const auto& [levels, forks] :
        {std::pair{2, 2}, std::pair{3, 3}, std::pair{0, 2}, std::pair{1, 4}}) {
@@ -266,7 +266,7 @@ TEST(SceneTest, BranchForksByLeonardoFromParentEnds) {
 
 TEST(SceneTest, BranchShapeFollowsSeedAndVariant) {
   ObjectConfig tree = Rod(0.025, 0.30);
-  tree.kind = "branch";
+  tree.kind = ObjectKind::kBranch;
   tree.branch.levels = 3;
   tree.branch.forks = 2;
   tree.branch.variants = 4;
@@ -304,7 +304,7 @@ TEST(SceneTest, BranchShapeFollowsSeedAndVariant) {
 
 TEST(SceneTest, LeafClustersSitAlongEveryTip) {
   ObjectConfig tree = Rod(0.025, 0.30);
-  tree.kind = "branch";
+  tree.kind = ObjectKind::kBranch;
   tree.branch.levels = 2;
   tree.branch.forks = 3;
   for (const int64_t per_tip : {1, 3}) {
@@ -378,16 +378,16 @@ TEST(SceneTest, ValidateNamesTheOffendingKey) {
   ExpectConfigError([&] { scene.Validate(); }, {"scene.objects"});
   // a striker in mode strike (and guided)
   scene.objects = {Rod(0.022, 0.42), Rod(0.022, 0.42)};
-  scene.objects[1].kind = "striker";
-  for (const char* mode : {"strike", "guided"}) {
+  scene.objects[1].kind = ObjectKind::kStriker;
+  for (const SceneMode mode : {SceneMode::kStrike, SceneMode::kGuided}) {
     scene.mode = mode;
     ExpectConfigError([&] { scene.Validate(); }, {"scene.objects.1", "striker"});
   }
   // a rod in mode stationary
-  scene.mode = "stationary";
+  scene.mode = SceneMode::kStationary;
   scene.objects = MaterialStrikers();
   EXPECT_NO_THROW(scene.Validate());
-  scene.objects[1].kind = "rod";
+  scene.objects[1].kind = ObjectKind::kRod;
   ExpectConfigError([&] { scene.Validate(); }, {"scene.objects.1", "stationary"});
   // a wall as thick as the radius (and thicker)
   scene = SceneConfig{};
@@ -405,12 +405,12 @@ TEST(SceneTest, ValidateNamesTheOffendingKey) {
   ExpectConfigError([&] { scene.Validate(); }, {"scene.objects", "weights"});
   // a branch with no segment thick enough to aim at
   scene = SceneConfig{};
-  scene.objects[0].kind = "branch";
+  scene.objects[0].kind = ObjectKind::kBranch;
   scene.objects[0].branch.min_target_diameter_m = 0.03;
   ExpectConfigError([&] { scene.Validate(); }, {"scene.objects.0.branch.min_target_diameter_m"});
   // the rollouts refuse the mode they do not simulate
   scene = SceneConfig{};
-  scene.mode = "stationary";
+  scene.mode = SceneMode::kStationary;
   scene.objects = MaterialStrikers();
   ExpectConfigError(
       [&] { StrikeRollout(TubeConfig{}, AudioConfig{}, StrikeConfig{}, scene, RolloutConfig{}); },
@@ -512,7 +512,7 @@ TEST(SceneRolloutTest, LateralStrikesSweepJointSix) {
 TEST(SceneRolloutTest, CrossIsStruckOnItsFirstRod) {
   SceneConfig scene;
   ObjectConfig cross = Rod(0.022, 0.42);
-  cross.kind = "cross";
+  cross.kind = ObjectKind::kCross;
   cross.cross.diameter_m = 0.012;
   cross.cross.length_m = 0.42;
   scene.objects = {cross};
@@ -548,7 +548,7 @@ TEST(SceneRolloutTest, CrossIsStruckOnItsFirstRod) {
 TEST(SceneRolloutTest, HandStrikesHitTheCommandedGridPoints) {
   const TubeConfig tube;
   SceneConfig scene;
-  scene.mode = "stationary";
+  scene.mode = SceneMode::kStationary;
   scene.objects = MaterialStrikers();
   const StationaryConfig& sc = scene.stationary;
   const StrikeConfig strike;
@@ -595,12 +595,13 @@ TEST(SceneRolloutTest, HandStrikesHitTheCommandedGridPoints) {
     EXPECT_LT(first.effective_mass_kg, striker_kg);
     EXPECT_GT(first.impulse_Ns, 0.0);
     for (const ContactRecord& c : r.contacts) {
-      EXPECT_EQ(c.material, striker.material);
+      EXPECT_EQ(c.material, NameOf(striker.material));
       EXPECT_EQ(c.object, striker.DisplayName());
-      EXPECT_EQ(c.object.rfind("striker " + striker.material, 0), 0u) << c.object;
+      EXPECT_EQ(c.object.rfind("striker " + std::string(NameOf(striker.material)), 0), 0u)
+          << c.object;
       EXPECT_DOUBLE_EQ(c.segment_radius_m, 0.5 * striker.diameter_m);
     }
-    materials.insert(striker.material);
+    materials.insert(std::string(NameOf(striker.material)));
   }
   PrintReasons("hand strikes", results);
   std::cout << "approach speed " << speed_lo << " .. " << speed_hi << " m/s\n";
@@ -680,7 +681,7 @@ TEST(SceneRolloutTest, GuidedTapsAroundTheCanopyBrushLeavesAndHitBranches) {
 TEST(SceneRolloutTest, ObjectOverlappingTheArmAtTheStartIsInvalid) {
   // guided: a long rod through the robot's base, far below the tube's plane
   SceneConfig scene;
-  scene.mode = "guided";
+  scene.mode = SceneMode::kGuided;
   scene.objects = {Rod(0.02, 2.0)};
   scene.guided.object_position_m = {-1.0, 0.0, 0.03};
   scene.guided.layer_m = 1.0;

@@ -17,6 +17,13 @@
 namespace sonicboom::acoustics {
 
 /// Keys under "acoustics.contact".
+enum class ContactWall { kCoupled, kRigid };
+inline constexpr EnumName<ContactWall> kContactWallNames[] = {{ContactWall::kCoupled, "coupled"},
+                                                              {ContactWall::kRigid, "rigid"}};
+inline std::span<const EnumName<ContactWall>> EnumNames(ContactWall) {
+  return kContactWallNames;
+}
+
 struct ContactConfig {
   int64_t substeps_per_duration{200};     // substeps per rigid-target Hertz duration (>= 50)
   int64_t min_substeps{4};                // per audio sample, at least
@@ -24,9 +31,9 @@ struct ContactConfig {
   double separation_window_s{0.002};      // stop once apart this long without re-contact
   double max_duration_s{0.05};            // a contact still closed after this is an error
   double beam_max_frequency_hz{20000.0};  // striker beam modes kept up to here
-  // the tube side of the contact: "coupled" (the wall's modes at the point, so the wall yields)
-  // or "rigid" (a held half-space: the classic Hertz pulse, the wall's modes only listen)
-  std::string wall{"coupled"};
+  // the tube side of the contact: coupled (the wall's modes at the point, so the wall yields)
+  // or rigid (a held half-space: the classic Hertz pulse, the wall's modes only listen)
+  ContactWall wall{ContactWall::kCoupled};
 
   void Serialize(Archive* a);
 };

@@ -26,11 +26,11 @@ struct ShellMode {
 std::vector<ShellMode> SimplySupportedModes(const TubeConfig& tube, const MaterialConfig& material,
                                             double max_frequency_hz);
 
-/// Frequencies of the lowest `count` modes of a boundary ("simply-supported" or "free"),
-/// ascending, degenerate pairs listed twice. "free" lists Rayleigh's inextensional families
+/// Frequencies of the lowest `count` modes of a tube with `ends`, ascending, degenerate pairs
+/// listed twice. Free ends list Rayleigh's inextensional families
 /// n = 2, 3, ... (m = 0 and m = 1).
 std::vector<double> ClosedFormFrequencies(const TubeConfig& tube, const MaterialConfig& material,
-                                          const std::string& boundary, int count);
+                                          TubeEnds ends, int count);
 
 /// Rayleigh's free-free inextensional frequency f_n0 (Hz), n >= 2.
 double RayleighFrequency(const TubeConfig& tube, const MaterialConfig& material, int n);

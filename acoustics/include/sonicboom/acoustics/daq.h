@@ -88,4 +88,18 @@ class DaqChain {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Sample indices reserved for the spectral gate's reference noise clip: record r of the clip
+/// has seed SampleSeed(seed, kReferenceNoiseIndex - r), r < kReferenceNoiseRecords. No dataset
+/// sample has them (indices are stored as int64 >= 0, and dataset.first_index <= 1e15).
+inline constexpr uint64_t kReferenceNoiseIndex = ~uint64_t{0};
+inline constexpr int64_t kReferenceNoiseRecords = 8;
+
+/// The noise model's no-contact recording, (channels x kReferenceNoiseRecords * frames): each
+/// record is the chain on zero strain with the motor at joint_speed_rad_s (sampled at
+/// joint_speed_rate_hz; empty: no motor), and draws its own per-strike channel gains and tone
+/// phases from SampleSeed(seed, kReferenceNoiseIndex - r). Deterministic in its arguments.
+Eigen::MatrixXf NoiseModelClip(const DaqChain& daq, int channels, int64_t frames,
+                               std::span<const double> joint_speed_rad_s,
+                               double joint_speed_rate_hz, uint64_t seed);
+
 }  // namespace sonicboom::acoustics

@@ -31,32 +31,46 @@
 
 namespace sonicboom::acoustics {
 
+enum class BoltModel { kPoint, kTie };
+inline constexpr EnumName<BoltModel> kBoltModelNames[] = {{BoltModel::kPoint, "point"},
+                                                          {BoltModel::kTie, "tie"}};
+inline std::span<const EnumName<BoltModel>> EnumNames(BoltModel) {
+  return kBoltModelNames;
+}
+
+enum class DampingModel { kLaw, kRayleigh };
+inline constexpr EnumName<DampingModel> kDampingModelNames[] = {
+    {DampingModel::kLaw, "law"}, {DampingModel::kRayleigh, "rayleigh"}};
+inline std::span<const EnumName<DampingModel>> EnumNames(DampingModel) {
+  return kDampingModelNames;
+}
+
 /// Keys under "shell": the discretized tube structure.
 struct ShellConfig {
-  double grid_spacing_m{0.0025};                    // target arc spacing of the grid
-  double axial_spacing_m{0.005};                    // target axial spacing; 0 = grid_spacing_m
-  std::string ends{"free"};                         // free | simply-supported (both ends)
+  double grid_spacing_m{0.0025};  // target arc spacing of the grid
+  double axial_spacing_m{0.005};  // target axial spacing; 0 = grid_spacing_m
+  TubeEnds ends{TubeEnds::kFree};
   bool ideal{false};                                // uniform tube: no seam, holes, bolts or mounts
   std::vector<double> seam_theta_deg{90.0, 270.0};  // saw cuts (the tube is split in halves)
   std::vector<double> bolt_z_m{-0.1, 0.0, 0.1};     // bolts along every seam, tube frame
   double bolt_stiffness_n_m{2.0e6};                 // per bolt and direction (axial, arc, radial)
   std::vector<double> bolt_stiffness_scale;  // per bolt_z_m entry: x bolt_stiffness_n_m; [] = 1
-  // "point": each bolt is three springs at one grid row; "tie": its stiffness spread evenly over
+  // point: each bolt is three springs at one grid row; tie: its stiffness spread evenly over
   // the rows within bolt_tie_length_m (a clamped washer, or a glued or riveted seam strip)
-  std::string bolt_model{"point"};
+  BoltModel bolt_model{BoltModel::kPoint};
   double bolt_tie_length_m{0.02};
   std::vector<double> hole_z_m{-0.146, -0.146, -0.146, 0.146, 0.146, 0.146};
   std::vector<double> hole_theta_deg{0.0, 120.0, 240.0, 0.0, 120.0, 240.0};
   double hole_diameter_m{0.006};              // cable holes beside the discs
   double flange_mount_stiffness_n_m2{5.0e6};  // springs to ground per metre of the flange-end rim
   double tool_mount_stiffness_n_m2{1.0e6};    // the same at the tool end (cap)
-  // loss, eta(f) = 2 zeta(f). "law": every mode of the modal rung has the loss of the law
+  // loss, eta(f) = 2 zeta(f). law: every mode of the modal rung has the loss of the law
   // eta(f) = material.loss_factor (f / loss_reference_hz)^loss_exponent (0: constant eta, PVC's
   // nearly flat loss); the FD rung, whose damping matrix is C = alpha M + beta K, uses the
   // Rayleigh curve through the law at loss_low_hz and loss_high_hz (docs/shell.md gives its
-  // error). "rayleigh": both rungs use the Rayleigh curve through material.loss_factor at
+  // error). rayleigh: both rungs use the Rayleigh curve through material.loss_factor at
   // loss_low_hz and loss_factor_high (0 = material.loss_factor) at loss_high_hz.
-  std::string damping{"law"};
+  DampingModel damping{DampingModel::kLaw};
   double loss_exponent{0.0};
   double loss_reference_hz{2000.0};
   double loss_low_hz{1000.0};
@@ -140,7 +154,7 @@ class ShellModel {
   Eigen::VectorXd mass_kg_;
   Eigen::SparseMatrix<double> stiffness_;
   double alpha_{0.0}, beta_{0.0};
-  bool loss_law_{true};  // shell.damping == "law"
+  bool loss_law_{true};  // shell.damping is law
   std::string key_;
 };
 

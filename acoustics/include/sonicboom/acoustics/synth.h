@@ -21,12 +21,28 @@
 
 namespace sonicboom::acoustics {
 
+/// The band derived from a contact (acoustics.band_factor, docs/acoustics.md), Hz: band_factor
+/// times the first spectral minimum of the contact force, about 1.8 / t_c for a first closure of
+/// t_c s. The one rule every renderer and study uses; callers clip it to the modes they have.
+inline double ContactBandHz(double band_factor, double first_closure_s) {
+  return band_factor * 1.8 / first_closure_s;
+}
+
+/// The vibration model. modal: the discretized shell's numerical modes (shell.h), the production
+/// rung; fd: the finite-difference solver of the same shell, the reference; modal-closed-form:
+/// ideal simply-supported tube, Flügge modes (the first rung, no seam).
+enum class VibrationModel { kModal, kFd, kModalClosedForm };
+inline constexpr EnumName<VibrationModel> kVibrationModelNames[] = {
+    {VibrationModel::kModal, "modal"},
+    {VibrationModel::kFd, "fd"},
+    {VibrationModel::kModalClosedForm, "modal-closed-form"}};
+inline std::span<const EnumName<VibrationModel>> EnumNames(VibrationModel) {
+  return kVibrationModelNames;
+}
+
 /// Vibration model fidelity: the rung of the ladder (docs/fidelity.md). Keys under "acoustics".
 struct SynthConfig {
-  // modal: the discretized shell's numerical modes (shell.h), the production rung;
-  // fd: the finite-difference solver of the same shell, the reference;
-  // modal-closed-form: ideal simply-supported tube, Flügge modes (the first rung, no seam)
-  std::string model{"modal"};
+  VibrationModel model{VibrationModel::kModal};
   double max_frequency_hz{0.0};   // mode band; 0 = derive from the contact (and Nyquist)
   int64_t mode_count{0};          // modal: play the lowest N modes (overrides the band)
   double band_factor{8.0};        // auto band = band_factor x first spectral minimum (1.8 / t_c);

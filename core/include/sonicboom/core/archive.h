@@ -9,11 +9,51 @@
 #include <cstdint>
 #include <limits>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 namespace sonicboom {
+
+/// One value of a config enum and its name in YAML. Every enum a config holds declares, in its
+/// own namespace, `std::span<const EnumName<E>> EnumNames(E)` listing each value once (found by
+/// argument-dependent lookup); Archive::Visit reads and writes it by name.
+template <typename E>
+struct EnumName {
+  E value;
+  std::string_view name;
+};
+
+/// The YAML name of an enum value (names of values missing from the table are empty).
+template <typename E>
+requires std::is_enum_v<E> std::string_view NameOf(E value) {
+  for (const EnumName<E>& e : EnumNames(E{})) {
+    if (e.value == value) return e.name;
+  }
+  return {};
+}
+
+/// The enum value named `name`, or nullopt when no value has that name.
+template <typename E>
+requires std::is_enum_v<E> std::optional<E> EnumFromName(std::string_view name) {
+  for (const EnumName<E>& e : EnumNames(E{})) {
+    if (e.name == name) return e.value;
+  }
+  return std::nullopt;
+}
+
+/// Every name of an enum in table order, joined by ", " (for messages and help texts).
+template <typename E>
+requires std::is_enum_v<E> std::string EnumNameList() {
+  std::string list;
+  for (const EnumName<E>& e : EnumNames(E{})) {
+    if (!list.empty()) list += ", ";
+    list += e.name;
+  }
+  return list;
+}
 
 /// Allowed range of a numeric config value; checked when a config is read.
 struct Bounds {
@@ -49,9 +89,23 @@ class Archive {
   virtual void VisitChoice(std::string_view name, std::string* value,
                            const std::vector<std::string>& choices) = 0;
 
+  /// An enum (EnumNames above): written by name; read by name, any other value refused naming
+  /// the key and the allowed names.
+  template <typename E>
+  requires std::is_enum_v<E>
+  void Visit(std::string_view name, E* value) {
+    std::vector<std::string> names;
+    for (const EnumName<E>& e : EnumNames(E{})) names.emplace_back(e.name);
+    std::string chosen(NameOf(*value));
+    VisitChoice(name, &chosen, names);
+    for (const EnumName<E>& e : EnumNames(E{})) {
+      if (e.name == chosen) *value = e.value;
+    }
+  }
+
   /// A nested config struct with its own Serialize.
   template <typename T>
-  void Visit(std::string_view name, T* value) {
+  requires(!std::is_enum_v<T>) void Visit(std::string_view name, T* value) {
     BeginGroup(name);
     value->Serialize(this);
     EndGroup();

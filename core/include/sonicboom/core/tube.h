@@ -27,6 +27,15 @@ struct TubeConfig {
 };
 
 /// Isotropic linear-elastic material with a constant loss factor.
+/// How the tube's ends are held: free (the production tube on its mounts) or simply supported
+/// (both ends; the textbook case the modal checks compare against).
+enum class TubeEnds { kFree, kSimplySupported };
+inline constexpr EnumName<TubeEnds> kTubeEndsNames[] = {
+    {TubeEnds::kFree, "free"}, {TubeEnds::kSimplySupported, "simply-supported"}};
+inline std::span<const EnumName<TubeEnds>> EnumNames(TubeEnds) {
+  return kTubeEndsNames;
+}
+
 struct MaterialConfig {
   double youngs_modulus_pa{3.0e9};
   double poisson_ratio{0.38};

@@ -6,7 +6,11 @@
 #include <string>
 #include <vector>
 
+#include "sonicboom/core/archive.h"
+#include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/config.h"
+#include "sonicboom/hardware/import.h"
+#include "sonicboom/learning/learning.h"
 
 namespace sonicboom::experiments {
 
@@ -30,8 +34,7 @@ CommandResult RunGenerate(const GlobalOptions& g, const std::string& out, int64_
 CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
                        const std::vector<std::string>& shards);
 CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index);
-CommandResult RunModes(const GlobalOptions& g, const std::string& boundary, bool ideal,
-                       int64_t count);
+CommandResult RunModes(const GlobalOptions& g, TubeEnds ends, bool ideal, int64_t count);
 /// The fidelity ladder's speed-accuracy table (docs/fidelity.md): every rung against the finest
 /// FD reference on `strikes` test strikes over `window_s` after the onset.
 CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
@@ -53,14 +56,22 @@ struct AblateOptions {
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o);
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv);
+/// A fine-tune's per-mic mel statistics: the pretrained run's, or refitted on the target data.
+enum class NormPolicy { kKeep, kRefit };
+inline constexpr EnumName<NormPolicy> kNormPolicyNames[] = {{NormPolicy::kKeep, "keep"},
+                                                            {NormPolicy::kRefit, "refit"}};
+inline std::span<const EnumName<NormPolicy>> EnumNames(NormPolicy) {
+  return kNormPolicyNames;
+}
+
 /// `train`: a fresh run, or a fine-tune of a pretrained run (--init-from).
 struct TrainOptions {
   std::string data;  // dataset (.h5)
   std::string out;   // run directory
   bool resume{false};
-  std::string init_from;       // pretrained run directory; empty: from scratch
-  std::string freeze{"none"};  // none | encoders | all-but-head
-  std::string norm{"keep"};    // keep | refit: the per-mic mel statistics of a fine-tune
+  std::string init_from;  // pretrained run directory; empty: from scratch
+  learning::FineTune::Freeze freeze{learning::FineTune::Freeze::kNone};
+  NormPolicy norm{NormPolicy::kKeep};
 };
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
@@ -70,9 +81,21 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
 CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav);
 CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
                           const std::string& wav, const std::string& proprio_csv, int64_t repeat);
+/// The baselines (docs/baselines.md): kNN on pooled log-mel, steered TDOA, the training-free
+/// arrival locator, a constant.
+enum class BaselineMethod { kKnn, kTdoa, kArrival, kConstant };
+inline constexpr EnumName<BaselineMethod> kBaselineMethodNames[] = {
+    {BaselineMethod::kKnn, "knn"},
+    {BaselineMethod::kTdoa, "tdoa"},
+    {BaselineMethod::kArrival, "arrival"},
+    {BaselineMethod::kConstant, "constant"}};
+inline std::span<const EnumName<BaselineMethod>> EnumNames(BaselineMethod) {
+  return kBaselineMethodNames;
+}
+
 /// Options of `sonicboom baseline` (docs/baselines.md).
 struct BaselineOptions {
-  std::string method;            // knn | tdoa | constant
+  BaselineMethod method{BaselineMethod::kKnn};
   std::string train;             // training dataset: knn and constant need it; tdoa
                                  // fits its speed scale on it when given
   std::string data;              // held-out dataset
@@ -91,10 +114,10 @@ CommandResult RunFk(const GlobalOptions& g, const std::string& joints);
 /// `import`: recorded strikes (a published trial directory or our capture layout) into a
 /// dataset; `export`: a dataset into the published trial layout (docs/captures.md).
 struct ImportOptions {
-  std::string layout{"trial"};           // trial | capture
-  std::string in;                        // directory
-  std::string out;                       // dataset (.h5)
-  std::string angle_convention{"tube"};  // tube | j7
+  hardware::Layout layout{hardware::Layout::kTrial};
+  std::string in;   // directory
+  std::string out;  // dataset (.h5)
+  hardware::AngleConvention angle_convention{hardware::AngleConvention::kTube};
   double min_duration_s{1.5};
   std::string object;                 // labels from geometry: mesh or point cloud (trial layout)
   double object_scale{1.0};           // object file units to metres (0.001: millimetres)
@@ -123,8 +146,8 @@ struct ListenOptions {
 CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std::string& out_md,
                                const std::string& scenes_dir);
 CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o);
-CommandResult RunExport(const GlobalOptions& g, const std::string& layout, const std::string& in,
-                        const std::string& out, const std::string& angle_convention);
+CommandResult RunExport(const GlobalOptions& g, const std::string& in, const std::string& out,
+                        hardware::AngleConvention angle_convention);
 CommandResult RunInspect(const GlobalOptions& g, const std::string& path);
 /// `config`: the resolved config as YAML; with `markdown_sections` (comma-separated top-level
 /// sections) a Markdown table of their keys and values instead.

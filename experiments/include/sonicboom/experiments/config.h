@@ -8,12 +8,12 @@
 #include <vector>
 
 #include "sonicboom/acoustics/arrival.h"
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/acoustics/randomize.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/archive.h"
 #include "sonicboom/core/tube.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/learning/learning.h"
 #include "sonicboom/sim/rollout.h"
 #include "sonicboom/sim/scene.h"
@@ -57,7 +57,7 @@ struct SonicBoomConfig {
   acoustics::NoiseConfig noise;
   acoustics::RandomizeConfig randomize;  // per-sample structure, striker and sensor draws
   acoustics::ArrivalConfig arrival;      // the training-free arrival locator (a baseline)
-  acoustics::FeatureConfig features;
+  dsp::FeatureConfig features;
   learning::ModelConfig model;
   learning::TrainConfig train;
   DatasetConfig dataset;

@@ -51,22 +51,16 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
                                int64_t count, int64_t first_index, int64_t shard,
                                int64_t num_shards, int threads, bool show_progress);
 
-/// Sample indices reserved for the spectral gate's reference noise clip: record r of the clip
-/// has seed SampleSeed(seed, kReferenceNoiseIndex - r), r < kReferenceNoiseRecords. No dataset
-/// sample has them (indices are stored as int64 >= 0, and dataset.first_index <= 1e15).
-inline constexpr uint64_t kReferenceNoiseIndex = ~uint64_t{0};
-inline constexpr int64_t kReferenceNoiseRecords = 8;
-
 /// The reference noise clip the feature path gates against (features.gating), (mics x samples)
 /// at audio.sample_rate_hz. With features.gating_noise_wav set: that WAV (a no-contact recording,
 /// one channel per mic, at the audio rate, at least features.gating_n_fft frames, finite), errors
-/// naming the key and the file. Otherwise kReferenceNoiseRecords records (audio.record_duration_s
-/// each) of the noise model with no contact, end to end: the DAQ chain (daq.*, noise.*: ambient
-/// and preamp floor, motor tones, recorded noise, converter) on zero strain, the motor held at
-/// the peak joint speed of a minimum-jerk sweep of the mean angle (strike.sweep_min_deg,
-/// sweep_max_deg) over strike.sweep_duration_s, no motor when scene.mode is stationary. Each
-/// record draws its own per-strike channel gains and tone phases, so that the thresholds cover
-/// their spread. Deterministic in the config.
+/// naming the key and the file. Otherwise acoustics::NoiseModelClip: kReferenceNoiseRecords records
+/// (audio.record_duration_s each) of the noise model with no contact, end to end: the DAQ chain
+/// (daq.*, noise.*: ambient and preamp floor, motor tones, recorded noise, converter) on zero
+/// strain, the motor held at the peak joint speed of a minimum-jerk sweep of the mean angle
+/// (strike.sweep_min_deg, sweep_max_deg) over strike.sweep_duration_s, no motor when scene.mode is
+/// stationary. Each record draws its own per-strike channel gains and tone phases, so that the
+/// thresholds cover their spread. Deterministic in the config.
 Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config);
 
 /// Features of the valid samples of a dataset file (rows in file order), with labels.

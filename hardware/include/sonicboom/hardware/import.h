@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "sonicboom/core/archive.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/hardware/geometry.h"
 
@@ -22,12 +23,20 @@ namespace sonicboom::hardware {
 /// xdot_t.npy, optional q_t.npy); `capture` is ours (WAVs, labels.csv, optional robot logs and
 /// noise.wav, capture.yaml).
 enum class Layout { kTrial, kCapture };
+inline constexpr EnumName<Layout> kLayoutNames[] = {{Layout::kTrial, "trial"},
+                                                    {Layout::kCapture, "capture"}};
+inline std::span<const EnumName<Layout>> EnumNames(Layout) {
+  return kLayoutNames;
+}
 /// Angle of a trial's gt_label: `tube` is docs/conventions.md's θ; `j7` is the published joint-7
 /// angle θ_j7 with θ_tube = −θ_j7 − 50°.
 enum class AngleConvention { kTube, kJ7 };
+inline constexpr EnumName<AngleConvention> kAngleConventionNames[] = {
+    {AngleConvention::kTube, "tube"}, {AngleConvention::kJ7, "j7"}};
+inline std::span<const EnumName<AngleConvention>> EnumNames(AngleConvention) {
+  return kAngleConventionNames;
+}
 
-Layout ParseLayout(const std::string& name);                    // ConfigError naming the value
-AngleConvention ParseAngleConvention(const std::string& name);  // ConfigError naming the value
 /// θ_tube from a stored angle and back (wrapped to (−π, π]).
 double TubeAngleFrom(double stored_rad, AngleConvention convention);
 double StoredAngleFrom(double tube_rad, AngleConvention convention);

@@ -1,7 +1,7 @@
 #pragma once
 /// Learning: the multimodal localization network (libtorch stays inside learning/*.cc),
 /// training, evaluation and localization. Inputs are features already computed by
-/// sonicboom::acoustics::FeatureExtractor plus proprioception windows.
+/// sonicboom::dsp::FeatureExtractor plus proprioception windows.
 
 #include <cstdint>
 #include <limits>
@@ -14,19 +14,36 @@
 
 namespace sonicboom::learning {
 
+/// The mel-spectrogram encoder: the compact CNN, or ResNet-18/50 with 6 input channels.
+enum class AudioEncoderKind { kCompact, kResnet18, kResnet50 };
+inline constexpr EnumName<AudioEncoderKind> kAudioEncoderKindNames[] = {
+    {AudioEncoderKind::kCompact, "compact"},
+    {AudioEncoderKind::kResnet18, "resnet18"},
+    {AudioEncoderKind::kResnet50, "resnet50"}};
+inline std::span<const EnumName<AudioEncoderKind>> EnumNames(AudioEncoderKind) {
+  return kAudioEncoderKindNames;
+}
+
+/// The GCC-PHAT token: mlp (the whole (rows x lags) map flattened into three linear layers) or
+/// conv (three 1-D convolutions over the lags, the rows as channels, then one linear layer: far
+/// fewer weights, less room to memorize one structure's correlation details).
+enum class GccEncoderKind { kMlp, kConv };
+inline constexpr EnumName<GccEncoderKind> kGccEncoderKindNames[] = {
+    {GccEncoderKind::kMlp, "mlp"}, {GccEncoderKind::kConv, "conv"}};
+inline std::span<const EnumName<GccEncoderKind>> EnumNames(GccEncoderKind) {
+  return kGccEncoderKindNames;
+}
+
 /// Network shape. Cheaper settings trade accuracy for speed.
 struct ModelConfig {
-  std::string audio_encoder{"compact"};  // compact | resnet18 | resnet50 (6 input channels)
-  int64_t width{256};                    // transformer width (token size)
-  int64_t blocks{6};                     // pre-norm transformer blocks
+  AudioEncoderKind audio_encoder{AudioEncoderKind::kCompact};
+  int64_t width{256};  // transformer width (token size)
+  int64_t blocks{6};   // pre-norm transformer blocks
   int64_t heads{8};
   double dropout{0.1};
   std::vector<std::string> modalities{"audio", "gcc", "proprio"};  // any non-empty subset
   int64_t crop_frames{345};  // mel frames seen by the network (centre crop)
-  // GCC-PHAT token: "mlp" (the whole (rows x lags) map flattened into three linear layers) or
-  // "conv" (three 1-D convolutions over the lags, the rows as channels, then one linear layer:
-  // far fewer weights, less room to memorize one structure's correlation details)
-  std::string gcc_encoder{"mlp"};
+  GccEncoderKind gcc_encoder{GccEncoderKind::kMlp};
 
   void Serialize(Archive* a);
   /// Checks every field and the cross-field rules (heads divide width, known modalities);
@@ -162,8 +179,13 @@ struct FineTune {
   bool refit_normalization{false};  // false: keep the pretrained per-mic mel statistics;
                                     // true: recompute them on the target's training split
 };
-/// "none" | "encoders" | "all-but-head"; ConfigError naming the value otherwise.
-FineTune::Freeze ParseFreeze(const std::string& name);
+inline constexpr EnumName<FineTune::Freeze> kFreezeNames[] = {
+    {FineTune::Freeze::kNone, "none"},
+    {FineTune::Freeze::kEncoders, "encoders"},
+    {FineTune::Freeze::kAllButHead, "all-but-head"}};
+inline std::span<const EnumName<FineTune::Freeze>> EnumNames(FineTune::Freeze) {
+  return kFreezeNames;
+}
 
 /// Trains on `train`, validates on `val` each epoch, writes into run_dir:
 /// model.pt (weights + normalization), model.json (ModelConfig + shapes + tube radius +

@@ -49,24 +49,54 @@ struct BranchConfig {
   void Serialize(Archive* a);
 };
 
+enum class ObjectKind { kRod, kCross, kBranch, kStriker };
+inline constexpr EnumName<ObjectKind> kObjectKindNames[] = {{ObjectKind::kRod, "rod"},
+                                                            {ObjectKind::kCross, "cross"},
+                                                            {ObjectKind::kBranch, "branch"},
+                                                            {ObjectKind::kStriker, "striker"}};
+inline std::span<const EnumName<ObjectKind>> EnumNames(ObjectKind) {
+  return kObjectKindNames;
+}
+
+/// Where a rod or cross is held: at its base (a cantilever) or at both ends.
+enum class Clamp { kOneEnd, kBothEnds };
+inline constexpr EnumName<Clamp> kClampNames[] = {{Clamp::kOneEnd, "one_end"},
+                                                  {Clamp::kBothEnds, "both_ends"}};
+inline std::span<const EnumName<Clamp>> EnumNames(Clamp) {
+  return kClampNames;
+}
+
+/// The material family an object is named after; its values are the object's `elastic` fields.
+enum class ObjectMaterial { kWood, kAluminium, kPvc };
+inline constexpr EnumName<ObjectMaterial> kObjectMaterialNames[] = {
+    {ObjectMaterial::kWood, "wood"},
+    {ObjectMaterial::kAluminium, "aluminium"},
+    {ObjectMaterial::kPvc, "pvc"}};
+inline std::span<const EnumName<ObjectMaterial>> EnumNames(ObjectMaterial) {
+  return kObjectMaterialNames;
+}
+
 /// One object of a scene: a clamped rod, a cross, a branch structure or a hand-held striker.
-/// Materials: wood (side-grain contact modulus), aluminium, pvc; values are per object.
+/// Materials: wood (side-grain contact modulus), aluminium, pvc; values are per object. The
+/// elastic values are the tube's MaterialConfig fields, read under the same keys as the object's
+/// own (youngs_modulus_pa, poisson_ratio, density_kg_m3, loss_factor), with the object's bounds.
 struct ObjectConfig {
-  std::string kind{"rod"};   // rod | cross | branch | striker
+  ObjectKind kind{ObjectKind::kRod};
   std::string name;          // "" = derived, e.g. "rod T22L42"
   double weight{1.0};        // relative probability of being drawn
   double diameter_m{0.022};  // rod, trunk or striker outer diameter
   double length_m{0.42};
-  double wall_thickness_m{0.0};             // 0 = solid; a pipe otherwise
-  std::string clamp{"one_end"};             // one_end | both_ends (rods and crosses)
-  std::string material{"wood"};             // wood | aluminium | pvc
-  double youngs_modulus_pa{1.0e10};         // bending stiffness (along the grain for wood)
+  double wall_thickness_m{0.0};  // 0 = solid; a pipe otherwise
+  Clamp clamp{Clamp::kOneEnd};   // rods and crosses
+  ObjectMaterial material{ObjectMaterial::kWood};
+  // youngs_modulus_pa: bending stiffness (along the grain for wood)
+  MaterialConfig elastic{.youngs_modulus_pa = 1.0e10,
+                         .poisson_ratio = 0.35,
+                         .density_kg_m3 = 650.0,
+                         .loss_factor = 0.01};
   double contact_youngs_modulus_pa{1.0e9};  // at the contact surface (side grain for wood)
-  double poisson_ratio{0.35};
-  double density_kg_m3{650.0};
-  double loss_factor{0.01};
-  CrossConfig cross;    // kind cross only
-  BranchConfig branch;  // kind branch only
+  CrossConfig cross;                        // kind cross only
+  BranchConfig branch;                      // kind branch only
 
   void Serialize(Archive* a);
   /// Throws ConfigError naming `key` (e.g. "scene.objects.2") and the offending field.
@@ -115,8 +145,17 @@ struct GuidedConfig {
   void Validate() const;
 };
 
+/// How strikes are made (the modes at the top of this file).
+enum class SceneMode { kStrike, kStationary, kGuided };
+inline constexpr EnumName<SceneMode> kSceneModeNames[] = {{SceneMode::kStrike, "strike"},
+                                                          {SceneMode::kStationary, "stationary"},
+                                                          {SceneMode::kGuided, "guided"}};
+inline std::span<const EnumName<SceneMode>> EnumNames(SceneMode) {
+  return kSceneModeNames;
+}
+
 struct SceneConfig {
-  std::string mode{"strike"};                         // strike | stationary | guided
+  SceneMode mode{SceneMode::kStrike};
   std::vector<ObjectConfig> objects{ObjectConfig{}};  // default: one T22L42 wooden rod
   StationaryConfig stationary;
   GuidedConfig guided;

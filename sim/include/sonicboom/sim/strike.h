@@ -22,10 +22,29 @@ namespace sonicboom::sim {
 /// Motions, one drawn per strike from `motions`: sweep (joint 1 towards +, the reference strike),
 /// opposite (joint 1 towards -, the paper's opposite-side strikes) and lateral (joint 6, either
 /// way, the paper's lateral variant). Tilted strikes: tilt_max_deg > 0.
+/// mujoco: dynamic rollout (rollout.h); kinematic: DH only.
+enum class StrikeEngine { kMujoco, kKinematic };
+inline constexpr EnumName<StrikeEngine> kStrikeEngineNames[] = {
+    {StrikeEngine::kMujoco, "mujoco"}, {StrikeEngine::kKinematic, "kinematic"}};
+inline std::span<const EnumName<StrikeEngine>> EnumNames(StrikeEngine) {
+  return kStrikeEngineNames;
+}
+
+/// The motions above.
+enum class StrikeMotion { kSweep, kOpposite, kLateral };
+inline constexpr EnumName<StrikeMotion> kStrikeMotionNames[] = {
+    {StrikeMotion::kSweep, "sweep"},
+    {StrikeMotion::kOpposite, "opposite"},
+    {StrikeMotion::kLateral, "lateral"}};
+inline std::span<const EnumName<StrikeMotion>> EnumNames(StrikeMotion) {
+  return kStrikeMotionNames;
+}
+
 struct StrikeConfig {
-  std::string engine{"mujoco"};  // mujoco: dynamic rollout (rollout.h); kinematic: DH only
+  StrikeEngine engine{StrikeEngine::kMujoco};
   std::vector<double> home_joints_rad{1.2614, -0.8973, -0.0474, -2.3464, -0.0790, 1.4341, -1.7109};
-  std::vector<std::string> motions{"sweep", "opposite"};  // drawn uniformly per strike
+  // drawn uniformly per strike, by name (StrikeMotion)
+  std::vector<std::string> motions{"sweep", "opposite"};
   double sweep_min_deg{12.0};  // joint goal beyond the object, uniform in [min, max]
   double sweep_max_deg{16.0};
   double sweep_duration_s{1.0};       // minimum-jerk profile to the goal
@@ -43,15 +62,15 @@ struct StrikeConfig {
 
 /// The random part of one strike, drawn from its sample seed; both strike engines start here.
 struct StrikeDraw {
-  Eigen::Matrix<double, 7, 1> q0;  // rad: home pose with the drawn joint 7 and tilt
-  std::string motion{"sweep"};     // one of StrikeConfig::motions
-  int joint{0};                    // swept joint, 0-based (0: joint 1, 5: joint 6)
-  double side{1.0};                // sweep direction (+-1)
-  double sweep_rad{0.0};           // goal magnitude of the swept joint
-  double contact_fraction{0.5};    // contact at this fraction of the sweep time
-  double z_m{0.0};                 // contact height, tube frame
-  double angle_offset_rad{0.0};    // object offset from the motion direction
-  double onset_s{0.0};             // contact time on the audio clock
+  Eigen::Matrix<double, 7, 1> q0;             // rad: home pose with the drawn joint 7 and tilt
+  StrikeMotion motion{StrikeMotion::kSweep};  // one of StrikeConfig::motions
+  int joint{0};                               // swept joint, 0-based (0: joint 1, 5: joint 6)
+  double side{1.0};                           // sweep direction (+-1)
+  double sweep_rad{0.0};                      // goal magnitude of the swept joint
+  double contact_fraction{0.5};               // contact at this fraction of the sweep time
+  double z_m{0.0};                            // contact height, tube frame
+  double angle_offset_rad{0.0};               // object offset from the motion direction
+  double onset_s{0.0};                        // contact time on the audio clock
   // the object (stream Stream::kScene)
   int object{0};         // index into scene.objects
   int64_t variant{0};    // its geometry variant (branch structures)
@@ -61,6 +80,13 @@ struct StrikeDraw {
 /// Draws a strike (deterministic in sample_seed; streams Stream::kStrike and Stream::kScene).
 StrikeDraw DrawStrike(uint64_t sample_seed, const StrikeConfig& strike, const SceneConfig& scene,
                       const TubeConfig& tube, const AudioConfig& audio);
+
+/// The arm's joint speed (rad/s, |qdot| at proprio_rate_hz over the record) in a no-contact
+/// recording of the scene's robot, as the spectral gate's reference clip hears its motors: the
+/// peak speed of a minimum-jerk sweep of the mean angle (sweep_min_deg, sweep_max_deg) over
+/// sweep_duration_s, held; empty (no motor) where the robot holds still (scene.mode stationary).
+std::vector<double> NoContactJointSpeed(const StrikeConfig& strike, const SceneConfig& scene,
+                                        const AudioConfig& audio);
 
 /// Minimum-jerk position fraction at normalised time s (clamped to [0, 1]), and its rate.
 double MinJerk(double s);

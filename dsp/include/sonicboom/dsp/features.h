@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "sonicboom/acoustics/spectral_gate.h"
 #include "sonicboom/core/archive.h"
+#include "sonicboom/dsp/spectral_gate.h"
 
-namespace sonicboom::acoustics {
+namespace sonicboom::dsp {
 
 struct FeatureConfig {
   double window_s{1.5};  // analysis window, onset at its centre
@@ -171,4 +171,4 @@ class GccPhat {
 int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
                     double threshold);
 
-}  // namespace sonicboom::acoustics
+}  // namespace sonicboom::dsp

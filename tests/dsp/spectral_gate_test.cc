@@ -1,4 +1,4 @@
-#include "sonicboom/acoustics/spectral_gate.h"
+#include "sonicboom/dsp/spectral_gate.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -23,10 +23,10 @@
 #include <thread>
 #include <vector>
 
-#include "sonicboom/acoustics/features.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/dsp/features.h"
 
-namespace sonicboom::acoustics {
+namespace sonicboom::dsp {
 namespace {
 
 using testing::ThrownMessage;
@@ -747,4 +747,4 @@ TEST(SpectralGateTest, TimesOneSixChannelWindow) {
 }
 
 }  // namespace
-}  // namespace sonicboom::acoustics
+}  // namespace sonicboom::dsp

@@ -1,4 +1,4 @@
-#include "internal/band_weights.h"
+#include "sonicboom/dsp/band_weights.h"
 
 #include <cmath>
 #include <numbers>
@@ -7,7 +7,7 @@
 
 #include "sonicboom/core/errors.h"
 
-namespace sonicboom::internal {
+namespace sonicboom::dsp {
 
 std::vector<double> LogBandWeights(double low_hz, double high_hz, int64_t fft_size,
                                    double sample_rate_hz, std::string_view key) {
@@ -51,4 +51,4 @@ void ValidateBandEdges(const std::vector<double>& edges_hz, double sample_rate_h
   }
 }
 
-}  // namespace sonicboom::internal
+}  // namespace sonicboom::dsp

@@ -1,4 +1,4 @@
-#include "sonicboom/acoustics/spectral_gate.h"
+#include "sonicboom/dsp/spectral_gate.h"
 
 #include <fmt/format.h>
 
@@ -10,7 +10,7 @@
 #include "internal/fftw_util.h"
 #include "sonicboom/core/errors.h"
 
-namespace sonicboom::acoustics {
+namespace sonicboom::dsp {
 namespace {
 
 namespace fftw = internal::fftw;
@@ -436,4 +436,4 @@ void SpectralGate::Impl::Synthesize(Scratch& s, Counts<Count>& c, int64_t n, flo
   }
 }
 
-}  // namespace sonicboom::acoustics
+}  // namespace sonicboom::dsp

@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <memory>
 
-namespace sonicboom::acoustics {
+namespace sonicboom::dsp {
 
 /// Gate parameters (the features.gating_* keys, see FeatureConfig). Defaults: noisereduce's.
 struct SpectralGateConfig {
@@ -63,4 +63,4 @@ class SpectralGate {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sonicboom::acoustics
+}  // namespace sonicboom::dsp

@@ -1,4 +1,4 @@
-#include "sonicboom/acoustics/features.h"
+#include "sonicboom/dsp/features.h"
 
 #include <fmt/format.h>
 
@@ -8,12 +8,12 @@
 #include <functional>
 #include <utility>
 
-#include "internal/band_weights.h"
 #include "internal/fftw_util.h"
-#include "sonicboom/acoustics/spectral_gate.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/dsp/band_weights.h"
+#include "sonicboom/dsp/spectral_gate.h"
 
-namespace sonicboom::acoustics {
+namespace sonicboom::dsp {
 
 void FeatureConfig::Serialize(Archive* a) {
   a->Visit("window_s", &window_s, Bounds::Positive());
@@ -314,12 +314,11 @@ GccPhat::GccPhat(int64_t n, int64_t max_lag, int channels, double sample_rate_hz
                  const std::vector<double>& band_edges_hz)
     : GccPhat(n, max_lag, channels) {
   if (band_edges_hz.empty()) return;
-  internal::ValidateBandEdges(band_edges_hz, sample_rate_hz, "features.gcc_bands_hz");
+  ValidateBandEdges(band_edges_hz, sample_rate_hz, "features.gcc_bands_hz");
   Impl& g = *impl_;
   for (size_t b = 0; b + 1 < band_edges_hz.size(); ++b) {
-    const std::vector<double> w =
-        internal::LogBandWeights(band_edges_hz[b], band_edges_hz[b + 1], g.fft_size, sample_rate_hz,
-                                 "features.gcc_bands_hz");
+    const std::vector<double> w = LogBandWeights(band_edges_hz[b], band_edges_hz[b + 1], g.fft_size,
+                                                 sample_rate_hz, "features.gcc_bands_hz");
     g.band_weight.emplace_back(w.begin(), w.end());
   }
 }
@@ -681,4 +680,4 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
   return features;
 }
 
-}  // namespace sonicboom::acoustics
+}  // namespace sonicboom::dsp

@@ -1,7 +1,7 @@
 #pragma once
 /// Private FFTW helpers shared by features.cc and spectral_gate.cc: the process-wide planner
 /// lock, aligned arrays, owned plans, and a pool of per-call scratch objects for const (shared)
-/// DSP blocks. Only acoustics .cc files include this header; fftw3.h never reaches a public header.
+/// DSP blocks. Only dsp .cc files include this header; fftw3.h never reaches a public header.
 
 #include <fftw3.h>
 
@@ -19,7 +19,7 @@
 namespace sonicboom::internal::fftw {
 
 /// The FFTW planner (plan creation and destruction) is not thread-safe; every plan made or
-/// destroyed by the acoustics module goes through this one lock. Plan execution is thread-safe.
+/// destroyed by the dsp module goes through this one lock. Plan execution is thread-safe.
 std::mutex& PlannerMutex();
 
 /// An FFTW-aligned array of T, zero-filled, so that every scratch buffer has the same alignment

@@ -1,4 +1,4 @@
-#include "sonicboom/acoustics/features.h"
+#include "sonicboom/dsp/features.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -21,7 +21,7 @@
 
 #include "sonicboom/core/errors.h"
 
-namespace sonicboom::acoustics {
+namespace sonicboom::dsp {
 namespace {
 
 using testing::ThrownMessage;
@@ -618,4 +618,4 @@ TEST(FeatureConfigTest, SerializeVisitsEveryMemberByName) {
 }
 
 }  // namespace
-}  // namespace sonicboom::acoustics
+}  // namespace sonicboom::dsp

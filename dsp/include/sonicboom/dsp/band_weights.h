@@ -7,7 +7,7 @@
 #include <string_view>
 #include <vector>
 
-namespace sonicboom::internal {
+namespace sonicboom::dsp {
 
 /// Weight of every rfft bin (fft_size / 2 + 1 of them; bin 0 always 0) for band
 /// [low_hz, high_hz] at sample_rate_hz. Throws ConfigError naming `key` when the band holds no
@@ -20,4 +20,4 @@ std::vector<double> LogBandWeights(double low_hz, double high_hz, int64_t fft_si
 void ValidateBandEdges(const std::vector<double>& edges_hz, double sample_rate_hz,
                        std::string_view key);
 
-}  // namespace sonicboom::internal
+}  // namespace sonicboom::dsp
