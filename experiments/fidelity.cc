@@ -18,11 +18,8 @@
 #include <nlohmann/json.hpp>
 
 #include "internal/subcommands.h"
-#include "sonicboom/acoustics/contact.h"
-#include "sonicboom/acoustics/fd_render.h"
+#include "sonicboom/acoustics/ladder.h"
 #include "sonicboom/acoustics/shell.h"
-#include "sonicboom/acoustics/shell_bank.h"
-#include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/errors.h"
@@ -147,7 +144,7 @@ struct Grid {
 
 struct Rung {
   std::string name;
-  std::string kind;  // modal | fd
+  acoustics::VibrationModel kind;  // modal or fd
   Grid grid;
   double band_hz{0};      // modal: fixed band; 0 = derived from the contact
   int64_t mode_count{0};  // modal: fixed count
@@ -197,112 +194,79 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   // discretization and truncation alone; the law's own fit error is the section below the table
   MaterialConfig rayleigh_material = config.material;
   acoustics::ShellConfig rayleigh_shell = config.shell;
-  rayleigh_shell.damping = acoustics::DampingModel::kRayleigh;
-  if (config.shell.damping == acoustics::DampingModel::kLaw) {
-    // the Rayleigh curve through the law at the anchors, as the FD rung builds it
-    const acoustics::ShellModel law(config.tube, config.material, config.shell);
-    rayleigh_material.loss_factor =
-        2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_low_hz);
-    rayleigh_shell.loss_factor_high =
-        2.0 * law.DampingRatio(2.0 * std::numbers::pi * config.shell.loss_high_hz);
-  }
-  auto shell_model = [&](const Grid& grid) {
-    acoustics::ShellConfig sc = rayleigh_shell;
-    sc.grid_spacing_m = grid.arc_m;
-    sc.axial_spacing_m = grid.axial_m;
-    return std::make_unique<acoustics::ShellModel>(config.tube, rayleigh_material, sc);
-  };
+  acoustics::UseFdDamping(config.tube, &rayleigh_material, &rayleigh_shell);
   // the modes every modal rung draws from: the production default (20 kHz below Nyquist)
   const double full_band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
                                                              : std::min(20000.0, 0.95 * 0.5 * fs);
+  auto build = [&](const Rung& rung) {
+    acoustics::RungSpec spec;
+    spec.model = rung.kind;
+    spec.arc_m = rung.grid.arc_m;
+    spec.axial_m = rung.grid.axial_m;
+    spec.band_hz = rung.band_hz;
+    spec.mode_count = rung.mode_count;
+    spec.residual = rung.residual;
+    spec.oversampling_factor = rung.oversampling_factor;
+    return std::make_unique<acoustics::VibrationRung>(
+        config.tube, rayleigh_material, rayleigh_shell, config.mics, fs, spec, full_band,
+        config.acoustics.decay_floor_db, cache);
+  };
 
   // the contact forces, solved once against the configured grid's modal wall
   spdlog::info("fidelity: modes of the configured grid ({} x {} mm)", configured.arc_m * 1e3,
                configured.axial_m * 1e3);
-  const auto main_model = shell_model(configured);
-  const acoustics::ShellModes main_modes =
-      acoustics::CachedShellModes(*main_model, full_band, 0, true, cache);
-  const acoustics::ShellModalBank main_bank(*main_model, main_modes, config.mics, fs,
-                                            config.acoustics.decay_floor_db, true);
+  const auto wall = build({"wall", acoustics::VibrationModel::kModal, configured, 0, 0, true, 1});
   std::vector<std::vector<acoustics::ForceInput>> forces(static_cast<size_t>(strikes));
   std::vector<double> derived_band(static_cast<size_t>(strikes));
   for (int64_t s = 0; s < strikes; ++s) {
-    const ContactEvent ev = StrikeEvent(kStrikes[s], onset_s);
-    const acoustics::HertzImpact hz = acoustics::SolveHertzImpact(ev, config.tube, config.material);
-    acoustics::DrivingPoint striker;
-    striker.rigid_mass_kg = ev.effective_mass_kg;
-    const double band =
-        std::min(full_band, acoustics::ContactBandHz(config.acoustics.band_factor, hz.duration_s));
-    const acoustics::DrivingPoint wall =
-        main_bank.WallAt(ev.z_m, ev.theta_rad, std::min(full_band, 2 * band));
-    acoustics::ContactForce cf =
-        acoustics::SolveContact(wall, striker, hz.stiffness_n_m15, ev.normal_speed_m_s, ev.time_s,
-                                fs, config.acoustics.contact);
-    derived_band[static_cast<size_t>(s)] = std::min(
-        full_band, acoustics::ContactBandHz(config.acoustics.band_factor, cf.first_closure_s));
-    forces[static_cast<size_t>(s)].push_back(
-        {ev.z_m, ev.theta_rad, cf.first_sample, std::move(cf.force_n)});
+    acoustics::SolvedForce solved =
+        acoustics::SolveRigidStrikeForce(StrikeEvent(kStrikes[s], onset_s), *wall, config.tube,
+                                         config.material, config.acoustics, fs, full_band);
+    derived_band[static_cast<size_t>(s)] = solved.derived_band_hz;
+    forces[static_cast<size_t>(s)].push_back(std::move(solved.force));
   }
 
   // the rungs, the reference first
+  const auto fd = acoustics::VibrationModel::kFd, modal = acoustics::VibrationModel::kModal;
   std::vector<Rung> rungs{
-      {"FD reference (2x stable oversampling)", "fd", reference, 0, 0, true, 2},
-      {"FD", "fd", configured, 0, 0, true, 1},
-      {"FD", "fd", coarse, 0, 0, true, 1},
-      {"FD", "fd", coarser, 0, 0, true, 1},
-      {"modal, derived band (default)", "modal", configured, 0, 0, true, 1},
-      {"modal, all modes", "modal", configured, full_band, 0, true, 1},
-      {"modal, all modes, no residual", "modal", configured, full_band, 0, false, 1},
-      {"modal, 10 kHz", "modal", configured, 10000, 0, true, 1},
-      {"modal, 5 kHz", "modal", configured, 5000, 0, true, 1},
-      {"modal, 2 kHz", "modal", configured, 2000, 0, true, 1},
-      {"modal, 100 modes", "modal", configured, 0, 100, true, 1},
-      {"modal, derived band", "modal", coarse, 0, 0, true, 1},
-      {"modal, derived band", "modal", coarser, 0, 0, true, 1}};
+      {"FD reference (2x stable oversampling)", fd, reference, 0, 0, true, 2},
+      {"FD", fd, configured, 0, 0, true, 1},
+      {"FD", fd, coarse, 0, 0, true, 1},
+      {"FD", fd, coarser, 0, 0, true, 1},
+      {"modal, derived band (default)", modal, configured, 0, 0, true, 1},
+      {"modal, all modes", modal, configured, full_band, 0, true, 1},
+      {"modal, all modes, no residual", modal, configured, full_band, 0, false, 1},
+      {"modal, 10 kHz", modal, configured, 10000, 0, true, 1},
+      {"modal, 5 kHz", modal, configured, 5000, 0, true, 1},
+      {"modal, 2 kHz", modal, configured, 2000, 0, true, 1},
+      {"modal, 100 modes", modal, configured, 0, 100, true, 1},
+      {"modal, derived band", modal, coarse, 0, 0, true, 1},
+      {"modal, derived band", modal, coarser, 0, 0, true, 1}};
   std::vector<Eigen::MatrixXd> ref_signal(static_cast<size_t>(strikes));
   std::vector<Eigen::VectorXd> ref_bands(static_cast<size_t>(strikes));
   std::vector<RungResult> results;
   for (const Rung& rung : rungs) {
     spdlog::info("fidelity: {} on the {} grid", rung.name, rung.grid.name);
-    const auto model = shell_model(rung.grid);
-    const Eigen::MatrixXd rows = model->SensorRows(config.mics);
+    const auto built = build(rung);
     RungResult r;
-    r.dofs = static_cast<double>(model->dofs());
-    std::unique_ptr<acoustics::ShellFd> fd;
-    std::unique_ptr<acoustics::ShellModalBank> bank;
-    acoustics::ShellModes modes;
-    if (rung.kind == "fd") {
-      const acoustics::ShellFd stable(*model, fs, 0);
-      fd = std::make_unique<acoustics::ShellFd>(*model, fs,
-                                                stable.oversampling() * rung.oversampling_factor);
-      r.oversampling = static_cast<double>(fd->oversampling());
-    } else {
-      modes = acoustics::CachedShellModes(*model, full_band, 0, true, cache);
-      bank = std::make_unique<acoustics::ShellModalBank>(
-          *model, modes, config.mics, fs, config.acoustics.decay_floor_db, rung.residual);
-    }
+    r.dofs = static_cast<double>(built->dofs());
+    r.oversampling = static_cast<double>(built->oversampling());
     for (int64_t s = 0; s < strikes; ++s) {
       const auto& f = forces[static_cast<size_t>(s)];
-      Eigen::MatrixXd y;
+      const double band = derived_band[static_cast<size_t>(s)];
+      const auto start = Clock::now();
+      const Eigen::MatrixXd y = built->Render(f, window, band);
       double seconds = 0;
-      if (fd) {
+      if (built->fd()) {
         // FD cost is the same for every sample: time the window, scale to one second
-        const auto t0 = Clock::now();
-        y = acoustics::FdRender(*model, *fd, f, rows, window, -300.0);
-        seconds = Seconds(t0) * static_cast<double>(one_second) / static_cast<double>(window);
+        seconds = Seconds(start) * static_cast<double>(one_second) / static_cast<double>(window);
       } else {
-        const int64_t n =
-            rung.mode_count > 0
-                ? rung.mode_count
-                : bank->ModesBelow(rung.band_hz > 0 ? rung.band_hz
-                                                    : derived_band[static_cast<size_t>(s)]);
-        r.modes += static_cast<double>(n) / strikes;
-        y = bank->Render(f, n, window);
+        r.modes += static_cast<double>(built->ModesPlayed(band)) / strikes;
         // a whole second, best of three
         seconds = 1e30;
         for (int rep = 0; rep < 3; ++rep) {
           const auto t0 = Clock::now();
-          const Eigen::MatrixXd full = bank->Render(f, n, one_second);
+          const Eigen::MatrixXd full = built->Render(f, one_second, band);
           seconds = std::min(seconds, Seconds(t0));
           if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
         }
@@ -363,8 +327,9 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   for (size_t i = 0; i < rungs.size(); ++i) {
     const Rung& rung = rungs[i];
     const RungResult& r = results[i];
-    const std::string size =
-        rung.kind == "fd" ? fmt::format("{:.0f}x", r.oversampling) : fmt::format("{:.0f}", r.modes);
+    const std::string size = rung.kind == acoustics::VibrationModel::kFd
+                                 ? fmt::format("{:.0f}x", r.oversampling)
+                                 : fmt::format("{:.0f}", r.modes);
     md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} |\n",
                       rung.name, rung.grid.arc_m * 1e3, rung.grid.axial_m * 1e3, r.dofs, size,
                       r.ms_per_strike, 1e3 / r.ms_per_strike,
@@ -372,7 +337,7 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
                       i == 0 ? "—" : fmt::format("{:.1f}", r.delay_error_us),
                       i == 0 ? "—" : fmt::format("{:.2f}", r.band_error_db));
     rows_json.push_back({{"rung", rung.name},
-                         {"kind", rung.kind},
+                         {"kind", NameOf(rung.kind)},
                          {"grid_arc_m", rung.grid.arc_m},
                          {"grid_axial_m", rung.grid.axial_m},
                          {"dofs", r.dofs},
