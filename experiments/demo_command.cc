@@ -15,7 +15,9 @@
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/dsp/features.h"
+#include "sonicboom/experiments/baselines.h"
 #include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/learning/baselines.h"
 #include "sonicboom/learning/learning.h"
 
 #include "embedded_configs.h"
@@ -96,18 +98,9 @@ CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
   learning::Localizer localizer(model_dir);
   const learning::Metrics model_metrics =
       learning::ComputeMetrics(localizer.Predict(test), test, config.tube.outer_radius_m);
-  DatasetReader train_reader(train_path);
-  double z_sum = 0, c_sum = 0, s_sum = 0;
-  int64_t n_valid = 0;
-  for (int64_t i = 0; i < train_reader.size(); ++i) {
-    const StrikeSample meta = train_reader.ReadMeta(i);
-    if (!meta.valid) continue;
-    z_sum += meta.label.z_m;
-    c_sum += std::cos(meta.label.theta_rad);
-    s_sum += std::sin(meta.label.theta_rad);
-    ++n_valid;
-  }
-  const learning::Prediction constant{z_sum / n_valid, std::atan2(s_sum, c_sum)};
+  const learning::FeatureSet train_labels = DatasetLabels(train_path);
+  const learning::Prediction constant =
+      learning::ConstantPrediction(train_labels.z_m, train_labels.theta_rad);
   const learning::Metrics baseline = learning::ComputeMetrics(
       std::vector<learning::Prediction>(test.size(), constant), test, config.tube.outer_radius_m);
   const double wall_s =
