@@ -1,4 +1,5 @@
-// `import` and `export`: recorded strikes in and datasets out (docs/captures.md).
+// `import`: recorded strikes (the published trial layout or our capture layout) into a dataset
+// (docs/captures.md).
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -112,62 +113,30 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
   return {j.dump(), text};
 }
 
-CommandResult RunExport(const GlobalOptions& g, const std::string& in, const std::string& out,
-                        hardware::AngleConvention angle) {
-  if (!fs::exists(in)) throw IoError(fmt::format("{}: no such dataset (--in)", in));
-  const int64_t n = hardware::ExportTrials(in, out, angle);
-  const json j = {{"out", out}, {"trials", n}};
-  return {j.dump(), fmt::format("wrote {} trials of {} to {}\n", n, in, out)};
-}
-
 void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto o = std::make_shared<ImportOptions>();
-  auto* import = app.add_subcommand("import",
-                                    "recorded strikes (published trial layout or our "
-                                    "capture layout) into a dataset");
-  AddEnumOption(import, "--layout", &o->layout, "trial | capture")->required();
-  import->add_option("--in", o->in, "capture directory")->required();
-  import->add_option("--out", o->out, "dataset file (.h5)")->required();
-  AddEnumOption(import, "--angle-convention", &o->angle_convention,
+  auto* import_cmd = app.add_subcommand("import",
+                                        "recorded strikes (published trial layout or our "
+                                        "capture layout) into a dataset");
+  AddEnumOption(import_cmd, "--layout", &o->layout, "trial | capture")->required();
+  import_cmd->add_option("--in", o->in, "capture directory")->required();
+  import_cmd->add_option("--out", o->out, "dataset file (.h5)")->required();
+  AddEnumOption(import_cmd, "--angle-convention", &o->angle_convention,
                 "tube (docs/conventions.md) | j7 (published joint-7 angle)");
-  import->add_option("--min-duration-s", o->min_duration_s,
-                     "shorter captures are bad (default 1.5)");
-  import->add_option("--object", o->object,
-                     "label trials from geometry: the object (ply, obj, stl, pts, xyz, robot base "
-                     "frame) met by the tube placed from each trial's q_t.npy");
-  import->add_option("--object-scale", o->object_scale,
-                     "object units to metres (0.001 for millimetres)");
-  import->add_option("--contact-tolerance-m", o->contact_tolerance_m,
-                     "contact when the object comes this close (default 0.002)");
-  import->add_flag("--skip-bad", o->skip_bad,
-                   "import the good captures when some are bad (they are listed)");
-  import->add_flag("--force", o->force, "replace an existing output");
-  import->callback([&g, run, o] { *run = [&g, o] { return RunImport(g, *o);
-};
-}  // namespace sonicboom::experiments
-);
-}
-
-void RegisterExport(CLI::App& app, GlobalOptions& g, Runner* run) {
-  struct Options {
-    hardware::Layout layout = hardware::Layout::kTrial;
-    std::string in, out;
-    hardware::AngleConvention angle_convention = hardware::AngleConvention::kTube;
-  };
-  auto o = std::make_shared<Options>();
-  auto* export_cmd = app.add_subcommand("export", "a dataset in the published trial layout");
-  AddEnumOption(export_cmd, "--layout", &o->layout, "trial (the only layout written)");
-  export_cmd->add_option("--in", o->in, "dataset (.h5)")->required();
-  export_cmd->add_option("--out", o->out, "new directory")->required();
-  AddEnumOption(export_cmd, "--angle-convention", &o->angle_convention, "tube | j7");
-  export_cmd->callback([&g, run, o] {
-    *run = [&g, o] {
-      if (o->layout != hardware::Layout::kTrial) {
-        throw ConfigError("export --layout capture: only the trial layout is written");
-      }
-      return RunExport(g, o->in, o->out, o->angle_convention);
-    };
-  });
+  import_cmd->add_option("--min-duration-s", o->min_duration_s,
+                         "shorter captures are bad (default 1.5)");
+  import_cmd->add_option(
+      "--object", o->object,
+      "label trials from geometry: the object (ply, obj, stl, pts, xyz, robot base "
+      "frame) met by the tube placed from each trial's q_t.npy");
+  import_cmd->add_option("--object-scale", o->object_scale,
+                         "object units to metres (0.001 for millimetres)");
+  import_cmd->add_option("--contact-tolerance-m", o->contact_tolerance_m,
+                         "contact when the object comes this close (default 0.002)");
+  import_cmd->add_flag("--skip-bad", o->skip_bad,
+                       "import the good captures when some are bad (they are listed)");
+  import_cmd->add_flag("--force", o->force, "replace an existing output");
+  import_cmd->callback([&g, run, o] { *run = [&g, o] { return RunImport(g, *o); }; });
 }
 
 }  // namespace sonicboom::experiments
