@@ -139,6 +139,18 @@ AudioClip ReadWav(const std::string& path, int expected_channels) {
     throw IoError(fmt::format("{}: truncated: read {} of {} frames ({})", path, read, info.frames,
                               sf_strerror(file.get())));
   }
+  // a float WAV may hold NaN or infinity: refused here, at the file's own frame
+  if (!clip.samples.allFinite()) {
+    for (int64_t t = 0; t < clip.frames(); ++t) {
+      for (int c = 0; c < clip.channels(); ++c) {
+        const float x = clip.samples(c, t);
+        if (!std::isfinite(x)) {
+          throw IoError(fmt::format("{}: frame {} ({:.4f} s) of channel {} is {}", path, t,
+                                    t / clip.sample_rate_hz, c, x));
+        }
+      }
+    }
+  }
   return clip;
 }
 

@@ -141,6 +141,10 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info, b
   h5::WriteUint64Attr(root, "global_seed", s.info.global_seed, file);
   h5::WriteInt64Attr(root, "shard", s.info.shard, file);
   h5::WriteInt64Attr(root, "num_shards", s.info.num_shards, file);
+  if (s.info.first_index >= 0 && s.info.index_count >= 0) {
+    h5::WriteInt64Attr(root, "first_index", s.info.first_index, file);
+    h5::WriteInt64Attr(root, "index_count", s.info.index_count, file);
+  }
   h5::WriteStringAttr(root, "created_utc", UtcNow(), file);
 
   // Audio (N, C, T): one sample per chunk, shuffle + deflate; `scale` maps to full scale 1.
@@ -406,11 +410,18 @@ void DatasetWriter::Impl::WriteAllButAudio(const StrikeSample& sample) {
   ++count;
 
   // Periodic flush so that a crash leaves a readable .partial.
-  const auto now = std::chrono::steady_clock::now();
-  if (now - last_flush >= kFlushInterval) {
-    h5::CheckStatus(H5Fflush(file_handle.get(), H5F_SCOPE_LOCAL), file, "", "flush");
-    last_flush = now;
-  }
+  if (std::chrono::steady_clock::now() - last_flush >= kFlushInterval) Flush();
+}
+
+void DatasetWriter::Impl::Flush() {
+  // the samples on disk after this flush: what a resume may trust of a killed writer's file
+  h5::WriteInt64Attr(file_handle.get(), "flushed_samples", count, partial);
+  h5::CheckStatus(H5Fflush(file_handle.get(), H5F_SCOPE_LOCAL), partial, "", "flush");
+  last_flush = std::chrono::steady_clock::now();
+}
+
+void DatasetWriter::Flush() {
+  impl_->Flush();
 }
 
 void DatasetWriter::Impl::WriteContacts(const StrikeSample& sample) {
@@ -460,6 +471,8 @@ void DatasetWriter::Finish() {
   Impl& s = *impl_;
   SONICBOOM_DEMAND(!s.finished);
   h5::WriteInt64Attr(s.file_handle.get(), "num_samples", s.count, s.partial);
+  // every sample is on disk (and the file does not depend on when the periodic flushes fell)
+  h5::WriteInt64Attr(s.file_handle.get(), "flushed_samples", s.count, s.partial);
   // `complete` is the last thing written.
   h5::MarkComplete(s.file_handle.get(), s.partial);
   s.columns.CloseAll(s.partial);

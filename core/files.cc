@@ -41,6 +41,23 @@ void MakeDirectories(const std::string& path) {
   if (ec) throw IoError(fmt::format("{}: cannot create directory: {}", path, ec.message()));
 }
 
+void ReplaceDirectory(const std::string& finished, const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const std::string aside = path + ".replaced";
+  if (fs::exists(path, ec)) {
+    fs::remove_all(aside, ec);
+    fs::rename(path, aside, ec);
+    if (ec) throw IoError(fmt::format("{}: cannot move the old one aside: {}", path, ec.message()));
+  }
+  fs::rename(finished, path, ec);
+  if (ec) {
+    throw IoError(fmt::format("{}: cannot rename {} into place: {}", path, finished, ec.message()));
+  }
+  fs::remove_all(aside, ec);
+  if (ec) throw IoError(fmt::format("{}: cannot remove the replaced run: {}", aside, ec.message()));
+}
+
 std::string UtcTimestamp() {
   const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
   std::tm tm{};

@@ -486,6 +486,59 @@ Handle CreateExtendable(hid_t loc, const std::string& path, hid_t file_type,
       file, path, "create dataset"));
 }
 
+Handle CreateVirtual(hid_t loc, const std::string& path, hid_t file_type, hsize_t rows,
+                     const std::vector<hsize_t>& row_dims,
+                     const std::vector<VirtualSource>& sources, std::string_view file) {
+  const size_t rank = row_dims.size() + 1;
+  std::vector<hsize_t> dims(rank, rows);
+  for (size_t d = 1; d < rank; ++d) dims[d] = row_dims[d - 1];
+  Handle space(CheckId(H5Screate_simple(static_cast<int>(rank), dims.data(), nullptr), file, path,
+                       "create dataspace for"));
+  Handle dcpl(CheckId(H5Pcreate(H5P_DATASET_CREATE), file, path, "create properties for"));
+  for (const VirtualSource& source : sources) {
+    // the source's rows, whole, into every stride-th row of the virtual dataset
+    std::vector<hsize_t> source_dims = dims;
+    source_dims[0] = source.rows;
+    Handle source_space(
+        CheckId(H5Screate_simple(static_cast<int>(rank), source_dims.data(), nullptr), file, path,
+                "create source dataspace for"));
+    std::vector<hsize_t> start(rank, 0), stride(rank, 1), count(rank, 1), block = dims;
+    start[0] = source.start;
+    stride[0] = source.stride;
+    count[0] = source.rows;
+    block[0] = 1;
+    CheckStatus(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start.data(), stride.data(),
+                                    count.data(), block.data()),
+                file, path, "select the rows of a source in");
+    CheckStatus(H5Pset_virtual(dcpl.get(), space.get(), source.file.c_str(), source.dataset.c_str(),
+                               source_space.get()),
+                file, path, "map a source into");
+  }
+  CheckStatus(H5Sselect_all(space.get()), file, path, "select all of");
+  Handle lcpl = IntermediateGroupsLcpl(file, path);
+  return Handle(CheckId(
+      H5Dcreate2(loc, path.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
+      file, path, "create virtual dataset"));
+}
+
+std::vector<std::string> VirtualSourceFiles(hid_t dataset, std::string_view file,
+                                            std::string_view object) {
+  Handle dcpl(CheckId(H5Dget_create_plist(dataset), file, object, "read properties of"));
+  if (H5Pget_layout(dcpl.get()) != H5D_VIRTUAL) return {};
+  size_t count = 0;
+  CheckStatus(H5Pget_virtual_count(dcpl.get(), &count), file, object, "count the sources of");
+  std::vector<std::string> names;
+  for (size_t i = 0; i < count; ++i) {
+    const ssize_t length = H5Pget_virtual_filename(dcpl.get(), i, nullptr, 0);
+    if (length < 0) CheckStatus(-1, file, object, "read a source file name of");
+    std::string name(static_cast<size_t>(length) + 1, '\0');
+    H5Pget_virtual_filename(dcpl.get(), i, name.data(), name.size());
+    name.resize(static_cast<size_t>(length));
+    names.push_back(name);
+  }
+  return names;
+}
+
 void AppendRows(hid_t dataset, hid_t mem_type, const void* data, hsize_t rows,
                 std::string_view file, std::string_view object) {
   if (rows == 0) return;

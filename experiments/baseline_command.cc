@@ -43,9 +43,9 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
 
   if (o.method == BaselineMethod::kConstant) {
     // mean height and circular mean angle of the training labels
-    const learning::FeatureSet train = DatasetLabels(o.train);
+    const learning::FeatureSet train = DatasetLabels(o.train, config);
     const learning::Prediction p = learning::ConstantPrediction(train.z_m, train.theta_rad);
-    truth = DatasetLabels(o.data);
+    truth = DatasetLabels(o.data, config);
     predictions.assign(static_cast<size_t>(truth.size()), p);
     extra = {{"train_n", train.size()}, {"z_m", p.z_m}, {"theta_rad", p.theta_rad}};
   } else if (o.method == BaselineMethod::kArrival) {

@@ -28,9 +28,9 @@ learning::FeatureSet LabelsOf(const ValidRecords& valid) {
 
 }  // namespace
 
-learning::FeatureSet DatasetLabels(const std::string& dataset_path) {
+learning::FeatureSet DatasetLabels(const std::string& dataset_path, const SonicBoomConfig& config) {
   DatasetReader reader(dataset_path);
-  return LabelsOf(ReadValidRecords(reader, dataset_path));
+  return LabelsOf(ReadValidRecords(reader, dataset_path, config));
 }
 
 acoustics::TdoaGeometry TdoaGeometryOf(const SonicBoomConfig& config) {
@@ -45,7 +45,7 @@ std::vector<acoustics::TdoaCorrelations> CorrelateDataset(const std::string& dat
                                                           learning::FeatureSet* labels) {
   DatasetReader reader(dataset_path);
   const DatasetInfo& info = reader.info();
-  const ValidRecords valid = ReadValidRecords(reader, dataset_path);
+  const ValidRecords valid = ReadValidRecords(reader, dataset_path, config);
   if (info.sample_rate_hz != locator.sample_rate_hz()) {
     throw SchemaError(fmt::format("{}: audio at {} Hz, the TDOA locator was made for {} Hz",
                                   dataset_path, info.sample_rate_hz, locator.sample_rate_hz()));
@@ -85,7 +85,7 @@ std::vector<learning::Prediction> LocateByArrival(
     learning::FeatureSet* labels, std::vector<acoustics::ArrivalEstimate>* estimates) {
   DatasetReader reader(dataset_path);
   const DatasetInfo& info = reader.info();
-  const ValidRecords valid = ReadValidRecords(reader, dataset_path);
+  const ValidRecords valid = ReadValidRecords(reader, dataset_path, config);
   if (labels) *labels = LabelsOf(valid);
   // the feature path's onset, then the picks and the fit around it
   const dsp::FeatureConfig& fc = config.features;

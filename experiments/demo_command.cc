@@ -98,7 +98,7 @@ CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
   learning::Localizer localizer(model_dir);
   const learning::Metrics model_metrics =
       learning::ComputeMetrics(localizer.Predict(test), test, config.tube.outer_radius_m);
-  const learning::FeatureSet train_labels = DatasetLabels(train_path);
+  const learning::FeatureSet train_labels = DatasetLabels(train_path, config);
   const learning::Prediction constant =
       learning::ConstantPrediction(train_labels.z_m, train_labels.theta_rad);
   const learning::Metrics baseline = learning::ComputeMetrics(

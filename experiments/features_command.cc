@@ -24,11 +24,11 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
-                          const std::string& proprio_csv) {
+                          const std::string& proprio_csv, bool force) {
   RefuseOverwritingInput(out, in, "--in");
   RefuseOverwritingInput(out, proprio_csv, "--proprio");
   const SonicBoomConfig config = Resolve(g);
-  RequireParentDir(out);
+  CheckOutput(out, force);
   std::vector<NamedArray> arrays;
   int64_t n = 1;
   learning::FeatureSet set;
@@ -44,8 +44,7 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
     arrays.push_back({"proprio", {n, set.proprio_rows, set.proprio_features}, set.proprio});
   } else {
     // one WAV (and optional robot log)
-    const hardware::Capture cap =
-        hardware::LoadCapture(in, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
+    const hardware::Capture cap = hardware::LoadCapture(in, proprio_csv, CaptureChecksFor(config));
     set = ComputeRecordFeatures(cap.audio, cap.sample_rate_hz, cap.proprio, config);
     arrays.push_back({"mel", {set.channels, set.mels, set.frames}, set.mel});
     arrays.push_back({"gcc", {set.gcc_pairs, set.gcc_lags}, set.gcc});
@@ -53,7 +52,6 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
       arrays.push_back({"proprio", {set.proprio_rows, set.proprio_features}, set.proprio});
     }
   }
-  WriteConfigBeside(out, config);
   WriteArrayFile(out, "sonicboom.features", arrays,
                  {{"source", in},
                   {"config_yaml", ConfigToYaml(config)},
@@ -62,6 +60,7 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
                                config.features.n_fft, config.features.hop, config.features.n_mels,
                                config.features.log_mel ? "log10" : "no log")},
                   {"gcc_layout", "15 pairs in combinations order x lags -max..+max samples"}});
+  WriteConfigBeside(out, config);  // once the features are in place
   json j = {{"path", out},
             {"samples", n},
             {"mel_shape", {set.channels, set.mels, set.frames}},
@@ -74,6 +73,7 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
 void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
     std::string in, out, proprio;
+    bool force = false;
   };
   auto o = std::make_shared<Options>();
   auto* features =
@@ -81,8 +81,11 @@ void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run) {
   features->add_option("--in", o->in, "WAV file or dataset (.h5)")->required();
   features->add_option("--out", o->out, "features file (.h5)")->required();
   features->add_option("--proprio", o->proprio, "robot log CSV for a WAV input");
-  features->callback(
-      [&g, run, o] { *run = [&g, o] { return RunFeatures(g, o->in, o->out, o->proprio); }; });
+  features->add_flag("--force", o->force,
+                     "replace an existing output (once the new one is complete)");
+  features->callback([&g, run, o] {
+    *run = [&g, o] { return RunFeatures(g, o->in, o->out, o->proprio, o->force); };
+  });
 }
 
 }  // namespace sonicboom::experiments

@@ -51,8 +51,14 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
       j["epochs_logged"] = epochs;
       if (!last.empty()) j["last_epoch"] = json::parse(last, nullptr, false);
     }
-    j["complete"] =
-        fs::exists(fs::path(path) / "model.json") || fs::exists(fs::path(path) / "metrics.json");
+    // a run still being written (or killed) lives in RUN.partial until it replaces RUN
+    const bool unfinished = fs::path(path).filename().string().ends_with(".partial") ||
+                            fs::path(path).extension() == ".partial";
+    j["complete"] = !unfinished && (fs::exists(fs::path(path) / "model.json") ||
+                                    fs::exists(fs::path(path) / "metrics.json"));
+    if (unfinished) {
+      j["note"] = "an unfinished run: train --resume continues it; it replaces its run when done";
+    }
     // trainable parameters per part of a finished model
     if (fs::exists(fs::path(path) / "model.json") && fs::exists(fs::path(path) / "model.pt")) {
       const learning::Localizer localizer(path);

@@ -40,8 +40,7 @@ std::span<const EnumName<LocalizeMethod>> EnumNames(LocalizeMethod) {
 CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav) {
   const SonicBoomConfig config = Resolve(g);
   const auto start = std::chrono::steady_clock::now();
-  const hardware::Capture cap =
-      hardware::LoadCapture(wav, "", config.mics.count(), config.audio.sample_rate_hz);
+  const hardware::Capture cap = hardware::LoadCapture(wav, "", CaptureChecksFor(config));
   const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival,
                                           config.audio.sample_rate_hz);
   const int64_t onset =
@@ -92,8 +91,7 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
   learning::Prediction p;
   for (int64_t r = 0; r < repeat; ++r) {
     const auto start = std::chrono::steady_clock::now();
-    const hardware::Capture cap =
-        hardware::LoadCapture(wav, proprio_csv, config.mics.count(), config.audio.sample_rate_hz);
+    const hardware::Capture cap = hardware::LoadCapture(wav, proprio_csv, CaptureChecksFor(config));
     const auto read = std::chrono::steady_clock::now();
     const learning::FeatureSet features = featurizer.Compute(cap.audio, cap.proprio);
     const auto featured = std::chrono::steady_clock::now();

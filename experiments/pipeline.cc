@@ -137,6 +137,32 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
   return sample;
 }
 
+std::string DatasetConfigYaml(SonicBoomConfig config) {
+  config.train.threads = 0;
+  config.acoustics.mode_cache_dir.clear();
+  return ConfigToYaml(config);
+}
+
+DatasetInfo GeneratedDatasetInfo(const SonicBoomConfig& config, int64_t first_index, int64_t count,
+                                 int64_t shard, int64_t num_shards) {
+  DatasetInfo info;
+  info.source = "sim";
+  info.config_yaml = DatasetConfigYaml(config);
+  info.sample_rate_hz = config.audio.sample_rate_hz;
+  info.proprio_rate_hz = config.strike.proprio_rate_hz;
+  info.channels = config.mics.count();
+  info.audio_frames = config.audio.num_samples();
+  info.proprio_rows = config.strike.proprio_rows;
+  info.audio_int16 = config.dataset.audio_int16;
+  info.global_seed = config.seed;
+  info.shard = shard;
+  info.num_shards = num_shards;
+  info.first_index = first_index;
+  info.index_count = count;
+  info.variation_names = acoustics::VariationNames(config.randomize, config.mics.count());
+  return info;
+}
+
 GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string& out_path,
                                int64_t count, int64_t first_index, int64_t shard,
                                int64_t num_shards, int threads, bool show_progress) {
@@ -163,25 +189,27 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
   int64_t next = first_index + (shard - first_index % num_shards + num_shards) % num_shards;
   const int64_t owned = next < end ? (end - next + num_shards - 1) / num_shards : 0;
 
-  DatasetInfo info;
-  info.source = "sim";
-  info.config_yaml = ConfigToYaml(config);
-  info.sample_rate_hz = config.audio.sample_rate_hz;
-  info.proprio_rate_hz = config.strike.proprio_rate_hz;
-  info.channels = config.mics.count();
-  info.audio_frames = config.audio.num_samples();
-  info.proprio_rows = config.strike.proprio_rows;
-  info.audio_int16 = config.dataset.audio_int16;
-  info.global_seed = config.seed;
-  info.shard = shard;
-  info.num_shards = num_shards;
-  info.variation_names = acoustics::VariationNames(config.randomize, config.mics.count());
-  DatasetWriter writer(out_path, info);
+  const DatasetInfo info = GeneratedDatasetInfo(config, first_index, count, shard, num_shards);
+  // a killed run of the same shard left samples in <out>.partial: carry over what it flushed
+  const int64_t first_owned = next;
+  int64_t resumed = 0;
+  const std::unique_ptr<DatasetWriter> resumed_writer = ResumeDatasetWriter(
+      out_path, info,
+      [&](int64_t row, uint64_t index) {
+        return static_cast<uint64_t>(first_owned + row * num_shards) == index;
+      },
+      &resumed);
+  DatasetWriter& writer = *resumed_writer;
+  next = first_owned + resumed * num_shards;
+  if (resumed > 0) {
+    spdlog::info("{}: resuming after {} samples an interrupted run wrote", out_path, resumed);
+  }
 
   // simulate and compress the audio in parallel, write in index order from one thread
   GenerateResult result;
   result.path = out_path;
-  Progress progress("generate", owned, show_progress);
+  result.resumed = resumed;
+  Progress progress("generate", owned - resumed, show_progress);
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   arena.execute([&] {
     tbb::parallel_pipeline(
@@ -214,6 +242,16 @@ GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string&
   });
   writer.Finish();
   progress.Finish();
+  // the carried-over samples count in the totals
+  if (resumed > 0) {
+    const DatasetReader done(out_path);
+    for (int64_t row = 0; row < resumed; ++row) {
+      const StrikeSample meta = done.ReadMeta(row);
+      ++result.written;
+      result.valid += meta.valid ? 1 : 0;
+      result.clipped += meta.clipped ? 1 : 0;
+    }
+  }
   result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
@@ -310,16 +348,7 @@ Eigen::MatrixXf ReferenceNoiseClip(const SonicBoomConfig& config) {
                       "one gate frame (features.gating_n_fft = {})",
                       path, clip.frames(), features.gating_n_fft));
     }
-    for (int64_t t = 0; t < clip.frames(); ++t) {
-      for (int c = 0; c < channels; ++c) {
-        if (!std::isfinite(clip.samples(c, t))) {
-          throw ConfigError(
-              fmt::format("features.gating_noise_wav: {} has a non-finite sample "
-                          "at channel {} frame {}",
-                          path, c, t));
-        }
-      }
-    }
+    // (ReadWav refused non-finite samples)
     return std::move(clip.samples);
   }
 
@@ -378,7 +407,7 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
                            noise.size() > 0 ? &noise : nullptr);
 
   // valid rows only
-  const ValidRecords valid = ReadValidRecords(reader, dataset_path);
+  const ValidRecords valid = ReadValidRecords(reader, dataset_path, config);
   const std::vector<StrikeSample>& metas = valid.metas;
   const int64_t n = static_cast<int64_t>(valid.rows.size());
   if (info.proprio_rows < config.strike.proprio_rows) {
@@ -405,11 +434,30 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
   return set;
 }
 
-ValidRecords ReadValidRecords(const DatasetReader& reader, const std::string& path) {
+ValidRecords ReadValidRecords(const DatasetReader& reader, const std::string& path,
+                              const SonicBoomConfig& config) {
+  // records of the length the file's config states (a file edited by hand, or another tool's)
+  const DatasetInfo& info = reader.info();
+  if (info.audio_frames != config.audio.num_samples()) {
+    throw SchemaError(fmt::format(
+        "{}: records of {} frames, but its config's audio.record_duration_s = {} s at {} Hz "
+        "makes {}",
+        path, info.audio_frames, config.audio.record_duration_s, config.audio.sample_rate_hz,
+        config.audio.num_samples()));
+  }
+  // labels on the tube: a height beyond its ends is in other units (millimetres?) or damage
+  const double half_length_m = 0.5 * config.tube.length_m;
   ValidRecords valid;
   for (int64_t i = 0; i < reader.size(); ++i) {
     StrikeSample meta = reader.ReadMeta(i);
     if (!meta.valid) continue;
+    const double z = meta.label.z_m, theta = meta.label.theta_rad;
+    if (std::abs(z) > half_length_m + 1e-3 || std::abs(theta) > std::numbers::pi + 1e-6) {
+      throw SchemaError(fmt::format(
+          "{}: sample row {} (index {}) is labelled z = {} m, theta = {} rad, off the tube "
+          "(|z| <= {} m, |theta| <= pi): labels are in metres and radians, tube frame",
+          path, i, meta.index, z, theta, half_length_m));
+    }
     valid.rows.push_back(i);
     valid.metas.push_back(std::move(meta));
   }

@@ -39,6 +39,13 @@ void RequireParentDir(const std::string& path) {
   }
 }
 
+void CheckOutput(const std::string& out, bool force) {
+  RequireParentDir(out);
+  if (fs::exists(out) && !force) {
+    throw IoError(fmt::format("{}: exists; --force replaces it once the new one is complete", out));
+  }
+}
+
 void RefuseOverwritingInput(const std::string& out, const std::string& in,
                             const std::string& in_option) {
   if (in.empty()) return;
@@ -61,6 +68,16 @@ void RefuseOverwritingInput(const std::string& out, const std::string& in,
                                 in));
     }
   }
+}
+
+hardware::CaptureChecks CaptureChecksFor(const SonicBoomConfig& config) {
+  hardware::CaptureChecks checks;
+  checks.channels = config.mics.count();
+  checks.sample_rate_hz = config.audio.sample_rate_hz;
+  const auto window_frames =
+      static_cast<int64_t>(std::llround(config.features.window_s * config.audio.sample_rate_hz));
+  checks.min_frames = std::max<int64_t>(1, std::min(config.audio.num_samples(), window_frames));
+  return checks;
 }
 
 hardware::TubePoseFromJoints PandaTubePose(double tube_center_from_flange_m) {

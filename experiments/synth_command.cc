@@ -21,9 +21,19 @@ namespace sonicboom::experiments {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index) {
+CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index,
+                       bool force) {
   const SonicBoomConfig config = Resolve(g);
-  RequireParentDir(out_wav);
+  if (fs::path(out_wav).extension() != ".wav") {
+    throw ConfigError(fmt::format("--out {}: a synthesized strike is a .wav file", out_wav));
+  }
+  const std::string stem = (fs::path(out_wav).parent_path() / fs::path(out_wav).stem()).string();
+  CheckOutput(out_wav, force);
+  CheckOutput(stem + ".json", force);
+  for (const std::string& file : g.sources.files) {
+    RefuseOverwritingInput(out_wav, file, "--config");
+    RefuseOverwritingInput(stem + ".json", file, "--config");
+  }
   if (index < 0) throw ConfigError(fmt::format("--index must be >= 0, got {}", index));
   StrikePipeline pipeline(config);
   const StrikeSample s = pipeline.Simulate(static_cast<uint64_t>(index));
@@ -32,7 +42,6 @@ CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64
         fmt::format("strike {} (seed {}) is invalid: {}", index, config.seed, s.invalid_reason));
   }
   // label sidecar and config first, the WAV last: a WAV on disk means the set is complete
-  const std::string stem = (fs::path(out_wav).parent_path() / fs::path(out_wav).stem()).string();
   json label = LabelJson(s.label);
   label["index"] = s.index;
   label["seed"] = s.seed;
@@ -58,13 +67,19 @@ CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64
 }
 
 void RegisterSynth(CLI::App& app, GlobalOptions& g, Runner* run) {
-  auto out = std::make_shared<std::string>();
-  auto index = std::make_shared<int64_t>(0);
+  struct Options {
+    std::string out;
+    int64_t index = 0;
+    bool force = false;
+  };
+  auto o = std::make_shared<Options>();
   auto* synth = app.add_subcommand("synth", "one strike as a 6-channel WAV plus a JSON label");
-  synth->add_option("--out", *out, "WAV file")->required();
-  synth->add_option("--index", *index, "sample index (with --seed it fixes the strike)");
+  synth->add_option("--out", o->out, "WAV file (.wav; the label goes beside it as .json)")
+      ->required();
+  synth->add_option("--index", o->index, "sample index (with --seed it fixes the strike)");
+  synth->add_flag("--force", o->force, "replace an existing WAV and label");
   synth->callback(
-      [&g, run, out, index] { *run = [&g, out, index] { return RunSynth(g, *out, *index); }; });
+      [&g, run, o] { *run = [&g, o] { return RunSynth(g, o->out, o->index, o->force); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -37,15 +37,43 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   const SonicBoomConfig config = o.init_from.empty() ? Resolve(g) : ResolveWithRun(g, o.init_from);
   if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
-  MakeDirectories(o.out);
-  WriteTextAtomic((fs::path(o.out) / "config.yaml").string(), ConfigToYaml(config));
+  // the run is written whole in OUT.partial, which replaces OUT once training is done: a killed
+  // run never leaves a directory that looks complete, nor harms the run it was replacing
+  const std::string work = o.out + ".partial";
+  if (o.resume) {
+    if (!fs::exists(work)) {
+      if (!fs::exists(o.out)) {
+        throw IoError(fmt::format("{}: nothing to resume (neither it nor {} exists)", o.out, work));
+      }
+      // more epochs for a finished run: in a copy, which replaces it once done
+      std::error_code ec;
+      fs::copy(o.out, work, fs::copy_options::recursive, ec);
+      if (ec)
+        throw IoError(
+            fmt::format("{}: cannot copy {} to resume it: {}", work, o.out, ec.message()));
+    }
+  } else {
+    CheckOutput(o.out, o.force);
+    std::error_code ec;
+    fs::remove_all(work, ec);  // a killed run's leftovers, not resumed
+  }
+  MakeDirectories(work);
+  WriteTextAtomic((fs::path(work) / "config.yaml").string(), ConfigToYaml(config));
   if (!o.init_from.empty()) {
     const json init{
         {"init_from", o.init_from}, {"freeze", NameOf(o.freeze)}, {"norm", NameOf(o.norm)}};
-    WriteTextAtomic((fs::path(o.out) / "fine_tune.json").string(), init.dump(2) + "\n");
+    WriteTextAtomic((fs::path(work) / "fine_tune.json").string(), init.dump(2) + "\n");
   }
-  const learning::Metrics m =
-      TrainOnDataset(config, o.data, o.out, o.resume, g.threads, g.quiet, fine_tune);
+  learning::Metrics m;
+  try {
+    m = TrainOnDataset(config, o.data, work, o.resume, g.threads, g.quiet, fine_tune);
+  } catch (const Error&) {
+    // refused input: a fresh run leaves nothing behind (a resumed one keeps its checkpoint)
+    std::error_code ec;
+    if (!o.resume) fs::remove_all(work, ec);
+    throw;
+  }
+  ReplaceDirectory(work, o.out);
   json j = MetricsJson(m);
   j["run_dir"] = o.out;
   return {j.dump(), fmt::format("trained {}: validation MED {:.2f} cm, height {:.2f} cm, angle "
@@ -65,7 +93,11 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
                                    "pretrained one (--init-from)");
   train->add_option("--data", o->train.data, "training dataset (.h5)")->required();
   train->add_option("--out", o->train.out, "run directory")->required();
-  train->add_flag("--resume", o->train.resume, "continue from the run directory's checkpoint");
+  train->add_flag("--resume", o->train.resume,
+                  "continue an interrupted run (RUN.partial) from its checkpoint, or train a "
+                  "finished one further");
+  train->add_flag("--force", o->train.force,
+                  "replace an existing run directory (once the new run is complete)");
   train->add_option("--init-from", o->train.init_from,
                     "pretrained run directory: start from its weights and config");
   AddEnumOption(train, "--freeze", &o->train.freeze,

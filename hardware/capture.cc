@@ -17,6 +17,42 @@ namespace {
 
 const char* kProprioHeader = "t_s,x_m,y_m,z_m,qw,qx,qy,qz,vx_m_s,vy_m_s,vz_m_s";
 
+// Limits no Panda log exceeds (its reach is under 1 m, its flange under 2 m/s): beyond them a
+// value is in other units or damage, and would turn into non-finite features.
+constexpr double kMaxPositionM = 10.0;
+constexpr double kMaxSpeedMS = 10.0;
+constexpr double kQuaternionNormTolerance = 0.1;
+
+// One log row (t, x, y, z, qw, qx, qy, qz, vx, vy, vz) against those limits; times increase.
+void CheckPlausibleRow(const std::string& path, int line_no, const std::array<double, 11>& v,
+                       const double* previous_time_s) {
+  if (previous_time_s != nullptr && !(v[0] > *previous_time_s)) {
+    throw IoError(fmt::format("{}:{}: t_s = {} does not follow the previous row's {}", path,
+                              line_no, v[0], *previous_time_s));
+  }
+  const double position_m = std::sqrt(v[1] * v[1] + v[2] * v[2] + v[3] * v[3]);
+  if (position_m > kMaxPositionM) {
+    throw IoError(
+        fmt::format("{}:{}: the tube lies {:.3g} m from the robot base (at most {} m; "
+                    "positions are in metres)",
+                    path, line_no, position_m, kMaxPositionM));
+  }
+  const double norm = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
+  if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
+    throw IoError(
+        fmt::format("{}:{}: the orientation quaternion (qw, qx, qy, qz) has norm {:.4g}, "
+                    "not 1",
+                    path, line_no, norm));
+  }
+  const double speed_m_s = std::sqrt(v[8] * v[8] + v[9] * v[9] + v[10] * v[10]);
+  if (speed_m_s > kMaxSpeedMS) {
+    throw IoError(
+        fmt::format("{}:{}: the tube moves at {:.3g} m/s (at most {} m/s; velocities "
+                    "are in m/s)",
+                    path, line_no, speed_m_s, kMaxSpeedMS));
+  }
+}
+
 }  // namespace
 
 Eigen::MatrixXf ReadProprioCsv(const std::string& path) {
@@ -31,6 +67,7 @@ Eigen::MatrixXf ReadProprioCsv(const std::string& path) {
   }
   // rows of 11 numbers; the time column is checked, then dropped
   std::vector<std::array<float, 10>> rows;
+  double last_time_s = 0.0;
   int line_no = 1;
   while (std::getline(in, line)) {
     ++line_no;
@@ -56,6 +93,8 @@ Eigen::MatrixXf ReadProprioCsv(const std::string& path) {
     }
     if (col != 11)
       throw IoError(fmt::format("{}:{}: expected 11 columns, found {}", path, line_no, col));
+    CheckPlausibleRow(path, line_no, values, rows.empty() ? nullptr : &last_time_s);
+    last_time_s = values[0];
     std::array<float, 10> row;
     for (int j = 0; j < 10; ++j) row[j] = static_cast<float>(values[j + 1]);
     rows.push_back(row);
@@ -81,16 +120,43 @@ void WriteProprioCsv(const std::string& path, const Eigen::MatrixXf& proprio, do
     }
     if (!out) throw IoError(fmt::format("{}: write failed", path));
   }
-  std::filesystem::rename(partial, path);
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec)
+    throw IoError(fmt::format("{}: cannot rename {} into place: {}", path, partial, ec.message()));
 }
 
 Capture LoadCapture(const std::string& wav_path, const std::string& proprio_csv_path,
-                    int expected_channels, double expected_sample_rate_hz) {
+                    const CaptureChecks& checks) {
   Capture capture;
-  const AudioClip clip = ReadWav(wav_path, expected_channels);
-  if (std::abs(clip.sample_rate_hz - expected_sample_rate_hz) > 1e-6) {
+  const AudioClip clip = ReadWav(wav_path, checks.channels);
+  if (std::abs(clip.sample_rate_hz - checks.sample_rate_hz) > 1e-6) {
     throw IoError(fmt::format("{}: sample rate {} Hz, the model expects {} Hz", wav_path,
-                              clip.sample_rate_hz, expected_sample_rate_hz));
+                              clip.sample_rate_hz, checks.sample_rate_hz));
+  }
+  if (clip.frames() < checks.min_frames) {
+    throw IoError(
+        fmt::format("{}: {} frames ({:.4f} s), shorter than the {} frames ({:.4f} s) "
+                    "a strike record needs",
+                    wav_path, clip.frames(), clip.frames() / clip.sample_rate_hz, checks.min_frames,
+                    checks.min_frames / clip.sample_rate_hz));
+  }
+  // within full scale (ReadWav refused non-finite samples), no dead channel
+  Eigen::Index channel = 0, frame = 0;
+  const float peak = clip.samples.cwiseAbs().maxCoeff(&channel, &frame);
+  if (peak > 1.0f + 1e-6f) {
+    throw IoError(
+        fmt::format("{}: sample {:.4g} at frame {} of channel {} lies beyond full scale "
+                    "(|x| <= 1; is the WAV in volts or converter counts?)",
+                    wav_path, clip.samples(channel, frame), frame, channel));
+  }
+  for (int c = 0; c < clip.channels(); ++c) {
+    if (clip.samples.row(c).cwiseAbs().maxCoeff() == 0.0f) {
+      throw IoError(
+          fmt::format("{}: channel {} is silent (every sample is zero): a dead "
+                      "microphone or cable",
+                      wav_path, c));
+    }
   }
   capture.audio = clip.samples;
   capture.sample_rate_hz = clip.sample_rate_hz;

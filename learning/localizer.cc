@@ -76,8 +76,32 @@ std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   FeatureSet expected = impl_->file.shapes.ShapesOnly();
   if (use.audio && features.frames == crop) expected.frames = crop;
   internal::CheckSameShapes(expected, features, use, "features to localize");
+  // non-finite inputs never become an answer
+  auto check_finite = [&](const std::vector<float>& values, bool used, const char* what) {
+    if (!used) return;
+    for (size_t k = 0; k < values.size(); ++k) {
+      if (!std::isfinite(values[k])) {
+        throw NumericalError(
+            fmt::format("features to localize: the {} of strike {} holds a "
+                        "non-finite value",
+                        what, k / std::max<size_t>(1, values.size() / features.size())));
+      }
+    }
+  };
+  check_finite(features.mel, use.audio, "mel spectrogram");
+  check_finite(features.gcc, use.gcc, "GCC-PHAT");
+  check_finite(features.proprio, use.proprio, "proprioception");
   std::vector<Prediction> predictions = internal::PredictAll(*impl_->network, features, crop);
-  for (Prediction& p : predictions) p = ApplyCalibration(p, impl_->file.calibration);
+  for (size_t i = 0; i < predictions.size(); ++i) {
+    Prediction& p = predictions[i];
+    if (!std::isfinite(p.z_m) || !std::isfinite(p.theta_rad)) {
+      throw NumericalError(
+          fmt::format("the network's answer for strike {} is not finite (z = {}, theta = {}): "
+                      "its inputs lie far outside what it was trained on",
+                      i, p.z_m, p.theta_rad));
+    }
+    p = ApplyCalibration(p, impl_->file.calibration);
+  }
   return predictions;
 }
 

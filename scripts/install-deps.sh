@@ -18,6 +18,11 @@ packages=(
   libspdlog-dev libfmt-dev
   # live capture (sonicboom listen): PortAudio over ALSA
   portaudio19-dev
+  # several processes: mpirun launches generation shards (tests, scripts/cluster/); Gloo's
+  # headers for libtorch's c10d data-parallel training
+  openmpi-bin libgloo-dev
+  # fuzzing (scripts/fuzz.sh): clang with libFuzzer and the sanitizer runtimes
+  clang-14 libclang-rt-14-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # plots and reference values (Debian's python, /usr/bin/python3)

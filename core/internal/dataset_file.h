@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -60,6 +61,13 @@ class DatasetFile {
     info_.global_seed = h5::ReadUint64Attr(root, "global_seed", path);
     info_.shard = h5::ReadInt64Attr(root, "shard", path);
     info_.num_shards = h5::ReadInt64Attr(root, "num_shards", path);
+    if (h5::HasAttr(root, "flushed_samples", path)) {
+      info_.flushed_samples = h5::ReadInt64Attr(root, "flushed_samples", path);
+    }
+    if (h5::HasAttr(root, "first_index", path) && h5::HasAttr(root, "index_count", path)) {
+      info_.first_index = h5::ReadInt64Attr(root, "first_index", path);
+      info_.index_count = h5::ReadInt64Attr(root, "index_count", path);
+    }
 
     // Every column.
     columns_.audio = h5::OpenDataset(root, kAudioPath, path);
@@ -91,6 +99,19 @@ class DatasetFile {
         throw SchemaError(path + ": /variation must have shape (N, " +
                           std::to_string(info_.variation_names.size()) +
                           ") for its names attribute '" + names + "'");
+      }
+    }
+
+    // A virtual audio column (merge --virtual) reads its shards where they were: every one there.
+    for (const std::string& source :
+         h5::VirtualSourceFiles(columns_.audio.get(), path, kAudioPath)) {
+      namespace fs = std::filesystem;
+      const fs::path resolved = fs::path(source).is_absolute()
+                                    ? fs::path(source)
+                                    : fs::absolute(path).parent_path() / source;
+      if (!fs::exists(resolved)) {
+        throw SchemaError(path + ": /audio is a virtual dataset over " + resolved.string() +
+                          ", which is missing (a merge --virtual reads its shards in place)");
       }
     }
 
@@ -135,6 +156,8 @@ class DatasetFile {
       }
     }
     if (has_contacts_) CheckContactTable();
+    CheckNumericColumns();
+    CheckUniqueIndices();
   }
 
   const std::string& path() const { return path_; }
@@ -160,7 +183,8 @@ class DatasetFile {
       // NaN means "not known"; an infinite label is damage, refused before it becomes a result
       if (std::isinf(value)) {
         throw SchemaError(path_ + ": /" + kScalarLabels[f].path + " of sample row " +
-                          std::to_string(i) + " is infinite (labels are finite, or NaN when unknown)");
+                          std::to_string(i) +
+                          " is infinite (labels are finite, or NaN when unknown)");
       }
       sample->label.*kScalarLabels[f].member = value;
     }
@@ -174,6 +198,13 @@ class DatasetFile {
     std::vector<float> proprio(static_cast<size_t>(k) * kProprioFeatures);
     h5::ReadRows(columns_.proprio.get(), H5T_NATIVE_FLOAT, proprio.data(), static_cast<hsize_t>(i),
                  1, path_, kProprioPath);
+    for (size_t k = 0; k < proprio.size(); ++k) {
+      if (!std::isfinite(proprio[k])) {
+        throw SchemaError(path_ + ": /" + kProprioPath + " of sample row " + std::to_string(i) +
+                          " holds a non-finite value (row " + std::to_string(k / kProprioFeatures) +
+                          ", column " + std::to_string(k % kProprioFeatures) + ")");
+      }
+    }
     sample->proprio =
         Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
             proprio.data(), k, kProprioFeatures);
@@ -292,6 +323,13 @@ class DatasetFile {
     h5::ReadRows(columns_.audio.get(), H5T_NATIVE_FLOAT, audio.data(), static_cast<hsize_t>(i), 1,
                  path_, kAudioPath);
     if (audio_scale_ != 1.0) audio *= static_cast<float>(audio_scale_);
+    if (!audio.allFinite()) {
+      Eigen::Index channel = 0, frame = 0;
+      (!audio.array().isFinite()).cast<int>().maxCoeff(&channel, &frame);
+      throw SchemaError(path_ + ": /" + kAudioPath + " of sample row " + std::to_string(i) +
+                        " holds a non-finite sample (channel " + std::to_string(channel) +
+                        ", frame " + std::to_string(frame) + ")");
+    }
     return audio;
   }
 
@@ -344,6 +382,53 @@ class DatasetFile {
       throw SchemaError(path_ + ": the contact table holds between " + std::to_string(rows) +
                         " and " + std::to_string(most_rows) + " rows but the samples' contacts " +
                         "end at row " + std::to_string(end));
+    }
+  }
+
+  // Labels, proprioception and the contact table's numbers are floating point: an integer
+  // column (z in millimetres, say) would be read as metres without a word.
+  void CheckNumericColumns() const {
+    auto require_float = [&](hid_t dataset, const std::string& name) {
+      h5::Handle type(h5::CheckId(H5Dget_type(dataset), path_, name, "read type of"));
+      if (H5Tget_class(type.get()) != H5T_FLOAT) {
+        throw SchemaError(path_ + ": /" + name + " is " + h5::DtypeName(type.get()) +
+                          ", expected floating point in SI units (docs/dataset.md)");
+      }
+    };
+    for (size_t f = 0; f < kScalarLabels.size(); ++f) {
+      require_float(columns_.scalar_labels[f].get(), kScalarLabels[f].path);
+    }
+    for (size_t f = 0; f < kVectorLabels.size(); ++f) {
+      require_float(columns_.vector_labels[f].get(), kVectorLabels[f].path);
+    }
+    require_float(columns_.proprio.get(), kProprioPath);
+    if (!has_contacts_) return;
+    for (size_t f = 0; f < kScalarContacts.size(); ++f) {
+      require_float(columns_.contacts.scalars[f].get(), kScalarContacts[f].path);
+    }
+    for (size_t f = 0; f < kVectorContacts.size(); ++f) {
+      require_float(columns_.contacts.vectors[f].get(), kVectorContacts[f].path);
+    }
+  }
+
+  // Every sample index once: a repeated index is the same strike twice (merged twice, or a
+  // hand-edited file), which would leak between a split's training and validation parts.
+  void CheckUniqueIndices() const {
+    const int64_t n = info_.num_samples;
+    std::vector<uint64_t> indices(static_cast<size_t>(n));
+    if (n > 0) {
+      h5::ReadRows(columns_.sample_index.get(), H5T_NATIVE_UINT64, indices.data(), 0,
+                   static_cast<hsize_t>(n), path_, kSampleIndexPath);
+    }
+    std::vector<std::pair<uint64_t, int64_t>> sorted(indices.size());
+    for (int64_t r = 0; r < n; ++r) sorted[static_cast<size_t>(r)] = {indices[r], r};
+    std::sort(sorted.begin(), sorted.end());
+    for (size_t k = 1; k < sorted.size(); ++k) {
+      if (sorted[k].first == sorted[k - 1].first) {
+        throw SchemaError(path_ + ": sample index " + std::to_string(sorted[k].first) +
+                          " appears twice (rows " + std::to_string(sorted[k - 1].second) + " and " +
+                          std::to_string(sorted[k].second) + ")");
+      }
     }
   }
 

@@ -37,6 +37,7 @@ struct DatasetWriter::Impl {
   void WriteAllButAudio(const StrikeSample& sample);
   // Appends the sample's contact episodes to the contact table (schema 1.1).
   void WriteContacts(const StrikeSample& sample);
+  void Flush();  // flushed_samples attribute, then H5Fflush
   // Creates the per-sample contact offsets and the empty contact table.
   void CreateContactColumns();
 };

@@ -138,6 +138,25 @@ void ReadRows(hid_t dataset, hid_t mem_type, void* out, hsize_t first, hsize_t r
 std::vector<std::string> ReadStringRows(hid_t dataset, hsize_t first, hsize_t rows,
                                         std::string_view file, std::string_view object);
 
+/// One source of a virtual dataset: all `rows` rows of dataset `dataset` in file `file` (a path
+/// relative to the virtual dataset's own file, or absolute), placed at rows start, start + stride,
+/// ... of the virtual dataset.
+struct VirtualSource {
+  std::string file;
+  std::string dataset;
+  hsize_t rows{0};
+  hsize_t start{0};
+  hsize_t stride{1};
+};
+/// Creates a virtual dataset of `rows` rows of shape `row_dims` at `path` below `loc` over
+/// `sources` (no data copied: reads go to the sources).
+Handle CreateVirtual(hid_t loc, const std::string& path, hid_t file_type, hsize_t rows,
+                     const std::vector<hsize_t>& row_dims,
+                     const std::vector<VirtualSource>& sources, std::string_view file);
+/// The source file names of a virtual dataset as stored (empty for a stored dataset).
+std::vector<std::string> VirtualSourceFiles(hid_t dataset, std::string_view file,
+                                            std::string_view object);
+
 /// The stored (already filtered, e.g. compressed) bytes of one chunk.
 struct RawChunk {
   uint32_t filter_mask{0};  // filters skipped for this chunk, as HDF5 reports them

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "sonicboom/core/dataset.h"
+#include "sonicboom/experiments/config.h"
 
 namespace sonicboom::experiments {
 
@@ -16,8 +17,11 @@ struct ValidRecords {
   std::vector<int64_t> rows;
   std::vector<StrikeSample> metas;
 };
-/// SchemaError naming `path` when no sample is valid.
-ValidRecords ReadValidRecords(const DatasetReader& reader, const std::string& path);
+/// SchemaError naming `path` when no sample is valid, when the records' length is not the one
+/// the config states, or when a valid sample's label lies off the config's tube (its units are
+/// not metres and radians).
+ValidRecords ReadValidRecords(const DatasetReader& reader, const std::string& path,
+                              const SonicBoomConfig& config);
 
 /// Calls fn(i, sample of rows[i]) for every i, on `threads` workers (0 = all cores), with a
 /// progress line named `name`. Reads are serialized; fn runs in parallel.

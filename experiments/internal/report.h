@@ -8,6 +8,7 @@
 
 #include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/commands.h"
+#include "sonicboom/hardware/capture.h"
 #include "sonicboom/hardware/import.h"
 #include "sonicboom/learning/learning.h"
 
@@ -25,10 +26,19 @@ void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config)
 /// IoError unless the parent directory of an output exists.
 void RequireParentDir(const std::string& path);
 
+/// An output a command is about to write (a file, or a run directory): its parent directory must
+/// exist, and an existing one is replaced only with `force` (the new one takes its place once
+/// complete). IoError naming the path otherwise.
+void CheckOutput(const std::string& out, bool force);
+
 /// IoError when `out` (or its OUT.config.yaml sidecar) is the input file `in` given by
 /// `in_option`: a command never writes over what it reads. An empty `in` passes.
 void RefuseOverwritingInput(const std::string& out, const std::string& in,
                             const std::string& in_option);
+
+/// What a recorded strike must be for this config (hardware::LoadCapture): one channel per mic,
+/// the audio rate, and at least as long as the shorter of the record and the analysis window.
+hardware::CaptureChecks CaptureChecksFor(const SonicBoomConfig& config);
 
 /// The Panda's tube pose for joint angles, the tube centre `tube_center_from_flange_m` along the
 /// flange axis: how `import` and `geometry-check` place the tube from a joint log.

@@ -145,8 +145,9 @@ TEST(ReferenceNoiseClipTest, ReadsTheConfiguredWavAndChecksIt) {
     out.write(reinterpret_cast<const char*>(data.data()), data_bytes);
   }
   config.features.gating_noise_wav = dir / "nan.wav";
-  EXPECT_THAT(ThrownMessage<ConfigError>([&] { ReferenceNoiseClip(config); }),
-              HasSubstr("nan.wav has a non-finite sample at channel 3 frame 77"));
+  const std::string nan = ThrownMessage<IoError>([&] { ReferenceNoiseClip(config); });
+  EXPECT_THAT(nan, HasSubstr("features.gating_noise_wav"));
+  EXPECT_THAT(nan, HasSubstr("nan.wav: frame 77 (0.0017 s) of channel 3 is nan"));
   config.features.gating_noise_wav = dir / "missing.wav";
   const std::string missing = ThrownMessage<IoError>([&] { ReferenceNoiseClip(config); });
   EXPECT_THAT(missing, HasSubstr("features.gating_noise_wav"));

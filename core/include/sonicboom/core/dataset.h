@@ -27,6 +27,7 @@
 /// The file is written as "<path>.partial" and renamed after `complete` is set.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -55,8 +56,13 @@ struct DatasetInfo {
   uint64_t global_seed{0};
   int64_t shard{0};
   int64_t num_shards{1};
+  // the generated index range [first_index, first_index + index_count) that the shards split;
+  // -1: not recorded (imported data, files of earlier versions)
+  int64_t first_index{-1};
+  int64_t index_count{-1};
   int64_t num_samples{0};      // reader: samples in the file
   bool complete{false};        // reader: the `complete` attribute
+  int64_t flushed_samples{0};  // reader: samples an (interrupted) writer had flushed
   std::string schema_version;  // reader: the file's version; the writer writes the current
   std::vector<std::string> variation_names;  // (P) randomized draws stored per sample; empty: none
 };
@@ -94,13 +100,19 @@ class DatasetWriter {
   void AppendEncoded(const EncodedSample& sample);
   /// Writes num_samples and `complete`, closes, renames to the final path.
   void Finish();
+  /// Writes what was appended to disk: a writer killed after this leaves these samples readable
+  /// in "<path>.partial" (ResumeDatasetWriter carries them over). Appends flush every 2 s.
+  void Flush();
   int64_t count() const;
 
  private:
   // Merging copies compressed audio chunks straight into the writer's file, and writes shards of
   // version 1.0 as a 1.0 file (`with_contacts` false: no contact table).
   friend void MergeDatasets(const std::vector<std::string>& shard_paths,
-                            const std::string& out_path);
+                            const std::string& out_path, bool virtual_audio);
+  friend std::unique_ptr<DatasetWriter> ResumeDatasetWriter(
+      const std::string& path, const DatasetInfo& info,
+      const std::function<bool(int64_t row, uint64_t index)>& expected, int64_t* kept);
   DatasetWriter(const std::string& path, const DatasetInfo& info, bool with_contacts);
   struct Impl;
   std::unique_ptr<Impl> impl_;
@@ -133,8 +145,27 @@ class DatasetReader {
 /// Joins shard files (same schema version and config, any order) into one file ordered by sample
 /// index, contacts carried over with re-based offsets. Shards of version 1.0 give a 1.0 file.
 /// Refuses incomplete shards, mixed versions, mismatched configs and duplicate indices
-/// (SchemaError).
-void MergeDatasets(const std::vector<std::string>& shard_paths, const std::string& out_path);
+/// (SchemaError), and shards of one generated set (num_shards > 1) that are not all there or
+/// were generated over different ranges. With `virtual_audio` the output's /audio is an HDF5
+/// virtual dataset over the shards' (no audio copied; the shards must stay where they are,
+/// found relative to the output); every other column is copied.
+void MergeDatasets(const std::vector<std::string>& shard_paths, const std::string& out_path,
+                   bool virtual_audio = false);
+
+/// The same dataset: what a writer's partial file must share with a new run to be resumed, and a
+/// finished file with a rerun to be skipped (source, config_yaml, global seed, shard, num_shards,
+/// generated range, shapes and audio dtype).
+bool SameDatasetIdentity(const DatasetInfo& a, const DatasetInfo& b);
+
+/// A writer for `path` that resumes what an interrupted writer of the same dataset left: the
+/// samples of "<path>.partial" whose every column (and contact rows) was written, kept while
+/// expected(row, sample index) holds, are copied (audio chunks as stored) into the new writer;
+/// *kept is their number. Without a partial, or with one of another identity or unreadable, the
+/// writer starts empty (*kept = 0) and the stale partial is replaced. While the kept samples are
+/// copied the old partial waits as "<path>.resume", so an interruption of the copy loses nothing.
+std::unique_ptr<DatasetWriter> ResumeDatasetWriter(
+    const std::string& path, const DatasetInfo& info,
+    const std::function<bool(int64_t row, uint64_t index)>& expected, int64_t* kept);
 
 /// A human-readable (and JSON) summary of a dataset file: counts, valid/invalid with reasons,
 /// label ranges, audio peak statistics, completeness, and contact counts by kind and object with

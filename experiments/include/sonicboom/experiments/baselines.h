@@ -15,7 +15,7 @@ namespace sonicboom::experiments {
 
 /// Labels of the valid samples of a dataset, in file order (the rows ComputeDatasetFeatures
 /// gives), in a FeatureSet with no feature arrays. Throws SchemaError when none is valid.
-learning::FeatureSet DatasetLabels(const std::string& dataset_path);
+learning::FeatureSet DatasetLabels(const std::string& dataset_path, const SonicBoomConfig& config);
 
 /// The TDOA locator of a config: its tube, material, microphones and seams.
 acoustics::TdoaGeometry TdoaGeometryOf(const SonicBoomConfig& config);

@@ -29,11 +29,18 @@ struct CommandResult {
 };
 
 CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir);
+/// `generate`: shard_option is a shard number (of num_shards) or "auto" (ShardFromEnvironment);
+/// "{shard}" in `out` becomes the shard number. An existing complete output of the same dataset
+/// is skipped (a rerun of a finished shard); another existing output needs `force`.
 CommandResult RunGenerate(const GlobalOptions& g, const std::string& out, int64_t count,
-                          int64_t first_index, int64_t shard, int64_t num_shards);
+                          int64_t first_index, const std::string& shard_option, int64_t num_shards,
+                          bool force);
+/// `merge`: shards into one dataset, copied, or with virtual_audio an HDF5 virtual dataset over
+/// the shards' audio. An existing output needs `force`.
 CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
-                       const std::vector<std::string>& shards);
-CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index);
+                       const std::vector<std::string>& shards, bool virtual_audio, bool force);
+CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index,
+                       bool force);
 CommandResult RunModes(const GlobalOptions& g, TubeEnds ends, bool ideal, int64_t count);
 /// The fidelity ladder's speed-accuracy table (docs/fidelity.md): every rung against the finest
 /// FD reference on `strikes` test strikes over `window_s` after the onset.
@@ -55,7 +62,7 @@ struct AblateOptions {
 /// before the --set overrides); finished runs are reused. Writes out/table.md, out/results.json.
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o);
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
-                          const std::string& proprio_csv);
+                          const std::string& proprio_csv, bool force);
 /// A fine-tune's per-mic mel statistics: the pretrained run's, or refitted on the target data.
 enum class NormPolicy { kKeep, kRefit };
 inline constexpr EnumName<NormPolicy> kNormPolicyNames[] = {{NormPolicy::kKeep, "keep"},
@@ -69,6 +76,7 @@ struct TrainOptions {
   std::string data;  // dataset (.h5)
   std::string out;   // run directory
   bool resume{false};
+  bool force{false};      // replace an existing run directory
   std::string init_from;  // pretrained run directory; empty: from scratch
   learning::FineTune::Freeze freeze{learning::FineTune::Freeze::kNone};
   NormPolicy norm{NormPolicy::kKeep};

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "sonicboom/core/dataset.h"
 #include "sonicboom/core/sample.h"
 #include "sonicboom/experiments/config.h"
 #include "sonicboom/learning/learning.h"
@@ -37,16 +38,29 @@ class StrikePipeline {
 /// Summary of a generate run.
 struct GenerateResult {
   std::string path;
-  int64_t written{0};
+  int64_t written{0};  // samples in the file (resumed ones included)
   int64_t valid{0};
   int64_t clipped{0};
+  int64_t resumed{0};   // carried over from an interrupted run's partial file
+  bool skipped{false};  // the file was already complete with this identity: nothing generated
   double wall_s{0.0};
 };
 
 /// Writes samples first_index .. first_index + count - 1 that belong to `shard` of `num_shards`
 /// (index % num_shards == shard) into `out_path`, in index order, using `threads` workers.
-/// The file appears under its final name only when complete. ConfigError for a count or first
-/// index outside DatasetConfig's limits, naming --count or --first-index.
+/// The file appears under its final name only when complete. An interrupted run of the same
+/// shard resumes: the samples its <out_path>.partial had flushed are kept (ResumeDatasetWriter).
+/// ConfigError for a count or first index outside DatasetConfig's limits, naming --count or
+/// --first-index. The config a generated dataset stores as its identity: the resolved config
+/// without the settings of the machine that ran it (train.threads, acoustics.mode_cache_dir), so
+/// that shards generated with other thread counts or cache directories merge.
+std::string DatasetConfigYaml(SonicBoomConfig config);
+
+/// What a generated dataset file records about itself (its identity, SameDatasetIdentity):
+/// DatasetConfigYaml, rates, shapes, seed, shard and the generated range.
+DatasetInfo GeneratedDatasetInfo(const SonicBoomConfig& config, int64_t first_index, int64_t count,
+                                 int64_t shard, int64_t num_shards);
+
 GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string& out_path,
                                int64_t count, int64_t first_index, int64_t shard,
                                int64_t num_shards, int threads, bool show_progress);

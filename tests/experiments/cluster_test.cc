@@ -1,0 +1,191 @@
+// Generation on a cluster: shards from launcher variables, resumed shards, merged copies and
+// virtual merges, and a real `mpirun -np 3` against one process, bit for bit.
+#include "sonicboom/experiments/cluster.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include "common/test_util.h"
+#include "experiments/dataset_expect.h"
+#include "sonicboom/core/dataset.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/experiments/pipeline.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+namespace fs = std::filesystem;
+using sonicboom::testing::RunCli;
+using sonicboom::testing::TempDir;
+using sonicboom::testing::ThrownMessage;
+using ::testing::HasSubstr;
+
+// An environment of the given variables only.
+EnvironmentLookup Env(std::map<std::string, std::string> vars) {
+  return [vars = std::move(vars)](const char* name) -> const char* {
+    const auto it = vars.find(name);
+    return it == vars.end() ? nullptr : it->second.c_str();
+  };
+}
+
+TEST(ClusterTest, ShardsComeFromSlurmArraysAndMpiLaunchers) {
+  // a 1-based Slurm array (--array=1-4): task 3 is shard 2 of 4
+  ShardAssignment s = ShardFromEnvironment(Env({{"SLURM_ARRAY_TASK_ID", "3"},
+                                                {"SLURM_ARRAY_TASK_MIN", "1"},
+                                                {"SLURM_ARRAY_TASK_MAX", "4"},
+                                                {"SLURM_ARRAY_TASK_COUNT", "4"}}));
+  EXPECT_EQ(s.shard, 2);
+  EXPECT_EQ(s.num_shards, 4);
+  // Open MPI, PMI (MPICH, Intel MPI), PMIx, srun tasks
+  s = ShardFromEnvironment(Env({{"OMPI_COMM_WORLD_RANK", "1"}, {"OMPI_COMM_WORLD_SIZE", "3"}}));
+  EXPECT_EQ(s.shard, 1);
+  EXPECT_EQ(s.num_shards, 3);
+  s = ShardFromEnvironment(Env({{"PMI_RANK", "0"}, {"PMI_SIZE", "2"}}));
+  EXPECT_EQ(s.num_shards, 2);
+  s = ShardFromEnvironment(Env({{"PMIX_RANK", "5"}, {"PMI_SIZE", "8"}}));
+  EXPECT_EQ(s.shard, 5);
+  s = ShardFromEnvironment(Env({{"SLURM_PROCID", "7"}, {"SLURM_NTASKS", "8"}}));
+  EXPECT_EQ(s.shard, 7);
+  // an array job wins over the MPI variables of its step
+  s = ShardFromEnvironment(Env({{"SLURM_ARRAY_TASK_ID", "0"},
+                                {"SLURM_ARRAY_TASK_MIN", "0"},
+                                {"SLURM_ARRAY_TASK_MAX", "9"},
+                                {"SLURM_PROCID", "0"},
+                                {"SLURM_NTASKS", "1"}}));
+  EXPECT_EQ(s.num_shards, 10);
+}
+
+TEST(ClusterTest, BadLauncherVariablesAreRefusedNamingThem) {
+  EXPECT_THAT(ThrownMessage<ConfigError>([] { ShardFromEnvironment(Env({})); }),
+              HasSubstr("no launcher variables"));
+  EXPECT_THAT(
+      ThrownMessage<ConfigError>([] {
+        ShardFromEnvironment(Env({{"OMPI_COMM_WORLD_RANK", "one"}, {"OMPI_COMM_WORLD_SIZE", "3"}}));
+      }),
+      HasSubstr("OMPI_COMM_WORLD_RANK='one'"));
+  EXPECT_THAT(ThrownMessage<ConfigError>([] {
+                ShardFromEnvironment(Env({{"PMI_RANK", "3"}, {"PMI_SIZE", "3"}}));
+              }),
+              HasSubstr("shard 3 of 3"));
+  // a stepped array (--array=0-8:2) has gaps no shard numbering covers
+  EXPECT_THAT(ThrownMessage<ConfigError>([] {
+                ShardFromEnvironment(Env({{"SLURM_ARRAY_TASK_ID", "2"},
+                                          {"SLURM_ARRAY_TASK_MIN", "0"},
+                                          {"SLURM_ARRAY_TASK_MAX", "8"},
+                                          {"SLURM_ARRAY_TASK_COUNT", "5"}}));
+              }),
+              HasSubstr("SLURM_ARRAY_TASK_COUNT = 5"));
+  EXPECT_THAT(ThrownMessage<ConfigError>([] {
+                ShardFromEnvironment(Env({{"SLURM_ARRAY_TASK_ID", "2"}}));
+              }),
+              HasSubstr("SLURM_ARRAY_TASK_MIN"));
+}
+
+TEST(ClusterTest, LauncherShardsNeedTheirOwnFiles) {
+  EXPECT_EQ(ShardOutputPath("d-{shard}-of-{num_shards}.h5", {2, 4, "PMI_RANK/PMI_SIZE"}),
+            "d-2-of-4.h5");
+  EXPECT_THAT(ThrownMessage<ConfigError>([] {
+                ShardOutputPath("d.h5", {1, 3, "OMPI_COMM_WORLD_RANK/SIZE"});
+              }),
+              HasSubstr("{shard}"));
+  // a shard numbered by hand names its own file; one process of one shard needs no pattern
+  EXPECT_EQ(ShardOutputPath("d1.h5", {1, 3, "--shard"}), "d1.h5");
+  EXPECT_EQ(ShardOutputPath("d.h5", {0, 1, "PMI_RANK/PMI_SIZE"}), "d.h5");
+}
+
+// A writer killed after flushing leaves a partial file: the next run keeps its samples and
+// writes the same dataset an uninterrupted run writes.
+TEST(ClusterTest, AnInterruptedShardResumesFromItsPartialFile) {
+  TempDir dir;
+  const SonicBoomConfig config = ShortConfig();
+  GenerateDataset(config, dir / "whole.h5", 10, 0, 0, 1, 2, false);
+  {
+    // the first 4 strikes of the same dataset, flushed, never finished
+    const StrikePipeline pipeline(config);
+    DatasetWriter killed(dir / "d.h5", GeneratedDatasetInfo(config, 0, 10, 0, 1));
+    for (uint64_t i = 0; i < 4; ++i) killed.Append(pipeline.Simulate(i));
+    killed.Flush();
+    killed.Append(pipeline.Simulate(4));  // not flushed: not trusted
+  }
+  ASSERT_TRUE(fs::exists(dir / "d.h5.partial"));
+  const GenerateResult r = GenerateDataset(config, dir / "d.h5", 10, 0, 0, 1, 2, false);
+  EXPECT_EQ(r.resumed, 4);
+  EXPECT_EQ(r.written, 10);
+  EXPECT_FALSE(fs::exists(dir / "d.h5.partial"));
+  EXPECT_FALSE(fs::exists(dir / "d.h5.resume"));
+  ExpectSameSamples(dir / "whole.h5", dir / "d.h5");
+
+  // a partial of another dataset (another seed) is not resumed but replaced
+  SonicBoomConfig other = config;
+  other.seed = 12;
+  {
+    const StrikePipeline pipeline(other);
+    DatasetWriter killed(dir / "e.h5", GeneratedDatasetInfo(other, 0, 10, 0, 1));
+    for (uint64_t i = 0; i < 3; ++i) killed.Append(pipeline.Simulate(i));
+    killed.Flush();
+  }
+  EXPECT_EQ(GenerateDataset(config, dir / "e.h5", 10, 0, 0, 1, 2, false).resumed, 0);
+  ExpectSameSamples(dir / "whole.h5", dir / "e.h5");
+}
+
+TEST(ClusterTest, VirtualMergeReadsTheShardsInPlace) {
+  TempDir dir;
+  const SonicBoomConfig config = ShortConfig();
+  fs::create_directories(dir.path() / "shards");
+  GenerateDataset(config, dir / "whole.h5", 9, 0, 0, 1, 2, false);
+  for (int s = 0; s < 3; ++s) {
+    GenerateDataset(config, dir / ("shards/s" + std::to_string(s) + ".h5"), 9, 0, s, 3, 1, false);
+  }
+  const std::vector<std::string> shards = {dir / "shards/s2.h5", dir / "shards/s0.h5",
+                                           dir / "shards/s1.h5"};
+  MergeDatasets(shards, dir / "virtual.h5", /*virtual_audio=*/true);
+  ExpectSameSamples(dir / "whole.h5", dir / "virtual.h5");
+  // no audio copied: the virtual file is a small fraction of the copy
+  MergeDatasets(shards, dir / "copy.h5");
+  EXPECT_LT(fs::file_size(dir / "virtual.h5"), fs::file_size(dir / "copy.h5") / 3);
+  // moved together, the files still find each other (sources are relative to the merged file)
+  const fs::path moved = dir.path().string() + "-moved";
+  fs::copy(dir.path(), moved, fs::copy_options::recursive);
+  fs::rename(dir.path() / "shards", dir.path() / "shards-away");  // not read by the copy
+  ExpectSameSamples((moved / "whole.h5").string(), (moved / "virtual.h5").string());
+  fs::rename(dir.path() / "shards-away", dir.path() / "shards");
+  fs::remove_all(moved);
+  // a shard gone: refused by name, never read as silence
+  fs::remove(dir / "shards/s1.h5");
+  EXPECT_THAT(ThrownMessage<SchemaError>([&] { DatasetReader reader(dir / "virtual.h5"); }),
+              HasSubstr("s1.h5, which is missing"));
+}
+
+// The unchanged command under `mpirun -np 3` (Debian's Open MPI) writes three shards that merge
+// into the file one process writes, bit for bit.
+TEST(ClusterTest, MpirunShardsMergeToTheSingleProcessDataset) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  const std::string args = sonicboom::testing::kShortRecordArgs + "-q --threads 1 --seed 11 ";
+  ASSERT_EQ(RunCli(args + "generate --count 12 --out single.h5", cwd).exit_code, 0);
+  const std::string mpirun =
+      "cd '" + cwd +
+      "' && OMPI_MCA_plm_rsh_agent= mpirun --allow-run-as-root --oversubscribe -np 3 '" +
+      std::string(SONICBOOM_CLI) + "' " + args +
+      "generate --count 12 --shard auto --out 'm-{shard}.h5' 2>mpirun.err";
+  ASSERT_EQ(std::system(mpirun.c_str()), 0) << mpirun;
+  for (int s = 0; s < 3; ++s) {
+    const DatasetReader shard(dir / ("m-" + std::to_string(s) + ".h5"));
+    EXPECT_EQ(shard.info().shard, s);
+    EXPECT_EQ(shard.info().num_shards, 3);
+    EXPECT_EQ(shard.size(), 4);
+  }
+  ASSERT_EQ(RunCli("-q merge --out merged.h5 m-0.h5 m-1.h5 m-2.h5", cwd).exit_code, 0);
+  ExpectSameSamples(dir / "single.h5", dir / "merged.h5");
+  // a rerun of the finished job changes nothing: every shard is skipped
+  const auto before = fs::last_write_time(dir / "m-1.h5");
+  ASSERT_EQ(std::system(mpirun.c_str()), 0) << mpirun;
+  EXPECT_EQ(fs::last_write_time(dir / "m-1.h5"), before);
+}
+
+}  // namespace
+}  // namespace sonicboom::experiments
