@@ -548,7 +548,8 @@ std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
 learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning::FeatureSet& all,
                                   const std::vector<uint64_t>& sample_indices,
                                   const std::string& data, const std::string& run_dir, bool resume,
-                                  bool quiet, const learning::FineTune& fine_tune) {
+                                  bool quiet, const learning::FineTune& fine_tune,
+                                  const learning::DataParallel& parallel) {
   const auto [train_rows, val_rows] =
       SplitRows(sample_indices, config.train.val_fraction, config.seed);
   if (train_rows.empty() || val_rows.empty()) {
@@ -560,7 +561,7 @@ learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning:
   spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
   return learning::Train(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,
                          config.train, config.tube.outer_radius_m, config.seed, run_dir, resume,
-                         !quiet, fine_tune);
+                         !quiet, fine_tune, parallel);
 }
 
 }  // namespace sonicboom::experiments

@@ -37,9 +37,20 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   const SonicBoomConfig config = o.init_from.empty() ? Resolve(g) : ResolveWithRun(g, o.init_from);
   if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
+  // data parallel (RANK/WORLD_SIZE set by a launcher): every process trains its part of each
+  // batch; rank 0 alone writes the run (docs/cluster.md)
+  const learning::DataParallel parallel = learning::DataParallel::FromEnvironment();
   // the run is written whole in OUT.partial, which replaces OUT once training is done: a killed
   // run never leaves a directory that looks complete, nor harms the run it was replacing
   const std::string work = o.out + ".partial";
+  if (parallel.rank != 0) {
+    // reads rank 0's OUT.partial when resuming, writes nothing
+    TrainOnDataset(config, o.data, work, o.resume, g.threads, g.quiet, fine_tune, parallel);
+    const json j = {
+        {"run_dir", o.out}, {"rank", parallel.rank}, {"world_size", parallel.world_size}};
+    return {j.dump(), fmt::format("rank {} of {}: trained in data parallel; rank 0 writes {}\n",
+                                  parallel.rank, parallel.world_size, o.out)};
+  }
   if (o.resume) {
     if (!fs::exists(work)) {
       if (!fs::exists(o.out)) {
@@ -66,7 +77,7 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   learning::Metrics m;
   try {
-    m = TrainOnDataset(config, o.data, work, o.resume, g.threads, g.quiet, fine_tune);
+    m = TrainOnDataset(config, o.data, work, o.resume, g.threads, g.quiet, fine_tune, parallel);
   } catch (const Error&) {
     // refused input: a fresh run leaves nothing behind (a resumed one keeps its checkpoint)
     std::error_code ec;
@@ -76,6 +87,7 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   ReplaceDirectory(work, o.out);
   json j = MetricsJson(m);
   j["run_dir"] = o.out;
+  if (parallel.world_size > 1) j["world_size"] = parallel.world_size;
   return {j.dump(), fmt::format("trained {}: validation MED {:.2f} cm, height {:.2f} cm, angle "
                                 "{:.1f} deg ({} strikes)\n",
                                 o.out, m.med_cm, m.height_err_cm, m.angle_err_deg, m.n)};

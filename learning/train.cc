@@ -17,6 +17,7 @@
 #include <torch/special.h>
 
 #include "internal/data.h"
+#include "internal/data_parallel.h"
 #include "internal/json_archive.h"
 #include "internal/network.h"
 #include "internal/train_step.h"
@@ -54,19 +55,29 @@ void Shuffle(std::vector<int64_t>* order, uint64_t seed, int64_t epoch) {
   }
 }
 
-// Splits `order` into batches; a trailing batch of one record joins the previous batch
+// Splits `order` into batches; a trailing batch smaller than min_size joins the previous batch
 // (BatchNorm cannot train on a single record).
-std::vector<std::vector<int64_t>> MakeBatches(const std::vector<int64_t>& order, int64_t size) {
+std::vector<std::vector<int64_t>> MakeBatches(const std::vector<int64_t>& order, int64_t size,
+                                              int64_t min_size = 2) {
   std::vector<std::vector<int64_t>> batches;
   for (size_t first = 0; first < order.size(); first += size) {
     const size_t last = std::min(order.size(), first + static_cast<size_t>(size));
     batches.emplace_back(order.begin() + first, order.begin() + last);
   }
-  if (batches.size() > 1 && batches.back().size() == 1) {
-    batches[batches.size() - 2].push_back(batches.back().front());
+  // (data parallel: every process's part of a batch holds at least two records)
+  if (batches.size() > 1 && static_cast<int64_t>(batches.back().size()) < min_size) {
+    std::vector<int64_t>& previous = batches[batches.size() - 2];
+    previous.insert(previous.end(), batches.back().begin(), batches.back().end());
     batches.pop_back();
   }
   return batches;
+}
+
+// Process `rank`'s contiguous part of a batch split among `world` processes.
+std::vector<int64_t> PartOf(const std::vector<int64_t>& batch, int rank, int world) {
+  const size_t n = batch.size();
+  return {batch.begin() + static_cast<std::ptrdiff_t>(n * rank / world),
+          batch.begin() + static_cast<std::ptrdiff_t>(n * (rank + 1) / world)};
 }
 
 // The same loss in double precision from predictions (for validation).
@@ -235,7 +246,7 @@ std::string FormatDuration(double seconds) {
 Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
               const std::string& run_dir, bool resume, bool show_progress,
-              const FineTune& fine_tune) {
+              const FineTune& fine_tune, const DataParallel& parallel) {
   // Configs and features.
   model_config.Validate();
   train_config.Validate();
@@ -258,10 +269,22 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   }
   if (records.empty()) throw SchemaError("training features: no record has a finite label");
 
+  // data parallel: every process takes its part of each batch; rank 0 writes the run
+  const int world = parallel.world_size, rank = parallel.rank;
+  if (world > 1 && train_config.batch_size < 2 * world) {
+    throw ConfigError(fmt::format(
+        "config key 'train.batch_size' = {}: with {} data-parallel processes each part of a "
+        "batch needs two records (BatchNorm); use at least {}",
+        train_config.batch_size, world, 2 * world));
+  }
+  const bool writes = rank == 0;
+  std::unique_ptr<internal::ProcessGroup> group;
+  if (world > 1) group = std::make_unique<internal::ProcessGroup>(parallel);
+
   internal::PrepareTrainingProcess(train_config);
   std::error_code ec;
-  fs::create_directories(run_dir, ec);
-  if (ec || !fs::is_directory(run_dir)) {
+  if (writes) fs::create_directories(run_dir, ec);
+  if (writes && (ec || !fs::is_directory(run_dir))) {
     throw IoError(fmt::format("{}: cannot create run directory: {}", run_dir, ec.message()));
   }
   const RunFiles files{fs::path(run_dir)};
@@ -293,13 +316,28 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
           files.checkpoint_json));
     }
     epochs_done = LoadCheckpoint(network.get(), &optimizer, files.checkpoint_pt);
-    TrimMetrics(files.metrics, epochs_done);
+    if (writes) TrimMetrics(files.metrics, epochs_done);
     if (show_progress) spdlog::info("resuming {} after epoch {}", run_dir, epochs_done);
-  } else {
+  } else if (writes) {
     for (const std::string& stale : {files.checkpoint_pt, files.checkpoint_json, files.metrics,
                                      files.best_pt, files.best_json}) {
       fs::remove(stale, ec);
     }
+  }
+  // every process starts from rank 0's weights and statistics
+  if (group) {
+    group->Broadcast(network->parameters());
+    group->Broadcast(network->buffers());
+  }
+  // after each process's backward pass: the whole batch's gradient and loss on every process
+  std::function<void(internal::StepLoss*)> sum_over_processes;
+  double part_weight = 1.0;  // this process's share of the current batch
+  if (group) {
+    sum_over_processes = [&](internal::StepLoss* loss) {
+      std::vector<double> scalars{loss->point * part_weight, loss->nll * part_weight};
+      group->SumGradients(trainable, part_weight, &scalars);
+      *loss = {scalars[0], scalars[1]};
+    };
   }
 
   // train.keep_best: the lowest validation loss so far (from best.json on resume)
@@ -326,14 +364,20 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
     HoldFrozenParts(network.get(), fine_tune.freeze);
     const std::vector<float> fill = network->MelMean();
     double loss_sum = 0.0, nll_sum = 0.0;
-    for (const std::vector<int64_t>& batch_records : MakeBatches(order, train_config.batch_size)) {
+    for (const std::vector<int64_t>& batch_records :
+         MakeBatches(order, train_config.batch_size, 2 * world)) {
+      const std::vector<int64_t> part =
+          world > 1 ? PartOf(batch_records, rank, world) : batch_records;
+      part_weight = static_cast<double>(part.size()) / static_cast<double>(batch_records.size());
       const internal::StepLoss step =
-          internal::TrainStep(*network, optimizer, train, batch_records, use, model_config,
-                              train_config, seed, epoch, fill);
+          internal::TrainStep(*network, optimizer, train, part, use, model_config, train_config,
+                              seed, epoch, fill, group ? &sum_over_processes : nullptr);
       const double weight = static_cast<double>(batch_records.size());
       loss_sum += step.point * weight;
       nll_sum += step.nll * weight;
     }
+    // one set of BatchNorm running statistics: the mean of every process's
+    if (group) group->AverageBuffers(network->buffers());
     const double train_loss = loss_sum / static_cast<double>(records.size());
     const double train_nll = nll_sum / static_cast<double>(records.size());
     if (!std::isfinite(train_loss) || !std::isfinite(train_nll)) {
@@ -343,6 +387,8 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
           train_loss, train_nll, epoch + 1, lr));
     }
 
+    // Validation, metrics and checkpoints: rank 0's (the others only train)
+    if (!writes) continue;
     // Validation without augmentation, in eval mode.
     const std::vector<Prediction> predictions =
         internal::PredictAll(*network, val, model_config.crop_frames);
@@ -384,6 +430,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
           val_metrics.height_err_cm, val_metrics.angle_err_deg, lr, seconds, FormatDuration(eta));
     }
   }
+  if (!writes) return Metrics{};
   // train.keep_best: the best epoch's weights are the model
   if (train_config.keep_best && best_epoch > 0) {
     LoadWeights(network.get(), files.best_pt);

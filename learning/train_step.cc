@@ -56,7 +56,8 @@ StepLoss TrainStep(NetworkImpl& network, torch::optim::Optimizer& optimizer,
                    const FeatureSet& train, const std::vector<int64_t>& records,
                    const ModalitySet& use, const ModelConfig& model_config,
                    const TrainConfig& train_config, uint64_t seed, int64_t epoch,
-                   const std::vector<float>& fill) {
+                   const std::vector<float>& fill,
+                   const std::function<void(StepLoss*)>* after_backward) {
   // augmentation of each record, drawn from (seed, epoch, record)
   std::vector<Augmentation> augment;
   if (train_config.augment) {
@@ -74,8 +75,10 @@ StepLoss TrainStep(NetworkImpl& network, torch::optim::Optimizer& optimizer,
       terms.nll.defined() ? terms.point + train_config.uncertainty_weight * terms.nll : terms.point;
   optimizer.zero_grad();
   loss.backward();
+  StepLoss step{terms.point.item<double>(), terms.nll.defined() ? terms.nll.item<double>() : 0.0};
+  if (after_backward != nullptr && *after_backward) (*after_backward)(&step);
   optimizer.step();
-  return {terms.point.item<double>(), terms.nll.defined() ? terms.nll.item<double>() : 0.0};
+  return step;
 }
 
 }  // namespace sonicboom::learning::internal

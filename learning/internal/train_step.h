@@ -3,6 +3,7 @@
 /// learning::MeasureTrainThroughput times.
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <torch/nn.h>
@@ -44,10 +45,13 @@ struct StepLoss {
 /// Assembles `records` of `train` (with the augmentation drawn from (seed, epoch, record) when
 /// train_config.augment), runs forward, loss, backward and one optimizer step. `fill` is the
 /// per-mic mel fill value (NetworkImpl::MelMean). The network must be in train mode.
+/// `after_backward`, when given, runs between the backward pass and the optimizer step with this
+/// step's loss (data parallel: it sums gradients and losses over the processes).
 StepLoss TrainStep(NetworkImpl& network, torch::optim::Optimizer& optimizer,
                    const FeatureSet& train, const std::vector<int64_t>& records,
                    const ModalitySet& use, const ModelConfig& model_config,
                    const TrainConfig& train_config, uint64_t seed, int64_t epoch,
-                   const std::vector<float>& fill);
+                   const std::vector<float>& fill,
+                   const std::function<void(StepLoss*)>* after_backward = nullptr);
 
 }  // namespace sonicboom::learning::internal

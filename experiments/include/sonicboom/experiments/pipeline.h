@@ -117,7 +117,8 @@ learning::FeatureSet ComputeRecordFeatures(const Eigen::MatrixXf& audio, double 
 learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning::FeatureSet& all,
                                   const std::vector<uint64_t>& sample_indices,
                                   const std::string& data, const std::string& run_dir, bool resume,
-                                  bool quiet, const learning::FineTune& fine_tune = {});
+                                  bool quiet, const learning::FineTune& fine_tune = {},
+                                  const learning::DataParallel& parallel = {});
 
 /// Splits rows into train and validation by a hash of (seed, sample index): stable under any
 /// reordering or sharding. Returns (train rows, validation rows).

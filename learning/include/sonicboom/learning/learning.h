@@ -167,6 +167,22 @@ double VonMisesCircularStd(double kappa);
 /// log I0(kappa), stable for every kappa >= 0.
 double LogBesselI0(double kappa);
 
+/// This process's place among the processes of one data-parallel training (Train), as the usual
+/// launcher variables give it: RANK, WORLD_SIZE, MASTER_ADDR, MASTER_PORT (torchrun's; srun and
+/// mpirun set them through scripts/cluster/train_ddp.sh). Rank 0 hosts the rendezvous (a c10d
+/// TCPStore at master_addr:master_port) that the others join within timeout_s.
+struct DataParallel {
+  int rank{0};
+  int world_size{1};
+  std::string master_addr{"127.0.0.1"};
+  int master_port{29500};
+  double timeout_s{1800.0};  // rendezvous and collectives (rank 0 may still be reading features)
+
+  /// From the environment; world_size 1 when WORLD_SIZE is unset. ConfigError naming the
+  /// variable for a value that is not an integer or lies outside its range.
+  static DataParallel FromEnvironment();
+};
+
 /// Fine-tuning: start from a trained run's weights instead of a fresh initialization.
 struct FineTune {
   enum class Freeze {
@@ -200,10 +216,18 @@ inline std::span<const EnumName<FineTune::Freeze>> EnumNames(FineTune::Freeze) {
 /// Process-wide side effects, kept after it returns: torch's intra-op thread count
 /// (train_config.threads) and, with glibc, malloc settings that keep freed memory for reuse
 /// (resident memory stays near its peak; see PrepareTrainingProcess in internal/train_step.h).
+///
+/// Data parallel (parallel.world_size > 1): every process calls Train with the same features and
+/// configs; each global batch of train.batch_size records is split in contiguous parts, one per
+/// process, whose gradients are summed (weighted by their share of the batch) over c10d's Gloo
+/// backend before each optimizer step, so the processes keep identical weights and the step is
+/// the one-process step of the whole batch (BatchNorm sees each part's statistics; its running
+/// statistics are averaged after every epoch). Rank 0 validates and writes the run; the others
+/// write nothing and return empty metrics.
 Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
               const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
               const std::string& run_dir, bool resume, bool show_progress,
-              const FineTune& fine_tune = {});
+              const FineTune& fine_tune = {}, const DataParallel& parallel = {});
 
 /// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
 /// spectrogram (the un-augmented crop of training, evaluation and localization).
