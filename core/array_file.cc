@@ -2,10 +2,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
 #include <set>
 #include <string>
 
 #include "internal/h5util.h"
+#include "internal/watchdog.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom {
@@ -82,6 +84,8 @@ void WriteArrayFile(const std::string& path, const std::string& schema,
 }
 
 NamedArray ReadArray(const std::string& path, const std::string& name) {
+  std::optional<internal::ReadDeadline> metadata(
+      std::in_place, path + ": reading array " + name + " does not finish (corrupted HDF5)");
   h5::Handle file = h5::OpenFileReadOnly(path);
   if (!h5::IsComplete(file.get(), path)) {
     throw SchemaError(path +
@@ -104,6 +108,7 @@ NamedArray ReadArray(const std::string& path, const std::string& name) {
     elements *= static_cast<int64_t>(extent);
   }
   array.data.resize(elements);
+  metadata.reset();  // the data itself may be large: its read is not timed
   if (elements > 0) {
     h5::CheckStatus(
         H5Dread(dataset.get(), H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, array.data.data()),
@@ -113,6 +118,8 @@ NamedArray ReadArray(const std::string& path, const std::string& name) {
 }
 
 std::string ReadStringAttr(const std::string& path, const std::string& name) {
+  const internal::ReadDeadline deadline(path + ": reading attribute " + name +
+                                        " does not finish (corrupted HDF5)");
   h5::Handle file = h5::OpenFileReadOnly(path);
   return h5::ReadStringAttr(file.get(), name.c_str(), path);
 }
@@ -122,6 +129,8 @@ bool IsHdf5File(const std::string& path) {
 }
 
 std::string SummarizeH5Json(const std::string& path) {
+  const internal::ReadDeadline deadline(path +
+                                        ": reading the file does not finish (corrupted HDF5)");
   h5::Handle file = h5::OpenFileReadOnly(path);
   nlohmann::ordered_json summary;
   summary["file"] = path;

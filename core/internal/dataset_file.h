@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "internal/dataset_schema.h"
+#include "internal/watchdog.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::internal::dataset {
@@ -20,6 +21,8 @@ namespace sonicboom::internal::dataset {
 class DatasetFile {
  public:
   DatasetFile(const std::string& path, bool allow_incomplete) : path_(path) {
+    // opening reads only metadata: seconds at most, unless libhdf5 loops on a corrupted file
+    const ReadDeadline deadline(path + ": reading the file does not finish (corrupted HDF5)");
     file_ = h5::OpenFileReadOnly(path);
     const hid_t root = file_.get();
 
@@ -67,6 +70,16 @@ class DatasetFile {
     if (h5::HasAttr(root, "first_index", path) && h5::HasAttr(root, "index_count", path)) {
       info_.first_index = h5::ReadInt64Attr(root, "first_index", path);
       info_.index_count = h5::ReadInt64Attr(root, "index_count", path);
+      if (info_.first_index < 0 || info_.index_count < 0 ||
+          info_.first_index > std::numeric_limits<int64_t>::max() - info_.index_count) {
+        throw SchemaError(path + ": generated range first_index " +
+                          std::to_string(info_.first_index) + ", index_count " +
+                          std::to_string(info_.index_count) + " is not a range of indices");
+      }
+    }
+    if (info_.num_shards < 1 || info_.shard < 0 || info_.shard >= info_.num_shards) {
+      throw SchemaError(path + ": shard " + std::to_string(info_.shard) + " of " +
+                        std::to_string(info_.num_shards) + " is not a shard");
     }
 
     // Every column.
@@ -167,6 +180,8 @@ class DatasetFile {
   // Index fields, labels and proprio of sample i.
   void ReadMeta(int64_t i, StrikeSample* sample) const {
     CheckRange(i);
+    const ReadDeadline deadline(path_ + ": reading sample row " + std::to_string(i) +
+                                " does not finish (corrupted HDF5)");
     const hid_t u64 = H5T_NATIVE_UINT64;
     const hid_t u8 = H5T_NATIVE_UINT8;
     sample->index = ReadOne<uint64_t>(columns_.sample_index.get(), u64, i, path_, kSampleIndexPath);
@@ -290,9 +305,9 @@ class DatasetFile {
   // Throws SchemaError unless [first, first + count) lies within the contact table.
   void CheckContactRange(int64_t i, int64_t first, int64_t count) const {
     if (first < 0 || count < 0 || first > contact_rows_ || count > contact_rows_ - first) {
-      throw SchemaError(path_ + ": sample row " + std::to_string(i) + " has contacts [" +
-                        std::to_string(first) + ", " + std::to_string(first + count) +
-                        ") outside the contact table of " + std::to_string(contact_rows_) +
+      throw SchemaError(path_ + ": sample row " + std::to_string(i) + " has contacts from row " +
+                        std::to_string(first) + ", " + std::to_string(count) +
+                        " of them, outside the contact table of " + std::to_string(contact_rows_) +
                         " rows");
     }
   }
@@ -309,6 +324,8 @@ class DatasetFile {
   // Audio of sample i, (channels x T) in full-scale units.
   Eigen::MatrixXf ReadAudio(int64_t i) const {
     CheckRange(i);
+    const ReadDeadline deadline(path_ + ": reading the audio of sample row " + std::to_string(i) +
+                                " does not finish (corrupted HDF5)");
     using RowMajorInt16 = Eigen::Matrix<int16_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     using RowMajorFloat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int64_t c = info_.channels;

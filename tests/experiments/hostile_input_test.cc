@@ -247,6 +247,18 @@ TEST_F(HostileInputTest, DamagedDatasetsAreRefusedByEveryReader) {
   ExpectRefused("eval --model RUN --data notes.h5", {"notes.h5"}, 1);
 }
 
+// A file found by fuzz/dataset_fuzz.cc on which libhdf5 1.10 loops for ever (a damaged global
+// heap behind a string attribute): the readers' deadline turns the hang into an error.
+TEST_F(HostileInputTest, AFileLibhdf5LoopsOnEndsInAnErrorNotAHang) {
+  fs::copy_file(fs::path(SONICBOOM_SOURCE_DIR) / "tests/data/hostile/hdf5_heap_loop.h5",
+                Path("LOOP.h5"));
+  setenv("SONICBOOM_READ_TIMEOUT_S", "2", 1);
+  ExpectRefused("inspect LOOP.h5", {"LOOP.h5", "does not finish (corrupted HDF5)"}, 1);
+  ExpectRefused(kShortRecordArgs + "eval --model RUN --data LOOP.h5",
+                {"LOOP.h5", "does not finish"}, 1);
+  unsetenv("SONICBOOM_READ_TIMEOUT_S");
+}
+
 TEST_F(HostileInputTest, ConfigFilesAndValuesAreRefusedNamingTheKey) {
   std::ofstream(Path("alias.yaml")) << "tube: &t\n  length_m: 0.3\n  self: *t\n";
   std::ofstream(Path("twice.yaml")) << "tube:\n  length_m: 0.3\n  length_m: 0.4\n";
