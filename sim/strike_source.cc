@@ -33,11 +33,13 @@ SimulatedStrike FromRollout(const RolloutResult& r, const SceneConfig& scene) {
   return s;
 }
 
-// The arm's dynamic rollout in MuJoCo (modes strike and guided).
-class MujocoSource final : public StrikeSource {
+// A dynamic simulation in MuJoCo: the arm's rollout (StrikeRollout: modes strike and guided) or
+// a hand-held striker on the held tube (HandStrikeRollout: mode stationary).
+template <typename Rollout>
+class RolloutSource final : public StrikeSource {
  public:
-  MujocoSource(const TubeConfig& tube, const AudioConfig& audio, const StrikeConfig& strike,
-               const SceneConfig& scene, const RolloutConfig& rollout)
+  RolloutSource(const TubeConfig& tube, const AudioConfig& audio, const StrikeConfig& strike,
+                const SceneConfig& scene, const RolloutConfig& rollout)
       : scene_(scene), rollout_(tube, audio, strike, scene, rollout) {}
   SimulatedStrike Strike(uint64_t sample_index, uint64_t sample_seed) const override {
     return FromRollout(rollout_.Run(sample_index, sample_seed), scene_);
@@ -45,22 +47,7 @@ class MujocoSource final : public StrikeSource {
 
  private:
   SceneConfig scene_;
-  StrikeRollout rollout_;
-};
-
-// A hand-held striker on the held tube (mode stationary).
-class HandSource final : public StrikeSource {
- public:
-  HandSource(const TubeConfig& tube, const AudioConfig& audio, const StrikeConfig& strike,
-             const SceneConfig& scene, const RolloutConfig& rollout)
-      : scene_(scene), rollout_(tube, audio, strike, scene, rollout) {}
-  SimulatedStrike Strike(uint64_t sample_index, uint64_t sample_seed) const override {
-    return FromRollout(rollout_.Run(sample_index, sample_seed), scene_);
-  }
-
- private:
-  SceneConfig scene_;
-  HandStrikeRollout rollout_;
+  Rollout rollout_;
 };
 
 // DH kinematics alone (mode strike, strike.engine kinematic): one contact, its forces unknown.
@@ -98,10 +85,10 @@ std::unique_ptr<StrikeSource> MakeStrikeSource(const TubeConfig& tube, const Aud
                                                const StrikeConfig& strike, const SceneConfig& scene,
                                                const RolloutConfig& rollout) {
   if (scene.mode == SceneMode::kStationary) {
-    return std::make_unique<HandSource>(tube, audio, strike, scene, rollout);
+    return std::make_unique<RolloutSource<HandStrikeRollout>>(tube, audio, strike, scene, rollout);
   }
   if (strike.engine == StrikeEngine::kMujoco) {
-    return std::make_unique<MujocoSource>(tube, audio, strike, scene, rollout);
+    return std::make_unique<RolloutSource<StrikeRollout>>(tube, audio, strike, scene, rollout);
   }
   return std::make_unique<KinematicSource>(tube, audio, strike, scene);
 }
