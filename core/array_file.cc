@@ -84,8 +84,7 @@ void WriteArrayFile(const std::string& path, const std::string& schema,
 }
 
 NamedArray ReadArray(const std::string& path, const std::string& name) {
-  std::optional<internal::ReadDeadline> metadata(
-      std::in_place, path + ": reading array " + name + " does not finish (corrupted HDF5)");
+  std::optional<internal::ReadDeadline> metadata(std::in_place, path + ": reading array " + name);
   h5::Handle file = h5::OpenFileReadOnly(path);
   if (!h5::IsComplete(file.get(), path)) {
     throw SchemaError(path +
@@ -118,8 +117,7 @@ NamedArray ReadArray(const std::string& path, const std::string& name) {
 }
 
 std::string ReadStringAttr(const std::string& path, const std::string& name) {
-  const internal::ReadDeadline deadline(path + ": reading attribute " + name +
-                                        " does not finish (corrupted HDF5)");
+  const internal::ReadDeadline deadline(path + ": reading attribute " + name);
   h5::Handle file = h5::OpenFileReadOnly(path);
   return h5::ReadStringAttr(file.get(), name.c_str(), path);
 }
@@ -129,8 +127,7 @@ bool IsHdf5File(const std::string& path) {
 }
 
 std::string SummarizeH5Json(const std::string& path) {
-  const internal::ReadDeadline deadline(path +
-                                        ": reading the file does not finish (corrupted HDF5)");
+  const internal::ReadDeadline deadline(path + ": reading the file");
   h5::Handle file = h5::OpenFileReadOnly(path);
   nlohmann::ordered_json summary;
   summary["file"] = path;

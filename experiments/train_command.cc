@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/learning/learning.h"
@@ -37,6 +38,7 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   const SonicBoomConfig config = o.init_from.empty() ? Resolve(g) : ResolveWithRun(g, o.init_from);
   if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
+  DatasetReader{o.data};  // a dataset at all, before anything is written
   // data parallel (RANK/WORLD_SIZE set by a launcher): every process trains its part of each
   // batch; rank 0 alone writes the run (docs/cluster.md)
   const learning::DataParallel parallel = learning::DataParallel::FromEnvironment();

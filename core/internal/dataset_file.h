@@ -20,9 +20,10 @@ namespace sonicboom::internal::dataset {
 // A complete (or, when allowed, incomplete) dataset file opened for reading.
 class DatasetFile {
  public:
-  DatasetFile(const std::string& path, bool allow_incomplete) : path_(path) {
+  DatasetFile(const std::string& path, bool allow_incomplete)
+      : guard_(path + ": reading the file"), path_(path) {
     // opening reads only metadata: seconds at most, unless libhdf5 loops on a corrupted file
-    const ReadDeadline deadline(path + ": reading the file does not finish (corrupted HDF5)");
+    const ReadDeadline deadline(path + ": reading the file");
     file_ = h5::OpenFileReadOnly(path);
     const hid_t root = file_.get();
 
@@ -180,8 +181,7 @@ class DatasetFile {
   // Index fields, labels and proprio of sample i.
   void ReadMeta(int64_t i, StrikeSample* sample) const {
     CheckRange(i);
-    const ReadDeadline deadline(path_ + ": reading sample row " + std::to_string(i) +
-                                " does not finish (corrupted HDF5)");
+    const ReadDeadline deadline(path_ + ": reading sample row " + std::to_string(i));
     const hid_t u64 = H5T_NATIVE_UINT64;
     const hid_t u8 = H5T_NATIVE_UINT8;
     sample->index = ReadOne<uint64_t>(columns_.sample_index.get(), u64, i, path_, kSampleIndexPath);
@@ -324,8 +324,7 @@ class DatasetFile {
   // Audio of sample i, (channels x T) in full-scale units.
   Eigen::MatrixXf ReadAudio(int64_t i) const {
     CheckRange(i);
-    const ReadDeadline deadline(path_ + ": reading the audio of sample row " + std::to_string(i) +
-                                " does not finish (corrupted HDF5)");
+    const ReadDeadline deadline(path_ + ": reading the audio of sample row " + std::to_string(i));
     using RowMajorInt16 = Eigen::Matrix<int16_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     using RowMajorFloat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int64_t c = info_.channels;
@@ -456,6 +455,7 @@ class DatasetFile {
     }
   }
 
+  FaultGuard guard_;  // first: it outlives the file handle (libhdf5 may fault closing a bad file)
   std::string path_;
   h5::Handle file_;
   Columns columns_;

@@ -247,16 +247,23 @@ TEST_F(HostileInputTest, DamagedDatasetsAreRefusedByEveryReader) {
   ExpectRefused("eval --model RUN --data notes.h5", {"notes.h5"}, 1);
 }
 
-// A file found by fuzz/dataset_fuzz.cc on which libhdf5 1.10 loops for ever (a damaged global
-// heap behind a string attribute): the readers' deadline turns the hang into an error.
-TEST_F(HostileInputTest, AFileLibhdf5LoopsOnEndsInAnErrorNotAHang) {
-  fs::copy_file(fs::path(SONICBOOM_SOURCE_DIR) / "tests/data/hostile/hdf5_heap_loop.h5",
-                Path("LOOP.h5"));
+// Files found by fuzz/dataset_fuzz.cc on which libhdf5 1.10 loops for ever, or over-reads a
+// damaged global heap until the process faults: the readers' deadline and fault guard turn the
+// hang and the crash into an error naming the file, and nothing is written.
+TEST_F(HostileInputTest, FilesLibhdf5FailsOnEndInAnErrorNotAHangOrACrash) {
+  const fs::path hostile = fs::path(SONICBOOM_SOURCE_DIR) / "tests/data/hostile";
+  fs::copy_file(hostile / "hdf5_heap_loop.h5", Path("LOOP.h5"));
+  fs::copy_file(hostile / "hdf5_heap_overread.h5", Path("OVER.h5"));
   setenv("SONICBOOM_READ_TIMEOUT_S", "2", 1);
-  ExpectRefused("inspect LOOP.h5", {"LOOP.h5", "does not finish (corrupted HDF5)"}, 1);
+  ExpectRefused("inspect LOOP.h5", {"LOOP.h5: reading", "does not finish", "corrupted"}, 1);
   ExpectRefused(kShortRecordArgs + "eval --model RUN --data LOOP.h5",
                 {"LOOP.h5", "does not finish"}, 1);
   unsetenv("SONICBOOM_READ_TIMEOUT_S");
+  ExpectRefused("inspect OVER.h5", {"OVER.h5: reading the file crashed", "corrupted"}, 1);
+  ExpectRefused(kShortRecordArgs + "eval --model RUN --data OVER.h5", {"OVER.h5", "crashed"}, 1);
+  ExpectRefused(kShortRecordArgs + kTinyModelArgs + "train --data OVER.h5 --out R3",
+                {"OVER.h5", "crashed"}, 1);
+  ExpectRefused("merge --out M.h5 OVER.h5 S0.h5", {"OVER.h5", "crashed"}, 1);
 }
 
 TEST_F(HostileInputTest, ConfigFilesAndValuesAreRefusedNamingTheKey) {
