@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <numeric>
@@ -241,13 +242,12 @@ std::string FormatDuration(double seconds) {
                    : fmt::format("{}m{:02}s", s / 60, s % 60);
 }
 
-}  // namespace
-
-Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
-              const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
-              const std::string& run_dir, bool resume, bool show_progress,
-              const FineTune& fine_tune, const DataParallel& parallel) {
-  // Configs and features.
+// Checks the configs and features before anything is written; returns the training records
+// (those with both labels).
+std::vector<int64_t> CheckedTrainingRecords(const FeatureSet& train, const FeatureSet& val,
+                                            const ModelConfig& model_config,
+                                            const TrainConfig& train_config,
+                                            double surface_radius_m, int world) {
   model_config.Validate();
   train_config.Validate();
   if (!std::isfinite(surface_radius_m) || surface_radius_m <= 0.0) {
@@ -262,24 +262,189 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
         "config key 'model.crop_frames' = {}: exceeds the {} mel frames of the features",
         model_config.crop_frames, train.frames));
   }
-  // Training records: those with both labels.
-  std::vector<int64_t> records;
-  for (int64_t i = 0; i < train.size(); ++i) {
-    if (std::isfinite(train.z_m[i]) && std::isfinite(train.theta_rad[i])) records.push_back(i);
-  }
-  if (records.empty()) throw SchemaError("training features: no record has a finite label");
-
-  // data parallel: every process takes its part of each batch; rank 0 writes the run
-  const int world = parallel.world_size, rank = parallel.rank;
+  // data parallel: every process's part of a batch needs two records
   if (world > 1 && train_config.batch_size < 2 * world) {
     throw ConfigError(fmt::format(
         "config key 'train.batch_size' = {}: with {} data-parallel processes each part of a "
         "batch needs two records (BatchNorm); use at least {}",
         train_config.batch_size, world, 2 * world));
   }
-  const bool writes = rank == 0;
+  std::vector<int64_t> records;
+  for (int64_t i = 0; i < train.size(); ++i) {
+    if (std::isfinite(train.z_m[i]) && std::isfinite(train.theta_rad[i])) records.push_back(i);
+  }
+  if (records.empty()) throw SchemaError("training features: no record has a finite label");
+  return records;
+}
+
+// train.keep_best: the epoch (1-based; 0 = none yet) with the lowest validation loss so far.
+struct BestEpoch {
+  double loss{std::numeric_limits<double>::infinity()};
+  int64_t epoch{0};
+};
+
+// Resume: weights, optimizer state and epoch count from the checkpoint of the same run, and
+// the best epoch so far; without one (or without resume) the stale files of an earlier run
+// are removed (by rank 0, `writes`). Returns the completed epoch count.
+int64_t ResumeOrClear(const RunFiles& files, const json& identity, bool resume, bool writes,
+                      const TrainConfig& train_config, internal::NetworkImpl* network,
+                      torch::optim::Adam* optimizer, BestEpoch* best) {
+  if (!resume || !fs::exists(files.checkpoint_pt)) {
+    std::error_code ec;
+    if (writes) {
+      for (const std::string& stale : {files.checkpoint_pt, files.checkpoint_json, files.metrics,
+                                       files.best_pt, files.best_json}) {
+        fs::remove(stale, ec);
+      }
+    }
+    return 0;
+  }
+  const json saved = internal::ReadJsonFile(files.checkpoint_json);
+  if (!saved.contains("run") || saved["run"] != identity) {
+    throw SchemaError(fmt::format(
+        "{}: the checkpoint was written for a different model config, feature shapes or "
+        "seed; train without resume or use another run directory",
+        files.checkpoint_json));
+  }
+  const int64_t epochs_done = LoadCheckpoint(network, optimizer, files.checkpoint_pt);
+  if (writes) TrimMetrics(files.metrics, epochs_done);
+  if (train_config.keep_best && epochs_done > 0 && fs::exists(files.best_json)) {
+    const json saved_best = internal::ReadJsonFile(files.best_json);
+    best->loss = saved_best.at("val_loss").get<double>();
+    best->epoch = saved_best.at("epoch").get<int64_t>();
+  }
+  return epochs_done;
+}
+
+// One epoch's mean training losses (point loss, uncertainty NLL) over `records`.
+struct EpochLoss {
+  double point{0.0}, nll{0.0};
+};
+
+// One epoch of optimizer steps over the shuffled records, this process's part of each batch
+// (with `group`, the gradients are summed over the processes before each step).
+EpochLoss TrainEpoch(internal::NetworkImpl& network, torch::optim::Adam& optimizer,
+                     const FeatureSet& train, const std::vector<int64_t>& records,
+                     const ModelConfig& model_config, const TrainConfig& train_config,
+                     uint64_t seed, int64_t epoch, const FineTune& fine_tune,
+                     const std::vector<torch::Tensor>& trainable, internal::ProcessGroup* group,
+                     const DataParallel& parallel) {
+  const internal::ModalitySet use = internal::SelectedModalities(model_config);
+  const int world = parallel.world_size;
+  // dropout draws from a stream of this epoch, so a resume continues exactly
+  torch::manual_seed(SampleSeed(SplitMix64(seed ^ 0x44524F504F5554ULL), uint64_t(epoch)));
+  std::vector<int64_t> order = records;
+  Shuffle(&order, seed, epoch);
+
+  // after each process's backward pass: the whole batch's gradient and loss on every process
+  double part_weight = 1.0;  // this process's share of the current batch
+  std::function<void(internal::StepLoss*)> sum_over_processes = [&](internal::StepLoss* loss) {
+    std::vector<double> scalars{loss->point * part_weight, loss->nll * part_weight};
+    group->SumGradients(trainable, part_weight, &scalars);
+    *loss = {scalars[0], scalars[1]};
+  };
+
+  network.train();
+  HoldFrozenParts(&network, fine_tune.freeze);
+  const std::vector<float> fill = network.MelMean();
+  EpochLoss sum;
+  for (const std::vector<int64_t>& batch_records :
+       MakeBatches(order, train_config.batch_size, 2 * world)) {
+    const std::vector<int64_t> part =
+        world > 1 ? PartOf(batch_records, parallel.rank, world) : batch_records;
+    part_weight = static_cast<double>(part.size()) / static_cast<double>(batch_records.size());
+    const internal::StepLoss step =
+        internal::TrainStep(network, optimizer, train, part, use, model_config, train_config, seed,
+                            epoch, fill, group ? &sum_over_processes : nullptr);
+    const double weight = static_cast<double>(batch_records.size());
+    sum.point += step.point * weight;
+    sum.nll += step.nll * weight;
+  }
+  // one set of BatchNorm running statistics: the mean of every process's
+  if (group) group->AverageBuffers(network.buffers());
+  const double n = static_cast<double>(records.size());
+  return {sum.point / n, sum.nll / n};
+}
+
+// The end of an epoch on rank 0: its metrics.jsonl line, best.pt when it is the best so far,
+// then the checkpoint: checkpoint.json (run identity) before checkpoint.pt, whose own epoch
+// count is the one a resume trusts.
+void RecordEpoch(const RunFiles& files, internal::NetworkImpl& network,
+                 torch::optim::Adam& optimizer, const json& identity,
+                 const TrainConfig& train_config, int64_t epoch, double lr, const EpochLoss& loss,
+                 bool uncertainty_head, double val_loss, const Metrics& val_metrics, double seconds,
+                 BestEpoch* best) {
+  auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  json line{{"epoch", epoch + 1},
+            {"lr", lr},
+            {"train_loss", loss.point},
+            {"val_loss", number(val_loss)},
+            {"val", internal::MetricsToJson(val_metrics)},
+            {"epoch_seconds", seconds}};
+  if (uncertainty_head) line["train_nll"] = loss.nll;
+  AppendLine(files.metrics, line.dump());
+  if (train_config.keep_best && std::isfinite(val_loss) && val_loss < best->loss) {
+    best->loss = val_loss;
+    best->epoch = epoch + 1;
+    internal::SaveModuleAtomically(network, files.best_pt);
+    internal::WriteFileAtomically(
+        files.best_json, json{{"epoch", best->epoch}, {"val_loss", best->loss}}.dump() + "\n");
+  }
+  internal::WriteFileAtomically(files.checkpoint_json,
+                                json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
+  SaveCheckpoint(network, optimizer, epoch + 1, files.checkpoint_pt);
+}
+
+// The model files of a finished run: post-hoc calibration of the predictive distribution on the
+// validation split (one scale for sigma_z, one for kappa, each minimizing the mean validation
+// NLL), model.pt and model.json. Returns the validation metrics of the final model.
+Metrics FinishRun(const RunFiles& files, internal::NetworkImpl& network, const FeatureSet& train,
+                  const FeatureSet& val, const ModelConfig& model_config,
+                  const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
+                  bool uncertainty_head, int64_t epochs, bool show_progress) {
+  internal::ModelFile model_file;
+  model_file.model_config = model_config;
+  model_file.shapes = train.ShapesOnly();
+  model_file.surface_radius_m = surface_radius_m;
+  model_file.seed = seed;
+  std::vector<Prediction> predictions =
+      internal::PredictAll(network, val, model_config.crop_frames);
+  if (uncertainty_head) {
+    model_file.has_calibration = true;
+    model_file.uncalibrated_val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
+    model_file.calibration = FitUncertaintyCalibration(predictions, val);
+    for (Prediction& p : predictions) p = ApplyCalibration(p, model_file.calibration);
+  }
+  const Metrics val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
+  if (show_progress && uncertainty_head) {
+    const Metrics& raw = model_file.uncalibrated_val_metrics;
+    spdlog::info(
+        "calibrated on {} validation strikes: sigma_z x {:.3g}, kappa x {:.3g}; 90 % coverage "
+        "z {:.2f} -> {:.2f}, theta {:.2f} -> {:.2f}; NLL {:.3f} -> {:.3f}",
+        val_metrics.n, model_file.calibration.z_std_scale, model_file.calibration.kappa_scale,
+        raw.z_coverage_90, val_metrics.z_coverage_90, raw.theta_coverage_90,
+        val_metrics.theta_coverage_90, raw.nll, val_metrics.nll);
+  }
+  internal::SaveModuleAtomically(network, files.model_pt);
+  const json model_json = internal::ModelFileToJson(model_file, train_config, val_metrics, epochs);
+  internal::WriteFileAtomically(files.model_json, model_json.dump(2) + "\n");
+  return val_metrics;
+}
+
+}  // namespace
+
+Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig& model_config,
+              const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
+              const std::string& run_dir, bool resume, bool show_progress,
+              const FineTune& fine_tune, const DataParallel& parallel) {
+  const std::vector<int64_t> records = CheckedTrainingRecords(
+      train, val, model_config, train_config, surface_radius_m, parallel.world_size);
+  const internal::ModalitySet use = internal::SelectedModalities(model_config);
+
+  // data parallel: every process takes its part of each batch; rank 0 writes the run
+  const bool writes = parallel.rank == 0;
   std::unique_ptr<internal::ProcessGroup> group;
-  if (world > 1) group = std::make_unique<internal::ProcessGroup>(parallel);
+  if (parallel.world_size > 1) group = std::make_unique<internal::ProcessGroup>(parallel);
 
   internal::PrepareTrainingProcess(train_config);
   std::error_code ec;
@@ -304,171 +469,66 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   if (trainable.empty()) throw ConfigError("fine-tuning: every weight is frozen; nothing to train");
   torch::optim::Adam optimizer(trainable, torch::optim::AdamOptions(train_config.learning_rate));
 
-  // Resume: weights, optimizer state and epoch count from the checkpoint of the same run.
   const json identity = RunIdentity(model_config, train, seed, uncertainty_head, fine_tune);
-  int64_t epochs_done = 0;
-  if (resume && fs::exists(files.checkpoint_pt)) {
-    const json saved = internal::ReadJsonFile(files.checkpoint_json);
-    if (!saved.contains("run") || saved["run"] != identity) {
-      throw SchemaError(fmt::format(
-          "{}: the checkpoint was written for a different model config, feature shapes or "
-          "seed; train without resume or use another run directory",
-          files.checkpoint_json));
-    }
-    epochs_done = LoadCheckpoint(network.get(), &optimizer, files.checkpoint_pt);
-    if (writes) TrimMetrics(files.metrics, epochs_done);
-    if (show_progress) spdlog::info("resuming {} after epoch {}", run_dir, epochs_done);
-  } else if (writes) {
-    for (const std::string& stale : {files.checkpoint_pt, files.checkpoint_json, files.metrics,
-                                     files.best_pt, files.best_json}) {
-      fs::remove(stale, ec);
-    }
+  BestEpoch best;
+  const int64_t epochs_done = ResumeOrClear(files, identity, resume, writes, train_config,
+                                            network.get(), &optimizer, &best);
+  if (resume && epochs_done > 0 && show_progress) {
+    spdlog::info("resuming {} after epoch {}", run_dir, epochs_done);
   }
   // every process starts from rank 0's weights and statistics
   if (group) {
     group->Broadcast(network->parameters());
     group->Broadcast(network->buffers());
   }
-  // after each process's backward pass: the whole batch's gradient and loss on every process
-  std::function<void(internal::StepLoss*)> sum_over_processes;
-  double part_weight = 1.0;  // this process's share of the current batch
-  if (group) {
-    sum_over_processes = [&](internal::StepLoss* loss) {
-      std::vector<double> scalars{loss->point * part_weight, loss->nll * part_weight};
-      group->SumGradients(trainable, part_weight, &scalars);
-      *loss = {scalars[0], scalars[1]};
-    };
-  }
 
-  // train.keep_best: the lowest validation loss so far (from best.json on resume)
-  double best_loss = std::numeric_limits<double>::infinity();
-  int64_t best_epoch = 0;
-  if (train_config.keep_best && epochs_done > 0 && fs::exists(files.best_json)) {
-    const json best = internal::ReadJsonFile(files.best_json);
-    best_loss = best.at("val_loss").get<double>();
-    best_epoch = best.at("epoch").get<int64_t>();
-  }
-  Metrics val_metrics;
   double seconds_sum = 0.0;
   for (int64_t epoch = epochs_done; epoch < train_config.epochs; ++epoch) {
     const auto start = std::chrono::steady_clock::now();
-    // Step schedule; dropout draws from a stream of this epoch, so a resume continues exactly.
+    // step schedule
     const double lr = train_config.learning_rate *
                       std::pow(train_config.lr_gamma, double(epoch / train_config.lr_step_epochs));
     SetLearningRate(&optimizer, lr);
-    torch::manual_seed(SampleSeed(SplitMix64(seed ^ 0x44524F504F5554ULL), uint64_t(epoch)));
-    std::vector<int64_t> order = records;
-    Shuffle(&order, seed, epoch);
-
-    network->train();
-    HoldFrozenParts(network.get(), fine_tune.freeze);
-    const std::vector<float> fill = network->MelMean();
-    double loss_sum = 0.0, nll_sum = 0.0;
-    for (const std::vector<int64_t>& batch_records :
-         MakeBatches(order, train_config.batch_size, 2 * world)) {
-      const std::vector<int64_t> part =
-          world > 1 ? PartOf(batch_records, rank, world) : batch_records;
-      part_weight = static_cast<double>(part.size()) / static_cast<double>(batch_records.size());
-      const internal::StepLoss step =
-          internal::TrainStep(*network, optimizer, train, part, use, model_config, train_config,
-                              seed, epoch, fill, group ? &sum_over_processes : nullptr);
-      const double weight = static_cast<double>(batch_records.size());
-      loss_sum += step.point * weight;
-      nll_sum += step.nll * weight;
-    }
-    // one set of BatchNorm running statistics: the mean of every process's
-    if (group) group->AverageBuffers(network->buffers());
-    const double train_loss = loss_sum / static_cast<double>(records.size());
-    const double train_nll = nll_sum / static_cast<double>(records.size());
-    if (!std::isfinite(train_loss) || !std::isfinite(train_nll)) {
+    const EpochLoss loss =
+        TrainEpoch(*network, optimizer, train, records, model_config, train_config, seed, epoch,
+                   fine_tune, trainable, group.get(), parallel);
+    if (!std::isfinite(loss.point) || !std::isfinite(loss.nll)) {
       throw NumericalError(fmt::format(
           "training loss became {} (uncertainty NLL {}) in epoch {} (train.learning_rate = {}); "
           "lower the rate",
-          train_loss, train_nll, epoch + 1, lr));
+          loss.point, loss.nll, epoch + 1, lr));
     }
 
-    // Validation, metrics and checkpoints: rank 0's (the others only train)
+    // Validation (without augmentation, in eval mode), metrics and checkpoints: rank 0's
     if (!writes) continue;
-    // Validation without augmentation, in eval mode.
     const std::vector<Prediction> predictions =
         internal::PredictAll(*network, val, model_config.crop_frames);
-    val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
+    const Metrics val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
     const double val_loss = PredictionLoss(predictions, val, train_config);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     seconds_sum += seconds;
-
-    // metrics.jsonl line, then the checkpoint of this epoch: checkpoint.json (run identity)
-    // before checkpoint.pt, whose own epoch count is the one a resume trusts.
-    auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
-    json line{{"epoch", epoch + 1},
-              {"lr", lr},
-              {"train_loss", train_loss},
-              {"val_loss", number(val_loss)},
-              {"val", internal::MetricsToJson(val_metrics)},
-              {"epoch_seconds", seconds}};
-    if (uncertainty_head) line["train_nll"] = train_nll;
-    AppendLine(files.metrics, line.dump());
-    if (train_config.keep_best && std::isfinite(val_loss) && val_loss < best_loss) {
-      best_loss = val_loss;
-      best_epoch = epoch + 1;
-      internal::SaveModuleAtomically(*network, files.best_pt);
-      internal::WriteFileAtomically(
-          files.best_json, json{{"epoch", best_epoch}, {"val_loss", best_loss}}.dump() + "\n");
-    }
-    internal::WriteFileAtomically(files.checkpoint_json,
-                                  json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
-    SaveCheckpoint(*network, optimizer, epoch + 1, files.checkpoint_pt);
-
+    RecordEpoch(files, *network, optimizer, identity, train_config, epoch, lr, loss,
+                uncertainty_head, val_loss, val_metrics, seconds, &best);
     if (show_progress) {
       const double eta =
           seconds_sum / double(epoch + 1 - epochs_done) * double(train_config.epochs - epoch - 1);
       spdlog::info(
           "epoch {}/{}: train loss {:.4g}, val loss {:.4g}, val MED {:.3f} cm (height {:.3f} cm, "
           "angle {:.2f} deg), lr {:.3g}, {:.1f} s, ETA {}",
-          epoch + 1, train_config.epochs, train_loss, val_loss, val_metrics.med_cm,
+          epoch + 1, train_config.epochs, loss.point, val_loss, val_metrics.med_cm,
           val_metrics.height_err_cm, val_metrics.angle_err_deg, lr, seconds, FormatDuration(eta));
     }
   }
   if (!writes) return Metrics{};
   // train.keep_best: the best epoch's weights are the model
-  if (train_config.keep_best && best_epoch > 0) {
+  if (train_config.keep_best && best.epoch > 0) {
     LoadWeights(network.get(), files.best_pt);
     if (show_progress)
-      spdlog::info("keeping epoch {} (lowest validation loss {:.4g})", best_epoch, best_loss);
+      spdlog::info("keeping epoch {} (lowest validation loss {:.4g})", best.epoch, best.loss);
   }
-  // Post-hoc calibration of the predictive distribution on the validation split: one scale
-  // for sigma_z, one for kappa, each minimizing the mean validation NLL.
-  internal::ModelFile model_file;
-  model_file.model_config = model_config;
-  model_file.shapes = train.ShapesOnly();
-  model_file.surface_radius_m = surface_radius_m;
-  model_file.seed = seed;
-  std::vector<Prediction> predictions =
-      internal::PredictAll(*network, val, model_config.crop_frames);
-  if (uncertainty_head) {
-    model_file.has_calibration = true;
-    model_file.uncalibrated_val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
-    model_file.calibration = FitUncertaintyCalibration(predictions, val);
-    for (Prediction& p : predictions) p = ApplyCalibration(p, model_file.calibration);
-  }
-  val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
-  if (show_progress && uncertainty_head) {
-    const Metrics& raw = model_file.uncalibrated_val_metrics;
-    spdlog::info(
-        "calibrated on {} validation strikes: sigma_z x {:.3g}, kappa x {:.3g}; 90 % coverage "
-        "z {:.2f} -> {:.2f}, theta {:.2f} -> {:.2f}; NLL {:.3f} -> {:.3f}",
-        val_metrics.n, model_file.calibration.z_std_scale, model_file.calibration.kappa_scale,
-        raw.z_coverage_90, val_metrics.z_coverage_90, raw.theta_coverage_90,
-        val_metrics.theta_coverage_90, raw.nll, val_metrics.nll);
-  }
-
-  // Final model files.
-  internal::SaveModuleAtomically(*network, files.model_pt);
-  const json model_json = internal::ModelFileToJson(model_file, train_config, val_metrics,
-                                                    std::max(epochs_done, train_config.epochs));
-  internal::WriteFileAtomically(files.model_json, model_json.dump(2) + "\n");
-  return val_metrics;
+  return FinishRun(files, *network, train, val, model_config, train_config, surface_radius_m, seed,
+                   uncertainty_head, std::max(epochs_done, train_config.epochs), show_progress);
 }
 
 }  // namespace sonicboom::learning
