@@ -11,6 +11,7 @@
 #include <memory>
 #include <numbers>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -157,11 +158,141 @@ struct RungResult {
   double modes{0}, dofs{0}, oversampling{0};
 };
 
-}  // namespace
+// the strikes every rung renders: their contact forces (solved once against the configured
+// grid's modal wall) and derived bands
+struct LadderStrikes {
+  std::vector<std::vector<acoustics::ForceInput>> forces;  // [strike][contact]
+  std::vector<double> derived_band_hz;                     // [strike]
+  int64_t window{0};      // samples compared after the start of the record
+  int64_t one_second{0};  // samples
+};
 
-CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
-                          double window_s, bool quick) {
-  const SonicBoomConfig config = ResolveConfig(g.sources);
+// The reference's strain of each strike (the first rung's) and its octave-band energies.
+struct Reference {
+  std::vector<Eigen::MatrixXd> signal;  // [strike] 6 x window
+  std::vector<Eigen::VectorXd> bands;   // [strike] octave energies
+};
+
+// Times one rung on every strike and measures its error against the reference (which this rung
+// becomes when `reference` is still empty).
+RungResult MeasureRung(const Rung& rung, const acoustics::VibrationRung& built,
+                       const LadderStrikes& strikes, double fs, Reference* reference) {
+  RungResult r;
+  r.dofs = static_cast<double>(built.dofs());
+  r.oversampling = static_cast<double>(built.oversampling());
+  const size_t n = strikes.forces.size();
+  const bool is_reference = reference->signal.empty();
+  for (size_t s = 0; s < n; ++s) {
+    const auto& f = strikes.forces[s];
+    const double band = strikes.derived_band_hz[s];
+    const auto start = Clock::now();
+    const Eigen::MatrixXd y = built.Render(f, strikes.window, band);
+    double seconds = 0;
+    if (built.fd()) {
+      // FD cost is the same for every sample: time the window, scale to one second
+      seconds = Seconds(start) * static_cast<double>(strikes.one_second) /
+                static_cast<double>(strikes.window);
+    } else {
+      r.modes += static_cast<double>(built.ModesPlayed(band)) / n;
+      // a whole second, best of three
+      seconds = 1e30;
+      for (int rep = 0; rep < 3; ++rep) {
+        const auto t0 = Clock::now();
+        const Eigen::MatrixXd full = built.Render(f, strikes.one_second, band);
+        seconds = std::min(seconds, Seconds(t0));
+        if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
+      }
+    }
+    if (!y.allFinite())
+      throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", rung.name));
+    r.ms_per_strike += 1e3 * seconds / n;
+    if (is_reference) {
+      reference->signal.push_back(y);
+      reference->bands.push_back(OctaveEnergies(y, fs));
+    }
+    r.rel_error += RelativeError(y, reference->signal[s]) / n;
+    r.delay_error_us += DelayErrorUs(y, reference->signal[s], fs) / n;
+    r.band_error_db += BandEnergyErrorDb(OctaveEnergies(y, fs), reference->bands[s]) / n;
+  }
+  return r;
+}
+
+// The whole default strike (contact solve, modes, DAQ) through the production renderer, 40
+// times: {ms per strike, ms of it in the vibration model}.
+std::pair<double, double> WholeStrikeMs(const SonicBoomConfig& config, const Grid& configured,
+                                        bool quick, int64_t strikes) {
+  acoustics::AcousticModelConfig whole = AcousticModel(config);
+  if (quick) {
+    whole.shell.grid_spacing_m = configured.arc_m;
+    whole.shell.axial_spacing_m = configured.axial_m;
+  }
+  const acoustics::StrikeSynthesizer synth(whole);
+  const int64_t reps = 40;
+  const auto t0 = Clock::now();
+  double vibration_s = 0;
+  for (int64_t i = 0; i < reps; ++i) {
+    const TestStrike& ts = kStrikes[i % strikes];
+    ContactEvent ev = StrikeEvent(ts, config.audio.onset_time_s);
+    sim::ObjectConfig rod;  // the default struck rod: its bending modes take part
+    sim::DescribeStruckBeam(rod, rod.length_m - 0.05, &ev);
+    const acoustics::RenderedStrike rs = synth.Render(ev, {}, 0.0, static_cast<uint64_t>(i));
+    vibration_s += rs.vibration_s;
+  }
+  return {1e3 * Seconds(t0) / reps, 1e3 * vibration_s / reps};
+}
+
+// The table's rows (markdown and JSON).
+void LadderRows(const std::vector<Rung>& rungs, const std::vector<RungResult>& results,
+                std::string* md, json* rows_json) {
+  for (size_t i = 0; i < rungs.size(); ++i) {
+    const Rung& rung = rungs[i];
+    const RungResult& r = results[i];
+    const std::string size = rung.kind == acoustics::VibrationModel::kFd
+                                 ? fmt::format("{:.0f}x", r.oversampling)
+                                 : fmt::format("{:.0f}", r.modes);
+    *md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} |\n",
+                       rung.name, rung.grid.arc_m * 1e3, rung.grid.axial_m * 1e3, r.dofs, size,
+                       r.ms_per_strike, 1e3 / r.ms_per_strike,
+                       i == 0 ? "—" : fmt::format("{:.3f}", r.rel_error),
+                       i == 0 ? "—" : fmt::format("{:.1f}", r.delay_error_us),
+                       i == 0 ? "—" : fmt::format("{:.2f}", r.band_error_db));
+    rows_json->push_back({{"rung", rung.name},
+                          {"kind", NameOf(rung.kind)},
+                          {"grid_arc_m", rung.grid.arc_m},
+                          {"grid_axial_m", rung.grid.axial_m},
+                          {"dofs", r.dofs},
+                          {"modes", r.modes},
+                          {"oversampling", r.oversampling},
+                          {"ms_per_strike", r.ms_per_strike},
+                          {"relative_error", r.rel_error},
+                          {"delay_error_us", r.delay_error_us},
+                          {"band_energy_error_db", r.band_error_db}});
+  }
+}
+
+// The FD rung's damping against the loss law (shell.damping = law): the Rayleigh curve meets the
+// law at shell.loss_low_hz and loss_high_hz and departs from it elsewhere. Appends the section
+// to `md`; returns its rows (empty for Rayleigh damping).
+json DampingSection(const SonicBoomConfig& config, std::string* md) {
+  json damping_json = json::array();
+  if (config.shell.damping != acoustics::DampingModel::kLaw) return damping_json;
+  const acoustics::ShellModel law(config.tube, config.material, config.shell);
+  *md +=
+      "\nDamping: the modal rung gives every mode the loss law's eta(f); the FD rung's Rayleigh "
+      "curve (C = alpha M + beta K) meets it at shell.loss_low_hz and shell.loss_high_hz:\n\n"
+      "| f (Hz) | law eta | FD (Rayleigh) eta | ratio |\n|---|---|---|---|\n";
+  for (double f : {100.0, 220.0, 500.0, 1000.0, 2000.0, 5000.0, 10000.0, 20000.0}) {
+    const double w = 2.0 * std::numbers::pi * f;
+    const double eta_law = 2.0 * law.DampingRatio(w), eta_fd = 2.0 * law.RayleighDampingRatio(w);
+    *md += fmt::format("| {:.0f} | {:.4f} | {:.4f} | {:.2f} |\n", f, eta_law, eta_fd,
+                       eta_fd / eta_law);
+    damping_json.push_back({{"frequency_hz", f}, {"law_eta", eta_law}, {"fd_eta", eta_fd}});
+  }
+  return damping_json;
+}
+
+// --strikes, --window-s and --out's directory, before any work.
+void CheckFidelityOptions(const std::string& out_md, int64_t strikes, double window_s) {
   if (strikes < 1 || strikes > static_cast<int64_t>(std::size(kStrikes))) {
     throw ConfigError(
         fmt::format("--strikes must be in [1, {}], got {}", std::size(kStrikes), strikes));
@@ -175,10 +306,19 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
       throw IoError(fmt::format("--out {}: directory {} does not exist", out_md, parent.string()));
     }
   }
+}
+
+}  // namespace
+
+CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
+                          double window_s, bool quick) {
+  const SonicBoomConfig config = ResolveConfig(g.sources);
+  CheckFidelityOptions(out_md, strikes, window_s);
   const double fs = config.audio.sample_rate_hz;
-  const int64_t one_second = static_cast<int64_t>(std::llround(fs));
   const double onset_s = 0.001;
-  const int64_t window = static_cast<int64_t>(std::llround((onset_s + window_s) * fs));
+  LadderStrikes ladder;
+  ladder.one_second = static_cast<int64_t>(std::llround(fs));
+  ladder.window = static_cast<int64_t>(std::llround((onset_s + window_s) * fs));
   const std::string cache = config.acoustics.mode_cache_dir.empty()
                                 ? acoustics::DefaultModeCacheDir()
                                 : config.acoustics.mode_cache_dir;
@@ -216,19 +356,17 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
   spdlog::info("fidelity: modes of the configured grid ({} x {} mm)", configured.arc_m * 1e3,
                configured.axial_m * 1e3);
   const auto wall = build({"wall", acoustics::VibrationModel::kModal, configured, 0, 0, true, 1});
-  std::vector<std::vector<acoustics::ForceInput>> forces(static_cast<size_t>(strikes));
-  std::vector<double> derived_band(static_cast<size_t>(strikes));
   for (int64_t s = 0; s < strikes; ++s) {
     acoustics::SolvedForce solved =
         acoustics::SolveRigidStrikeForce(StrikeEvent(kStrikes[s], onset_s), *wall, config.tube,
                                          config.material, config.acoustics, fs, full_band);
-    derived_band[static_cast<size_t>(s)] = solved.derived_band_hz;
-    forces[static_cast<size_t>(s)].push_back(std::move(solved.force));
+    ladder.derived_band_hz.push_back(solved.derived_band_hz);
+    ladder.forces.push_back({std::move(solved.force)});
   }
 
   // the rungs, the reference first
   const auto fd = acoustics::VibrationModel::kFd, modal = acoustics::VibrationModel::kModal;
-  std::vector<Rung> rungs{
+  const std::vector<Rung> rungs{
       {"FD reference (2x stable oversampling)", fd, reference, 0, 0, true, 2},
       {"FD", fd, configured, 0, 0, true, 1},
       {"FD", fd, coarse, 0, 0, true, 1},
@@ -242,69 +380,13 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
       {"modal, 100 modes", modal, configured, 0, 100, true, 1},
       {"modal, derived band", modal, coarse, 0, 0, true, 1},
       {"modal, derived band", modal, coarser, 0, 0, true, 1}};
-  std::vector<Eigen::MatrixXd> ref_signal(static_cast<size_t>(strikes));
-  std::vector<Eigen::VectorXd> ref_bands(static_cast<size_t>(strikes));
+  Reference ref;
   std::vector<RungResult> results;
   for (const Rung& rung : rungs) {
     spdlog::info("fidelity: {} on the {} grid", rung.name, rung.grid.name);
-    const auto built = build(rung);
-    RungResult r;
-    r.dofs = static_cast<double>(built->dofs());
-    r.oversampling = static_cast<double>(built->oversampling());
-    for (int64_t s = 0; s < strikes; ++s) {
-      const auto& f = forces[static_cast<size_t>(s)];
-      const double band = derived_band[static_cast<size_t>(s)];
-      const auto start = Clock::now();
-      const Eigen::MatrixXd y = built->Render(f, window, band);
-      double seconds = 0;
-      if (built->fd()) {
-        // FD cost is the same for every sample: time the window, scale to one second
-        seconds = Seconds(start) * static_cast<double>(one_second) / static_cast<double>(window);
-      } else {
-        r.modes += static_cast<double>(built->ModesPlayed(band)) / strikes;
-        // a whole second, best of three
-        seconds = 1e30;
-        for (int rep = 0; rep < 3; ++rep) {
-          const auto t0 = Clock::now();
-          const Eigen::MatrixXd full = built->Render(f, one_second, band);
-          seconds = std::min(seconds, Seconds(t0));
-          if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
-        }
-      }
-      if (!y.allFinite())
-        throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", rung.name));
-      r.ms_per_strike += 1e3 * seconds / strikes;
-      if (&rung == &rungs.front()) {
-        ref_signal[static_cast<size_t>(s)] = y;
-        ref_bands[static_cast<size_t>(s)] = OctaveEnergies(y, fs);
-      }
-      r.rel_error += RelativeError(y, ref_signal[static_cast<size_t>(s)]) / strikes;
-      r.delay_error_us += DelayErrorUs(y, ref_signal[static_cast<size_t>(s)], fs) / strikes;
-      r.band_error_db +=
-          BandEnergyErrorDb(OctaveEnergies(y, fs), ref_bands[static_cast<size_t>(s)]) / strikes;
-    }
-    results.push_back(r);
+    results.push_back(MeasureRung(rung, *build(rung), ladder, fs, &ref));
   }
-
-  // the whole default strike (contact solve, modes, DAQ) through the production renderer
-  acoustics::AcousticModelConfig whole = AcousticModel(config);
-  if (quick) {
-    whole.shell.grid_spacing_m = configured.arc_m;
-    whole.shell.axial_spacing_m = configured.axial_m;
-  }
-  const acoustics::StrikeSynthesizer synth(whole);
-  const int64_t reps = 40;
-  const auto t0 = Clock::now();
-  double vibration_s = 0;
-  for (int64_t i = 0; i < reps; ++i) {
-    const TestStrike& ts = kStrikes[i % strikes];
-    ContactEvent ev = StrikeEvent(ts, config.audio.onset_time_s);
-    sim::ObjectConfig rod;  // the default struck rod: its bending modes take part
-    sim::DescribeStruckBeam(rod, rod.length_m - 0.05, &ev);
-    const acoustics::RenderedStrike rs = synth.Render(ev, {}, 0.0, static_cast<uint64_t>(i));
-    vibration_s += rs.vibration_s;
-  }
-  const double whole_ms = 1e3 * Seconds(t0) / reps;
+  const auto [whole_ms, whole_vibration_ms] = WholeStrikeMs(config, configured, quick, strikes);
 
   // the table
   std::string md = fmt::format(
@@ -324,59 +406,20 @@ CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int
       "|---|---|---|---|---|---|---|---|---|\n",
       quick ? " --quick" : "", fmt::format("{} Hz", fs), strikes, window_s * 1e3, window_s * 1e3);
   json rows_json = json::array();
-  for (size_t i = 0; i < rungs.size(); ++i) {
-    const Rung& rung = rungs[i];
-    const RungResult& r = results[i];
-    const std::string size = rung.kind == acoustics::VibrationModel::kFd
-                                 ? fmt::format("{:.0f}x", r.oversampling)
-                                 : fmt::format("{:.0f}", r.modes);
-    md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} |\n",
-                      rung.name, rung.grid.arc_m * 1e3, rung.grid.axial_m * 1e3, r.dofs, size,
-                      r.ms_per_strike, 1e3 / r.ms_per_strike,
-                      i == 0 ? "—" : fmt::format("{:.3f}", r.rel_error),
-                      i == 0 ? "—" : fmt::format("{:.1f}", r.delay_error_us),
-                      i == 0 ? "—" : fmt::format("{:.2f}", r.band_error_db));
-    rows_json.push_back({{"rung", rung.name},
-                         {"kind", NameOf(rung.kind)},
-                         {"grid_arc_m", rung.grid.arc_m},
-                         {"grid_axial_m", rung.grid.axial_m},
-                         {"dofs", r.dofs},
-                         {"modes", r.modes},
-                         {"oversampling", r.oversampling},
-                         {"ms_per_strike", r.ms_per_strike},
-                         {"relative_error", r.rel_error},
-                         {"delay_error_us", r.delay_error_us},
-                         {"band_energy_error_db", r.band_error_db}});
-  }
+  LadderRows(rungs, results, &md, &rows_json);
   md += fmt::format(
       "\nWhole default strike through `StrikeSynthesizer` (acoustics.model = {}, contact solve "
       "with "
       "the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike = "
       "{:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
-      NameOf(config.acoustics.model), whole_ms, 1e3 / whole_ms, 1e3 * vibration_s / reps);
-  // the FD rung's damping against the loss law (shell.damping = law): the Rayleigh curve meets
-  // the law at shell.loss_low_hz and loss_high_hz and departs from it elsewhere
-  json damping_json = json::array();
-  if (config.shell.damping == acoustics::DampingModel::kLaw) {
-    const acoustics::ShellModel law(config.tube, config.material, config.shell);
-    md +=
-        "\nDamping: the modal rung gives every mode the loss law's eta(f); the FD rung's Rayleigh "
-        "curve (C = alpha M + beta K) meets it at shell.loss_low_hz and shell.loss_high_hz:\n\n"
-        "| f (Hz) | law eta | FD (Rayleigh) eta | ratio |\n|---|---|---|---|\n";
-    for (double f : {100.0, 220.0, 500.0, 1000.0, 2000.0, 5000.0, 10000.0, 20000.0}) {
-      const double w = 2.0 * std::numbers::pi * f;
-      const double eta_law = 2.0 * law.DampingRatio(w), eta_fd = 2.0 * law.RayleighDampingRatio(w);
-      md += fmt::format("| {:.0f} | {:.4f} | {:.4f} | {:.2f} |\n", f, eta_law, eta_fd,
-                        eta_fd / eta_law);
-      damping_json.push_back({{"frequency_hz", f}, {"law_eta", eta_law}, {"fd_eta", eta_fd}});
-    }
-  }
+      NameOf(config.acoustics.model), whole_ms, 1e3 / whole_ms, whole_vibration_ms);
+  const json damping_json = DampingSection(config, &md);
   json j = {{"rungs", rows_json},
             {"strikes", strikes},
             {"window_s", window_s},
             {"damping", damping_json},
             {"whole_strike_ms", whole_ms},
-            {"whole_strike_vibration_ms", 1e3 * vibration_s / reps},
+            {"whole_strike_vibration_ms", whole_vibration_ms},
             {"quick", quick}};
   if (!out_md.empty()) WriteTextAtomic(out_md, md);
   return {j.dump(), md};
