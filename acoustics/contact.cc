@@ -234,199 +234,262 @@ struct Pass {
   int64_t first_closure_substeps{0};  // length of the first closure, substeps
 };
 
-Pass SolveAtSubsteps(const Reduced& body, const PassSetup& setup, const ContactConfig& config) {
-  const Eigen::ArrayXd& omega = body.omega_rad_s;
-  const Eigen::Index n = omega.size();
-  const double inv_mass = body.inv_mass_per_kg;
-  const double period_s = 1.0 / setup.sample_rate_hz;
-  const int64_t per_sample = setup.per_sample, stride = setup.apart_stride;
-  const double h = period_s / static_cast<double>(per_sample);
-  const double stride_s = h * static_cast<double>(stride);
-  const double k = setup.stiffness_n_m15, lambda = config.hunt_crossley_s_m;
+// One pass of the contact solve at a fixed substep h: both bodies reduced to the compression,
+// stepped exactly for the force held over each substep (midpoint predictor), with whole free
+// samples or strides while apart. Time runs from the start of the sample holding time_s; the
+// bodies start apart on the substep grid, closing at v with the modes at rest, so that they
+// touch exactly at time_s.
+class SubstepSolver {
+ public:
+  SubstepSolver(const Reduced& body, const PassSetup& setup, const ContactConfig& config);
+  Pass Run();
 
+ private:
+  void BuildMaps();
+  double Force(double delta, double rate) const;
+  void CheckProgress(double t_s, double delta, double rate) const;
+  bool FreeWhileApart(double delta, double rate);
+  bool FreeStep(int col, int64_t substeps, double dt_s, double delta, double rate, bool certain);
+  bool ForcedSubstep(double t_s, double delta, double rate);
+  void Finish();
+
+  const Reduced& body_;
+  const PassSetup& setup_;
+  const ContactConfig& config_;
+  Eigen::Index n_;  // modes
+  double period_s_, h_, stride_s_;
   // per-mode maps (modes x 18): half step e11 e12 e21 e22 (predictor) | substep e11 e12 e21 e22
   // | substep input (x gain) g1 g2 | stride e11..e22 | sample e11..e22 (both free, apart)
-  Eigen::ArrayXXd map(n, 18);
-  const Eigen::ArrayXd inv_omega_sq = omega.square().inverse();  // (modes) s^2
-  double half_g1 = 0.0, half_g2 = 0.0;  // sum of gain x half-step input response, m/N, m/(N s)
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const StepMap half = OscillatorStep(omega[i], body.zeta[i], 0.5 * h);
-    const StepMap full = OscillatorStep(omega[i], body.zeta[i], h);
-    const StepMap strided = OscillatorStep(omega[i], body.zeta[i], stride_s);
-    const StepMap sample = OscillatorStep(omega[i], body.zeta[i], period_s);
-    const double g = body.gain_per_kg[i];
-    map.row(i) << half.e11, half.e12, half.e21, half.e22, full.e11, full.e12, full.e21, full.e22,
+  Eigen::ArrayXXd map_;
+  Eigen::ArrayXd inv_omega_sq_;         // (modes) s^2
+  double half_g1_{0.0}, half_g2_{0.0};  // sum of gain x half-step input response, m/N, m/(N s)
+  double touch_s_;                      // from the origin, [0, T)
+  // the state: substep count, rigid part x (m) and its rate (m/s), modal parts y (m), y' (m/s)
+  // with the next state built beside them, then swapped, and their sums over the modes
+  int64_t step_;
+  double x_m_, xd_m_s_;
+  Eigen::ArrayXd y_, yd_, y_next_, yd_next_;
+  double sum_y_{0.0}, sum_yd_{0.0};
+  Pass pass_;
+  bool closed_{false};
+  int64_t touches_{0}, closure_start_{0}, fine_until_{0};
+  double modal_reach_{-1.0};  // m, the modes' energy bound while free; < 0 = to compute
+  double release_s_;          // the last release, from the origin
+  double give_up_s_;
+};
+
+SubstepSolver::SubstepSolver(const Reduced& body, const PassSetup& setup,
+                             const ContactConfig& config)
+    : body_(body),
+      setup_(setup),
+      config_(config),
+      n_(body.omega_rad_s.size()),
+      period_s_(1.0 / setup.sample_rate_hz),
+      h_(period_s_ / static_cast<double>(setup.per_sample)),
+      stride_s_(h_ * static_cast<double>(setup.apart_stride)) {
+  BuildMaps();
+  const double first_sample_f = std::floor(setup.time_s * setup.sample_rate_hz);
+  touch_s_ = setup.time_s - first_sample_f * period_s_;
+  step_ = static_cast<int64_t>(std::floor(touch_s_ / h_));
+  x_m_ = -setup.v_m_s * (touch_s_ - static_cast<double>(step_) * h_);
+  xd_m_s_ = setup.v_m_s;
+  y_ = Eigen::ArrayXd::Zero(n_);
+  yd_ = Eigen::ArrayXd::Zero(n_);
+  y_next_.resize(n_);
+  yd_next_.resize(n_);
+  pass_.result.first_sample = static_cast<int64_t>(first_sample_f);
+  pass_.result.force_n.reserve(16);  // N s per audio sample until the end, then / T
+  release_s_ = touch_s_;
+  give_up_s_ = touch_s_ + config.max_duration_s;
+}
+
+void SubstepSolver::BuildMaps() {
+  const Eigen::ArrayXd& omega = body_.omega_rad_s;
+  map_.resize(n_, 18);
+  inv_omega_sq_ = omega.square().inverse();
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    const StepMap half = OscillatorStep(omega[i], body_.zeta[i], 0.5 * h_);
+    const StepMap full = OscillatorStep(omega[i], body_.zeta[i], h_);
+    const StepMap strided = OscillatorStep(omega[i], body_.zeta[i], stride_s_);
+    const StepMap sample = OscillatorStep(omega[i], body_.zeta[i], period_s_);
+    const double g = body_.gain_per_kg[i];
+    map_.row(i) << half.e11, half.e12, half.e21, half.e22, full.e11, full.e12, full.e21, full.e22,
         g * full.g1, g * full.e12, strided.e11, strided.e12, strided.e21, strided.e22, sample.e11,
         sample.e12, sample.e21, sample.e22;
-    half_g1 += g * half.g1;
-    half_g2 += g * half.e12;
+    half_g1_ += g * half.g1;
+    half_g2_ += g * half.e12;
   }
+}
 
-  // contact force (N) from compression (m) and its rate (m/s); Hunt-Crossley never pulls
-  auto force = [&](double delta, double rate) {
-    if (delta <= 0.0) return 0.0;
-    const double bracket = 1.0 + lambda * rate;
-    return bracket > 0.0 ? k * delta * std::sqrt(delta) * bracket : 0.0;
-  };
+// contact force (N) from compression (m) and its rate (m/s); Hunt-Crossley never pulls
+double SubstepSolver::Force(double delta, double rate) const {
+  if (delta <= 0.0) return 0.0;
+  const double bracket = 1.0 + config_.hunt_crossley_s_m * rate;
+  return bracket > 0.0 ? setup_.stiffness_n_m15 * delta * std::sqrt(delta) * bracket : 0.0;
+}
 
-  // time runs from the start of the sample holding time_s; the bodies start apart on the
-  // substep grid, closing at v with the modes at rest, so that they touch exactly at time_s
-  const double first_sample_f = std::floor(setup.time_s * setup.sample_rate_hz);
-  const double touch_s = setup.time_s - first_sample_f * period_s;  // [0, T) from the origin
-  int64_t step = static_cast<int64_t>(std::floor(touch_s / h));
-  double x_m = -setup.v_m_s * (touch_s - static_cast<double>(step) * h);  // rigid part, m
-  double xd_m_s = setup.v_m_s;                                            // its rate, m/s
-  // modal parts (modes): y (m), y' (m/s); the next state is built beside them, then swapped
-  Eigen::ArrayXd y = Eigen::ArrayXd::Zero(n), yd = Eigen::ArrayXd::Zero(n);
-  Eigen::ArrayXd y_next(n), yd_next(n);
-  double sum_y = 0.0, sum_yd = 0.0;  // sums over the modes of y, y'
+// a non-finite state, or a contact that does not end, is an error
+void SubstepSolver::CheckProgress(double t_s, double delta, double rate) const {
+  if (!std::isfinite(delta) || !std::isfinite(rate)) {
+    throw NumericalError(fmt::format(
+        "contact solve turned non-finite {:.3g} s after the touch ({} substeps per sample)",
+        t_s - touch_s_, setup_.per_sample));
+  }
+  if (t_s > give_up_s_ && (closed_ || t_s > give_up_s_ + config_.separation_window_s)) {
+    throw NumericalError(fmt::format(
+        "contact not over {:.3g} s after the first touch ({} touches): over "
+        "acoustics.contact.max_duration_s = {} s (a heavy side pressing into a compliant one "
+        "takes long to push back)",
+        t_s - touch_s_, touches_, config_.max_duration_s));
+  }
+}
 
-  Pass pass;
-  ContactForce& out = pass.result;
-  out.first_sample = static_cast<int64_t>(first_sample_f);
-  std::vector<double>& impulse = out.force_n;  // N s per audio sample until the end, then / T
-  impulse.reserve(16);
+// apart: a whole free sample when no mode can reach across the gap in it (energy bound
+// |y_i(t)| <= sqrt(y_i^2 + (y_i'/omega_i)^2), which only shrinks while free, so it is kept
+// until a force acts), else a free stride when it shows no contact; false: take substeps
+bool SubstepSolver::FreeWhileApart(double delta, double rate) {
+  const double rigid_reach = std::max(x_m_, x_m_ + xd_m_s_ * period_s_);
+  if (rigid_reach < 0.0 && modal_reach_ < 0.0) {
+    modal_reach_ = (y_.square() + yd_.square() * inv_omega_sq_).sqrt().sum();
+  }
+  if (rigid_reach < 0.0 && rigid_reach + modal_reach_ < 0.0 &&
+      FreeStep(14, setup_.per_sample, period_s_, delta, rate, true)) {
+    return true;
+  }
+  if (setup_.apart_stride > 1 && FreeStep(10, setup_.apart_stride, stride_s_, delta, rate, false))
+    return true;
+  fine_until_ = step_ + setup_.apart_stride;  // this stride closes: take it in substeps
+  return false;
+}
 
-  bool closed = false;
-  int64_t touches = 0, closure_start = 0, fine_until = 0;
-  double modal_reach = -1.0;   // m, the modes' energy bound while free; < 0 = to compute
-  double release_s = touch_s;  // the last release, from the origin
-  const double give_up_s = touch_s + config.max_duration_s;
-
-  // a free step of `substeps` substeps with map columns from `col` into the next state; kept
-  // when no contact can have happened inside it
-  auto free_step = [&](int col, int64_t substeps, double dt_s, double delta, double rate,
-                       bool certain) {
-    y_next = map.col(col) * y + map.col(col + 1) * yd;
-    yd_next = map.col(col + 2) * y + map.col(col + 3) * yd;
-    const double x_end = x_m + xd_m_s * dt_s;
-    const double delta_end = x_end + y_next.sum(), rate_end = xd_m_s + yd_next.sum();
-    ++out.substeps;
-    if (!certain) {
-      // refused when closed at the end, or when the cubic through both ends peaks above zero
-      if (delta_end > 0.0) return false;
-      const double a = rate * dt_s, b = rate_end * dt_s;
-      const double c2 = 3.0 * (delta_end - delta) - 2.0 * a - b;
-      const double c3 = 2.0 * (delta - delta_end) + a + b;
-      // roots of the cubic's slope a + 2 c2 s + 3 c3 s^2 on (0, 1)
-      const double qa = 3.0 * c3, qb = 2.0 * c2, qc = a;
-      const double disc = qb * qb - 4.0 * qa * qc;
-      if (disc >= 0.0 && qa != 0.0) {
-        for (const double sgn : {-1.0, 1.0}) {
-          const double s = (-qb + sgn * std::sqrt(disc)) / (2.0 * qa);
-          if (s > 0.0 && s < 1.0 && delta + s * (a + s * (c2 + s * c3)) > 0.0) return false;
-        }
-      } else if (qa == 0.0 && qb != 0.0) {
-        const double s = -qc / qb;
+// a free step of `substeps` substeps with map columns from `col` into the next state; kept
+// when no contact can have happened inside it
+bool SubstepSolver::FreeStep(int col, int64_t substeps, double dt_s, double delta, double rate,
+                             bool certain) {
+  y_next_ = map_.col(col) * y_ + map_.col(col + 1) * yd_;
+  yd_next_ = map_.col(col + 2) * y_ + map_.col(col + 3) * yd_;
+  const double x_end = x_m_ + xd_m_s_ * dt_s;
+  const double delta_end = x_end + y_next_.sum(), rate_end = xd_m_s_ + yd_next_.sum();
+  ++pass_.result.substeps;
+  if (!certain) {
+    // refused when closed at the end, or when the cubic through both ends peaks above zero
+    if (delta_end > 0.0) return false;
+    const double a = rate * dt_s, b = rate_end * dt_s;
+    const double c2 = 3.0 * (delta_end - delta) - 2.0 * a - b;
+    const double c3 = 2.0 * (delta - delta_end) + a + b;
+    // roots of the cubic's slope a + 2 c2 s + 3 c3 s^2 on (0, 1)
+    const double qa = 3.0 * c3, qb = 2.0 * c2, qc = a;
+    const double disc = qb * qb - 4.0 * qa * qc;
+    if (disc >= 0.0 && qa != 0.0) {
+      for (const double sgn : {-1.0, 1.0}) {
+        const double s = (-qb + sgn * std::sqrt(disc)) / (2.0 * qa);
         if (s > 0.0 && s < 1.0 && delta + s * (a + s * (c2 + s * c3)) > 0.0) return false;
       }
+    } else if (qa == 0.0 && qb != 0.0) {
+      const double s = -qc / qb;
+      if (s > 0.0 && s < 1.0 && delta + s * (a + s * (c2 + s * c3)) > 0.0) return false;
     }
-    y.swap(y_next);
-    yd.swap(yd_next);
-    x_m = x_end;
-    sum_y = delta_end - x_end;
-    sum_yd = rate_end - xd_m_s;
-    step += substeps;
-    return true;
-  };
+  }
+  y_.swap(y_next_);
+  yd_.swap(yd_next_);
+  x_m_ = x_end;
+  sum_y_ = delta_end - x_end;
+  sum_yd_ = rate_end - xd_m_s_;
+  step_ += substeps;
+  return true;
+}
 
-  for (;;) {
-    const double t_s = static_cast<double>(step) * h;
-    const double delta = x_m + sum_y, rate = xd_m_s + sum_yd;
-    if (!std::isfinite(delta) || !std::isfinite(rate)) {
-      throw NumericalError(fmt::format(
-          "contact solve turned non-finite {:.3g} s after the touch ({} substeps per sample)",
-          t_s - touch_s, per_sample));
-    }
-    if (t_s > give_up_s && (closed || t_s > give_up_s + config.separation_window_s)) {
-      throw NumericalError(fmt::format(
-          "contact not over {:.3g} s after the first touch ({} touches): over "
-          "acoustics.contact.max_duration_s = {} s (a heavy side pressing into a compliant one "
-          "takes long to push back)",
-          t_s - touch_s, touches, config.max_duration_s));
-    }
-    // done once apart for the separation window with the rigid parts not closing (a rigid
-    // part still closing meets the other body again: the modal parts are bounded)
-    if (!closed && touches > 0 && t_s - release_s >= config.separation_window_s && xd_m_s <= 0.0) {
-      break;
-    }
+// One substep under the midpoint force, its impulse, and the touches and releases; true when
+// the first closure falls outside the wanted substep band (the pass must restart).
+bool SubstepSolver::ForcedSubstep(double t_s, double delta, double rate) {
+  const double h = h_, inv_mass = body_.inv_mass_per_kg;
+  ContactForce& out = pass_.result;
+  std::vector<double>& impulse = out.force_n;
+  const size_t sample = static_cast<size_t>(step_ / setup_.per_sample);
+  if (impulse.size() <= sample) impulse.resize(sample + 1, 0.0);
 
-    // apart: a whole free sample when no mode can reach across the gap in it (energy bound
-    // |y_i(t)| <= sqrt(y_i^2 + (y_i'/omega_i)^2), which only shrinks while free, so it is kept
-    // until a force acts), else a free stride when it shows no contact, else substeps
-    if (!closed && delta < 0.0 && step >= fine_until) {
-      const double rigid_reach = std::max(x_m, x_m + xd_m_s * period_s);
-      if (rigid_reach < 0.0 && modal_reach < 0.0) {
-        modal_reach = (y.square() + yd.square() * inv_omega_sq).sqrt().sum();
-      }
-      if (rigid_reach < 0.0 && rigid_reach + modal_reach < 0.0 &&
-          free_step(14, per_sample, period_s, delta, rate, true)) {
-        continue;
-      }
-      if (stride > 1 && free_step(10, stride, stride_s, delta, rate, false)) continue;
-      fine_until = step + stride;  // this stride closes: take it in substeps
-    }
+  // midpoint predictor: the half-step state under the force at the step start
+  const double f0 = Force(delta, rate);
+  const double delta_mid = x_m_ + 0.5 * h * xd_m_s_ - 0.125 * h * h * inv_mass * f0 +
+                           (map_.col(0) * y_ + map_.col(1) * yd_).sum() - half_g1_ * f0;
+  const double rate_mid = xd_m_s_ - 0.5 * h * inv_mass * f0 +
+                          (map_.col(2) * y_ + map_.col(3) * yd_).sum() - half_g2_ * f0;
+  const double f = Force(delta_mid, rate_mid);
 
-    const size_t sample = static_cast<size_t>(step / per_sample);
-    if (impulse.size() <= sample) impulse.resize(sample + 1, 0.0);
+  // exact substep for the midpoint force held over it (rigid and modal parts)
+  y_next_ = map_.col(4) * y_ + map_.col(5) * yd_ - map_.col(8) * f;
+  yd_next_ = map_.col(6) * y_ + map_.col(7) * yd_ - map_.col(9) * f;
+  y_.swap(y_next_);
+  yd_.swap(yd_next_);
+  x_m_ += h * xd_m_s_ - 0.5 * h * h * inv_mass * f;
+  xd_m_s_ -= h * inv_mass * f;
+  sum_y_ = y_.sum();
+  sum_yd_ = yd_.sum();
+  ++step_;
+  ++out.substeps;
 
-    // midpoint predictor: the half-step state under the force at the step start
-    const double f0 = force(delta, rate);
-    const double delta_mid = x_m + 0.5 * h * xd_m_s - 0.125 * h * h * inv_mass * f0 +
-                             (map.col(0) * y + map.col(1) * yd).sum() - half_g1 * f0;
-    const double rate_mid =
-        xd_m_s - 0.5 * h * inv_mass * f0 + (map.col(2) * y + map.col(3) * yd).sum() - half_g2 * f0;
-    const double f = force(delta_mid, rate_mid);
-
-    // exact substep for the midpoint force held over it (rigid and modal parts)
-    y_next = map.col(4) * y + map.col(5) * yd - map.col(8) * f;
-    yd_next = map.col(6) * y + map.col(7) * yd - map.col(9) * f;
-    y.swap(y_next);
-    yd.swap(yd_next);
-    x_m += h * xd_m_s - 0.5 * h * h * inv_mass * f;
-    xd_m_s -= h * inv_mass * f;
-    sum_y = y.sum();
-    sum_yd = yd.sum();
-    ++step;
-    ++out.substeps;
-
-    // the impulse into its audio sample; touches and releases
-    if (f != 0.0) modal_reach = -1.0;
-    impulse[sample] += f * h;
-    out.impulse_ns += f * h;
-    out.peak_force_n = std::max(out.peak_force_n, f);
-    const double delta_end = x_m + sum_y, rate_end = xd_m_s + sum_yd;
-    if (!closed && delta_end > 0.0) {
-      closed = true;
-      ++touches;
-      closure_start = step - 1;
-    } else if (closed && delta_end <= 0.0) {
-      // release inside the substep, by linear interpolation of the compression
-      closed = false;
-      const double frac = delta > 0.0 ? delta / (delta - delta_end) : 0.0;
-      release_s = t_s + frac * h;
-      out.rebound_speed_m_s = -(rate + frac * (rate_end - rate));
-      if (touches == 1) {
-        out.first_closure_s = release_s - touch_s;
-        pass.first_closure_substeps = step - closure_start;
-        if (pass.first_closure_substeps < setup.restart_below ||
-            pass.first_closure_substeps > setup.restart_above) {
-          pass.restart = true;
-          return pass;
-        }
+  // the impulse into its audio sample; touches and releases
+  if (f != 0.0) modal_reach_ = -1.0;
+  impulse[sample] += f * h;
+  out.impulse_ns += f * h;
+  out.peak_force_n = std::max(out.peak_force_n, f);
+  const double delta_end = x_m_ + sum_y_, rate_end = xd_m_s_ + sum_yd_;
+  if (!closed_ && delta_end > 0.0) {
+    closed_ = true;
+    ++touches_;
+    closure_start_ = step_ - 1;
+  } else if (closed_ && delta_end <= 0.0) {
+    // release inside the substep, by linear interpolation of the compression
+    closed_ = false;
+    const double frac = delta > 0.0 ? delta / (delta - delta_end) : 0.0;
+    release_s_ = t_s + frac * h;
+    out.rebound_speed_m_s = -(rate + frac * (rate_end - rate));
+    if (touches_ == 1) {
+      out.first_closure_s = release_s_ - touch_s_;
+      pass_.first_closure_substeps = step_ - closure_start_;
+      if (pass_.first_closure_substeps < setup_.restart_below ||
+          pass_.first_closure_substeps > setup_.restart_above) {
+        pass_.restart = true;
+        return true;
       }
     }
   }
+  return false;
+}
 
-  // trim to the sample of the final release (less a trailing sample whose only substep held no
-  // force); impulses to sample-averaged forces
-  const size_t last = static_cast<size_t>(std::floor(release_s / period_s));
+// trim to the sample of the final release (less a trailing sample whose only substep held no
+// force); impulses to sample-averaged forces
+void SubstepSolver::Finish() {
+  ContactForce& out = pass_.result;
+  std::vector<double>& impulse = out.force_n;
+  const size_t last = static_cast<size_t>(std::floor(release_s_ / period_s_));
   impulse.resize(std::min(impulse.size(), last + 1));
   while (!impulse.empty() && impulse.back() == 0.0) impulse.pop_back();
-  for (double& v : impulse) v /= period_s;
-  out.duration_s = release_s - touch_s;
-  out.touches = touches;
-  return pass;
+  for (double& v : impulse) v /= period_s_;
+  out.duration_s = release_s_ - touch_s_;
+  out.touches = touches_;
+}
+
+Pass SubstepSolver::Run() {
+  for (;;) {
+    const double t_s = static_cast<double>(step_) * h_;
+    const double delta = x_m_ + sum_y_, rate = xd_m_s_ + sum_yd_;
+    CheckProgress(t_s, delta, rate);
+    // done once apart for the separation window with the rigid parts not closing (a rigid
+    // part still closing meets the other body again: the modal parts are bounded)
+    if (!closed_ && touches_ > 0 && t_s - release_s_ >= config_.separation_window_s &&
+        xd_m_s_ <= 0.0) {
+      break;
+    }
+    if (!closed_ && delta < 0.0 && step_ >= fine_until_ && FreeWhileApart(delta, rate)) continue;
+    if (ForcedSubstep(t_s, delta, rate)) return pass_;
+  }
+  Finish();
+  return pass_;
+}
+
+Pass SolveAtSubsteps(const Reduced& body, const PassSetup& setup, const ContactConfig& config) {
+  return SubstepSolver(body, setup, config).Run();
 }
 
 }  // namespace
