@@ -404,6 +404,45 @@ ContactEvent VariedContact(const ContactEvent& contact, const Variation& v) {
   return c;
 }
 
+// the striker: the struck rod's beam modes, or a rigid body of the contact's effective mass
+DrivingPoint StrikerOf(const ContactEvent& contact, double beam_max_frequency_hz) {
+  DrivingPoint striker;
+  if (contact.beam_length_m <= 0) {
+    striker.rigid_mass_kg = contact.effective_mass_kg;
+    return striker;
+  }
+  BeamSpec beam;
+  beam.length_m = contact.beam_length_m;
+  beam.flexural_rigidity_n_m2 = contact.beam_flexural_rigidity_n_m2;
+  beam.linear_density_kg_m = contact.beam_linear_density_kg_m;
+  beam.contact_from_clamp_m = contact.beam_contact_from_clamp_m;
+  beam.clamped_both_ends = contact.beam_clamped_both_ends;
+  beam.loss_factor = contact.beam_loss_factor;
+  striker = BeamDrivingPoint(beam, beam_max_frequency_hz);
+  // a contact is far shorter than the rod's fundamental period: that mode acts as a free mass
+  // (its modal mass at the contact) that carries the approach and separates; the higher modes
+  // ring in the contact
+  if (striker.phi.size() > 0) {
+    striker.rigid_mass_kg = 1.0 / (striker.phi[0] * striker.phi[0]);
+    const Eigen::Index rest = striker.phi.size() - 1;
+    striker.omega_rad_s = striker.omega_rad_s.tail(rest).eval();
+    striker.zeta = striker.zeta.tail(rest).eval();
+    striker.phi = striker.phi.tail(rest).eval();
+  }
+  return striker;
+}
+
+// whether a variation changes the structure the sample is played on (material, pool variant,
+// mic placement), which only the numerical modal rung can follow
+bool VariesStructure(const Variation* variation) {
+  if (variation == nullptr) return false;
+  const bool placed = !variation->mic_z_offset_m.empty() ||
+                      !variation->mic_theta_offset_deg.empty() ||
+                      !variation->disc_diameter_m.empty();
+  return variation->frequency_scale() != 1.0 || variation->density_scale != 1.0 ||
+         variation->loss_factor > 0.0 || variation->structure_variant >= 0 || placed;
+}
+
 }  // namespace
 
 RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
@@ -415,13 +454,7 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
   const double fs = m.c.audio.sample_rate_hz;
   const int64_t num_frames = m.c.audio.num_samples();
   RenderedStrike out;
-  const bool placed = variation != nullptr && (!variation->mic_z_offset_m.empty() ||
-                                               !variation->mic_theta_offset_deg.empty() ||
-                                               !variation->disc_diameter_m.empty());
-  const bool varied_structure =
-      variation != nullptr &&
-      (variation->frequency_scale() != 1.0 || variation->density_scale != 1.0 ||
-       variation->loss_factor > 0.0 || variation->structure_variant >= 0 || placed);
+  const bool varied_structure = VariesStructure(variation);
   if (varied_structure && (!m.bank || m.fd)) {
     throw ConfigError(
         "randomize: material, structure and placement ranges need acoustics.model = "
@@ -458,30 +491,7 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
     out.band_hz = BandFor(impact.duration_s);
     strain = m.ClosedFormStrain(contact, impact, &out);
   } else {
-    // the striker: the struck rod's beam modes, or a rigid body of the contact's effective mass
-    DrivingPoint striker;
-    if (contact.beam_length_m > 0) {
-      BeamSpec beam;
-      beam.length_m = contact.beam_length_m;
-      beam.flexural_rigidity_n_m2 = contact.beam_flexural_rigidity_n_m2;
-      beam.linear_density_kg_m = contact.beam_linear_density_kg_m;
-      beam.contact_from_clamp_m = contact.beam_contact_from_clamp_m;
-      beam.clamped_both_ends = contact.beam_clamped_both_ends;
-      beam.loss_factor = contact.beam_loss_factor;
-      striker = BeamDrivingPoint(beam, m.c.synth.contact.beam_max_frequency_hz);
-      // a contact is far shorter than the rod's fundamental period: that mode acts as a free mass
-      // (its modal mass at the contact) that carries the approach and separates; the higher
-      // modes ring in the contact
-      if (striker.phi.size() > 0) {
-        striker.rigid_mass_kg = 1.0 / (striker.phi[0] * striker.phi[0]);
-        const Eigen::Index rest = striker.phi.size() - 1;
-        striker.omega_rad_s = striker.omega_rad_s.tail(rest).eval();
-        striker.zeta = striker.zeta.tail(rest).eval();
-        striker.phi = striker.phi.tail(rest).eval();
-      }
-    } else {
-      striker.rigid_mass_kg = contact.effective_mass_kg;
-    }
+    const DrivingPoint striker = StrikerOf(contact, m.c.synth.contact.beam_max_frequency_hz);
     // the wall at the contact: its modes in the band the rigid-wall pulse suggests
     const double frequency_scale = varied_structure ? variation->frequency_scale() : 1.0;
     const double contact_band = m.Band(impact.duration_s, frequency_scale);
