@@ -3,9 +3,10 @@
 # YAML config) with libFuzzer under ASan + UBSan, SECONDS each, starting from a copy of the seed
 # corpus (fuzz/corpus, left unchanged). Builds with Debian's clang-14 in build-fuzz/. Runs in
 # libFuzzer's fork mode: every failing input (a crash: memory error, undefined behaviour, abort,
-# leak; a timeout, 10 s; memory above 4 GB) is kept and the campaign goes on. Each crash is then
-# run again alone and put down to the code it happened in: ours, or libhdf5 (whose format readers
-# are not hardened against hostile files; docs/robustness.md). Prints a Markdown table
+# leak; a timeout, 10 s; memory above 4 GB) is kept and the campaign goes on. The sanitizers write
+# each report whole to OUT/<target>/reports/; each is put down to the code it happened in, ours
+# or libhdf5's (whose format readers are not hardened against hostile files; docs/robustness.md),
+# by its first stack frame outside the sanitizer runtime and libc. Prints a Markdown table
 # (executions, corpus growth, crashes in our code, faults inside libhdf5, timeouts, out-of-memory
 # inputs), writes it to OUT/report.md, and fails when our code crashed. The inputs land in
 # OUT/<target>/crashes/ (crash-*, leak-*, timeout-*, oom-*). TARGETS="wav npy" picks targets.
@@ -28,15 +29,15 @@ total_crashes=0
 for t in "${TARGETS[@]}"; do
   dir=$OUT/$t
   rm -rf "$dir"
-  mkdir -p "$dir/corpus" "$dir/crashes"
+  mkdir -p "$dir/corpus" "$dir/crashes" "$dir/reports"
   cp "$ROOT/fuzz/corpus/$t/"* "$dir/corpus/"
   seeds=$(ls "$dir/corpus" | wc -l)
   set +e
   # the readers' own watchdog (SONICBOOM_READ_TIMEOUT_S) is off: libFuzzer times the inputs
   SONICBOOM_READ_TIMEOUT_S=0 \
-    ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:suppressions=$ROOT/fuzz/asan_suppressions.txt" \
+    ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:log_path=$dir/reports/asan:suppressions=$ROOT/fuzz/asan_suppressions.txt" \
     LSAN_OPTIONS="suppressions=$ROOT/fuzz/lsan_suppressions.txt" \
-    UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:log_path=$dir/reports/ubsan" \
     "$BUILD/bin/fuzz_$t" "$dir/corpus" -fork=1 -ignore_timeouts=1 -ignore_crashes=1 \
     -ignore_ooms=1 -max_total_time="$SECONDS_EACH" -max_len=262144 -timeout=10 \
     -rss_limit_mb=4096 -artifact_prefix="$dir/crashes/" >"$dir/log.txt" 2>&1
@@ -44,16 +45,16 @@ for t in "${TARGETS[@]}"; do
   # fork mode's last progress line: "#N: cov: .. exec/s: .. oom/timeout/crash: a/b/c time: .."
   last=$(grep -E '^#[0-9]+: cov:' "$dir/log.txt" | tail -n 1)
   execs=$(echo "$last" | sed -E 's/^#([0-9]+):.*/\1/')
-  # each crash alone: the first stack frame outside the sanitizer's interceptors and libc names
-  # the code it happened in
+  # each sanitizer report (a crash of a fork job) by the first stack frame outside the
+  # sanitizer runtime and libc
   crashes=0
   library=0
-  for f in "$dir/crashes"/crash-* "$dir/crashes"/leak-*; do
-    [ -e "$f" ] || continue
-    frame=$(SONICBOOM_READ_TIMEOUT_S=0 ASAN_OPTIONS=detect_leaks=1 \
-      LSAN_OPTIONS="suppressions=$ROOT/fuzz/lsan_suppressions.txt" "$BUILD/bin/fuzz_$t" "$f" 2>&1 |
-      grep -E '^ +#[0-9]+ 0x' | grep -vE '__interceptor_|__sanitizer|__asan|__ubsan|__lsan|libc\.so|string/|sysdeps/|malloc|operator new' |
-      head -n 1)
+  for r in "$dir/reports"/*; do
+    [ -e "$r" ] || continue
+    grep -qE 'ERROR: |runtime error' "$r" || continue
+    frame=$(grep -E '^ +#[0-9]+ 0x' "$r" |
+      grep -vE '__interceptor_|__sanitizer|__asan|__ubsan|__lsan|libc\.so|string/|sysdeps/|malloc|operator new' |
+      head -n 1 || true)
     if echo "$frame" | grep -q 'libhdf5'; then library=$((library + 1)); else crashes=$((crashes + 1)); fi
   done
   timeouts=$(ls "$dir/crashes" | grep -c '^timeout-' || true)
