@@ -129,15 +129,8 @@ void RequirePositive(double value, const char* key) {
   }
 }
 
-}  // namespace
-
-double PandaLinkMassSumKg() {
-  double sum_kg = 0.0;
-  for (const PandaLink& link : kPandaLinks) sum_kg += link.mass_kg;
-  return sum_kg;
-}
-
-std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
+// Inputs the MJCF needs positive and finite, refused naming the key.
+void CheckMjcfInputs(const TubeConfig& tube, const PandaMjcfOptions& options) {
   RequirePositive(options.timestep_s, "timestep_s");
   RequirePositive(options.tube_density_kg_m3, "tube_density_kg_m3");
   RequirePositive(tube.outer_radius_m, "tube.outer_radius_m");
@@ -156,8 +149,10 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
     }
   }
   tube.Validate();
-  const JointVector lower_rad = PandaLowerLimits(), upper_rad = PandaUpperLimits();
+}
 
+// <mujoco>, compiler, options, sizes and defaults, up to the open <worldbody>.
+std::string HeaderXml(const PandaMjcfOptions& options) {
   std::string xml;
   xml += "<mujoco model=\"sonicboom_panda\">\n";
   // angles in radians; every body carries an explicit inertial, geoms add no mass
@@ -185,8 +180,13 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   xml += "    <site size=\"0.01\" rgba=\"1 0 0 1\"/>\n";
   xml += "  </default>\n";
   xml += "  <worldbody>\n";
-  xml += CapsuleGeoms(0, 2);
+  return xml;
+}
 
+// The seven links as nested bodies (left open: the flange goes inside link 7).
+std::string ArmXml() {
+  std::string xml;
+  const JointVector lower_rad = PandaLowerLimits(), upper_rad = PandaUpperLimits();
   // Body i sits at RotX(alpha) TransX(a) TransZ(d) of its parent and turns about its own z:
   // T_i = RotX(alpha) TransX(a) RotZ(q) TransZ(d) = [RotX(alpha) Trans(a, 0, d)] RotZ(q), since
   // TransZ(d) commutes with RotZ(q). So pos = RotX(alpha) (a, 0, d), quat = RotX(alpha).
@@ -210,6 +210,12 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
     xml += CapsuleGeoms(i + 1, depth + 1);
   }
 
+  return xml;
+}
+
+// The flange body on link 7 with the tube.
+std::string FlangeXml(const TubeConfig& tube, const PandaMjcfOptions& options) {
+  std::string xml;
   // flange body on link 7 with the tube: a thin-walled PVC cylinder centred on flange z
   const int flange_depth = 2 + kPandaJoints;
   const double r_out_m = tube.outer_radius_m, r_in_m = tube.outer_radius_m - tube.wall_thickness_m;
@@ -233,8 +239,12 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   xml += fmt::format("{}<site name=\"tube_center\" pos=\"{}\"/>\n", Indent(flange_depth + 1),
                      tube_pos);
   xml += fmt::format("{}</body>\n", Indent(flange_depth));
-  for (int i = kPandaJoints - 1; i >= 0; --i) xml += fmt::format("{}</body>\n", Indent(2 + i));
+  return xml;
+}
 
+// The struck objects.
+std::string ObjectsXml(const PandaMjcfOptions& options) {
+  std::string xml;
   // struck objects: mocap bodies (fixed in space, placed per simulation), parked far below the
   // base; one cylinder per segment
   for (size_t i = 0; i < options.objects.size(); ++i) {
@@ -253,8 +263,12 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
     }
     xml += "    </body>\n";
   }
-  xml += "  </worldbody>\n";
+  return xml;
+}
 
+// The <contact> section: exclusions and, for object-only detection, the pairs.
+std::string ContactXml(const PandaMjcfOptions& options) {
+  std::string xml;
   // links 5 and 7 nest around the wrist on the real arm; their capsules touch near q6 = 0
   xml += "  <contact>\n";
   xml += "    <exclude body1=\"panda_link5\" body2=\"panda_link7\"/>\n";
@@ -283,6 +297,12 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
   }
   xml += "  </contact>\n";
 
+  return xml;
+}
+
+// The <actuator> section.
+std::string ActuatorXml() {
+  std::string xml;
   // direct joint torque motors, limited to the published torques
   xml += "  <actuator>\n";
   for (int i = 0; i < kPandaJoints; ++i) {
@@ -292,6 +312,28 @@ std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
         i + 1, i + 1, Num(-kTorqueLimitsNm[i]), Num(kTorqueLimitsNm[i]));
   }
   xml += "  </actuator>\n";
+  return xml;
+}
+
+}  // namespace
+
+double PandaLinkMassSumKg() {
+  double sum_kg = 0.0;
+  for (const PandaLink& link : kPandaLinks) sum_kg += link.mass_kg;
+  return sum_kg;
+}
+
+std::string PandaMjcf(const TubeConfig& tube, const PandaMjcfOptions& options) {
+  CheckMjcfInputs(tube, options);
+  std::string xml = HeaderXml(options);
+  xml += CapsuleGeoms(0, 2);
+  xml += ArmXml();
+  xml += FlangeXml(tube, options);
+  for (int i = kPandaJoints - 1; i >= 0; --i) xml += fmt::format("{}</body>\n", Indent(2 + i));
+  xml += ObjectsXml(options);
+  xml += "  </worldbody>\n";
+  xml += ContactXml(options);
+  xml += ActuatorXml();
   xml += "</mujoco>\n";
   return xml;
 }
