@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -534,6 +535,35 @@ TEST(DatasetTest, EmptyDatasetRoundTrips) {
   const nlohmann::json summary = nlohmann::json::parse(SummarizeDatasetJson(path));
   EXPECT_EQ(summary["num_samples"], 0);
   EXPECT_TRUE(summary["z_m"]["min"].is_null());
+}
+
+// A fault while a dataset is open is put down to the file (libhdf5 over-reads damaged files
+// until it faults: docs/robustness.md) and ends with exit status 1 naming it; once the file is
+// closed, or when an invariant of ours fails, a fault keeps its default action.
+TEST(DatasetFaultTest, AFaultWhileADatasetIsOpenNamesTheFile) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  TempDir dir;
+  const std::string path = dir.File("open.h5");
+  WriteDataset(path, MakeInfo(false), {0, 1});
+  EXPECT_EXIT(
+      {
+        DatasetReader reader(path);
+        std::raise(SIGSEGV);
+      },
+      ::testing::ExitedWithCode(1),
+      "open.h5: reading the file crashed \\(segmentation fault\\): the file is corrupted");
+  EXPECT_EXIT(
+      {
+        { DatasetReader reader(path); }
+        std::raise(SIGSEGV);
+      },
+      ::testing::KilledBySignal(SIGSEGV), "");
+  EXPECT_EXIT(
+      {
+        DatasetReader reader(path);
+        SONICBOOM_DEMAND(reader.size() == 0);
+      },
+      ::testing::KilledBySignal(SIGABRT), "internal invariant failed");
 }
 
 TEST(DatasetTest, NoProprioRows) {
