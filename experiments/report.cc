@@ -105,11 +105,10 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
 // features -> train/val split -> training, writing into run_dir
 learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::string& data,
                                  const std::string& run_dir, bool resume, int threads, bool quiet,
-                                 const learning::FineTune& fine_tune,
-                                 const learning::DataParallel& parallel) {
+                                 const learning::FineTune& fine_tune) {
   std::vector<uint64_t> indices;
   const learning::FeatureSet all = ComputeDatasetFeatures(data, config, threads, !quiet, &indices);
-  return TrainOnFeatures(config, all, indices, data, run_dir, resume, quiet, fine_tune, parallel);
+  return TrainOnFeatures(config, all, indices, data, run_dir, resume, quiet, fine_tune);
 }
 
 SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_dir) {

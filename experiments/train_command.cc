@@ -4,13 +4,15 @@
 #include <CLI/CLI.hpp>
 
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
 
 #include "internal/report.h"
@@ -38,36 +40,39 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   const SonicBoomConfig config = o.init_from.empty() ? Resolve(g) : ResolveWithRun(g, o.init_from);
   if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
-  DatasetReader{o.data};  // a dataset at all, before anything is written
   // data parallel (RANK/WORLD_SIZE set by a launcher): every process trains its part of each
   // batch; rank 0 alone writes the run (docs/cluster.md)
   const learning::DataParallel parallel = learning::DataParallel::FromEnvironment();
   // the run is written whole in OUT.partial, which replaces OUT once training is done: a killed
   // run never leaves a directory that looks complete, nor harms the run it was replacing
   const std::string work = o.out + ".partial";
-  if (parallel.rank != 0) {
+  const bool writes = parallel.rank == 0;
+  if (writes && o.resume && !fs::exists(work) && !fs::exists(o.out)) {
+    throw IoError(fmt::format("{}: nothing to resume (neither it nor {} exists)", o.out, work));
+  }
+  if (writes && !o.resume) CheckOutput(o.out, o.force);
+  // the whole dataset is read before anything is written: a damaged file refused, or one that
+  // ends the process inside libhdf5 (docs/robustness.md), leaves no OUT.partial behind
+  std::vector<uint64_t> indices;
+  const learning::FeatureSet features =
+      ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet, &indices);
+  if (!writes) {
     // reads rank 0's OUT.partial when resuming, writes nothing
-    TrainOnDataset(config, o.data, work, o.resume, g.threads, g.quiet, fine_tune, parallel);
+    TrainOnFeatures(config, features, indices, o.data, work, o.resume, g.quiet, fine_tune,
+                    parallel);
     const json j = {
         {"run_dir", o.out}, {"rank", parallel.rank}, {"world_size", parallel.world_size}};
     return {j.dump(), fmt::format("rank {} of {}: trained in data parallel; rank 0 writes {}\n",
                                   parallel.rank, parallel.world_size, o.out)};
   }
-  if (o.resume) {
-    if (!fs::exists(work)) {
-      if (!fs::exists(o.out)) {
-        throw IoError(fmt::format("{}: nothing to resume (neither it nor {} exists)", o.out, work));
-      }
-      // more epochs for a finished run: in a copy, which replaces it once done
-      std::error_code ec;
-      fs::copy(o.out, work, fs::copy_options::recursive, ec);
-      if (ec)
-        throw IoError(
-            fmt::format("{}: cannot copy {} to resume it: {}", work, o.out, ec.message()));
+  std::error_code ec;
+  if (o.resume && !fs::exists(work)) {
+    // more epochs for a finished run: in a copy, which replaces it once done
+    fs::copy(o.out, work, fs::copy_options::recursive, ec);
+    if (ec) {
+      throw IoError(fmt::format("{}: cannot copy {} to resume it: {}", work, o.out, ec.message()));
     }
-  } else {
-    CheckOutput(o.out, o.force);
-    std::error_code ec;
+  } else if (!o.resume) {
     fs::remove_all(work, ec);  // a killed run's leftovers, not resumed
   }
   MakeDirectories(work);
@@ -79,10 +84,10 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   learning::Metrics m;
   try {
-    m = TrainOnDataset(config, o.data, work, o.resume, g.threads, g.quiet, fine_tune, parallel);
+    m = TrainOnFeatures(config, features, indices, o.data, work, o.resume, g.quiet, fine_tune,
+                        parallel);
   } catch (const Error&) {
     // refused input: a fresh run leaves nothing behind (a resumed one keeps its checkpoint)
-    std::error_code ec;
     if (!o.resume) fs::remove_all(work, ec);
     throw;
   }

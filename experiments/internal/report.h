@@ -53,8 +53,7 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start);
 /// Features -> train/val split -> training, writing into run_dir.
 learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::string& data,
                                  const std::string& run_dir, bool resume, int threads, bool quiet,
-                                 const learning::FineTune& fine_tune = {},
-                                 const learning::DataParallel& parallel = {});
+                                 const learning::FineTune& fine_tune = {});
 
 /// A run directory's own config (RUN/config.yaml) as the base layer, then --config and --set:
 /// what eval, localize, listen and a fine-tune resolve. IoError when the run is missing.
