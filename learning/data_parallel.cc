@@ -47,12 +47,11 @@ namespace internal {
 struct ProcessGroup::Impl {
   c10::intrusive_ptr<c10d::Store> store;
   c10::intrusive_ptr<c10d::ProcessGroupGloo> group;
-  int rank{0}, world_size{1};
+  int world_size{1};
 };
 
 ProcessGroup::ProcessGroup(const DataParallel& parallel) : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
-  m.rank = parallel.rank;
   m.world_size = parallel.world_size;
   const auto timeout = std::chrono::milliseconds(static_cast<int64_t>(1e3 * parallel.timeout_s));
   try {
@@ -78,14 +77,6 @@ ProcessGroup::ProcessGroup(const DataParallel& parallel) : impl_(std::make_uniqu
 }
 
 ProcessGroup::~ProcessGroup() = default;
-
-int ProcessGroup::rank() const {
-  return impl_->rank;
-}
-
-int ProcessGroup::world_size() const {
-  return impl_->world_size;
-}
 
 void ProcessGroup::Broadcast(const std::vector<torch::Tensor>& tensors) {
   torch::NoGradGuard no_grad;

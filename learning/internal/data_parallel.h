@@ -20,8 +20,6 @@ class ProcessGroup {
   ProcessGroup(const ProcessGroup&) = delete;
   ProcessGroup& operator=(const ProcessGroup&) = delete;
 
-  int rank() const;
-  int world_size() const;
   /// Rank 0's values of `tensors` on every rank (in place).
   void Broadcast(const std::vector<torch::Tensor>& tensors);
   /// Every parameter's gradient becomes sum over ranks of (weight_r x gradient_r); an undefined

@@ -4,6 +4,7 @@
 # `sonicboom` before the subcommand (--config, --set).
 #
 #   THREADS=1 scripts/cluster/train_ddp.sh NP DATA.h5 RUN [--config C.yaml ...]
+#   TRAIN_ARGS="--resume" ...: options of `train` itself (--resume, --force)
 set -euo pipefail
 NP=${1:?usage: scripts/cluster/train_ddp.sh NP DATA.h5 RUN [sonicboom options]}
 DATA=${2:?dataset}
