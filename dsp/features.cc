@@ -17,6 +17,7 @@ namespace sonicboom::dsp {
 
 void FeatureConfig::Serialize(Archive* a) {
   a->Visit("window_s", &window_s, Bounds::Positive());
+  a->Visit("audio_representation", &audio_representation);
   a->Visit("n_fft", &n_fft, Bounds::Positive());
   a->Visit("hop", &hop, Bounds::Positive());
   a->Visit("n_mels", &n_mels, Bounds::Positive());
@@ -600,7 +601,15 @@ int64_t FeatureExtractor::window_samples() const {
   return impl_->window_samples;
 }
 int64_t FeatureExtractor::mel_frames() const {
+  if (impl_->config.audio_representation == AudioRepresentation::kWaveform) {
+    return impl_->window_samples;
+  }
   return impl_->mel->Frames(impl_->window_samples);
+}
+int64_t FeatureExtractor::audio_rows() const {
+  return impl_->config.audio_representation == AudioRepresentation::kWaveform
+             ? 1
+             : impl_->config.n_mels;
 }
 int64_t FeatureExtractor::gcc_lags() const {
   return 2 * impl_->config.gcc_max_lag + 1;
@@ -661,8 +670,15 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
     }
   }
 
-  // Power mel (n_mels x frames) per channel, optionally log10(power + 1e-10).
-  if (request.mel) {
+  // The waveform representation: samples [first_frame, first_frame + frames) of the window,
+  // (1 x frames) per channel.
+  if (request.mel && e.config.audio_representation == AudioRepresentation::kWaveform) {
+    features.mel.resize(static_cast<size_t>(e.channels));
+    for (int c = 0; c < e.channels; ++c) {
+      features.mel[c] = window.row(c).segment(first_frame, frames);
+    }
+  } else if (request.mel) {
+    // Power mel (n_mels x frames) per channel, optionally log10(power + 1e-10).
     features.mel.resize(static_cast<size_t>(e.channels));
     for (int c = 0; c < e.channels; ++c) {
       e.mel->Compute(window.row(c).data(), n, first_frame, frames, &features.mel[c]);

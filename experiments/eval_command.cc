@@ -4,11 +4,14 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
@@ -20,13 +23,48 @@ namespace sonicboom::experiments {
 
 using nlohmann::json;
 
+namespace {
+
+// One CSV row per valid strike: its index, label, prediction (the calibrated predictive
+// distribution's z standard deviation and theta concentration; empty without one) and error.
+std::string PredictionsCsv(const learning::FeatureSet& set,
+                           const std::vector<learning::Prediction>& predictions,
+                           const std::vector<uint64_t>& indices, double radius_m) {
+  std::string csv = "index,z_m,theta_rad,z_pred_m,theta_pred_rad,z_std_m,theta_kappa,error_cm\n";
+  for (int64_t r = 0; r < set.size(); ++r) {
+    const learning::Prediction& p = predictions[r];
+    const double dz = p.z_m - set.z_m[r];
+    const double chord = 2.0 * radius_m * std::sin(0.5 * (p.theta_rad - set.theta_rad[r]));
+    const std::string spread = p.has_uncertainty()
+                                   ? fmt::format("{:.9g},{:.9g}", p.z_std_m, p.theta_kappa)
+                                   : std::string(",");
+    csv += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{},{:.6g}\n", indices[r], set.z_m[r],
+                       set.theta_rad[r], p.z_m, p.theta_rad, spread,
+                       100.0 * std::hypot(dz, chord));
+  }
+  return csv;
+}
+
+}  // namespace
+
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
-                      const std::string& data) {
+                      const std::string& data, const std::string& predictions_csv, bool force) {
+  if (!predictions_csv.empty()) {
+    RefuseOverwritingInput(predictions_csv, data, "--data");
+    CheckOutput(predictions_csv, force);
+  }
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
   learning::Localizer localizer(model_dir);
-  const learning::FeatureSet set = ComputeDatasetFeatures(data, config, g.threads, !g.quiet);
+  std::vector<uint64_t> indices;
+  const learning::FeatureSet set =
+      ComputeDatasetFeatures(data, config, g.threads, !g.quiet, &indices);
+  const std::vector<learning::Prediction> predictions = localizer.Predict(set);
   const learning::Metrics m =
-      learning::ComputeMetrics(localizer.Predict(set), set, localizer.surface_radius_m());
+      learning::ComputeMetrics(predictions, set, localizer.surface_radius_m());
+  if (!predictions_csv.empty()) {
+    WriteTextAtomic(predictions_csv,
+                    PredictionsCsv(set, predictions, indices, localizer.surface_radius_m()));
+  }
   std::string text = fmt::format(
       "{} strikes: MED {:.2f} cm, height {:.2f} cm, angle {:.1f} deg "
       "(published-code MED {:.2f})\n",
@@ -42,13 +80,20 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
 
 void RegisterEval(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
-    std::string model, data;
+    std::string model, data, predictions;
+    bool force = false;
   };
   auto o = std::make_shared<Options>();
   auto* eval = app.add_subcommand("eval", "evaluate a trained localizer on a dataset");
   eval->add_option("--model", o->model, "run directory")->required();
   eval->add_option("--data", o->data, "dataset (.h5)")->required();
-  eval->callback([&g, run, o] { *run = [&g, o] { return RunEval(g, o->model, o->data); }; });
+  eval->add_option("--predictions", o->predictions,
+                   "also write one CSV row per strike: index, label, prediction, error (cm)");
+  eval->add_flag("--force", o->force,
+                 "replace an existing predictions file (once the new one is complete)");
+  eval->callback([&g, run, o] {
+    *run = [&g, o] { return RunEval(g, o->model, o->data, o->predictions, o->force); };
+  });
 }
 
 }  // namespace sonicboom::experiments

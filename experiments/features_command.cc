@@ -23,6 +23,19 @@ namespace sonicboom::experiments {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+namespace {
+
+// what the file's "mel" array holds
+std::string MelLayout(const dsp::FeatureConfig& f) {
+  if (f.audio_representation == dsp::AudioRepresentation::kWaveform) {
+    return "waveform: the window's samples, one row per channel";
+  }
+  return fmt::format("power mel, n_fft {}, hop {}, {} HTK bands, {}", f.n_fft, f.hop, f.n_mels,
+                     f.log_mel ? "log10" : "no log");
+}
+
+}  // namespace
+
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv, bool force) {
   RefuseOverwritingInput(out, in, "--in");
@@ -55,10 +68,7 @@ CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const s
   WriteArrayFile(out, "sonicboom.features", arrays,
                  {{"source", in},
                   {"config_yaml", ConfigToYaml(config)},
-                  {"mel_layout",
-                   fmt::format("power mel, n_fft {}, hop {}, {} HTK bands, {}",
-                               config.features.n_fft, config.features.hop, config.features.n_mels,
-                               config.features.log_mel ? "log10" : "no log")},
+                  {"mel_layout", MelLayout(config.features)},
                   {"gcc_layout", "15 pairs in combinations order x lags -max..+max samples"}});
   WriteConfigBeside(out, config);  // once the features are in place
   json j = {{"path", out},

@@ -263,7 +263,7 @@ learning::FeatureSet AllocateFeatures(const dsp::FeatureExtractor& fx, int64_t n
                                       int64_t proprio_rows) {
   learning::FeatureSet set;
   set.channels = fx.channels();
-  set.mels = 0;
+  set.mels = fx.audio_rows();
   set.frames = fx.mel_frames();
   set.gcc_pairs = fx.gcc_rows();  // pairs x bands
   set.gcc_lags = fx.gcc_lags();
@@ -417,7 +417,6 @@ learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
                     dataset_path, info.proprio_rows, config.strike.proprio_rows));
   }
   learning::FeatureSet set = AllocateFeatures(fx, n, config.strike.proprio_rows);
-  set.mels = config.features.n_mels;
   ResizeArrays(n, &set);
   if (sample_indices) sample_indices->resize(n);
   for (int64_t r = 0; r < n; ++r) {
@@ -493,12 +492,11 @@ struct RecordFeaturizer::Impl {
                                          : Eigen::MatrixXf()),
         fx(config.features, sample_rate_hz, channels, noise.size() > 0 ? &noise : nullptr),
         request(request),
-        n_mels(config.features.n_mels),
         proprio_rows(config.strike.proprio_rows) {}
   Eigen::MatrixXf noise;  // (C x T) reference clip of the gate, empty without gating
   dsp::FeatureExtractor fx;
   dsp::FeatureRequest request;
-  int64_t n_mels, proprio_rows;
+  int64_t proprio_rows;
 };
 
 RecordFeaturizer::RecordFeaturizer(const SonicBoomConfig& config, double sample_rate_hz,
@@ -518,7 +516,6 @@ learning::FeatureSet RecordFeaturizer::Compute(const Eigen::MatrixXf& audio,
                                                const Eigen::MatrixXf& proprio) const {
   const dsp::FeatureRequest& request = impl_->request;
   learning::FeatureSet set = AllocateFeatures(impl_->fx, 1, impl_->proprio_rows);
-  set.mels = impl_->n_mels;
   if (request.mel_frames >= 0) set.frames = request.mel_frames;
   ResizeArrays(1, &set);
   // arrays of parts not asked for stay empty

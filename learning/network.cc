@@ -154,9 +154,42 @@ torch::Tensor ResNetImpl::forward(torch::Tensor x) {
   return x.mean({2, 3});
 }
 
+Conv1dTrunkImpl::Conv1dTrunkImpl(int64_t in_channels) {
+  // Every layer halves the time axis: 882 samples (20 ms) -> 28 steps after five layers. The
+  // first kernel spans 15 samples (0.34 ms at 44.1 kHz) of every channel at full resolution.
+  const int64_t widths[] = {32, 48, 64, 96, 128};
+  const int64_t kernels[] = {15, 7, 7, 5, 5};
+  int64_t in = in_channels;
+  for (int i = 0; i < 5; ++i) {
+    convs_.push_back(register_module(
+        fmt::format("conv{}", i),
+        nn::Conv1d(nn::Conv1dOptions(in, widths[i], kernels[i])
+                       .stride(2)
+                       .padding(kernels[i] / 2)
+                       .bias(false))));
+    norms_.push_back(register_module(fmt::format("bn{}", i), nn::BatchNorm1d(widths[i])));
+    in = widths[i];
+  }
+}
+
+torch::Tensor Conv1dTrunkImpl::forward(torch::Tensor x) {
+  // (B, C, R, T) -> (B, C * R, T), scaled to unit RMS per record
+  x = x.flatten(1, 2);
+  x = x / torch::sqrt(x.square().mean({1, 2}, /*keepdim=*/true) + 1e-12);
+  for (size_t i = 0; i < convs_.size(); ++i) {
+    x = torch::gelu(norms_[i]->forward(convs_[i]->forward(x)));
+  }
+  // (B, 128, T') -> (B, 256)
+  return torch::cat({x.mean(2), std::get<0>(x.max(2))}, 1);
+}
+
 AudioEncoderImpl::AudioEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
   const int64_t w = config.width;
-  if (config.audio_encoder == AudioEncoderKind::kCompact) {
+  if (config.audio_encoder == AudioEncoderKind::kConv1d) {
+    conv1d_ = register_module("conv1d", Conv1dTrunk(shapes.channels * shapes.mels));
+    projection_ =
+        register_module("projection", nn::Sequential(nn::Linear(Conv1dTrunkImpl::kFeatures, w)));
+  } else if (config.audio_encoder == AudioEncoderKind::kCompact) {
     compact_ = register_module("compact", CompactCnn(shapes.channels));
     projection_ =
         register_module("projection", nn::Sequential(nn::Linear(CompactCnnImpl::kFeatures, w)));
@@ -174,7 +207,9 @@ AudioEncoderImpl::AudioEncoderImpl(const ModelConfig& config, const NetworkShape
 
 torch::Tensor AudioEncoderImpl::forward(torch::Tensor mel) {
   // (B, C, mels, crop) -> (B, features) -> (B, width)
-  torch::Tensor features = compact_ ? compact_->forward(mel) : resnet_->forward(mel);
+  torch::Tensor features = compact_  ? compact_->forward(mel)
+                           : conv1d_ ? conv1d_->forward(mel)
+                                     : resnet_->forward(mel);
   return ForwardRows(projection_, features);
 }
 

@@ -262,6 +262,13 @@ std::vector<int64_t> CheckedTrainingRecords(const FeatureSet& train, const Featu
         "config key 'model.crop_frames' = {}: exceeds the {} mel frames of the features",
         model_config.crop_frames, train.frames));
   }
+  // a frequency mask as wide as all rows would blank the whole input (a waveform has one row)
+  if (use.audio && train_config.augment && train_config.freq_mask_bands >= train.mels) {
+    throw ConfigError(fmt::format(
+        "config key 'train.freq_mask_bands' = {}: must be below the {} row(s) of the audio "
+        "features (0 for features.audio_representation = waveform)",
+        train_config.freq_mask_bands, train.mels));
+  }
   // data parallel: every process's part of a batch needs two records
   if (world > 1 && train_config.batch_size < 2 * world) {
     throw ConfigError(fmt::format(

@@ -111,6 +111,21 @@ class ResNetImpl : public torch::nn::Module {
 };
 TORCH_MODULE(ResNet);
 
+/// Strided 1-D convolutions over time, the input's (channel, row) pairs as input channels:
+/// (B, C, R, T) -> (B, 256): average and maximum over time of the last layer's 128 channels.
+/// Each record is first scaled to unit RMS over all its values.
+class Conv1dTrunkImpl : public torch::nn::Module {
+ public:
+  explicit Conv1dTrunkImpl(int64_t in_channels);
+  torch::Tensor forward(torch::Tensor x);
+  static constexpr int64_t kFeatures = 256;
+
+ private:
+  std::vector<torch::nn::Conv1d> convs_;
+  std::vector<torch::nn::BatchNorm1d> norms_;
+};
+TORCH_MODULE(Conv1dTrunk);
+
 /// Audio token: a CNN trunk over the normalized mel image, projected to `width`.
 class AudioEncoderImpl : public torch::nn::Module {
  public:
@@ -120,6 +135,7 @@ class AudioEncoderImpl : public torch::nn::Module {
  private:
   CompactCnn compact_{nullptr};
   ResNet resnet_{nullptr};
+  Conv1dTrunk conv1d_{nullptr};
   torch::nn::Sequential projection_{nullptr};
 };
 TORCH_MODULE(AudioEncoder);

@@ -414,6 +414,35 @@ TEST(FeatureExtractorTest, WindowCentredOnOnsetWithZeroPadding) {
   for (int64_t p = 0; p < 15; ++p) EXPECT_EQ(ArgMax(f.gcc, p), 441) << "pair " << p;
 }
 
+TEST(FeatureExtractorTest, WaveformIsTheWindowItselfOneRowPerChannel) {
+  FeatureConfig config;
+  config.window_s = 0.02;
+  config.gcc_max_lag = 96;
+  config.gating = false;
+  config.audio_representation = AudioRepresentation::kWaveform;
+  const FeatureExtractor extractor(config, kFs, 6);
+  EXPECT_EQ(extractor.audio_rows(), 1);
+  EXPECT_EQ(extractor.mel_frames(), 882);
+  // onset near the start of the record: the window's first samples are zero padding
+  const Eigen::MatrixXf audio = StrikeRecord(20000, 300);
+  const StrikeFeatures f = extractor.Compute(audio);
+  ASSERT_LT(f.window_start, 0);
+  ASSERT_EQ(f.mel.size(), 6u);
+  for (int c = 0; c < 6; ++c) {
+    ASSERT_EQ(f.mel[c].rows(), 1);
+    ASSERT_EQ(f.mel[c].cols(), 882);
+    for (int64_t i = 0; i < 882; ++i) {
+      const int64_t t = f.window_start + i;
+      EXPECT_EQ(f.mel[c](0, i), t >= 0 ? audio(c, t) : 0.0f) << "channel " << c << " sample " << i;
+    }
+  }
+  // a part of the waveform is the same part of the whole
+  const StrikeFeatures part = extractor.Compute(audio, FeatureRequest{true, false, 100, 500});
+  for (int c = 0; c < 6; ++c) {
+    EXPECT_TRUE(part.mel[c] == f.mel[c].middleCols(100, 500)) << "channel " << c;
+  }
+}
+
 TEST(FeatureExtractorTest, LogMelIsLog10OfPowerPlusEpsilon) {
   FeatureConfig config;
   const FeatureExtractor power(config, kFs, 6);
@@ -600,21 +629,21 @@ TEST(FeatureConfigTest, SerializeVisitsEveryMemberByName) {
   config.Serialize(&archive);
   std::vector<std::string> names;
   for (const auto& f : archive.fields) names.push_back(f.name);
-  EXPECT_THAT(names, ::testing::ElementsAre("window_s", "n_fft", "hop", "n_mels", "f_min_hz",
-                                            "f_max_hz", "log_mel", "gcc_max_lag", "gcc_window_s",
-                                            "gcc_bands_hz", "onset_frame_s", "onset_threshold",
-                                            "gating", "gating_n_std", "gating_n_fft", "gating_hop",
-                                            "gating_freq_smooth_hz", "gating_time_smooth_s",
-                                            "gating_prop_decrease", "gating_noise_wav"));
-  ASSERT_EQ(archive.fields.size(), 20u);
+  EXPECT_THAT(names, ::testing::ElementsAre(
+                         "window_s", "audio_representation", "n_fft", "hop", "n_mels", "f_min_hz",
+                         "f_max_hz", "log_mel", "gcc_max_lag", "gcc_window_s", "gcc_bands_hz",
+                         "onset_frame_s", "onset_threshold", "gating", "gating_n_std",
+                         "gating_n_fft", "gating_hop", "gating_freq_smooth_hz",
+                         "gating_time_smooth_s", "gating_prop_decrease", "gating_noise_wav"));
+  ASSERT_EQ(archive.fields.size(), 21u);
   // window_s: (0, inf); hop: (0, inf); log_mel: bool; onset_threshold: (0, 1].
   EXPECT_EQ(archive.fields[0].bounds.lo, 0.0);
   EXPECT_TRUE(archive.fields[0].bounds.lo_open);
-  EXPECT_EQ(archive.fields[2].kind, "int");
-  EXPECT_TRUE(archive.fields[2].bounds.lo_open);
-  EXPECT_EQ(archive.fields[6].kind, "bool");
-  EXPECT_EQ(archive.fields[11].bounds.hi, 1.0);
-  EXPECT_FALSE(archive.fields[11].bounds.hi_open);
+  EXPECT_EQ(archive.fields[3].kind, "int");
+  EXPECT_TRUE(archive.fields[3].bounds.lo_open);
+  EXPECT_EQ(archive.fields[7].kind, "bool");
+  EXPECT_EQ(archive.fields[12].bounds.hi, 1.0);
+  EXPECT_FALSE(archive.fields[12].bounds.hi_open);
 }
 
 }  // namespace

@@ -181,6 +181,27 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
   EXPECT_GE(metrics["z_coverage_90"].get<double>(), metrics["z_coverage_50"].get<double>());
   EXPECT_LE(metrics["z_coverage_90"].get<double>(), 1.0);
   EXPECT_GT(metrics["med_cm"].get<double>(), 0.0);
+  // --predictions: one row per strike whose errors average to the MED; not replaced without
+  // --force
+  run = RunCli("eval --model RUN --data D.h5 -q --predictions P.csv", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  {
+    std::ifstream csv(dir / "P.csv");
+    std::string line;
+    std::getline(csv, line);
+    EXPECT_EQ(line, "index,z_m,theta_rad,z_pred_m,theta_pred_rad,z_std_m,theta_kappa,error_cm");
+    double sum = 0.0;
+    int rows = 0;
+    while (std::getline(csv, line)) {
+      sum += std::stod(line.substr(line.rfind(',') + 1));
+      ++rows;
+    }
+    EXPECT_EQ(rows, 30);
+    EXPECT_NEAR(sum / rows, metrics["med_cm"].get<double>(), 1e-4);
+  }
+  run = RunCli("eval --model RUN --data D.h5 -q --predictions P.csv", dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("P.csv"), std::string::npos) << run.err;
   // localize a strike synthesized with the run's own config
   run = RunCli("--config RUN/config.yaml synth --out s.wav --index 100 -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;

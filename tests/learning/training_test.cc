@@ -331,6 +331,44 @@ TEST_F(TrainingTest, CropLongerThanFeaturesIsAConfigError) {
   }
 }
 
+TEST_F(TrainingTest, FrequencyMaskAsWideAsTheFeatureRowsIsAConfigError) {
+  // a waveform has one row: a one-band mask would blank the whole input
+  FeatureSet train = MakeFeatures(4, 5);
+  train.mels = 1;
+  train.mel.resize(train.size() * train.channels * train.frames);
+  ModelConfig model = TinyModel();
+  model.audio_encoder = AudioEncoderKind::kConv1d;
+  try {
+    Train(train, train, model, TinyTraining(1), kRadius, 1, Dir("run"), false, false);
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("train.freq_mask_bands"));
+    EXPECT_THAT(e.what(), HasSubstr("waveform"));
+  }
+  EXPECT_FALSE(fs::exists(Dir("run") + "/model.pt"));
+}
+
+TEST(Conv1dEncoderTest, OutputDoesNotDependOnTheRecordsLevel) {
+  ModelConfig model = TinyModel();
+  model.audio_encoder = AudioEncoderKind::kConv1d;
+  internal::NetworkShapes shapes;
+  shapes.channels = 6;
+  shapes.mels = 1;
+  shapes.crop_frames = 200;
+  torch::manual_seed(3);
+  internal::AudioEncoder encoder(model, shapes);
+  encoder->eval();
+  torch::NoGradGuard no_grad;
+  // (B, C, 1, T) waveforms; record 1 is record 0 at 40 dB more, record 2 at another shape
+  const torch::Tensor x = torch::randn({1, 6, 1, 200});
+  const torch::Tensor batch = torch::cat({x, 100.0 * x, torch::randn({1, 6, 1, 200})});
+  const torch::Tensor out = encoder->forward(batch);
+  ASSERT_EQ(out.sizes(), (std::vector<int64_t>{3, model.width}));
+  EXPECT_TRUE(torch::allclose(out[0], out[1], 1e-4, 1e-5));
+  // but it does depend on the record: the relative levels and timing of the channels
+  EXPECT_GT((out[0] - out[2]).abs().max().item<float>(), 1e-3f);
+}
+
 TEST_F(TrainingTest, ModalitySubsetsTrainAndBuildOnlyTheirEncoders) {
   FeatureSet train = MakeFeatures(8, 5);
   FeatureSet val = MakeFeatures(4, 6);
@@ -520,11 +558,11 @@ TEST_F(TrainingTest, UncertaintyHeadLeavesPointsUnchangedAndOldModelFilesLoad) {
   }
 }
 
-TEST_F(TrainingTest, ResNetEncodersTrainOneEpoch) {
+TEST_F(TrainingTest, ResNetAndConv1dEncodersTrainOneEpoch) {
   const FeatureSet train = MakeFeatures(4, 5);
   const FeatureSet val = MakeFeatures(2, 6);
   for (const AudioEncoderKind encoder :
-       {AudioEncoderKind::kResnet18, AudioEncoderKind::kResnet50}) {
+       {AudioEncoderKind::kResnet18, AudioEncoderKind::kResnet50, AudioEncoderKind::kConv1d}) {
     ModelConfig model = TinyModel();
     model.audio_encoder = encoder;
     model.modalities = {"audio"};

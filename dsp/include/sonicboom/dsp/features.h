@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -16,8 +17,19 @@
 
 namespace sonicboom::dsp {
 
+/// The audio input of a network: a mel spectrogram per channel (the paper), or the window's
+/// samples themselves, one row per channel, which keep arrival times and phase to the sample
+/// (n_fft, hop, n_mels, f_min_hz, f_max_hz and log_mel are then unused).
+enum class AudioRepresentation { kMel, kWaveform };
+inline constexpr EnumName<AudioRepresentation> kAudioRepresentationNames[] = {
+    {AudioRepresentation::kMel, "mel"}, {AudioRepresentation::kWaveform, "waveform"}};
+inline std::span<const EnumName<AudioRepresentation>> EnumNames(AudioRepresentation) {
+  return kAudioRepresentationNames;
+}
+
 struct FeatureConfig {
   double window_s{1.5};  // analysis window, onset at its centre
+  AudioRepresentation audio_representation{AudioRepresentation::kMel};
   int64_t n_fft{512};    // mel STFT size = window length (periodic Hann)
   int64_t hop{128};
   int64_t n_mels{50};  // HTK mel, norm none
@@ -50,12 +62,13 @@ struct FeatureConfig {
   double gcc_span_s() const { return gcc_window_s > 0.0 ? gcc_window_s : window_s; }
 };
 
-/// Features of one strike. Shapes: mel (C x n_mels x frames), gcc (C(C-1)/2 x 2*max_lag+1).
+/// Features of one strike. Shapes: mel (C x n_mels x frames, or C x 1 x samples for the
+/// waveform representation), gcc (C(C-1)/2 x 2*max_lag+1).
 struct StrikeFeatures {
   int64_t onset_sample{0};     // onset in the input record, samples
   int64_t window_start{0};     // first input sample of the window (may be negative: zero-padded)
   int64_t mel_first_frame{0};  // frame of the whole-window spectrogram that mel[c] starts at
-  std::vector<Eigen::MatrixXf> mel;  // per channel (n_mels x frames); empty when not requested
+  std::vector<Eigen::MatrixXf> mel;  // per channel (audio_rows x frames); empty when not requested
   Eigen::MatrixXf gcc;               // (pairs x bands, lags), pairs in itertools.combinations
                                      // order, bands within a pair; 0 x 0 when not requested
 };
@@ -99,7 +112,9 @@ class FeatureExtractor {
   StrikeFeatures Compute(const Eigen::MatrixXf& audio, const FeatureRequest& request = {}) const;
 
   int64_t window_samples() const;  // round(window_s * fs)
-  int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded)
+  int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded), or
+                                   // window_samples for the waveform representation
+  int64_t audio_rows() const;      // n_mels, or 1 for the waveform representation
   int64_t gcc_lags() const;        // 2 * gcc_max_lag + 1
   int64_t gcc_rows() const;        // pairs x bands (bands = 1 without gcc_bands_hz)
   int64_t gcc_samples() const;     // GCC-PHAT span: round(config.gcc_span_s() * fs)

@@ -82,8 +82,11 @@ struct TrainOptions {
   NormPolicy norm{NormPolicy::kKeep};
 };
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
+/// `eval`: metrics of a run on a dataset; with `predictions_csv` also one row per strike
+/// (an existing file is replaced only with `force`).
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
-                      const std::string& data);
+                      const std::string& data, const std::string& predictions_csv = "",
+                      bool force = false);
 /// `localize --method arrival`: the training-free arrival locator on one WAV, configured by the
 /// global config (tube, microphones, arrival settings); no model.
 CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav);

@@ -14,12 +14,17 @@
 
 namespace sonicboom::learning {
 
-/// The mel-spectrogram encoder: the compact CNN, or ResNet-18/50 with 6 input channels.
-enum class AudioEncoderKind { kCompact, kResnet18, kResnet50 };
+/// The audio encoder: over the (channels x rows x frames) image, the compact CNN or
+/// ResNet-18/50 with one input channel per mic; or conv1d, strided 1-D convolutions over time
+/// with every (mic, row) as an input channel, made for the waveform representation
+/// (features.audio_representation): each record is scaled to unit RMS first, so the record's
+/// level does not matter, only the relative levels and timing of the channels.
+enum class AudioEncoderKind { kCompact, kResnet18, kResnet50, kConv1d };
 inline constexpr EnumName<AudioEncoderKind> kAudioEncoderKindNames[] = {
     {AudioEncoderKind::kCompact, "compact"},
     {AudioEncoderKind::kResnet18, "resnet18"},
-    {AudioEncoderKind::kResnet50, "resnet50"}};
+    {AudioEncoderKind::kResnet50, "resnet50"},
+    {AudioEncoderKind::kConv1d, "conv1d"}};
 inline std::span<const EnumName<AudioEncoderKind>> EnumNames(AudioEncoderKind) {
   return kAudioEncoderKindNames;
 }
