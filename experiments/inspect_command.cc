@@ -54,14 +54,17 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
     // a run still being written (or killed) lives in RUN.partial until it replaces RUN
     const bool unfinished = fs::path(path).filename().string().ends_with(".partial") ||
                             fs::path(path).extension() == ".partial";
+    const bool ensemble = fs::exists(fs::path(path) / "ensemble.json");
     j["complete"] = !unfinished && (fs::exists(fs::path(path) / "model.json") ||
-                                    fs::exists(fs::path(path) / "metrics.json"));
+                                    fs::exists(fs::path(path) / "metrics.json") || ensemble);
     if (unfinished) {
       j["note"] = "an unfinished run: train --resume continues it; it replaces its run when done";
     }
     // trainable parameters per part of a finished model
-    if (fs::exists(fs::path(path) / "model.json") && fs::exists(fs::path(path) / "model.pt")) {
+    if ((fs::exists(fs::path(path) / "model.json") && fs::exists(fs::path(path) / "model.pt")) ||
+        ensemble) {
       const learning::Localizer localizer(path);
+      if (ensemble) j["ensemble_members"] = localizer.members();
       json parameters;
       int64_t total = 0;
       for (const auto& [part, count] : localizer.ParameterCounts()) {

@@ -556,9 +556,9 @@ learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning:
                     data, all.size(), config.train.val_fraction));
   }
   spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
-  return learning::Train(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,
-                         config.train, config.tube.outer_radius_m, config.seed, run_dir, resume,
-                         !quiet, fine_tune, parallel);
+  return learning::TrainEnsemble(all.SelectRows(train_rows), all.SelectRows(val_rows),
+                                 config.model, config.train, config.tube.outer_radius_m,
+                                 config.seed, run_dir, resume, !quiet, fine_tune, parallel);
 }
 
 }  // namespace sonicboom::experiments

@@ -99,6 +99,7 @@ void TrainConfig::Serialize(Archive* a) {
   a->Visit("freq_mask_bands", &freq_mask_bands, Bounds::NonNegative());
   a->Visit("normalize", &normalize);
   a->Visit("keep_best", &keep_best);
+  a->Visit("ensemble_members", &ensemble_members, AtLeastOne());
   a->Visit("threads", &threads, Bounds::NonNegative());
 }
 
@@ -120,6 +121,7 @@ void TrainConfig::Validate() const {
   RequireAtLeast("train.time_shift_frames", time_shift_frames, 0);
   RequireAtLeast("train.time_mask_frames", time_mask_frames, 0);
   RequireAtLeast("train.freq_mask_bands", freq_mask_bands, 0);
+  RequireAtLeast("train.ensemble_members", ensemble_members, 1);
   RequireAtLeast("train.threads", threads, 0);
 }
 

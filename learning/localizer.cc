@@ -1,6 +1,11 @@
-// Localizer: a trained network loaded from a run directory (model.json + model.pt).
+// Localizer: a trained network loaded from a run directory (model.json + model.pt), or the
+// members of an ensemble directory, whose predictions are combined.
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -15,20 +20,24 @@ namespace sonicboom::learning {
 
 namespace fs = std::filesystem;
 
-struct Localizer::Impl {
+namespace {
+
+// One trained network and its model.json.
+struct Member {
   internal::ModelFile file;
   internal::Network network{nullptr};
 };
 
-Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>()) {
+Member LoadMember(const std::string& run_dir) {
   if (!fs::is_directory(run_dir)) {
     throw IoError(fmt::format("{}: run directory not found", run_dir));
   }
+  Member member;
   // model.json: config and shapes the weights were trained with.
   const std::string json_path = (fs::path(run_dir) / "model.json").string();
-  impl_->file = internal::ModelFileFromJson(internal::ReadJsonFile(json_path), json_path);
-  const ModelConfig& config = impl_->file.model_config;
-  const FeatureSet& shapes = impl_->file.shapes;
+  member.file = internal::ModelFileFromJson(internal::ReadJsonFile(json_path), json_path);
+  const ModelConfig& config = member.file.model_config;
+  const FeatureSet& shapes = member.file.shapes;
   if (internal::SelectedModalities(config).audio && config.crop_frames > shapes.frames) {
     throw SchemaError(fmt::format("{}: model.crop_frames = {} exceeds shapes.frames = {}",
                                   json_path, config.crop_frames, shapes.frames));
@@ -49,31 +58,41 @@ Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>(
   } catch (const c10::Error& e) {
     throw SchemaError(fmt::format("{}: unreadable: {}", weights_path, e.what_without_backtrace()));
   }
-  impl_->network = internal::Network(config, internal::ShapesOf(shapes, config), uncertainty_head);
-  internal::LoadModuleChecked(*impl_->network, archive,
+  member.network = internal::Network(config, internal::ShapesOf(shapes, config), uncertainty_head);
+  internal::LoadModuleChecked(*member.network, archive,
                               fmt::format("{} (with {})", weights_path, json_path));
-  impl_->network->eval();
+  member.network->eval();
   if (!uncertainty_head) {
     spdlog::info("{}: the model has no uncertainty head; predictions are point estimates only",
                  weights_path);
-  } else if (!impl_->file.has_calibration) {
+  } else if (!member.file.has_calibration) {
     spdlog::warn(
         "{}: no 'uncertainty' calibration (written before calibration existed); "
         "using the uncalibrated distribution (scales 1)",
         json_path);
   }
+  return member;
 }
 
-Localizer::~Localizer() = default;
-Localizer::Localizer(Localizer&&) noexcept = default;
-Localizer& Localizer::operator=(Localizer&&) noexcept = default;
+// What a member reads of each strike.
+FeatureNeeds NeedsOf(const Member& m) {
+  const internal::ModalitySet use = m.network->modalities();
+  const int64_t frames = m.file.shapes.frames, crop = m.file.model_config.crop_frames;
+  return FeatureNeeds{use.audio, use.gcc, use.proprio, CentreCropStart(frames, crop), crop};
+}
 
-std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
-  const internal::ModalitySet use = impl_->network->modalities();
+bool SameNeeds(const FeatureNeeds& a, const FeatureNeeds& b) {
+  return a.audio == b.audio && a.gcc == b.gcc && a.proprio == b.proprio &&
+         a.mel_first_frame == b.mel_first_frame && a.mel_frames == b.mel_frames;
+}
+
+// The calibrated predictions of one member for `features` (checked against its shapes).
+std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& features) {
+  const internal::ModalitySet use = m.network->modalities();
   internal::CheckFeatureSet(features, use, "features to localize");
   // the whole-window spectrogram as trained, or exactly the crop (its centre crop is itself)
-  const int64_t crop = impl_->file.model_config.crop_frames;
-  FeatureSet expected = impl_->file.shapes.ShapesOnly();
+  const int64_t crop = m.file.model_config.crop_frames;
+  FeatureSet expected = m.file.shapes.ShapesOnly();
   if (use.audio && features.frames == crop) expected.frames = crop;
   internal::CheckSameShapes(expected, features, use, "features to localize");
   // non-finite inputs never become an answer
@@ -91,7 +110,7 @@ std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   check_finite(features.mel, use.audio, "mel spectrogram");
   check_finite(features.gcc, use.gcc, "GCC-PHAT");
   check_finite(features.proprio, use.proprio, "proprioception");
-  std::vector<Prediction> predictions = internal::PredictAll(*impl_->network, features, crop);
+  std::vector<Prediction> predictions = internal::PredictAll(*m.network.ptr(), features, crop);
   for (size_t i = 0; i < predictions.size(); ++i) {
     Prediction& p = predictions[i];
     if (!std::isfinite(p.z_m) || !std::isfinite(p.theta_rad)) {
@@ -100,35 +119,91 @@ std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
                       "its inputs lie far outside what it was trained on",
                       i, p.z_m, p.theta_rad));
     }
-    p = ApplyCalibration(p, impl_->file.calibration);
+    p = ApplyCalibration(p, m.file.calibration);
   }
   return predictions;
 }
 
+}  // namespace
+
+struct Localizer::Impl {
+  std::vector<Member> members;  // one, or an ensemble's
+};
+
+Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>()) {
+  if (!fs::is_directory(run_dir)) {
+    throw IoError(fmt::format("{}: run directory not found", run_dir));
+  }
+  const std::vector<std::string> member_dirs = EnsembleMembers(run_dir);
+  if (member_dirs.empty()) {
+    impl_->members.push_back(LoadMember(run_dir));
+    return;
+  }
+  for (const std::string& dir : member_dirs) {
+    impl_->members.push_back(LoadMember(dir));
+    if (!SameNeeds(NeedsOf(impl_->members.front()), NeedsOf(impl_->members.back())) ||
+        impl_->members.front().file.surface_radius_m !=
+            impl_->members.back().file.surface_radius_m) {
+      throw SchemaError(fmt::format(
+          "{}: ensemble member {} reads other features (modalities, crop) or another tube than "
+          "member {}",
+          run_dir, dir, member_dirs.front()));
+    }
+  }
+}
+
+Localizer::~Localizer() = default;
+Localizer::Localizer(Localizer&&) noexcept = default;
+Localizer& Localizer::operator=(Localizer&&) noexcept = default;
+
+std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
+  const std::vector<Member>& members = impl_->members;
+  if (members.size() == 1) return PredictMember(members.front(), features);
+  // every member's predictions, then one mixture per strike
+  std::vector<std::vector<Prediction>> each;
+  for (const Member& m : members) each.push_back(PredictMember(m, features));
+  std::vector<Prediction> combined(each.front().size());
+  std::vector<Prediction> strike(members.size());
+  for (size_t i = 0; i < combined.size(); ++i) {
+    for (size_t k = 0; k < members.size(); ++k) strike[k] = each[k][i];
+    combined[i] = CombinePredictions(strike);
+  }
+  return combined;
+}
+
 FeatureNeeds Localizer::needs() const {
-  const internal::ModalitySet use = impl_->network->modalities();
-  const int64_t frames = impl_->file.shapes.frames, crop = impl_->file.model_config.crop_frames;
-  return FeatureNeeds{use.audio, use.gcc, use.proprio, CentreCropStart(frames, crop), crop};
+  return NeedsOf(impl_->members.front());
 }
 
 bool Localizer::has_uncertainty() const {
-  return impl_->network->has_uncertainty_head();
+  for (const Member& m : impl_->members) {
+    if (!m.network->has_uncertainty_head()) return false;
+  }
+  return true;
 }
 
 const UncertaintyCalibration& Localizer::calibration() const {
-  return impl_->file.calibration;
+  return impl_->members.front().file.calibration;
 }
 
 const ModelConfig& Localizer::model_config() const {
-  return impl_->file.model_config;
+  return impl_->members.front().file.model_config;
 }
 
 double Localizer::surface_radius_m() const {
-  return impl_->file.surface_radius_m;
+  return impl_->members.front().file.surface_radius_m;
 }
 
 std::map<std::string, int64_t> Localizer::ParameterCounts() const {
-  return internal::CountParametersOf(*impl_->network);
+  std::map<std::string, int64_t> counts;
+  for (const Member& m : impl_->members) {
+    for (const auto& [part, n] : internal::CountParametersOf(*m.network)) counts[part] += n;
+  }
+  return counts;
+}
+
+int64_t Localizer::members() const {
+  return static_cast<int64_t>(impl_->members.size());
 }
 
 }  // namespace sonicboom::learning

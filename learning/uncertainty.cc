@@ -213,6 +213,49 @@ Prediction ApplyCalibration(const Prediction& p, const UncertaintyCalibration& c
   return out;
 }
 
+double VonMisesKappaForResultant(double r) {
+  SONICBOOM_DEMAND(r >= 0.0 && r < 1.0);
+  if (r == 0.0) return 0.0;
+  // A(kappa) = I1 / I0 rises monotonically from 0 to 1: bisection on log kappa
+  double lo = std::log(1e-8), hi = std::log(1e12);
+  for (int i = 0; i < 200 && hi - lo > 1e-12; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (internal::VonMisesMeanResultant(std::exp(mid)) < r ? lo : hi) = mid;
+  }
+  return std::exp(0.5 * (lo + hi));
+}
+
+Prediction CombinePredictions(const std::vector<Prediction>& members) {
+  SONICBOOM_DEMAND(!members.empty());
+  const double k = static_cast<double>(members.size());
+  bool uncertainty = true;
+  double z = 0.0, c = 0.0, s = 0.0;
+  for (const Prediction& p : members) {
+    uncertainty = uncertainty && p.has_uncertainty();
+    z += p.z_m / k;
+  }
+  // first circular moment of the mixture (of the point estimates without uncertainty)
+  for (const Prediction& p : members) {
+    const double a = uncertainty ? internal::VonMisesMeanResultant(p.theta_kappa) : 1.0;
+    c += a * std::cos(p.theta_rad) / k;
+    s += a * std::sin(p.theta_rad) / k;
+  }
+  Prediction out;
+  out.z_m = z;
+  out.theta_rad = std::atan2(s, c);
+  if (!uncertainty) return out;
+  double variance = 0.0;
+  for (const Prediction& p : members) {
+    variance += (p.z_std_m * p.z_std_m + (p.z_m - z) * (p.z_m - z)) / k;
+  }
+  out.z_std_m = std::sqrt(variance);
+  // a resultant of 0 (members pointing every way) is a uniform angle: kappa 0 is no
+  // distribution (has_uncertainty), so it is kept just above
+  out.theta_kappa = std::max(VonMisesKappaForResultant(std::min(std::hypot(c, s), 1.0 - 1e-15)),
+                             1e-9);
+  return out;
+}
+
 UncertaintyCalibration FitUncertaintyCalibration(const std::vector<Prediction>& predictions,
                                                  const FeatureSet& truth) {
   if (static_cast<int64_t>(predictions.size()) != truth.size() ||

@@ -640,6 +640,62 @@ TEST_F(TrainingTest, FineTuneTrainsOnlyWhatIsNotFrozen) {
   }
 }
 
+TEST_F(TrainingTest, EnsembleTrainsItsMembersAndPredictsTheirMixture) {
+  const FeatureSet train = MakeFeatures(16, 5);
+  const FeatureSet val = MakeFeatures(8, 6);
+  TrainConfig config = TinyTraining(2);
+  config.ensemble_members = 3;
+  const std::string run = Dir("ensemble");
+  const Metrics m = TrainEnsemble(train, val, TinyModel(), config, kRadius, 7, run, false, false);
+  // member 0 is the single run of the same seed; the others differ
+  TrainConfig single_config = config;
+  single_config.ensemble_members = 1;
+  TrainEnsemble(train, val, TinyModel(), single_config, kRadius, 7, Dir("single"), false, false);
+  EXPECT_EQ(EnsembleMembers(Dir("single")).size(), 0u);
+  const Localizer member0(run + "/member0"), member1(run + "/member1"),
+      member2(run + "/member2"), single(Dir("single"));
+  const std::vector<Prediction> p0 = member0.Predict(val), p1 = member1.Predict(val),
+                                p2 = member2.Predict(val), ps = single.Predict(val);
+  EXPECT_EQ(p0[0].z_m, ps[0].z_m);
+  EXPECT_NE(p0[0].z_m, p1[0].z_m);
+  // the directory is one model: the members' mixture, strike by strike
+  const Localizer ensemble(run);
+  EXPECT_EQ(ensemble.members(), 3);
+  ASSERT_EQ(EnsembleMembers(run).size(), 3u);
+  const std::vector<Prediction> pe = ensemble.Predict(val);
+  for (size_t i = 0; i < pe.size(); ++i) {
+    const Prediction expected = CombinePredictions({p0[i], p1[i], p2[i]});
+    EXPECT_DOUBLE_EQ(pe[i].z_m, expected.z_m) << i;
+    EXPECT_DOUBLE_EQ(pe[i].theta_rad, expected.theta_rad) << i;
+    EXPECT_DOUBLE_EQ(pe[i].z_std_m, expected.z_std_m) << i;
+  }
+  EXPECT_DOUBLE_EQ(m.med_cm, ComputeMetrics(pe, val, kRadius).med_cm);
+  // three members hold three times the weights
+  for (const auto& [part, n] : ensemble.ParameterCounts()) {
+    EXPECT_EQ(n, 3 * single.ParameterCounts().at(part)) << part;
+  }
+  // a fine-tune keeps the member count: member k from member k, or refused naming the key
+  FineTune tune;
+  tune.init_from = run;
+  TrainEnsemble(train, val, TinyModel(), config, kRadius, 7, Dir("tuned"), false, false, tune);
+  EXPECT_EQ(Localizer(Dir("tuned")).members(), 3);
+  try {
+    TrainEnsemble(train, val, TinyModel(), single_config, kRadius, 7, Dir("bad"), false, false,
+                  tune);
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("train.ensemble_members"));
+  }
+  // a damaged ensemble.json names the file
+  std::ofstream(run + "/ensemble.json") << R"({"members": ["../elsewhere"]})";
+  try {
+    Localizer broken(run);
+    FAIL() << "expected SchemaError";
+  } catch (const SchemaError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("ensemble.json"));
+  }
+}
+
 TEST_F(TrainingTest, FineTuneRefusesAMissingOrMismatchedPretrainedRun) {
   const FeatureSet train = MakeFeatures(16, 51), val = MakeFeatures(8, 52);
   EXPECT_THAT(sonicboom::testing::ThrownMessage<IoError>([&] {

@@ -150,6 +150,48 @@ std::vector<Prediction> Scaled(std::vector<Prediction> predictions, double z_fac
   return predictions;
 }
 
+TEST(EnsembleCombinationTest, KappaForResultantInvertsTheMeanResultant) {
+  for (const double kappa : {1e-3, 0.5, 2.0, 30.0, 900.0, 5e4}) {
+    const double r = internal::VonMisesMeanResultant(kappa);
+    EXPECT_NEAR(VonMisesKappaForResultant(r) / kappa, 1.0, 1e-6) << kappa;
+  }
+  EXPECT_EQ(VonMisesKappaForResultant(0.0), 0.0);
+}
+
+TEST(EnsembleCombinationTest, MixtureMomentsByHand) {
+  Prediction a{0.02, 0.3, 0.004, 50.0};
+  // identical members: the member itself
+  const Prediction same = CombinePredictions({a, a, a});
+  EXPECT_NEAR(same.z_m, a.z_m, 1e-15);
+  EXPECT_NEAR(same.theta_rad, a.theta_rad, 1e-12);
+  EXPECT_NEAR(same.z_std_m, a.z_std_m, 1e-15);
+  EXPECT_NEAR(same.theta_kappa / a.theta_kappa, 1.0, 1e-6);
+  // two members: mean z, mixture variance = mean variance + variance of the means
+  Prediction b{0.04, 0.5, 0.003, 50.0};
+  const Prediction two = CombinePredictions({a, b});
+  EXPECT_NEAR(two.z_m, 0.03, 1e-15);
+  EXPECT_NEAR(two.z_std_m, std::sqrt(0.5 * (0.004 * 0.004 + 0.003 * 0.003) + 0.01 * 0.01), 1e-15);
+  // equal concentrations: the bisector, with the resultant shortened by cos(0.1)
+  EXPECT_NEAR(two.theta_rad, 0.4, 1e-12);
+  EXPECT_NEAR(internal::VonMisesMeanResultant(two.theta_kappa),
+              internal::VonMisesMeanResultant(50.0) * std::cos(0.1), 1e-9);
+  EXPECT_LT(two.theta_kappa, 50.0);
+  // across the +-pi seam the direction wraps, it is not the arithmetic mean
+  const Prediction seam = CombinePredictions({Prediction{0.0, 3.1, 0.01, 20.0},
+                                              Prediction{0.0, -3.1, 0.01, 20.0}});
+  EXPECT_NEAR(std::abs(seam.theta_rad), std::numbers::pi, 1e-12);
+  // opposite directions: no preferred angle, a (nearly) flat distribution
+  const Prediction flat = CombinePredictions({Prediction{0.0, 0.0, 0.01, 20.0},
+                                              Prediction{0.0, std::numbers::pi, 0.01, 20.0}});
+  EXPECT_TRUE(flat.has_uncertainty());
+  EXPECT_LT(flat.theta_kappa, 1e-6);
+  // members without a distribution: circular mean of the points, no distribution
+  const Prediction points = CombinePredictions({Prediction{0.0, 0.2, NAN, NAN}, Prediction{0.02, 0.4, NAN, NAN}});
+  EXPECT_NEAR(points.theta_rad, 0.3, 1e-12);
+  EXPECT_NEAR(points.z_m, 0.01, 1e-15);
+  EXPECT_FALSE(points.has_uncertainty());
+}
+
 TEST(UncertaintyMetricsTest, CoverageOfTheTrueDistributionIsNominal) {
   const int64_t n = 4000;
   const Synthetic s = MakeSynthetic(n, 17);

@@ -80,6 +80,9 @@ struct TrainConfig {
   // Save the epoch with the lowest validation loss instead of the last (early stopping without
   // stopping: every epoch still runs). Meant for fine-tuning on few strikes.
   bool keep_best{false};
+  // Networks trained (TrainEnsemble), each from its own initialization and augmentation draws
+  // on the same split; their predictions are combined (CombinePredictions). 1: one network.
+  int64_t ensemble_members{1};
   int64_t threads{0};  // intra-op threads, 0 = all cores
 
   void Serialize(Archive* a);
@@ -153,6 +156,17 @@ UncertaintyCalibration FitUncertaintyCalibration(const std::vector<Prediction>& 
                                                  const FeatureSet& truth);
 /// `p` with the scales applied (nothing changes for a prediction without uncertainty).
 Prediction ApplyCalibration(const Prediction& p, const UncertaintyCalibration& calibration);
+
+/// One prediction from the predictions of an ensemble's members (each calibrated) for the same
+/// strike, as a mixture with equal weights: z is the mean of the members' z, z_std the mixture's
+/// standard deviation (sqrt of the mean variance plus the variance of the means); theta and
+/// theta_kappa match the mixture's first circular moment, the mean of A(kappa_k) exp(i theta_k)
+/// with A = I1 / I0 (theta its direction, A(theta_kappa) its length). Members without
+/// uncertainty give the circular mean of theta and no distribution. `members` is not empty.
+Prediction CombinePredictions(const std::vector<Prediction>& members);
+/// The kappa >= 0 with I1(kappa) / I0(kappa) = r, for r in [0, 1) (bisection on log kappa;
+/// r = 0 gives 0, r -> 1 large kappa).
+double VonMisesKappaForResultant(double r);
 
 /// Half width, in standard deviations, of the central interval of a normal distribution that
 /// holds `probability` (0.6745 for 0.5, 1.6449 for 0.9). `probability` in (0, 1).
@@ -234,6 +248,23 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
               const std::string& run_dir, bool resume, bool show_progress,
               const FineTune& fine_tune = {}, const DataParallel& parallel = {});
 
+/// Trains train_config.ensemble_members networks with Train. One member: Train itself, the run
+/// directory as it writes it. More: member k in run_dir/member<k> (seed: `seed` for member 0,
+/// SampleSeed(seed, k) for the others; the same train and val sets), then run_dir/ensemble.json
+/// naming them; Localizer loads the directory as one model. Returns the metrics of the combined
+/// predictions on `val`. A fine-tune of an ensemble (fine_tune.init_from an ensemble directory)
+/// fine-tunes member k from the pretrained member k; the member counts must agree
+/// (ConfigError naming train.ensemble_members).
+Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
+                      const ModelConfig& model_config, const TrainConfig& train_config,
+                      double surface_radius_m, uint64_t seed, const std::string& run_dir,
+                      bool resume, bool show_progress, const FineTune& fine_tune = {},
+                      const DataParallel& parallel = {});
+
+/// Member run directories of an ensemble directory (its ensemble.json), in order; empty for a
+/// plain run directory. SchemaError naming the file when ensemble.json is malformed.
+std::vector<std::string> EnsembleMembers(const std::string& run_dir);
+
 /// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
 /// spectrogram (the un-augmented crop of training, evaluation and localization).
 int64_t CentreCropStart(int64_t frames, int64_t crop_frames);
@@ -249,7 +280,9 @@ struct FeatureNeeds {
   int64_t mel_frames{0};
 };
 
-/// A trained model loaded from a run directory, for evaluation and localization.
+/// A trained model loaded from a run directory, for evaluation and localization; from an
+/// ensemble directory (TrainEnsemble), every member, whose predictions are combined
+/// (CombinePredictions). Members must read the same features.
 class Localizer {
  public:
   explicit Localizer(const std::string& run_dir);  // throws IoError/SchemaError naming the file
@@ -266,12 +299,16 @@ class Localizer {
   /// Whether predictions carry a distribution: false for models trained with
   /// train.uncertainty_weight = 0 or before the uncertainty head existed (their weights lack it).
   bool has_uncertainty() const;
-  /// The scales from model.json (1 and 1 when the file predates calibration).
+  /// The scales from model.json (1 and 1 when the file predates calibration); an ensemble's
+  /// first member's.
   const UncertaintyCalibration& calibration() const;
   const ModelConfig& model_config() const;
   double surface_radius_m() const;
-  /// Trainable parameters of the loaded network per part (see CountParameters).
+  /// Trainable parameters of the loaded network per part (see CountParameters), summed over
+  /// the members of an ensemble.
   std::map<std::string, int64_t> ParameterCounts() const;
+  /// Networks combined: 1, or an ensemble's member count.
+  int64_t members() const;
 
  private:
   struct Impl;

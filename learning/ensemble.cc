@@ -1,0 +1,84 @@
+// Ensembles: several networks trained alike from their own initializations, one directory that
+// the Localizer loads as one model (ensemble.json naming the member run directories).
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "internal/data.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> EnsembleMembers(const std::string& run_dir) {
+  const fs::path path = fs::path(run_dir) / "ensemble.json";
+  if (!fs::exists(path)) return {};
+  const nlohmann::json j = internal::ReadJsonFile(path.string());
+  if (!j.is_object() || !j.contains("members") || !j["members"].is_array() ||
+      j["members"].empty()) {
+    throw SchemaError(fmt::format("{}: expected {{\"members\": [member directories]}}",
+                                  path.string()));
+  }
+  std::vector<std::string> members;
+  for (const nlohmann::json& m : j["members"]) {
+    // names inside the ensemble directory only
+    if (!m.is_string() || m.get<std::string>().empty() ||
+        fs::path(m.get<std::string>()).has_parent_path() || m.get<std::string>() == "..") {
+      throw SchemaError(fmt::format("{}: member {} is not a directory name inside {}",
+                                    path.string(), m.dump(), run_dir));
+    }
+    members.push_back((fs::path(run_dir) / m.get<std::string>()).string());
+  }
+  return members;
+}
+
+Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
+                      const ModelConfig& model_config, const TrainConfig& train_config,
+                      double surface_radius_m, uint64_t seed, const std::string& run_dir,
+                      bool resume, bool show_progress, const FineTune& fine_tune,
+                      const DataParallel& parallel) {
+  const int64_t count = train_config.ensemble_members;
+  // a fine-tune keeps the pretrained run's member count: member k starts from member k
+  const std::vector<std::string> pretrained =
+      fine_tune.init_from.empty() ? std::vector<std::string>{} : EnsembleMembers(fine_tune.init_from);
+  const int64_t pretrained_count = std::max<int64_t>(1, static_cast<int64_t>(pretrained.size()));
+  if (!fine_tune.init_from.empty() && pretrained_count != count) {
+    throw ConfigError(fmt::format(
+        "config key 'train.ensemble_members' = {}: the pretrained run {} has {} member(s), and "
+        "a fine-tune keeps that count",
+        count, fine_tune.init_from, pretrained_count));
+  }
+  if (count == 1) {
+    return Train(train, val, model_config, train_config, surface_radius_m, seed, run_dir, resume,
+                 show_progress, fine_tune, parallel);
+  }
+  nlohmann::json names = nlohmann::json::array();
+  for (int64_t k = 0; k < count; ++k) {
+    const std::string name = fmt::format("member{}", k);
+    names.push_back(name);
+    const std::string dir = (fs::path(run_dir) / name).string();
+    if (parallel.rank == 0) fs::create_directories(dir);
+    FineTune member_tune = fine_tune;
+    if (!pretrained.empty()) member_tune.init_from = pretrained[k];
+    const uint64_t member_seed = k == 0 ? seed : SampleSeed(seed, static_cast<uint64_t>(k));
+    spdlog::info("ensemble member {} of {} ({})", k + 1, count, dir);
+    Train(train, val, model_config, train_config, surface_radius_m, member_seed, dir, resume,
+          show_progress, member_tune, parallel);
+  }
+  if (parallel.rank != 0) return {};
+  internal::WriteFileAtomically((fs::path(run_dir) / "ensemble.json").string(),
+                                nlohmann::json{{"members", names}}.dump(2) + "\n");
+  // the combined model on the validation set
+  const Localizer ensemble(run_dir);
+  return ComputeMetrics(ensemble.Predict(val), val, surface_radius_m);
+}
+
+}  // namespace sonicboom::learning
