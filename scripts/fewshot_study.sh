@@ -5,8 +5,9 @@
 #
 #   scripts/fewshot_study.sh OUT PRETRAINED_RUN [THREADS=2] [FAMILIES="stiff chain"]
 #
-# PRETRAINED_RUN: a configs/transfer.yaml run on randomized ts4 strikes, e.g. the
-# transfer_rand_large run of `scripts/transfer_benchmark.sh OUT 3000 300 2 18000`.
+# PRETRAINED_RUN: a transfer run on randomized ts4 strikes (a single network or an ensemble),
+# e.g. the transfer run of `scripts/transfer_benchmark.sh OUT 3000 300 2`. The networks trained
+# from scratch use the pretrained run's own config (its features, network, epochs, members).
 # Families (scripts/transfer_common.sh): the preset's strikers and sensor chain on one structure
 # outside the training ranges. Each family gets a pool (sample indices 300000 on; the first n are
 # the n target strikes) and a held-out test part (200 strikes from index 310000).
@@ -47,14 +48,14 @@ evaluate() {  # run family: OUT/eval_<run>.json once
     --data "$OUT/test_$3.h5" --json > "$OUT/eval_$1.json"
 }
 tune() {  # name family n freeze lr
-  [ -f "$OUT/$1/model.pt" ] || "$BIN" --threads "$THREADS" -q train --init-from "$PRE" \
+  [ -f "$OUT/$1/model.json" ] || [ -f "$OUT/$1/ensemble.json" ] || "$BIN" --threads "$THREADS" -q train --init-from "$PRE" \
     --freeze "$4" --lr "$5" --epochs "$EPOCHS" --set train.keep_best=$KEEP_BEST --data "$OUT/pool_$2_$3.h5" --out "$OUT/$1" \
-    --resume --json > "$OUT/train_$1.json"
+    $(resume_flag "$OUT/$1") --json > "$OUT/train_$1.json"
   evaluate "$1" "$OUT/$1" "$2"
 }
 scratch() {  # name family n
-  [ -f "$OUT/$1/model.pt" ] || "$BIN" "${TS4[@]}" "${RAND[@]}" --config "$ROOT/configs/transfer.yaml" \
-    --set train.keep_best=$KEEP_BEST --threads "$THREADS" -q train --data "$OUT/pool_$2_$3.h5" --out "$OUT/$1" --resume \
+  [ -f "$OUT/$1/model.json" ] || [ -f "$OUT/$1/ensemble.json" ] || "$BIN" --config "$PRE/config.yaml" \
+    --set train.keep_best=$KEEP_BEST --threads "$THREADS" -q train --data "$OUT/pool_$2_$3.h5" --out "$OUT/$1" $(resume_flag "$OUT/$1") \
     --json > "$OUT/train_$1.json"
   evaluate "$1" "$OUT/$1" "$2"
 }

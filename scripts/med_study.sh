@@ -37,7 +37,8 @@ for ts in ts1 ts2 ts3 ts4; do gen "test_$ts" "$ROOT/configs/$ts.yaml" "$TEST" 10
 if [ ! -f "$OUT/model/model.json" ]; then
   start=$(date +%s)
   "$BIN" --config "$ROOT/configs/ts1.yaml" --config "$MODEL_CONFIG" --threads "$THREADS" -q \
-    train --data "$OUT/train.h5" --out "$OUT/model" --resume --json > "$OUT/train.json"
+    train --data "$OUT/train.h5" --out "$OUT/model" \
+    $( [ -e "$OUT/model.partial" ] && echo --resume ) --json > "$OUT/train.json"
   echo $(( $(date +%s) - start )) > "$OUT/train_wall_s"
 fi
 

@@ -66,7 +66,7 @@ for v in $VARIANTS; do
   if [ ! -f "$OUT/$v/model.json" ]; then
     # shellcheck disable=SC2046
     "$BIN" "${TS4[@]}" --config "$ROOT/configs/study_fast.yaml" $(variant_args "$v") \
-      --threads "$THREADS" -q train --data "$OUT/train.h5" --out "$OUT/$v" --resume --json \
+      --threads "$THREADS" -q train --data "$OUT/train.h5" --out "$OUT/$v" $(resume_flag "$OUT/$v") --json \
       > "$OUT/train_$v.json"
   fi
   for s in $SETS; do

@@ -21,11 +21,15 @@
 #   halfspace the contact of a half-space Hertz model (the wall does not yield): 0.07-0.41 ms
 # Rows: each training set with the latency profile (configs/study_fast.yaml) and the study model
 # (configs/study.yaml), audio and GCC-PHAT (a stationary scene gives proprioception nothing);
-# the transfer model (configs/transfer.yaml) on the randomized set; kNN and TDOA fitted on the
-# randomized set; the training-free arrival locator; a constant.
+# the transfer models on the randomized set: configs/transfer.yaml (the waveform of the 20 ms
+# around the onset, an ensemble of three) and its log-mel predecessor configs/transfer_mel.yaml;
+# kNN and TDOA fitted on the randomized set; the training-free arrival locator; a constant.
 #
-# With LARGE > 0 the transfer model is also trained on LARGE randomized strikes (paper scale:
+# With LARGE > 0 the transfer models are also trained on LARGE randomized strikes (paper scale:
 # 18000; the same preset and seed, so the first TRAIN of them are the randomized training set).
+# MODELS (environment) limits the rows run and tabled to those named (run names: latency_default
+# study_default latency_rand study_rand transfer_mel transfer transfer_mel_large
+# transfer_large knn tdoa arrival constant); the default is every row.
 #
 # Usage: scripts/transfer_benchmark.sh [OUT=runs/transfer_benchmark] [TRAIN=3000] [TEST=300]
 #                                      [THREADS=2] [LARGE=0]
@@ -58,11 +62,15 @@ done
 
 TESTS="in nominal $FAMILIES"
 AUDIO_GCC=(--set 'model.modalities=[audio, gcc]')
+MODELS=${MODELS:-"latency_default study_default latency_rand study_rand transfer_mel transfer
+  transfer_mel_large transfer_large knn tdoa arrival constant"}
+wanted() { [[ " $(echo $MODELS) " == *" $1 "* ]]; }
 train() {  # run data config-args...
   local run=$1 data=$2; shift 2
+  wanted "$run" || return 0
   if [ ! -f "$OUT/$run/model.json" ]; then
     "$BIN" "${TS4[@]}" "$@" --threads "$THREADS" -q train --data "$OUT/train_$data.h5" \
-      --out "$OUT/$run" --resume --json > "$OUT/train_$run.json"
+      --out "$OUT/$run" $(resume_flag "$OUT/$run") --json > "$OUT/train_$run.json"
   fi
   for t in $TESTS; do
     [ -f "$OUT/eval_${run}_$t.json" ] || "$BIN" --threads "$THREADS" -q eval --model "$OUT/$run" \
@@ -73,11 +81,16 @@ for data in default rand; do
   train "latency_$data" "$data" --config "$ROOT/configs/study_fast.yaml" "${AUDIO_GCC[@]}"
   train "study_$data" "$data" --config "$ROOT/configs/study.yaml" "${AUDIO_GCC[@]}"
 done
-train transfer_rand rand --config "$ROOT/configs/transfer.yaml"
-[ "$LARGE" -gt 0 ] && train transfer_rand_large rand_large --config "$ROOT/configs/transfer.yaml"
+train transfer_mel rand --config "$ROOT/configs/transfer_mel.yaml"
+train transfer rand --config "$ROOT/configs/transfer.yaml"
+if [ "$LARGE" -gt 0 ]; then
+  train transfer_mel_large rand_large --config "$ROOT/configs/transfer_mel.yaml"
+  train transfer_large rand_large --config "$ROOT/configs/transfer.yaml"
+fi
 
 baseline() {  # name method args...
   local name=$1 method=$2; shift 2
+  wanted "$name" || return 0
   for t in $TESTS; do
     [ -f "$OUT/eval_${name}_$t.json" ] || "$BIN" --threads "$THREADS" -q baseline \
       --method "$method" "$@" --data "$OUT/test_$t.h5" --json > "$OUT/eval_${name}_$t.json"
@@ -88,9 +101,9 @@ baseline tdoa tdoa --train "$OUT/train_rand.h5"
 baseline arrival arrival
 baseline constant constant --train "$OUT/train_rand.h5"
 
-/usr/bin/python3 - "$OUT" "$FAMILIES" "$LARGE" <<'EOF'
+/usr/bin/python3 - "$OUT" "$FAMILIES" "$LARGE" "$(echo $MODELS)" <<'EOF'
 import json, os, sys
-out, families, large = sys.argv[1], sys.argv[2].split(), int(sys.argv[3])
+out, families, large, models = sys.argv[1], sys.argv[2].split(), int(sys.argv[3]), sys.argv[4].split()
 def load(name):
     with open(os.path.join(out, name)) as f:
         return json.load(f)
@@ -102,8 +115,11 @@ def train_seconds(run):
         return round(sum(json.loads(l)["epoch_seconds"] for l in f if l.strip()))
 rows = [("latency_default", "default", "latency profile"), ("study_default", "default", "study model"),
         ("latency_rand", "randomized", "latency profile"), ("study_rand", "randomized", "study model"),
-        ("transfer_rand", "randomized", "transfer (configs/transfer.yaml)"),
-        ("transfer_rand_large", "randomized, %d strikes" % large, "transfer (configs/transfer.yaml)"),
+        ("transfer_mel", "randomized", "transfer, log-mel (configs/transfer_mel.yaml)"),
+        ("transfer", "randomized", "transfer (configs/transfer.yaml)"),
+        ("transfer_mel_large", "randomized, %d strikes" % large,
+         "transfer, log-mel (configs/transfer_mel.yaml)"),
+        ("transfer_large", "randomized, %d strikes" % large, "transfer (configs/transfer.yaml)"),
         ("knn", "randomized", "kNN (k = 5, log-mel)"), ("tdoa", "randomized", "TDOA (speed fitted)"),
         ("arrival", "-", "arrival locator (no training)"), ("constant", "randomized", "constant")]
 def cover(e):
@@ -116,7 +132,7 @@ header = ("| trained on | model | in | nominal | " + " | ".join(families) +
           "cover 90 % out (z / θ) | training, sum of epochs (s) |")
 lines = [header, "|" + "---|" * (header.count("|") - 1)]
 results = {}
-rows = [r for r in rows if r[0] != "transfer_rand_large" or large > 0]
+rows = [r for r in rows if r[0] in models and (not r[0].endswith("_large") or large > 0)]
 for run, data, label in rows:
     e = {t: load("eval_%s_%s.json" % (run, t)) for t in ["in", "nominal"] + families}
     out_meds = [e[f]["med_cm"] for f in families]
@@ -134,7 +150,7 @@ for run, data, label in rows:
     results[run] = {"trained_on": data, "model": label, "med_cm": {t: e[t]["med_cm"] for t in e},
                     "mean_out_cm": mean_out, "coverage_in": cover(e["in"]),
                     "coverage_out": cov_out, "training_s": secs}
-n = load("eval_constant_in.json")["n"]
+n = load("eval_%s_in.json" % rows[0][0])["n"]
 lines += ["", "MED in cm over %d strikes per set (valid ones); \"mean out\" is the mean over the %d "
           "held-out families." % (n, len(families))]
 open(os.path.join(out, "table.md"), "w").write("\n".join(lines) + "\n")

@@ -34,3 +34,9 @@ gen() {  # name first_index count config-args...: OUT/name.h5 unless it exists, 
     --first-index "$first" --out "$OUT/$name.h5" --json > "$OUT/$name.generate.json"
   echo $(( $(date +%s) - start )) > "$OUT/$name.generate_wall_s"
 }
+
+# `train --resume` for a run that was started (RUN.partial) or finished; nothing for a new one
+# (train refuses to resume what does not exist)
+resume_flag() {
+  if [ -e "$1.partial" ] || [ -e "$1" ]; then echo --resume; fi
+}

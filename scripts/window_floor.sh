@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # What the 20 ms wavefront window can reach on ts4's own strikes when nothing varies: the
-# transfer model's features and network (configs/transfer.yaml) and the latency profile over the
+# transfer model's features and network (configs/transfer_mel.yaml) and the latency profile over the
 # full window (configs/study_fast.yaml, audio + GCC-PHAT), both trained on TRAIN strikes of the
 # default structure (ts4 as configured, indices from 0: the benchmark's train_default), scored on
 # the VALIDATION sets of scripts/transfer_ablation.sh (no test set is touched, nothing is chosen).
@@ -28,7 +28,7 @@ for s in $SETS; do
 done
 model_args() {
   case $1 in
-    window20ms) echo "--config $ROOT/configs/transfer.yaml" ;;
+    window20ms) echo "--config $ROOT/configs/transfer_mel.yaml" ;;
     full) echo "--config $ROOT/configs/study_fast.yaml --set model.modalities=[audio,gcc]" ;;
   esac
 }
@@ -36,7 +36,7 @@ for m in window20ms full; do
   if [ ! -f "$OUT/$m/model.json" ]; then
     # shellcheck disable=SC2046
     "$BIN" "${TS4[@]}" $(model_args "$m") --threads "$THREADS" -q train \
-      --data "$OUT/train_nominal.h5" --out "$OUT/$m" --resume --json > "$OUT/train_$m.json"
+      --data "$OUT/train_nominal.h5" --out "$OUT/$m" $(resume_flag "$OUT/$m") --json > "$OUT/train_$m.json"
   fi
   for s in $SETS; do
     [ -f "$OUT/${s}_$m.json" ] || "$BIN" --threads "$THREADS" -q eval --model "$OUT/$m" \
@@ -48,7 +48,7 @@ done
 import json, os, sys
 out = sys.argv[1]
 sets = ["val_in", "val_struct", "val_contact", "val_nominal"]
-names = {"window20ms": "20 ms window (configs/transfer.yaml)",
+names = {"window20ms": "20 ms window (configs/transfer_mel.yaml)",
          "full": "1.5 s window (study_fast, audio + GCC-PHAT)"}
 lines = ["| trained on the default structure | " + " | ".join(sets) +
          " | val_nominal height (cm) / angle (deg) |", "|---|" + "---|" * (len(sets) + 1)]

@@ -169,12 +169,13 @@ TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
                                      "lr_gamma", "val_fraction", "loss_weight_z", "loss_weight_cos",
                                      "loss_weight_sin", "uncertainty_weight", "augment",
                                      "time_shift_frames", "time_mask_frames", "freq_mask_bands",
-                                     "normalize", "keep_best", "threads"));
+                                     "normalize", "keep_best", "ensemble_members", "threads"));
   EXPECT_FALSE(archive.bounds[1].Contains(0.0));  // batch_size
   EXPECT_FALSE(archive.bounds[2].Contains(0.0));  // learning_rate
   EXPECT_TRUE(archive.bounds[9].Contains(0.0));   // uncertainty_weight: 0 disables
   EXPECT_FALSE(archive.bounds[9].Contains(-0.1));
-  EXPECT_TRUE(archive.bounds[16].Contains(0.0));  // threads
+  EXPECT_FALSE(archive.bounds[16].Contains(0.0));  // ensemble_members: at least one
+  EXPECT_TRUE(archive.bounds[17].Contains(0.0));   // threads
 }
 
 // Runs `f` and returns the ConfigError message ("" when nothing was thrown).
