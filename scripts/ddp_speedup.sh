@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Data-parallel training against one process on this machine: the transfer model
-# (configs/transfer.yaml) on COUNT randomized ts4 strikes for EPOCHS epochs, trained by one process
+# (configs/transfer_mel.yaml) on COUNT randomized ts4 strikes for EPOCHS epochs, trained by one process
 # of one thread, by one process of NP threads, and by NP processes of one thread each
 # (scripts/cluster/train_ddp.sh), same global batch. Prints the mean epoch time of each, the
 # speed-ups over one thread, the per-epoch training losses side by side and the runs' validation
@@ -18,7 +18,7 @@ mkdir -p "$OUT"
 cd "$OUT"
 scene=(--config "$ROOT/configs/ts4.yaml" --set scene.stationary.z_grid_m=0
        --config "$ROOT/configs/randomized.yaml")
-model=(--config "$ROOT/configs/transfer.yaml" --set "train.epochs=$EPOCHS")
+model=(--config "$ROOT/configs/transfer_mel.yaml" --set "train.epochs=$EPOCHS")
 "$BIN" -q --threads "$NP" "${scene[@]}" generate --count "$COUNT" --out data.h5
 "$BIN" -q --threads 1 "${scene[@]}" "${model[@]}" train --force --data data.h5 --out single
 "$BIN" -q --threads "$NP" "${scene[@]}" "${model[@]}" train --force --data data.h5 --out one

@@ -252,6 +252,35 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
 }
 
 // bad input: non-zero exit, a message naming the culprit, no complete-looking output
+TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
+  TempDir dir;
+  const std::string tiny = kShort + testing::kTinyModelArgs +
+                           "--set train.epochs=1 --set train.ensemble_members=2 ";
+  auto run = RunCli(tiny + "generate --count 20 --out D.h5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  for (const char* file : {"RUN/ensemble.json", "RUN/config.yaml", "RUN/member0/model.pt",
+                           "RUN/member1/model.pt"}) {
+    EXPECT_TRUE(fs::exists(dir / file)) << file;
+  }
+  EXPECT_FALSE(fs::exists(dir / "RUN.partial"));
+  // eval, inspect and localize read the directory as one model
+  run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json::parse(run.out)["n"], 20);
+  run = RunCli("inspect RUN --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json card = json::parse(run.out);
+  EXPECT_EQ(card["ensemble_members"], 2);
+  EXPECT_TRUE(card["complete"].get<bool>());
+  run = RunCli("--config RUN/config.yaml synth --out s.wav --index 5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli("localize --model RUN --wav s.wav --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_GT(json::parse(run.out)["z_std_m"].get<double>(), 0.0);
+}
+
 TEST(CliErrorTest, MissingFile) {
   TempDir dir;
   const auto run = RunCli("features --in nothere.wav --out F.h5", dir.path().string());
