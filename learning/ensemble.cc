@@ -1,7 +1,9 @@
 // Ensembles: several networks trained alike from their own initializations, one directory that
 // the Localizer loads as one model (ensemble.json naming the member run directories).
 
+#include <cmath>
 #include <filesystem>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,39 @@
 namespace sonicboom::learning {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+// ensemble.json: the member directories and the mixture's calibration
+void WriteEnsembleFile(const std::string& run_dir, const nlohmann::json& names,
+                       const UncertaintyCalibration& calibration) {
+  const nlohmann::json j = {{"members", names},
+                            {"uncertainty",
+                             {{"z_std_scale", calibration.z_std_scale},
+                              {"kappa_scale", calibration.kappa_scale}}}};
+  internal::WriteFileAtomically((fs::path(run_dir) / "ensemble.json").string(), j.dump(2) + "\n");
+}
+
+}  // namespace
+
+UncertaintyCalibration EnsembleCalibration(const std::string& run_dir) {
+  const fs::path path = fs::path(run_dir) / "ensemble.json";
+  UncertaintyCalibration c;
+  if (!fs::exists(path)) return c;
+  const nlohmann::json j = internal::ReadJsonFile(path.string());
+  if (!j.is_object() || !j.contains("uncertainty")) return c;
+  const nlohmann::json& u = j["uncertainty"];
+  for (auto [key, scale] : {std::pair{"z_std_scale", &c.z_std_scale},
+                            std::pair{"kappa_scale", &c.kappa_scale}}) {
+    if (!u.is_object() || !u.contains(key) || !u[key].is_number() ||
+        !(u[key].get<double>() > 0.0) || !std::isfinite(u[key].get<double>())) {
+      throw SchemaError(fmt::format("{}: uncertainty.{} must be a positive number",
+                                    path.string(), key));
+    }
+    *scale = u[key].get<double>();
+  }
+  return c;
+}
 
 std::vector<std::string> EnsembleMembers(const std::string& run_dir) {
   const fs::path path = fs::path(run_dir) / "ensemble.json";
@@ -74,11 +109,17 @@ Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
           show_progress, member_tune, parallel);
   }
   if (parallel.rank != 0) return {};
-  internal::WriteFileAtomically((fs::path(run_dir) / "ensemble.json").string(),
-                                nlohmann::json{{"members", names}}.dump(2) + "\n");
-  // the combined model on the validation set
-  const Localizer ensemble(run_dir);
-  return ComputeMetrics(ensemble.Predict(val), val, surface_radius_m);
+  // the mixture of calibrated members is wider than any member where they disagree: its own two
+  // scales are fitted on the validation split, as a single network's are
+  WriteEnsembleFile(run_dir, names, UncertaintyCalibration{});
+  std::vector<Prediction> predictions = Localizer(run_dir).Predict(val);
+  UncertaintyCalibration calibration;
+  if (predictions.front().has_uncertainty()) {
+    calibration = FitUncertaintyCalibration(predictions, val);
+  }
+  WriteEnsembleFile(run_dir, names, calibration);
+  for (Prediction& p : predictions) p = ApplyCalibration(p, calibration);
+  return ComputeMetrics(predictions, val, surface_radius_m);
 }
 
 }  // namespace sonicboom::learning

@@ -127,7 +127,8 @@ std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& feature
 }  // namespace
 
 struct Localizer::Impl {
-  std::vector<Member> members;  // one, or an ensemble's
+  std::vector<Member> members;               // one, or an ensemble's
+  UncertaintyCalibration mixture_calibration;  // an ensemble's, of the combined distribution
 };
 
 Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>()) {
@@ -139,6 +140,7 @@ Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>(
     impl_->members.push_back(LoadMember(run_dir));
     return;
   }
+  impl_->mixture_calibration = EnsembleCalibration(run_dir);
   for (const std::string& dir : member_dirs) {
     impl_->members.push_back(LoadMember(dir));
     if (!SameNeeds(NeedsOf(impl_->members.front()), NeedsOf(impl_->members.back())) ||
@@ -166,7 +168,7 @@ std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   std::vector<Prediction> strike(members.size());
   for (size_t i = 0; i < combined.size(); ++i) {
     for (size_t k = 0; k < members.size(); ++k) strike[k] = each[k][i];
-    combined[i] = CombinePredictions(strike);
+    combined[i] = ApplyCalibration(CombinePredictions(strike), impl_->mixture_calibration);
   }
   return combined;
 }
@@ -183,7 +185,8 @@ bool Localizer::has_uncertainty() const {
 }
 
 const UncertaintyCalibration& Localizer::calibration() const {
-  return impl_->members.front().file.calibration;
+  return impl_->members.size() > 1 ? impl_->mixture_calibration
+                                   : impl_->members.front().file.calibration;
 }
 
 const ModelConfig& Localizer::model_config() const {

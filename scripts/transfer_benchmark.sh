@@ -108,11 +108,14 @@ def load(name):
     with open(os.path.join(out, name)) as f:
         return json.load(f)
 def train_seconds(run):
-    path = os.path.join(out, run, "metrics.jsonl")
-    if not os.path.exists(path):
-        return None
-    with open(path) as f:
-        return round(sum(json.loads(l)["epoch_seconds"] for l in f if l.strip()))
+    # every epoch of the run, or of each member of an ensemble
+    total, found = 0.0, False
+    for root, _, files in os.walk(os.path.join(out, run)):
+        if "metrics.jsonl" in files:
+            found = True
+            with open(os.path.join(root, "metrics.jsonl")) as f:
+                total += sum(json.loads(l)["epoch_seconds"] for l in f if l.strip())
+    return round(total) if found else None
 rows = [("latency_default", "default", "latency profile"), ("study_default", "default", "study model"),
         ("latency_rand", "randomized", "latency profile"), ("study_rand", "randomized", "study model"),
         ("transfer_mel", "randomized", "transfer, log-mel (configs/transfer_mel.yaml)"),

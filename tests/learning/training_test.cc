@@ -663,8 +663,14 @@ TEST_F(TrainingTest, EnsembleTrainsItsMembersAndPredictsTheirMixture) {
   EXPECT_EQ(ensemble.members(), 3);
   ASSERT_EQ(EnsembleMembers(run).size(), 3u);
   const std::vector<Prediction> pe = ensemble.Predict(val);
+  // its own calibration was fitted on the validation set: refitting there changes nothing
+  const UncertaintyCalibration refit = FitUncertaintyCalibration(pe, val);
+  EXPECT_NEAR(refit.z_std_scale, 1.0, 1e-3);
+  EXPECT_NEAR(refit.kappa_scale, 1.0, 1e-3);
+  EXPECT_NE(ensemble.calibration().z_std_scale, 1.0);
   for (size_t i = 0; i < pe.size(); ++i) {
-    const Prediction expected = CombinePredictions({p0[i], p1[i], p2[i]});
+    const Prediction expected =
+        ApplyCalibration(CombinePredictions({p0[i], p1[i], p2[i]}), ensemble.calibration());
     EXPECT_DOUBLE_EQ(pe[i].z_m, expected.z_m) << i;
     EXPECT_DOUBLE_EQ(pe[i].theta_rad, expected.theta_rad) << i;
     EXPECT_DOUBLE_EQ(pe[i].z_std_m, expected.z_std_m) << i;
@@ -687,6 +693,9 @@ TEST_F(TrainingTest, EnsembleTrainsItsMembersAndPredictsTheirMixture) {
     EXPECT_THAT(e.what(), HasSubstr("train.ensemble_members"));
   }
   // a damaged ensemble.json names the file
+  std::ofstream(run + "/ensemble.json")
+      << R"({"members": ["member0"], "uncertainty": {"z_std_scale": -1, "kappa_scale": 1}})";
+  EXPECT_THROW(Localizer{run}, SchemaError);
   std::ofstream(run + "/ensemble.json") << R"({"members": ["../elsewhere"]})";
   try {
     Localizer broken(run);

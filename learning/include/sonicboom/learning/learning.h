@@ -251,8 +251,8 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
 /// Trains train_config.ensemble_members networks with Train. One member: Train itself, the run
 /// directory as it writes it. More: member k in run_dir/member<k> (seed: `seed` for member 0,
 /// SampleSeed(seed, k) for the others; the same train and val sets), then run_dir/ensemble.json
-/// naming them; Localizer loads the directory as one model. Returns the metrics of the combined
-/// predictions on `val`. A fine-tune of an ensemble (fine_tune.init_from an ensemble directory)
+/// naming them, with the calibration of their combination fitted on `val`; Localizer loads the
+/// directory as one model. Returns the metrics of the calibrated combined predictions on `val`. A fine-tune of an ensemble (fine_tune.init_from an ensemble directory)
 /// fine-tunes member k from the pretrained member k; the member counts must agree
 /// (ConfigError naming train.ensemble_members).
 Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
@@ -264,6 +264,10 @@ Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
 /// Member run directories of an ensemble directory (its ensemble.json), in order; empty for a
 /// plain run directory. SchemaError naming the file when ensemble.json is malformed.
 std::vector<std::string> EnsembleMembers(const std::string& run_dir);
+/// The scales of an ensemble's combined distribution, fitted on the validation split after its
+/// members were trained (ensemble.json "uncertainty"; 1 and 1 when absent). SchemaError naming
+/// the file for a scale that is not a positive number.
+UncertaintyCalibration EnsembleCalibration(const std::string& run_dir);
 
 /// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
 /// spectrogram (the un-augmented crop of training, evaluation and localization).
@@ -300,7 +304,7 @@ class Localizer {
   /// train.uncertainty_weight = 0 or before the uncertainty head existed (their weights lack it).
   bool has_uncertainty() const;
   /// The scales from model.json (1 and 1 when the file predates calibration); an ensemble's
-  /// first member's.
+  /// from ensemble.json, applied to the combined distribution.
   const UncertaintyCalibration& calibration() const;
   const ModelConfig& model_config() const;
   double surface_radius_m() const;
