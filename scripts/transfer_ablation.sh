@@ -79,13 +79,12 @@ for s in $SETS; do
     --data "$OUT/$s.h5" --json > "$OUT/${s}_arrival.json"
 done
 
-/usr/bin/python3 - "$OUT" $VARIANTS <<'EOF'
+PYTHONPATH="$ROOT/scripts" /usr/bin/python3 - "$OUT" $VARIANTS <<'EOF'
 import json, os, sys
+import transfer_tables
 out, variants = sys.argv[1], sys.argv[2:]
 sets = ["val_in", "val_struct", "val_contact", "val_nominal"]
-def load(name):
-    with open(os.path.join(out, name)) as f:
-        return json.load(f)
+load = lambda name: transfer_tables.load(out, name)
 lines = ["| variant | " + " | ".join(s + " MED (cm)" for s in sets) +
          " | mean of the first three | z / θ cover 90 % (val_struct) |",
          "|---|" + "---|" * (len(sets) + 2)]
@@ -102,7 +101,5 @@ for v in variants + ["arrival"]:
 best = min(variants, key=lambda v: results[v]["mean3_cm"])
 lines += ["", "Lowest mean of val_in, val_struct and val_contact: %s (%.2f cm)." % (
     best, results[best]["mean3_cm"])]
-open(os.path.join(out, "table.md"), "w").write("\n".join(lines) + "\n")
-json.dump(results, open(os.path.join(out, "results.json"), "w"), indent=1)
-print("\n".join(lines))
+transfer_tables.write(out, lines, results)
 EOF

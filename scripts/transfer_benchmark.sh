@@ -101,21 +101,12 @@ baseline tdoa tdoa --train "$OUT/train_rand.h5"
 baseline arrival arrival
 baseline constant constant --train "$OUT/train_rand.h5"
 
-/usr/bin/python3 - "$OUT" "$FAMILIES" "$LARGE" "$(echo $MODELS)" <<'EOF'
+PYTHONPATH="$ROOT/scripts" /usr/bin/python3 - "$OUT" "$FAMILIES" "$LARGE" "$(echo $MODELS)" <<'EOF'
 import json, os, sys
+import transfer_tables
 out, families, large, models = sys.argv[1], sys.argv[2].split(), int(sys.argv[3]), sys.argv[4].split()
-def load(name):
-    with open(os.path.join(out, name)) as f:
-        return json.load(f)
-def train_seconds(run):
-    # every epoch of the run, or of each member of an ensemble
-    total, found = 0.0, False
-    for root, _, files in os.walk(os.path.join(out, run)):
-        if "metrics.jsonl" in files:
-            found = True
-            with open(os.path.join(root, "metrics.jsonl")) as f:
-                total += sum(json.loads(l)["epoch_seconds"] for l in f if l.strip())
-    return round(total) if found else None
+load = lambda name: transfer_tables.load(out, name)
+train_seconds = lambda run: transfer_tables.train_seconds(out, run)
 rows = [("latency_default", "default", "latency profile"), ("study_default", "default", "study model"),
         ("latency_rand", "randomized", "latency profile"), ("study_rand", "randomized", "study model"),
         ("transfer_mel", "randomized", "transfer, log-mel (configs/transfer_mel.yaml)"),
@@ -156,7 +147,5 @@ for run, data, label in rows:
 n = load("eval_%s_in.json" % rows[0][0])["n"]
 lines += ["", "MED in cm over %d strikes per set (valid ones); \"mean out\" is the mean over the %d "
           "held-out families." % (n, len(families))]
-open(os.path.join(out, "table.md"), "w").write("\n".join(lines) + "\n")
-json.dump(results, open(os.path.join(out, "results.json"), "w"), indent=1)
-print("\n".join(lines))
+transfer_tables.write(out, lines, results)
 EOF

@@ -65,22 +65,13 @@ for v in $VARIANTS; do
 done
 
 # shellcheck disable=SC2086
-/usr/bin/python3 - "$OUT" $VARIANTS <<'PY'
+PYTHONPATH="$ROOT/scripts" /usr/bin/python3 - "$OUT" $VARIANTS <<'PY'
 import json, os, sys
+import transfer_tables
 out, variants = sys.argv[1], sys.argv[2:]
 sets = ["val_in", "val_struct", "val_contact", "val_nominal"]
-def load(name):
-    with open(os.path.join(out, name)) as f:
-        return json.load(f)
-def train_seconds(v):
-    # every member's epochs
-    total, found = 0.0, False
-    for root, _, files in os.walk(os.path.join(out, v)):
-        if "metrics.jsonl" in files:
-            found = True
-            with open(os.path.join(root, "metrics.jsonl")) as f:
-                total += sum(json.loads(l)["epoch_seconds"] for l in f if l.strip())
-    return round(total) if found else None
+load = lambda name: transfer_tables.load(out, name)
+train_seconds = lambda v: transfer_tables.train_seconds(out, v)
 lines = ["| variant | " + " | ".join(s + " MED (cm)" for s in sets) +
          " | mean | val_nominal height (cm) / angle (deg) | training, sum of epochs (s) |",
          "|---|" + "---|" * (len(sets) + 3)]
@@ -96,7 +87,5 @@ for v in variants:
 best = min(variants, key=lambda v: results[v]["mean_cm"])
 lines += ["", "Lowest mean MED of the four validation sets: %s (%.2f cm)." % (
     best, results[best]["mean_cm"])]
-open(os.path.join(out, "table.md"), "w").write("\n".join(lines) + "\n")
-json.dump(results, open(os.path.join(out, "results.json"), "w"), indent=1)
-print("\n".join(lines))
+transfer_tables.write(out, lines, results)
 PY
