@@ -606,6 +606,10 @@ int64_t FeatureExtractor::mel_frames() const {
   }
   return impl_->mel->Frames(impl_->window_samples);
 }
+int64_t FeatureExtractor::frame_hop() const {
+  return impl_->config.audio_representation == AudioRepresentation::kWaveform ? 1
+                                                                              : impl_->config.hop;
+}
 int64_t FeatureExtractor::audio_rows() const {
   return impl_->config.audio_representation == AudioRepresentation::kWaveform
              ? 1

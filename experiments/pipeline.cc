@@ -265,6 +265,7 @@ learning::FeatureSet AllocateFeatures(const dsp::FeatureExtractor& fx, int64_t n
   set.channels = fx.channels();
   set.mels = fx.audio_rows();
   set.frames = fx.mel_frames();
+  set.frame_hop_samples = fx.frame_hop();
   set.gcc_pairs = fx.gcc_rows();  // pairs x bands
   set.gcc_lags = fx.gcc_lags();
   set.proprio_rows = proprio_rows;

@@ -208,6 +208,7 @@ FeatureSet FeatureSet::ShapesOnly() const {
   shapes.gcc_lags = gcc_lags;
   shapes.proprio_rows = proprio_rows;
   shapes.proprio_features = proprio_features;
+  shapes.frame_hop_samples = frame_hop_samples;
   return shapes;
 }
 

@@ -143,8 +143,8 @@ Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, in
   return a;
 }
 
-int64_t ProprioShiftRows(int64_t shift_frames) {
-  return std::llround(static_cast<double>(shift_frames) * kMelHopSamples * kProprioRateHz /
+int64_t ProprioShiftRows(int64_t shift_frames, int64_t frame_hop_samples) {
+  return std::llround(static_cast<double>(shift_frames * frame_hop_samples) * kProprioRateHz /
                       kSampleRateHz);
 }
 
@@ -187,7 +187,7 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
     }
     if (use.proprio) {
       // (rows, features) slice, shifted by the rows matching the mel shift, zero fill.
-      const int64_t shift = ProprioShiftRows(a.shift_frames);
+      const int64_t shift = ProprioShiftRows(a.shift_frames, f.frame_hop_samples);
       const int64_t size = f.proprio_rows * f.proprio_features;
       const float* src = f.proprio.data() + r * size;
       float* dst = batch.proprio.data_ptr<float>() + b * size;

@@ -15,8 +15,7 @@
 
 namespace sonicboom::learning::internal {
 
-/// Sizes of the time bases: mel hop 128 samples at 44.1 kHz, proprioception at 100 Hz.
-inline constexpr double kMelHopSamples = 128.0;
+/// Time bases: audio at 44.1 kHz, proprioception at 100 Hz.
 inline constexpr double kSampleRateHz = 44100.0;
 inline constexpr double kProprioRateHz = 100.0;
 /// Batch size of evaluation and prediction.
@@ -51,8 +50,9 @@ struct Augmentation {
 Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, int64_t mels,
                               uint64_t seed, int64_t epoch, int64_t record);
 
-/// Proprioception rows matching a shift of `shift_frames` mel frames.
-int64_t ProprioShiftRows(int64_t shift_frames);
+/// Proprioception rows matching a shift of `shift_frames` audio frames `frame_hop_samples`
+/// samples apart (FeatureSet::frame_hop_samples).
+int64_t ProprioShiftRows(int64_t shift_frames, int64_t frame_hop_samples);
 
 /// Inputs of `records` (centre crop; `augment` optional, one per record). Blanked or
 /// out-of-range mel values are filled with `mel_fill[c]` (the channel mean, 0 after

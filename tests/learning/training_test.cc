@@ -348,6 +348,37 @@ TEST_F(TrainingTest, FrequencyMaskAsWideAsTheFeatureRowsIsAConfigError) {
   EXPECT_FALSE(fs::exists(Dir("run") + "/model.pt"));
 }
 
+TEST(AssembleBatchTest, ProprioceptionShiftsByTheAudioShiftsTime) {
+  FeatureSet f = MakeFeatures(1, 9);
+  internal::ModalitySet use;
+  use.audio = true;
+  use.proprio = true;
+  internal::Augmentation a;
+  a.shift_frames = 3;
+  const std::vector<internal::Augmentation> augment{a};
+  const std::vector<float> fill(f.channels, 0.0f);
+  // proprio row r of the batch is row r + shift of the record (zero past the end)
+  auto shifted_rows = [&](int64_t hop) {
+    f.frame_hop_samples = hop;
+    const internal::Batch b = internal::AssembleBatch(f, {0}, use, 32, &augment, fill);
+    const torch::Tensor record = torch::from_blob(
+        f.proprio.data(), {f.proprio_rows, f.proprio_features}, torch::kFloat32);
+    for (int64_t shift = 0; shift < f.proprio_rows; ++shift) {
+      if (torch::equal(b.proprio[0].slice(0, 0, f.proprio_rows - shift),
+                       record.slice(0, shift, f.proprio_rows))) {
+        return shift;
+      }
+    }
+    return int64_t{-1};
+  };
+  // 3 frames of 8 samples (0.54 ms) is no 10 ms row; of 128 samples (8.7 ms) one row; 3
+  // waveform samples nothing; 3 frames of 441 samples (30 ms) three rows
+  EXPECT_EQ(shifted_rows(8), 0);
+  EXPECT_EQ(shifted_rows(128), 1);
+  EXPECT_EQ(shifted_rows(1), 0);
+  EXPECT_EQ(shifted_rows(441), 3);
+}
+
 TEST(Conv1dEncoderTest, OutputDoesNotDependOnTheRecordsLevel) {
   ModelConfig model = TinyModel();
   model.audio_encoder = AudioEncoderKind::kConv1d;

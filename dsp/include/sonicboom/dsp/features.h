@@ -115,6 +115,7 @@ class FeatureExtractor {
   int64_t mel_frames() const;      // 1 + window_samples / hop (centred, reflect-padded), or
                                    // window_samples for the waveform representation
   int64_t audio_rows() const;      // n_mels, or 1 for the waveform representation
+  int64_t frame_hop() const;       // input samples between frames: hop, or 1 for a waveform
   int64_t gcc_lags() const;        // 2 * gcc_max_lag + 1
   int64_t gcc_rows() const;        // pairs x bands (bands = 1 without gcc_bands_hz)
   int64_t gcc_samples() const;     // GCC-PHAT span: round(config.gcc_span_s() * fs)

@@ -99,6 +99,9 @@ struct FeatureSet {
   int64_t gcc_lags{883};
   int64_t proprio_rows{50};
   int64_t proprio_features{10};
+  // input samples from one audio frame to the next: the mel hop, 1 for a waveform; a time shift
+  // of the audio (augmentation) moves the proprioception window by as much time
+  int64_t frame_hop_samples{128};
   std::vector<float> mel;         // (N x channels x mels x frames)
   std::vector<float> gcc;         // (N x gcc_pairs x gcc_lags)
   std::vector<float> proprio;     // (N x proprio_rows x proprio_features)
