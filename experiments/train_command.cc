@@ -91,6 +91,10 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
     if (!o.resume) fs::remove_all(work, ec);
     throw;
   }
+  // each member of an ensemble is a run of its own too (eval, localize, a fine-tune from it)
+  for (const std::string& member : learning::EnsembleMembers(work)) {
+    WriteTextAtomic((fs::path(member) / "config.yaml").string(), ConfigToYaml(config));
+  }
   ReplaceDirectory(work, o.out);
   json j = MetricsJson(m);
   j["run_dir"] = o.out;

@@ -261,7 +261,7 @@ TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   for (const char* file : {"RUN/ensemble.json", "RUN/config.yaml", "RUN/member0/model.pt",
-                           "RUN/member1/model.pt"}) {
+                           "RUN/member1/model.pt", "RUN/member1/config.yaml"}) {
     EXPECT_TRUE(fs::exists(dir / file)) << file;
   }
   EXPECT_FALSE(fs::exists(dir / "RUN.partial"));
@@ -269,6 +269,9 @@ TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_EQ(json::parse(run.out)["n"], 20);
+  // and each member is a run of its own
+  run = RunCli("eval --model RUN/member1 --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
   run = RunCli("inspect RUN --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json card = json::parse(run.out);
