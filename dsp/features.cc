@@ -455,7 +455,8 @@ struct FeatureExtractor::Impl {
   int64_t window_samples{0};
   int64_t gcc_samples{0};              // GCC-PHAT span, centred in the window
   std::unique_ptr<SpectralGate> gate;  // null: no gating
-  std::unique_ptr<MelSpectrogram> mel;
+  bool waveform{false};                // the waveform representation: no mel spectrogram
+  std::unique_ptr<MelSpectrogram> mel;  // null for the waveform representation
   std::unique_ptr<GccPhat> gcc;
   std::unique_ptr<ScratchPool<Scratch>> pool;
 };
@@ -566,9 +567,12 @@ FeatureExtractor::FeatureExtractor(const FeatureConfig& config, double sample_ra
   e.sample_rate_hz = sample_rate_hz;
   e.channels = channels;
   e.window_samples = std::llround(config.window_s * sample_rate_hz);
-  const double f_max = config.f_max_hz == 0.0 ? sample_rate_hz / 2.0 : config.f_max_hz;
-  e.mel = std::make_unique<MelSpectrogram>(config.n_fft, config.hop, config.n_mels, config.f_min_hz,
-                                           f_max, sample_rate_hz);
+  e.waveform = config.audio_representation == AudioRepresentation::kWaveform;
+  if (!e.waveform) {
+    const double f_max = config.f_max_hz == 0.0 ? sample_rate_hz / 2.0 : config.f_max_hz;
+    e.mel = std::make_unique<MelSpectrogram>(config.n_fft, config.hop, config.n_mels,
+                                             config.f_min_hz, f_max, sample_rate_hz);
+  }
   e.gcc_samples = std::llround(config.gcc_span_s() * sample_rate_hz);
   e.gcc = std::make_unique<GccPhat>(e.gcc_samples, config.gcc_max_lag, channels, sample_rate_hz,
                                     config.gcc_bands_hz);
@@ -601,19 +605,13 @@ int64_t FeatureExtractor::window_samples() const {
   return impl_->window_samples;
 }
 int64_t FeatureExtractor::mel_frames() const {
-  if (impl_->config.audio_representation == AudioRepresentation::kWaveform) {
-    return impl_->window_samples;
-  }
-  return impl_->mel->Frames(impl_->window_samples);
+  return impl_->waveform ? impl_->window_samples : impl_->mel->Frames(impl_->window_samples);
 }
 int64_t FeatureExtractor::frame_hop() const {
-  return impl_->config.audio_representation == AudioRepresentation::kWaveform ? 1
-                                                                              : impl_->config.hop;
+  return impl_->waveform ? 1 : impl_->config.hop;
 }
 int64_t FeatureExtractor::audio_rows() const {
-  return impl_->config.audio_representation == AudioRepresentation::kWaveform
-             ? 1
-             : impl_->config.n_mels;
+  return impl_->waveform ? 1 : impl_->config.n_mels;
 }
 int64_t FeatureExtractor::gcc_lags() const {
   return 2 * impl_->config.gcc_max_lag + 1;
@@ -676,7 +674,7 @@ StrikeFeatures FeatureExtractor::Compute(const Eigen::MatrixXf& audio,
 
   // The waveform representation: samples [first_frame, first_frame + frames) of the window,
   // (1 x frames) per channel.
-  if (request.mel && e.config.audio_representation == AudioRepresentation::kWaveform) {
+  if (request.mel && e.waveform) {
     features.mel.resize(static_cast<size_t>(e.channels));
     for (int c = 0; c < e.channels; ++c) {
       features.mel[c] = window.row(c).segment(first_frame, frames);

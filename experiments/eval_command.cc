@@ -33,14 +33,12 @@ std::string PredictionsCsv(const learning::FeatureSet& set,
   std::string csv = "index,z_m,theta_rad,z_pred_m,theta_pred_rad,z_std_m,theta_kappa,error_cm\n";
   for (int64_t r = 0; r < set.size(); ++r) {
     const learning::Prediction& p = predictions[r];
-    const double dz = p.z_m - set.z_m[r];
-    const double chord = 2.0 * radius_m * std::sin(0.5 * (p.theta_rad - set.theta_rad[r]));
     const std::string spread = p.has_uncertainty()
                                    ? fmt::format("{:.9g},{:.9g}", p.z_std_m, p.theta_kappa)
                                    : std::string(",");
     csv += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{},{:.6g}\n", indices[r], set.z_m[r],
                        set.theta_rad[r], p.z_m, p.theta_rad, spread,
-                       100.0 * std::hypot(dz, chord));
+                       learning::SurfaceErrorCm(p, set.z_m[r], set.theta_rad[r], radius_m));
   }
   return csv;
 }

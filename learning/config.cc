@@ -125,6 +125,14 @@ void TrainConfig::Validate() const {
   RequireAtLeast("train.threads", threads, 0);
 }
 
+double SurfaceErrorCm(const Prediction& p, double z_m, double theta_rad, double surface_radius_m) {
+  // Surface points (r cos, r sin, z) in metres; the distance is reported in cm.
+  const double dx = surface_radius_m * (std::cos(p.theta_rad) - std::cos(theta_rad));
+  const double dy = surface_radius_m * (std::sin(p.theta_rad) - std::sin(theta_rad));
+  const double dz = p.z_m - z_m;
+  return 100.0 * std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
 Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const FeatureSet& truth,
                        double surface_radius_m) {
   if (static_cast<int64_t>(predictions.size()) != truth.size() ||
@@ -147,11 +155,8 @@ Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const Feature
     const double z_true = truth.z_m[i], theta_true = truth.theta_rad[i];
     if (std::isnan(z_true) || std::isnan(theta_true)) continue;
     const double z_pred = predictions[i].z_m, theta_pred = predictions[i].theta_rad;
-    // Surface points (r cos, r sin, z) in metres; the distance is reported in cm.
-    const double dx = surface_radius_m * (std::cos(theta_pred) - std::cos(theta_true));
-    const double dy = surface_radius_m * (std::sin(theta_pred) - std::sin(theta_true));
     const double dz = z_pred - z_true;
-    sum_med += 100.0 * std::sqrt(dx * dx + dy * dy + dz * dz);
+    sum_med += SurfaceErrorCm(predictions[i], z_true, theta_true, surface_radius_m);
     sum_dz += 100.0 * std::abs(dz);
     // Angle difference wrapped into [-pi, pi], so errors across +-pi count the short way.
     sum_dtheta += std::abs(std::remainder(theta_pred - theta_true, 2.0 * std::numbers::pi)) *

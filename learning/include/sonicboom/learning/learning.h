@@ -329,6 +329,10 @@ class Localizer {
 std::map<std::string, int64_t> CountParameters(const ModelConfig& config, const FeatureSet& shapes,
                                                bool uncertainty_head = true);
 
+/// Distance in cm between the surface points (r cos theta, r sin theta, z) of a prediction and
+/// of the label (z_m, theta_rad) on a tube of `surface_radius_m`: one strike's term of the MED.
+double SurfaceErrorCm(const Prediction& p, double z_m, double theta_rad, double surface_radius_m);
+
 /// Metrics of predictions against the labels in `truth`; coverage and NLL when every labelled
 /// prediction has uncertainty.
 Metrics ComputeMetrics(const std::vector<Prediction>& predictions, const FeatureSet& truth,
