@@ -10,6 +10,7 @@
 #include "common/test_util.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
+#include "sonicboom/core/files.h"
 
 namespace sonicboom {
 namespace {
@@ -27,7 +28,7 @@ TEST(CliTest, HelpListsEverySubcommand) {
   const auto run = RunCli("--help", dir.path().string());
   EXPECT_EQ(run.exit_code, 0);
   for (const char* sub : {"demo", "generate", "synth", "modes", "features", "train", "eval",
-                          "localize", "fk", "inspect", "fidelity"}) {
+                          "localize", "fk", "inspect", "fidelity", "calibrate"}) {
     EXPECT_NE(run.out.find(sub), std::string::npos) << sub;
   }
 }
@@ -202,6 +203,31 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
   run = RunCli("eval --model RUN --data D.h5 -q --predictions P.csv", dir.path().string());
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("P.csv"), std::string::npos) << run.err;
+  // calibrate: the refit scales multiply the stored ones, eval then reports the refit coverage,
+  // and a second refit on the same strikes leaves sigma_z as it is (the kappa fit of so short a
+  // training sits at its lower bound: a flat angle distribution fits best)
+  run = RunCli("calibrate --model RUN --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json first = json::parse(run.out);
+  for (const char* key : {"z_std_scale", "kappa_scale"}) {
+    EXPECT_NEAR(first["after"][key].get<double>(),
+                first["before"][key].get<double>() * first["relative"][key].get<double>(),
+                1e-12 * first["after"][key].get<double>())
+        << key;
+  }
+  EXPECT_EQ(json::parse(ReadText(dir / "RUN/model.json"))["uncertainty"]["calibrated_on"],
+            "D.h5");
+  run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NEAR(json::parse(run.out)["nll"].get<double>(),
+              first["metrics_after"]["nll"].get<double>(), 1e-9);
+  run = RunCli("calibrate --model RUN --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json second = json::parse(run.out);
+  EXPECT_NEAR(second["relative"]["z_std_scale"].get<double>(), 1.0, 1e-9);
+  run = RunCli("calibrate --model RUN --data missing.h5", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("missing.h5"), std::string::npos) << run.err;
   // localize a strike synthesized with the run's own config
   run = RunCli("--config RUN/config.yaml synth --out s.wav --index 100 -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
@@ -272,6 +298,18 @@ TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   // and each member is a run of its own
   run = RunCli("eval --model RUN/member1 --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
+  // calibrate refits the combination's scales in ensemble.json, and eval reads them
+  run = RunCli("calibrate --model RUN --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json refit = json::parse(run.out);
+  const json stored = json::parse(ReadText(dir / "RUN/ensemble.json"));
+  EXPECT_EQ(stored["members"].size(), 2u);
+  EXPECT_DOUBLE_EQ(stored["uncertainty"]["z_std_scale"].get<double>(),
+                   refit["after"]["z_std_scale"].get<double>());
+  run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NEAR(json::parse(run.out)["nll"].get<double>(),
+              refit["metrics_after"]["nll"].get<double>(), 1e-9);
   run = RunCli("inspect RUN --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json card = json::parse(run.out);

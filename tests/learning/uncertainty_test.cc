@@ -9,10 +9,14 @@
 #include <numbers>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include <gtest/gtest.h>
 
+#include "common/test_util.h"
 #include "internal/uncertainty.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/learning/learning.h"
 
@@ -311,6 +315,55 @@ TEST(UncertaintyCalibrationTest, DegenerateInputs) {
   // a prediction without uncertainty is left alone by ApplyCalibration
   const Prediction point = ApplyCalibration({0.1, 0.2}, {2.0, 3.0});
   EXPECT_TRUE(std::isnan(point.z_std_m));
+}
+
+TEST(UncertaintyCalibrationTest, RecalibrateMultipliesTheStoredScalesOfAnEnsemble) {
+  testing::TempDir dir;
+  const std::string file = dir / "ensemble.json";
+  WriteTextAtomic(file, R"({"members": ["member0", "member1"],
+                           "uncertainty": {"z_std_scale": 0.5, "kappa_scale": 2.0}})");
+  // predictions already carrying the stored scales, three times too sure in z, four in theta
+  const Synthetic s = MakeSynthetic(3000, 31);
+  const std::vector<Prediction> sure = Scaled(s.predictions, 1.0 / 3.0, 4.0);
+  const Recalibration r = Recalibrate(dir.path().string(), sure, s.truth, "beyond.h5");
+  EXPECT_EQ(r.before.z_std_scale, 0.5);
+  EXPECT_EQ(r.before.kappa_scale, 2.0);
+  EXPECT_NEAR(r.relative.z_std_scale, 3.0, 0.1);
+  EXPECT_NEAR(r.relative.kappa_scale, 0.25, 0.015);
+  EXPECT_DOUBLE_EQ(r.after.z_std_scale, 0.5 * r.relative.z_std_scale);
+  EXPECT_DOUBLE_EQ(r.after.kappa_scale, 2.0 * r.relative.kappa_scale);
+  // stored: the members untouched, the new scales read back, where they came from
+  const UncertaintyCalibration read = EnsembleCalibration(dir.path().string());
+  EXPECT_DOUBLE_EQ(read.z_std_scale, r.after.z_std_scale);
+  EXPECT_DOUBLE_EQ(read.kappa_scale, r.after.kappa_scale);
+  EXPECT_EQ(EnsembleMembers(dir.path().string()).size(), 2u);
+  const nlohmann::json j = nlohmann::json::parse(ReadText(file));
+  EXPECT_EQ(j["uncertainty"]["calibrated_on"], "beyond.h5");
+  EXPECT_EQ(j["uncertainty"]["records"], 3000);
+}
+
+TEST(UncertaintyCalibrationTest, RecalibrateRefusesWhatItCannotFit) {
+  testing::TempDir dir;
+  const std::string file = dir / "ensemble.json";
+  const Synthetic s = MakeSynthetic(10, 37);
+  const std::string run = dir.path().string();
+  // no stored calibration to replace
+  WriteTextAtomic(file, R"({"members": ["member0"]})");
+  EXPECT_THROW(Recalibrate(run, s.predictions, s.truth, "x.h5"), SchemaError);
+  WriteTextAtomic(file, R"({"members": ["member0"],
+                           "uncertainty": {"z_std_scale": 1.0, "kappa_scale": 1.0}})");
+  // predictions and labels differ in number
+  std::vector<Prediction> fewer(s.predictions.begin(), s.predictions.end() - 1);
+  EXPECT_THROW(Recalibrate(run, fewer, s.truth, "x.h5"), SchemaError);
+  // point estimates only, or no label: nothing to fit
+  std::vector<Prediction> points;
+  for (const Prediction& p : s.predictions) points.push_back({p.z_m, p.theta_rad});
+  EXPECT_THROW(Recalibrate(run, points, s.truth, "x.h5"), SchemaError);
+  FeatureSet unlabelled = s.truth;
+  for (double& z : unlabelled.z_m) z = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(Recalibrate(run, s.predictions, unlabelled, "x.h5"), SchemaError);
+  // and a refused fit leaves the file as it was
+  EXPECT_EQ(nlohmann::json::parse(ReadText(file))["uncertainty"].size(), 2u);
 }
 
 }  // namespace

@@ -87,6 +87,10 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
                       const std::string& data, const std::string& predictions_csv = "",
                       bool force = false);
+/// `calibrate`: refits the run's interval scales (learning::Recalibrate) on the labelled strikes
+/// of `data` (pooled), with the run's features; the run keeps its weights.
+CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
+                           const std::vector<std::string>& data);
 /// `localize --method arrival`: the training-free arrival locator on one WAV, configured by the
 /// global config (tube, microphones, arrival settings); no model.
 CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav);

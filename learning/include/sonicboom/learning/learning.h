@@ -272,6 +272,21 @@ std::vector<std::string> EnsembleMembers(const std::string& run_dir);
 /// the file for a scale that is not a positive number.
 UncertaintyCalibration EnsembleCalibration(const std::string& run_dir);
 
+/// A finished run's calibration refitted on other labelled records (`sonicboom calibrate`).
+struct Recalibration {
+  UncertaintyCalibration before;    // stored in the run until now
+  UncertaintyCalibration relative;  // fitted on the records, on top of `before`
+  UncertaintyCalibration after;     // stored now: before x relative, scale by scale
+};
+/// Fits the scales minimizing the mean NLL of `truth` under `predictions` (the run's own
+/// calibrated predictions of those records, Localizer(run_dir).Predict), multiplies them into
+/// the run's stored scales (model.json, or ensemble.json for an ensemble; written atomically)
+/// and records `source` and the record count beside them. Later `train --resume` of the run
+/// refits on its validation split again. SchemaError naming the file when the run has no
+/// stored calibration to replace or no labelled record carries a predictive distribution.
+Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
+                          const FeatureSet& truth, const std::string& source);
+
 /// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
 /// spectrogram (the un-augmented crop of training, evaluation and localization).
 int64_t CentreCropStart(int64_t frames, int64_t crop_frames);

@@ -1,0 +1,88 @@
+// `calibrate`: a finished run's predictive intervals refitted on labelled strikes other than its
+// validation split (structures beyond the training pool, or captures of the user's own robot).
+#include "sonicboom/experiments/commands.h"
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/learning/learning.h"
+
+#include "internal/report.h"
+#include "internal/subcommands.h"
+
+namespace sonicboom::experiments {
+
+using nlohmann::json;
+
+CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
+                           const std::vector<std::string>& data) {
+  const SonicBoomConfig config = ResolveWithRun(g, model_dir);
+  learning::Localizer localizer(model_dir);
+  if (!localizer.has_uncertainty()) {
+    throw ConfigError(fmt::format(
+        "{}: the model has no uncertainty head (trained with train.uncertainty_weight = 0): "
+        "there are no intervals to calibrate",
+        model_dir));
+  }
+  // the run's calibrated predictions of every dataset, and their labels, in order
+  std::vector<learning::Prediction> predictions;
+  learning::FeatureSet labels;
+  for (const std::string& path : data) {
+    const learning::FeatureSet set = ComputeDatasetFeatures(path, config, g.threads, !g.quiet);
+    const std::vector<learning::Prediction> p = localizer.Predict(set);
+    predictions.insert(predictions.end(), p.begin(), p.end());
+    labels.z_m.insert(labels.z_m.end(), set.z_m.begin(), set.z_m.end());
+    labels.theta_rad.insert(labels.theta_rad.end(), set.theta_rad.begin(), set.theta_rad.end());
+  }
+  std::string source;
+  for (const std::string& path : data) source += (source.empty() ? "" : ", ") + path;
+  const learning::Recalibration r = learning::Recalibrate(model_dir, predictions, labels, source);
+  // the same records under the new scales
+  const learning::Metrics before =
+      learning::ComputeMetrics(predictions, labels, localizer.surface_radius_m());
+  for (learning::Prediction& p : predictions) p = learning::ApplyCalibration(p, r.relative);
+  const learning::Metrics after =
+      learning::ComputeMetrics(predictions, labels, localizer.surface_radius_m());
+  auto scales = [](const learning::UncertaintyCalibration& c) {
+    return json{{"z_std_scale", c.z_std_scale}, {"kappa_scale", c.kappa_scale}};
+  };
+  const json j{{"model", model_dir},        {"data", data},
+               {"before", scales(r.before)}, {"relative", scales(r.relative)},
+               {"after", scales(r.after)},   {"metrics_before", MetricsJson(before)},
+               {"metrics_after", MetricsJson(after)}};
+  const std::string text = fmt::format(
+      "{} strikes of {}: sigma_z x {:.3g} and kappa x {:.3g} on top of the stored scales "
+      "(now {:.3g}, {:.3g})\n"
+      "90 % coverage before: z {:.2f}, theta {:.2f}; after: z {:.2f}, theta {:.2f}\n",
+      after.n, source, r.relative.z_std_scale, r.relative.kappa_scale, r.after.z_std_scale,
+      r.after.kappa_scale, before.z_coverage_90, before.theta_coverage_90, after.z_coverage_90,
+      after.theta_coverage_90);
+  return {j.dump(), text};
+}
+
+void RegisterCalibrate(CLI::App& app, GlobalOptions& g, Runner* run) {
+  struct Options {
+    std::string model;
+    std::vector<std::string> data;
+  };
+  auto o = std::make_shared<Options>();
+  auto* calibrate = app.add_subcommand(
+      "calibrate",
+      "refit a trained localizer's interval scales on other labelled strikes (e.g. structures "
+      "beyond the training pool, or captures of your robot); stored in the run");
+  calibrate->add_option("--model", o->model, "run directory (one network or an ensemble)")
+      ->required();
+  calibrate->add_option("--data", o->data, "labelled dataset(s) (.h5), pooled")->required();
+  calibrate->callback([&g, run, o] {
+    *run = [&g, o] { return RunCalibrate(g, o->model, o->data); };
+  });
+}
+
+}  // namespace sonicboom::experiments

@@ -1,0 +1,76 @@
+// A finished run's calibration refitted on records other than its validation split: e.g. strikes
+// of structures beyond the training pool, or labelled captures of the user's own robot.
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "internal/data.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/learning/learning.h"
+
+namespace sonicboom::learning {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Labelled records with a predictive distribution: the ones a fit can use.
+int64_t UsableRecords(const std::vector<Prediction>& predictions, const FeatureSet& truth) {
+  int64_t n = 0;
+  for (size_t i = 0; i < predictions.size(); ++i) {
+    n += predictions[i].has_uncertainty() && std::isfinite(truth.z_m[i]) &&
+         std::isfinite(truth.theta_rad[i]);
+  }
+  return n;
+}
+
+// The "uncertainty" object of model.json or ensemble.json with `after` and its provenance.
+void StoreScales(nlohmann::json* u, const UncertaintyCalibration& after, const std::string& source,
+                 int64_t records) {
+  (*u)["z_std_scale"] = after.z_std_scale;
+  (*u)["kappa_scale"] = after.kappa_scale;
+  (*u)["method"] = fmt::format(
+      "scales minimizing the mean NLL of {} ({} records; sonicboom calibrate)", source, records);
+  (*u)["records"] = records;
+  (*u)["calibrated_on"] = source;
+}
+
+}  // namespace
+
+Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
+                          const FeatureSet& truth, const std::string& source) {
+  const bool ensemble = !EnsembleMembers(run_dir).empty();
+  const std::string path =
+      (fs::path(run_dir) / (ensemble ? "ensemble.json" : "model.json")).string();
+  if (static_cast<int64_t>(predictions.size()) != truth.size() ||
+      truth.theta_rad.size() != truth.z_m.size()) {
+    throw SchemaError(fmt::format("{}: {} predictions for {} labelled records", path,
+                                  predictions.size(), truth.size()));
+  }
+  const int64_t records = UsableRecords(predictions, truth);
+  if (records == 0) {
+    throw SchemaError(fmt::format(
+        "{}: no labelled record with a predictive distribution to calibrate on ({})", path,
+        source));
+  }
+  nlohmann::json j = internal::ReadJsonFile(path);
+  if (!j.is_object() || !j.contains("uncertainty") || !j["uncertainty"].is_object()) {
+    throw SchemaError(fmt::format("{}: no 'uncertainty' calibration to refit", path));
+  }
+  Recalibration r;
+  r.before = ensemble ? EnsembleCalibration(run_dir)
+                      : internal::ModelFileFromJson(j, path).calibration;
+  r.relative = FitUncertaintyCalibration(predictions, truth);
+  r.after = {r.before.z_std_scale * r.relative.z_std_scale,
+             r.before.kappa_scale * r.relative.kappa_scale};
+  StoreScales(&j["uncertainty"], r.after, source, records);
+  internal::WriteFileAtomically(path, j.dump(2) + "\n");
+  return r;
+}
+
+}  // namespace sonicboom::learning
