@@ -1,10 +1,13 @@
 // The shipped scenario configs (configs/*.yaml) generate small datasets through the CLI.
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <ostream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -167,6 +170,47 @@ TEST(RandomizedPresetTest, LayersOverTs4AndStoresTheDraws) {
   EXPECT_NE(run.exit_code, 0);
   EXPECT_NE(run.err.find("randomize.density_scale"), std::string::npos) << run.err;
   EXPECT_FALSE(fs::exists(bad));
+}
+
+// configs/beyond.yaml (calibration structures beyond the pool) widens every range of the
+// preset it names to 1.5x its width about its centre, in log for the log-uniform scales (integer
+// bolt counts rounded outwards), and resolves over ts4 and the preset.
+TEST(BeyondPresetTest, WidensEachPresetRangeOneAndAHalfTimes) {
+  const YAML::Node preset = YAML::LoadFile(ConfigPath("randomized.yaml"))["randomize"];
+  const YAML::Node beyond = YAML::LoadFile(ConfigPath("beyond.yaml"))["randomize"];
+  const std::set<std::string> log_uniform = {"bolt_stiffness_scale", "flange_mount_scale",
+                                             "tool_mount_scale"};
+  int ranges = 0;
+  for (const auto& entry : beyond) {
+    const std::string key = entry.first.as<std::string>();
+    if (!entry.second.IsSequence()) continue;
+    ASSERT_TRUE(preset[key]) << key << " is not a range of configs/randomized.yaml";
+    const bool log = log_uniform.count(key) > 0;
+    const auto at = [&](const YAML::Node& range, int k) {
+      return log ? std::log(range[k].as<double>()) : range[k].as<double>();
+    };
+    const double lo = at(preset[key], 0), hi = at(preset[key], 1);
+    const double wide_lo = at(entry.second, 0), wide_hi = at(entry.second, 1);
+    const double centre = 0.5 * (lo + hi), half = 0.75 * (hi - lo);
+    if (key == "bolt_count") {
+      EXPECT_EQ(wide_lo, std::floor(centre - half)) << key;
+      EXPECT_EQ(wide_hi, std::ceil(centre + half)) << key;
+    } else {
+      // the file's values carry 3-4 significant digits
+      EXPECT_NEAR(wide_lo, centre - half, 0.002 * (hi - lo) + (log ? 1e-3 : 0.0)) << key;
+      EXPECT_NEAR(wide_hi, centre + half, 0.002 * (hi - lo) + (log ? 1e-3 : 0.0)) << key;
+    }
+    ++ranges;
+  }
+  EXPECT_EQ(ranges, 11);
+  EXPECT_EQ(beyond["structure_variants"].as<int>(), 48);
+  TempDir dir;
+  const auto run = RunCli("--config '" + ConfigPath("ts4.yaml") + "' --config '" +
+                              ConfigPath("randomized.yaml") + "' --config '" +
+                              ConfigPath("beyond.yaml") + "' config",
+                          dir.path().string());
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find("0.0894"), std::string::npos) << run.out;
 }
 
 }  // namespace
