@@ -73,6 +73,21 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
       }
       parameters["total"] = total;
       j["parameters"] = parameters;
+      // the interval scales and what fitted them (the validation split, or `calibrate`'s data)
+      if (localizer.has_uncertainty()) {
+        const learning::UncertaintyCalibration& c = localizer.calibration();
+        const json card = json::parse(
+            ReadText((fs::path(path) / (ensemble ? "ensemble.json" : "model.json")).string()),
+            nullptr, false);
+        std::string source = "validation split";
+        if (card.is_object() && card.contains("uncertainty") &&
+            card["uncertainty"].is_object()) {
+          source = card["uncertainty"].value("calibrated_on", source);
+        }
+        j["calibration"] = {{"z_std_scale", c.z_std_scale},
+                            {"kappa_scale", c.kappa_scale},
+                            {"calibrated_on", source}};
+      }
     }
   } else if (fs::path(path).extension() == ".wav") {
     // a WAV and its label sidecar

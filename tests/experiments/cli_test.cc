@@ -254,6 +254,7 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json card = json::parse(run.out);
   EXPECT_EQ(card["epochs_logged"], 2);
+  EXPECT_EQ(card["calibration"]["calibrated_on"], "D.h5");  // by calibrate, above
   // trainable parameters per part add up to the total
   int64_t sum = 0;
   for (const char* part : {"audio_encoder", "gcc_encoder", "proprio_encoder", "fusion"}) {
@@ -310,6 +311,9 @@ TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_NEAR(json::parse(run.out)["nll"].get<double>(),
               refit["metrics_after"]["nll"].get<double>(), 1e-9);
+  run = RunCli("inspect RUN --json", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json::parse(run.out)["calibration"]["calibrated_on"], "D.h5");
   run = RunCli("inspect RUN --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json card = json::parse(run.out);
