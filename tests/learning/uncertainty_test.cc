@@ -342,14 +342,11 @@ TEST(UncertaintyCalibrationTest, RecalibrateMultipliesTheStoredScalesOfAnEnsembl
   EXPECT_EQ(j["uncertainty"]["records"], 3000);
 }
 
-TEST(UncertaintyCalibrationTest, RecalibrateRefusesWhatItCannotFit) {
+TEST(UncertaintyCalibrationTest, RecalibrateRefusesWhatItCannotFitAndStartsFromScalesOne) {
   testing::TempDir dir;
   const std::string file = dir / "ensemble.json";
   const Synthetic s = MakeSynthetic(10, 37);
   const std::string run = dir.path().string();
-  // no stored calibration to replace
-  WriteTextAtomic(file, R"({"members": ["member0"]})");
-  EXPECT_THROW(Recalibrate(run, s.predictions, s.truth, "x.h5"), SchemaError);
   WriteTextAtomic(file, R"({"members": ["member0"],
                            "uncertainty": {"z_std_scale": 1.0, "kappa_scale": 1.0}})");
   // predictions and labels differ in number
@@ -364,6 +361,12 @@ TEST(UncertaintyCalibrationTest, RecalibrateRefusesWhatItCannotFit) {
   EXPECT_THROW(Recalibrate(run, s.predictions, unlabelled, "x.h5"), SchemaError);
   // and a refused fit leaves the file as it was
   EXPECT_EQ(nlohmann::json::parse(ReadText(file))["uncertainty"].size(), 2u);
+  // a file from before calibration existed holds scales 1: the fit becomes the stored scales
+  WriteTextAtomic(file, R"({"members": ["member0"]})");
+  const Recalibration r = Recalibrate(run, s.predictions, s.truth, "x.h5");
+  EXPECT_EQ(r.before.z_std_scale, 1.0);
+  EXPECT_EQ(r.after.z_std_scale, r.relative.z_std_scale);
+  EXPECT_EQ(EnsembleCalibration(run).kappa_scale, r.relative.kappa_scale);
 }
 
 }  // namespace

@@ -281,9 +281,10 @@ struct Recalibration {
 /// Fits the scales minimizing the mean NLL of `truth` under `predictions` (the run's own
 /// calibrated predictions of those records, Localizer(run_dir).Predict), multiplies them into
 /// the run's stored scales (model.json, or ensemble.json for an ensemble; written atomically)
-/// and records `source` and the record count beside them. Later `train --resume` of the run
-/// refits on its validation split again. SchemaError naming the file when the run has no
-/// stored calibration to replace or no labelled record carries a predictive distribution.
+/// and records `source` and the record count beside them (a file without scales, written
+/// before calibration existed, counts as scales 1). Later `train --resume` of the run refits on
+/// its validation split again. SchemaError naming the file when no labelled record carries a
+/// predictive distribution, or predictions and labels differ in number.
 Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
                           const FeatureSet& truth, const std::string& source);
 
