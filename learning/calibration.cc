@@ -59,11 +59,14 @@ Recalibration Recalibrate(const std::string& run_dir, const std::vector<Predicti
         source));
   }
   nlohmann::json j = internal::ReadJsonFile(path);
+  if (!j.is_object()) throw SchemaError(fmt::format("{}: not a JSON object", path));
   // the stored scales (1 and 1 in a file written before calibration existed)
   Recalibration r;
-  r.before = ensemble ? EnsembleCalibration(run_dir)
-                      : internal::ModelFileFromJson(j, path).calibration;
-  if (!j.contains("uncertainty")) j["uncertainty"] = nlohmann::json::object();
+  if (j.contains("uncertainty")) {
+    r.before = internal::CalibrationFromJson(j["uncertainty"], path);
+  } else {
+    j["uncertainty"] = nlohmann::json::object();
+  }
   r.relative = FitUncertaintyCalibration(predictions, truth);
   r.after = {r.before.z_std_scale * r.relative.z_std_scale,
              r.before.kappa_scale * r.relative.kappa_scale};

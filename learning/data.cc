@@ -414,20 +414,21 @@ ModelFile ModelFileFromJson(const json& j, const std::string& origin) {
   file.seed = j["seed"].get<uint64_t>();
   // Calibration of the predictive distribution; absent in older files (scales stay 1).
   if (j.contains("uncertainty")) {
-    const json& u = j["uncertainty"];
-    auto scale = [&](const char* key) {
-      if (!u.is_object() || !u.contains(key) || !u[key].is_number() ||
-          !std::isfinite(u[key].get<double>()) || !(u[key].get<double>() > 0.0)) {
-        throw SchemaError(
-            fmt::format("{}: 'uncertainty.{}' must be a positive number", origin, key));
-      }
-      return u[key].get<double>();
-    };
-    file.calibration.z_std_scale = scale("z_std_scale");
-    file.calibration.kappa_scale = scale("kappa_scale");
+    file.calibration = CalibrationFromJson(j["uncertainty"], origin);
     file.has_calibration = true;
   }
   return file;
+}
+
+UncertaintyCalibration CalibrationFromJson(const json& u, const std::string& origin) {
+  auto scale = [&](const char* key) {
+    if (!u.is_object() || !u.contains(key) || !u[key].is_number() ||
+        !std::isfinite(u[key].get<double>()) || !(u[key].get<double>() > 0.0)) {
+      throw SchemaError(fmt::format("{}: 'uncertainty.{}' must be a positive number", origin, key));
+    }
+    return u[key].get<double>();
+  };
+  return {scale("z_std_scale"), scale("kappa_scale")};
 }
 
 }  // namespace sonicboom::learning::internal

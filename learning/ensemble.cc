@@ -1,9 +1,7 @@
 // Ensembles: several networks trained alike from their own initializations, one directory that
 // the Localizer loads as one model (ensemble.json naming the member run directories).
 
-#include <cmath>
 #include <filesystem>
-#include <utility>
 #include <string>
 #include <vector>
 
@@ -36,21 +34,10 @@ void WriteEnsembleFile(const std::string& run_dir, const nlohmann::json& names,
 
 UncertaintyCalibration EnsembleCalibration(const std::string& run_dir) {
   const fs::path path = fs::path(run_dir) / "ensemble.json";
-  UncertaintyCalibration c;
-  if (!fs::exists(path)) return c;
+  if (!fs::exists(path)) return {};
   const nlohmann::json j = internal::ReadJsonFile(path.string());
-  if (!j.is_object() || !j.contains("uncertainty")) return c;
-  const nlohmann::json& u = j["uncertainty"];
-  for (auto [key, scale] : {std::pair{"z_std_scale", &c.z_std_scale},
-                            std::pair{"kappa_scale", &c.kappa_scale}}) {
-    if (!u.is_object() || !u.contains(key) || !u[key].is_number() ||
-        !(u[key].get<double>() > 0.0) || !std::isfinite(u[key].get<double>())) {
-      throw SchemaError(fmt::format("{}: uncertainty.{} must be a positive number",
-                                    path.string(), key));
-    }
-    *scale = u[key].get<double>();
-  }
-  return c;
+  if (!j.is_object() || !j.contains("uncertainty")) return {};
+  return internal::CalibrationFromJson(j["uncertainty"], path.string());
 }
 
 std::vector<std::string> EnsembleMembers(const std::string& run_dir) {

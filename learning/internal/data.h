@@ -87,6 +87,11 @@ FeatureSet ShapesFromJson(const nlohmann::json& j, const std::string& origin);
 /// Metrics as JSON (NaN becomes null).
 nlohmann::json MetricsToJson(const Metrics& m);
 
+/// The two scales of an "uncertainty" object (model.json or ensemble.json); SchemaError naming
+/// `origin` and the key when either is not a positive finite number.
+UncertaintyCalibration CalibrationFromJson(const nlohmann::json& uncertainty,
+                                           const std::string& origin);
+
 /// Contents of model.json. "uncertainty" (the calibration) is optional: files of models
 /// without an uncertainty head, and files written before calibration existed, lack it.
 struct ModelFile {
