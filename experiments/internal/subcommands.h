@@ -39,6 +39,7 @@ void RegisterMerge(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterSynth(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterModes(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterVariants(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run);

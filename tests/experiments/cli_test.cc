@@ -28,7 +28,7 @@ TEST(CliTest, HelpListsEverySubcommand) {
   const auto run = RunCli("--help", dir.path().string());
   EXPECT_EQ(run.exit_code, 0);
   for (const char* sub : {"demo", "generate", "synth", "modes", "features", "train", "eval",
-                          "localize", "fk", "inspect", "fidelity", "calibrate"}) {
+                          "localize", "fk", "inspect", "fidelity", "calibrate", "reference"}) {
     EXPECT_NE(run.out.find(sub), std::string::npos) << sub;
   }
 }
@@ -215,8 +215,7 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
                 1e-12 * first["after"][key].get<double>())
         << key;
   }
-  EXPECT_EQ(json::parse(ReadText(dir / "RUN/model.json"))["uncertainty"]["calibrated_on"],
-            "D.h5");
+  EXPECT_EQ(json::parse(ReadText(dir / "RUN/model.json"))["uncertainty"]["calibrated_on"], "D.h5");
   run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_NEAR(json::parse(run.out)["nll"].get<double>(),
@@ -281,8 +280,8 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
 // bad input: non-zero exit, a message naming the culprit, no complete-looking output
 TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   TempDir dir;
-  const std::string tiny = kShort + testing::kTinyModelArgs +
-                           "--set train.epochs=1 --set train.ensemble_members=2 ";
+  const std::string tiny =
+      kShort + testing::kTinyModelArgs + "--set train.epochs=1 --set train.ensemble_members=2 ";
   auto run = RunCli(tiny + "generate --count 20 --out D.h5 -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());

@@ -1,0 +1,275 @@
+// `reference`: the independent solid reference model of the tube (solid/) at successively finer
+// meshes: its modes and the first arrivals of a force pulse at the six discs, with a Richardson
+// error estimate of the finest mesh (docs/reference_model.md).
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <vector>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/experiments/commands.h"
+#include "sonicboom/solid/solid_modes.h"
+#include "sonicboom/solid/solid_response.h"
+#include "sonicboom/solid/solid_tube.h"
+#include "sonicboom/solid/theory.h"
+
+#include "internal/report.h"
+#include "internal/subcommands.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+using nlohmann::json;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+struct ReferenceOptions {
+  TubeEnds ends = TubeEnds::kFree;
+  bool ideal = false;
+  double max_frequency_hz = 20000.0;
+  double element_m = 0.0135;
+  int64_t degree_wall = 4;
+  int64_t degree_thickness = 3;
+  int64_t levels = 3;
+  double ratio = 1.25;
+  std::string out;  // markdown report; "" = print only
+};
+
+// probe strikes (z m, theta deg): inside the contact region, between and in front of discs
+constexpr std::pair<double, double> kProbes[] = {
+    {0.0, 60.0}, {0.05, 180.0}, {-0.07, 300.0}, {0.09, 20.0}};
+
+// the physics of the configured structure (shell section), none of its discretization
+solid::SolidStructure StructureOf(const acoustics::ShellConfig& shell, TubeEnds ends, bool ideal) {
+  solid::SolidStructure s;
+  s.ends = ends;
+  if (ideal || shell.ideal) return s;
+  s.seam_theta_deg = shell.seam_theta_deg;
+  s.bolt_z_m = shell.bolt_z_m;
+  for (size_t b = 0; b < shell.bolt_z_m.size(); ++b) {
+    const double scale = shell.bolt_stiffness_scale.empty() ? 1.0 : shell.bolt_stiffness_scale[b];
+    s.bolt_stiffness_n_m.push_back(shell.bolt_stiffness_n_m * scale);
+  }
+  s.hole_z_m = shell.hole_z_m;
+  s.hole_theta_deg = shell.hole_theta_deg;
+  s.hole_diameter_m = shell.hole_diameter_m;
+  s.flange_mount_stiffness_n_m2 = shell.flange_mount_stiffness_n_m2;
+  s.tool_mount_stiffness_n_m2 = shell.tool_mount_stiffness_n_m2;
+  return s;
+}
+
+struct Level {
+  double h_m{0.0};
+  int64_t dofs{0};
+  double build_s{0.0}, solve_s{0.0};
+  std::vector<double> f_hz;            // elastic modes, ascending
+  std::vector<std::vector<double>> t;  // (probe) x (disc) first arrival, s
+};
+
+Level SolveLevel(const SonicBoomConfig& config, const solid::SolidStructure& structure,
+                 const solid::SolidMeshConfig& mesh, double max_frequency_hz) {
+  Level level;
+  const auto t0 = std::chrono::steady_clock::now();
+  const solid::SolidTubeModel model(config.tube, config.material, structure, mesh);
+  const int probes = static_cast<int>(std::size(kProbes)), discs = config.mics.count();
+  solid::SolidModeRequest request;
+  request.max_frequency_hz = max_frequency_hz;
+  request.with_shapes = false;
+  request.projection_rows.resize(discs + probes, model.dofs());
+  request.projection_rows.topRows(discs) = model.SensorRows(config.mics);
+  for (int p = 0; p < probes; ++p) {
+    request.projection_rows.row(discs + p) =
+        model.RadialForceWeights(kProbes[p].first, kProbes[p].second * kDeg).transpose();
+  }
+  const auto t1 = std::chrono::steady_clock::now();
+  const solid::SolidModes modes = solid::SolveSolidModes(model, request);
+  const auto t2 = std::chrono::steady_clock::now();
+  level.h_m = model.element_length_m();
+  level.dofs = model.dofs();
+  level.build_s = std::chrono::duration<double>(t1 - t0).count();
+  level.solve_s = std::chrono::duration<double>(t2 - t1).count();
+  for (Eigen::Index k = 0; k < modes.omega_rad_s.size(); ++k) {
+    level.f_hz.push_back(modes.omega_rad_s(k) / (2.0 * std::numbers::pi));
+  }
+  solid::PulseResponseConfig pulse;
+  pulse.loss_factor = config.material.loss_factor;
+  for (int p = 0; p < probes; ++p) {
+    const Eigen::MatrixXd y =
+        solid::PulseResponse(modes.omega_rad_s, modes.projections.topRows(discs),
+                             modes.projections.row(discs + p).transpose(), pulse);
+    const Eigen::VectorXd t = solid::ThresholdArrivals(y, pulse.sample_rate_hz, 0.2);
+    level.t.emplace_back(t.data(), t.data() + t.size());
+  }
+  spdlog::info(
+      "reference: h = {:.2f} mm, {} DOFs, {} modes to {} Hz; built in {:.1f} s, solved in "
+      "{:.1f} s",
+      1e3 * level.h_m, level.dofs, level.f_hz.size(), max_frequency_hz, level.build_s,
+      level.solve_s);
+  return level;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
+  const SonicBoomConfig config = Resolve(g);
+  if (o.levels < 3 || o.levels > 6)
+    throw ConfigError(
+        fmt::format("--levels must be in [3, 6] (Richardson needs three), got {}", o.levels));
+  if (!(o.ratio > 1.0 && o.ratio <= 2.0))
+    throw ConfigError(fmt::format("--ratio must be in (1, 2], got {}", o.ratio));
+  if (!(o.max_frequency_hz > 100.0 && o.max_frequency_hz <= 40000.0))
+    throw ConfigError(
+        fmt::format("--max-frequency must be in (100, 40000] Hz, got {}", o.max_frequency_hz));
+  if (!o.out.empty()) {
+    const std::filesystem::path parent = std::filesystem::absolute(o.out).parent_path();
+    if (!std::filesystem::is_directory(parent))
+      throw IoError(fmt::format("--out {}: directory {} does not exist", o.out, parent.string()));
+  }
+  solid::SolidMeshConfig base;
+  base.element_arc_m = o.element_m;
+  base.element_axial_m = o.element_m;
+  base.degree_wall = o.degree_wall;
+  base.degree_thickness = o.degree_thickness;
+  base.Validate(config.tube);
+  const solid::SolidStructure structure = StructureOf(config.shell, o.ends, o.ideal);
+
+  std::vector<Level> levels;
+  for (int64_t l = 0; l < o.levels; ++l) {
+    levels.push_back(
+        SolveLevel(config, structure, base.Refined(std::pow(o.ratio, l)), o.max_frequency_hz));
+  }
+  std::vector<double> h;
+  for (const Level& l : levels) h.push_back(l.h_m);
+
+  // frequencies: modes matched by order, up to the fewest any level found below 0.97 f_max
+  size_t common = levels.front().f_hz.size();
+  for (const Level& l : levels) {
+    common = std::min<size_t>(
+        common,
+        std::lower_bound(l.f_hz.begin(), l.f_hz.end(), 0.97 * o.max_frequency_hz) - l.f_hz.begin());
+  }
+  const std::vector<double> band_edges{0.0, 5000.0, 10000.0, 20000.0, 40000.0};
+  struct Band {
+    std::vector<double> error, order;
+    int non_monotone{0};
+  };
+  std::vector<Band> bands(band_edges.size() - 1);
+  json modes_json = json::array();
+  for (size_t i = 0; i < common; ++i) {
+    std::vector<double> f;
+    for (const Level& l : levels) f.push_back(l.f_hz[i]);
+    const solid::Extrapolation e = solid::Richardson(h, f);
+    const size_t b =
+        std::upper_bound(band_edges.begin(), band_edges.end(), f.back()) - band_edges.begin() - 1;
+    bands[b].error.push_back(e.error / e.limit);
+    bands[b].order.push_back(e.order);
+    if (e.order == 0.0) ++bands[b].non_monotone;
+    modes_json.push_back({{"f_hz", f},
+                          {"limit_hz", e.limit},
+                          {"order", e.order},
+                          {"relative_error", e.error / e.limit}});
+  }
+  // arrivals and inter-disc delays per probe
+  std::vector<double> arrival_err, delay_err;
+  const int discs = config.mics.count();
+  for (size_t p = 0; p < std::size(kProbes); ++p) {
+    for (int a = 0; a < discs; ++a) {
+      std::vector<double> t;
+      for (const Level& l : levels) t.push_back(l.t[p][a]);
+      arrival_err.push_back(solid::Richardson(h, t).error);
+      for (int b = a + 1; b < discs; ++b) {
+        std::vector<double> d;
+        for (const Level& l : levels) d.push_back(l.t[p][a] - l.t[p][b]);
+        delay_err.push_back(solid::Richardson(h, d).error);
+      }
+    }
+  }
+
+  // report
+  std::string md = fmt::format(
+      "Made by `sonicboom reference --boundary {} --max-frequency {} --element-m {} "
+      "--degree-wall {} --degree-thickness {} --levels {} --ratio {}{}` "
+      "(experiments/reference_command.cc).\n\n",
+      NameOf(o.ends), o.max_frequency_hz, o.element_m, o.degree_wall, o.degree_thickness, o.levels,
+      o.ratio, o.ideal ? " --ideal" : "");
+  md += "| mesh h (mm) | DOFs | modes to f_max | build (s) | modes and projections (s) |\n";
+  md += "|---|---|---|---|---|\n";
+  json levels_json = json::array();
+  for (const Level& l : levels) {
+    md += fmt::format("| {:.2f} | {} | {} | {:.1f} | {:.1f} |\n", 1e3 * l.h_m, l.dofs,
+                      l.f_hz.size(), l.build_s, l.solve_s);
+    levels_json.push_back({{"h_m", l.h_m},
+                           {"dofs", l.dofs},
+                           {"build_s", l.build_s},
+                           {"solve_s", l.solve_s},
+                           {"frequencies_hz", l.f_hz},
+                           {"arrivals_s", l.t}});
+  }
+  md += fmt::format(
+      "\nRichardson error estimate of the finest mesh, {} modes matched by order:\n\n"
+      "| band | modes | median error (%) | max error (%) | median order | non-monotone |\n"
+      "|---|---|---|---|---|---|\n",
+      common);
+  json bands_json = json::array();
+  for (size_t b = 0; b < bands.size(); ++b) {
+    if (bands[b].error.empty()) continue;
+    const double max_err = *std::max_element(bands[b].error.begin(), bands[b].error.end());
+    md += fmt::format("| {:.0f}-{:.0f} Hz | {} | {:.4f} | {:.4f} | {:.1f} | {} |\n", band_edges[b],
+                      band_edges[b + 1], bands[b].error.size(), 100.0 * Median(bands[b].error),
+                      100.0 * max_err, Median(bands[b].order), bands[b].non_monotone);
+    bands_json.push_back({{"lo_hz", band_edges[b]},
+                          {"hi_hz", band_edges[b + 1]},
+                          {"modes", bands[b].error.size()},
+                          {"median_relative_error", Median(bands[b].error)},
+                          {"max_relative_error", max_err},
+                          {"non_monotone", bands[b].non_monotone}});
+  }
+  const double arrival_max = *std::max_element(arrival_err.begin(), arrival_err.end());
+  const double delay_max = *std::max_element(delay_err.begin(), delay_err.end());
+  md += fmt::format(
+      "\nFirst arrivals (20 % of each disc's peak strain; a {:.2f} ms half-sine pulse at {} probe "
+      "points, loss factor {}) at the {} discs: Richardson error of the finest mesh median {:.2f} "
+      "us, max {:.2f} us; inter-disc delays median {:.2f} us, max {:.2f} us.\n",
+      0.25, std::size(kProbes), config.material.loss_factor, discs, 1e6 * Median(arrival_err),
+      1e6 * arrival_max, 1e6 * Median(delay_err), 1e6 * delay_max);
+  if (!o.out.empty()) WriteTextAtomic(o.out, md);
+  json j = {{"levels", levels_json},
+            {"bands", bands_json},
+            {"modes", modes_json},
+            {"arrival_error_s", {{"median", Median(arrival_err)}, {"max", arrival_max}}},
+            {"delay_error_s", {{"median", Median(delay_err)}, {"max", delay_max}}}};
+  return {j.dump(), md};
+}
+
+void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto o = std::make_shared<ReferenceOptions>();
+  auto* cmd = app.add_subcommand(
+      "reference",
+      "the independent 3-D solid model of the tube: convergence of modes and arrivals");
+  AddEnumOption(cmd, "--boundary", &o->ends, "free | simply-supported");
+  cmd->add_flag("--ideal", o->ideal, "ideal uniform tube (no seam, holes, bolts or mounts)");
+  cmd->add_option("--max-frequency", o->max_frequency_hz, "modes up to this frequency (Hz)");
+  cmd->add_option("--element-m", o->element_m, "element length of the coarsest mesh (m)");
+  cmd->add_option("--degree-wall", o->degree_wall, "GLL degree along the wall");
+  cmd->add_option("--degree-thickness", o->degree_thickness, "GLL degree through the wall");
+  cmd->add_option("--levels", o->levels, "meshes, each --ratio finer than the last");
+  cmd->add_option("--ratio", o->ratio, "refinement ratio between levels");
+  cmd->add_option("--out", o->out, "markdown report (\"\" = print only)");
+  cmd->callback([&g, run, o] { *run = [&g, o] { return RunReference(g, *o); }; });
+}
+
+}  // namespace sonicboom::experiments

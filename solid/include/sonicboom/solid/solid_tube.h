@@ -1,0 +1,134 @@
+#pragma once
+/// The independent reference model of the tube: a 3-D linear-elastic solid (no shell theory:
+/// transverse shear, rotary inertia and thickness stretch come with it) on hexahedral spectral
+/// elements in cylindrical coordinates (docs/reference_model.md). It shares the tube's geometry,
+/// material and structure description with the shell model (acoustics/shell.h), nothing of its
+/// discretization.
+///
+/// Mesh: elements are exact cylindrical sectors (theta x z x r). Each element carries a tensor
+/// grid of Gauss-Lobatto-Legendre points, degree_wall along the arc and the axis and
+/// degree_thickness through the wall; nodes are the quadrature points, so the mass matrix is
+/// diagonal. Unknowns are the Cartesian displacements (u_x, u_y, u_z) of every node, tube frame.
+///
+/// Structure: a seam is a cut through the wall at a fixed theta (element boundaries are placed on
+/// it and its node columns doubled), bridged by bolts: three springs (x, y, z) of the bolt's
+/// stiffness between the two faces at the node row nearest the bolt, shared by the nodes through
+/// the wall. A hole takes its material out of the quadrature points that lie inside it (their mass
+/// and stiffness weights times kHoleFill). Mounts are springs to ground in every direction,
+/// per metre of the end rim. Simply supported ends hold u_x = u_y = 0 (radial and arc motion) on
+/// the end faces and leave u_z free (a shear diaphragm).
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "sonicboom/core/archive.h"
+#include "sonicboom/core/tube.h"
+
+namespace sonicboom::solid {
+
+/// Fraction of the material a quadrature point inside a hole keeps (a void would leave nodes with
+/// no mass; this keeps them, with the wave speed of the wall, far above the audio band).
+inline constexpr double kHoleFill = 1e-4;
+
+/// Keys under "reference": the discretization of the reference model.
+struct SolidMeshConfig {
+  double element_arc_m{0.0135};    // target element length along the mid-surface arc
+  double element_axial_m{0.0135};  // target element length along the axis
+  int64_t degree_wall{4};          // GLL degree along the arc and the axis
+  int64_t degree_thickness{3};     // GLL degree through the wall
+  int64_t elements_through{1};     // elements through the wall
+
+  void Serialize(Archive* a);
+  /// Cross-field checks against the tube; throws ConfigError naming the key.
+  void Validate(const TubeConfig& tube) const;
+  /// The same mesh with every element length divided by `factor` (h-refinement).
+  SolidMeshConfig Refined(double factor) const;
+};
+
+/// The structure of the configured tube: the keys of the shell model's "shell" section that are
+/// physics (seams, bolts, holes, mounts, ends), not discretization.
+struct SolidStructure {
+  TubeEnds ends{TubeEnds::kFree};
+  std::vector<double> seam_theta_deg;      // saw cuts through the wall
+  std::vector<double> bolt_z_m;            // bolts along every seam, tube frame
+  std::vector<double> bolt_stiffness_n_m;  // per bolt, per direction
+  std::vector<double> hole_z_m, hole_theta_deg;
+  double hole_diameter_m{0.0};
+  double flange_mount_stiffness_n_m2{0.0};  // springs to ground per metre of the z = -L/2 rim
+  double tool_mount_stiffness_n_m2{0.0};    // the same at z = +L/2
+};
+
+/// Immutable mesh, K and M of the solid tube. Thread-safe to share.
+class SolidTubeModel {
+ public:
+  SolidTubeModel(const TubeConfig& tube, const MaterialConfig& material,
+                 const SolidStructure& structure, const SolidMeshConfig& mesh);
+
+  int64_t dofs() const { return static_cast<int64_t>(mass_kg_.size()); }
+  int64_t nodes() const { return static_cast<int64_t>(node_dof_.size()) / 3; }
+  int64_t elements() const { return static_cast<int64_t>(elements_.size()); }
+  /// (dofs x dofs) stiffness, N/m, symmetric, both triangles stored.
+  const Eigen::SparseMatrix<double>& stiffness() const { return stiffness_; }
+  /// (dofs) diagonal (GLL-lumped) mass, kg.
+  const Eigen::VectorXd& mass_kg() const { return mass_kg_; }
+  /// (dofs x dofs) M^-1/2 K M^-1/2, 1/s^2: its eigenvalues are omega^2.
+  Eigen::SparseMatrix<double> MassScaledStiffness() const;
+
+  /// (dofs) loads of a unit outward radial point force on the outer surface at (z, theta), tube
+  /// frame (the spectral interpolation of the element holding the point); its transpose reads
+  /// the outward displacement there. Throws ConfigError off the tube.
+  Eigen::VectorXd RadialForceWeights(double z_m, double theta_rad) const;
+  /// (dofs) output of a piezo disc of diameter d centred at (z, theta) on the outer surface: the
+  /// in-plane strain eps_zz + eps_thth averaged over the disc (a polar quadrature of the disc).
+  /// Unit: strain per m of the DOFs.
+  Eigen::VectorXd SensorRow(double z_m, double theta_rad, double diameter_m) const;
+  /// (count x dofs) SensorRow of every disc of the array.
+  Eigen::MatrixXd SensorRows(const MicArrayConfig& mics) const;
+  /// (dofs) a displacement field u(x) (m, tube frame) sampled at the nodes (held components
+  /// left out): the spectral interpolation of the field.
+  Eigen::VectorXd Sample(const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& field) const;
+  /// Total kinetic energy 1/2 v^T M v (J) of a velocity vector (m/s per DOF).
+  double KineticEnergy(const Eigen::VectorXd& v_m_s) const;
+  /// The mean element length along the arc and the axis (the h of h-refinement), m.
+  double element_length_m() const { return element_length_m_; }
+
+  const TubeConfig& tube() const { return tube_; }
+  const MaterialConfig& material() const { return material_; }
+  const SolidStructure& structure() const { return structure_; }
+  const SolidMeshConfig& mesh() const { return mesh_; }
+
+ private:
+  struct Element {
+    double theta0_rad, dtheta_rad;  // arc span
+    double z0_m, dz_m;              // axial span
+    double r0_m, dr_m;              // radial span
+    std::vector<int64_t> nodes;     // ((k * (p+1) + j) * (p+1) + i): i arc, j axial, k radial
+  };
+  void BuildMesh();
+  void Assemble();
+  void AddSprings();
+  // the element holding the outer-surface point (z, theta) and its reference coordinates there
+  const Element& Locate(double z_m, double theta_rad, double* xi, double* eta) const;
+  // d(strain)/d(u) of the outer-surface in-plane strain eps_zz + eps_thth at reference point
+  // (xi, eta, zeta = 1) of element e, added into row with weight `scale`
+  void AddSurfaceStrain(const Element& e, double xi, double eta, double scale,
+                        Eigen::VectorXd* row) const;
+
+  TubeConfig tube_;
+  MaterialConfig material_;
+  SolidStructure structure_;
+  SolidMeshConfig mesh_;
+  std::vector<Element> elements_;
+  std::vector<int64_t> node_dof_;  // (nodes x 3) DOF of each Cartesian component, -1 when held
+  std::vector<Eigen::Vector3d> node_position_m_;
+  Eigen::VectorXd mass_kg_;
+  Eigen::SparseMatrix<double> stiffness_;
+  double element_length_m_{0.0};
+  int rows_{0}, layers_{0};               // axial node rows, radial node layers
+  std::vector<double> column_theta_rad_;  // arc node columns
+};
+
+}  // namespace sonicboom::solid

@@ -1,0 +1,542 @@
+#include "sonicboom/solid/solid_tube.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/solid/gll.h"
+
+namespace sonicboom::solid {
+namespace {
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+// theta in [start, start + 2 pi)
+double WrapFrom(double theta_rad, double start_rad) {
+  double t = std::fmod(theta_rad - start_rad, kTwoPi);
+  if (t < 0.0) t += kTwoPi;
+  return start_rad + t;
+}
+
+}  // namespace
+
+void SolidMeshConfig::Serialize(Archive* a) {
+  a->Visit("element_arc_m", &element_arc_m, Bounds::Open(0.0, 1.0));
+  a->Visit("element_axial_m", &element_axial_m, Bounds::Open(0.0, 1.0));
+  a->Visit("degree_wall", &degree_wall, Bounds::Closed(1, 12));
+  a->Visit("degree_thickness", &degree_thickness, Bounds::Closed(1, 12));
+  a->Visit("elements_through", &elements_through, Bounds::Closed(1, 8));
+}
+
+void SolidMeshConfig::Validate(const TubeConfig& tube) const {
+  const double arc = std::numbers::pi * tube.mid_radius_m();
+  if (element_arc_m > arc) {
+    throw ConfigError(fmt::format(
+        "reference.element_arc_m = {} m is longer than half the mid-surface circumference ({} m)",
+        element_arc_m, arc));
+  }
+  if (element_axial_m > tube.length_m) {
+    throw ConfigError(fmt::format("reference.element_axial_m = {} m is longer than the tube ({} m)",
+                                  element_axial_m, tube.length_m));
+  }
+  if (degree_wall < 1 || degree_wall > 12 || degree_thickness < 1 || degree_thickness > 12) {
+    throw ConfigError(fmt::format(
+        "reference.degree_wall = {} and reference.degree_thickness = {} must lie in [1, 12]",
+        degree_wall, degree_thickness));
+  }
+  if (elements_through < 1 || elements_through > 8) {
+    throw ConfigError(
+        fmt::format("reference.elements_through = {} must lie in [1, 8]", elements_through));
+  }
+}
+
+SolidMeshConfig SolidMeshConfig::Refined(double factor) const {
+  SolidMeshConfig out = *this;
+  out.element_arc_m /= factor;
+  out.element_axial_m /= factor;
+  return out;
+}
+
+SolidTubeModel::SolidTubeModel(const TubeConfig& tube, const MaterialConfig& material,
+                               const SolidStructure& structure, const SolidMeshConfig& mesh)
+    : tube_(tube), material_(material), structure_(structure), mesh_(mesh) {
+  tube_.Validate();
+  mesh_.Validate(tube_);
+  if (structure_.bolt_stiffness_n_m.size() != structure_.bolt_z_m.size()) {
+    throw ConfigError(fmt::format("reference structure: {} bolt stiffnesses for {} bolts",
+                                  structure_.bolt_stiffness_n_m.size(),
+                                  structure_.bolt_z_m.size()));
+  }
+  if (structure_.hole_z_m.size() != structure_.hole_theta_deg.size()) {
+    throw ConfigError("reference structure: hole_z_m and hole_theta_deg differ in length");
+  }
+  BuildMesh();
+  Assemble();
+  AddSprings();
+}
+
+void SolidTubeModel::BuildMesh() {
+  const int p = static_cast<int>(mesh_.degree_wall);
+  const int q = static_cast<int>(mesh_.degree_thickness);
+  const int nr = static_cast<int>(mesh_.elements_through);
+  const GllRule wall = MakeGllRule(p), thick = MakeGllRule(q);
+  const double r_mid = tube_.mid_radius_m(), h = tube_.wall_thickness_m;
+  const double r_in = tube_.outer_radius_m - h;
+
+  // axial rows and radial layers: GLL points of each element, shared at element boundaries
+  const int nz = std::max(1, static_cast<int>(std::lround(tube_.length_m / mesh_.element_axial_m)));
+  const double dz = tube_.length_m / nz, dr = h / nr;
+  rows_ = nz * p + 1;
+  layers_ = nr * q + 1;
+
+  // arc sectors between seams (one periodic sector for an uncut tube)
+  std::vector<double> seams;
+  for (double s : structure_.seam_theta_deg)
+    seams.push_back(WrapFrom(s * std::numbers::pi / 180.0, 0.0));
+  std::sort(seams.begin(), seams.end());
+  seams.erase(std::unique(seams.begin(), seams.end()), seams.end());
+  const bool periodic = seams.empty();
+  if (periodic) seams.push_back(0.0);
+  struct Sector {
+    double theta0, span;
+    int elements, first_column;
+  };
+  std::vector<Sector> sectors;
+  int columns = 0;
+  for (size_t s = 0; s < seams.size(); ++s) {
+    const double next = s + 1 < seams.size() ? seams[s + 1] : seams[0] + kTwoPi;
+    const double span = next - seams[s];
+    const int ne = std::max(1, static_cast<int>(std::lround(span * r_mid / mesh_.element_arc_m)));
+    sectors.push_back({seams[s], span, ne, columns});
+    columns += ne * p + (periodic ? 0 : 1);
+  }
+  column_theta_rad_.assign(columns, 0.0);
+  auto column_of = [&](const Sector& sec, int e, int i) {
+    const int c = e * p + i;
+    return periodic ? c % columns : sec.first_column + c;
+  };
+
+  // elements, their nodes, and the node positions
+  const int64_t nodes_total = static_cast<int64_t>(columns) * rows_ * layers_;
+  node_position_m_.assign(nodes_total, Eigen::Vector3d::Zero());
+  double arc_sum = 0.0;
+  int arc_count = 0;
+  for (const Sector& sec : sectors) {
+    const double dth = sec.span / sec.elements;
+    arc_sum += dth * sec.elements;
+    arc_count += sec.elements;
+    for (int e = 0; e < sec.elements; ++e) {
+      for (int ez = 0; ez < nz; ++ez) {
+        for (int er = 0; er < nr; ++er) {
+          Element el{sec.theta0 + e * dth,
+                     dth,
+                     -0.5 * tube_.length_m + ez * dz,
+                     dz,
+                     r_in + er * dr,
+                     dr,
+                     {}};
+          el.nodes.reserve((p + 1) * (p + 1) * (q + 1));
+          for (int k = 0; k <= q; ++k) {
+            for (int j = 0; j <= p; ++j) {
+              for (int i = 0; i <= p; ++i) {
+                const int c = column_of(sec, e, i);
+                const int row = ez * p + j, layer = er * q + k;
+                const int64_t node = (static_cast<int64_t>(layer) * rows_ + row) * columns + c;
+                const double th = el.theta0_rad + 0.5 * (wall.points(i) + 1.0) * dth;
+                const double z = el.z0_m + 0.5 * (wall.points(j) + 1.0) * dz;
+                const double r = el.r0_m + 0.5 * (thick.points(k) + 1.0) * dr;
+                column_theta_rad_[c] = th;
+                node_position_m_[node] = {r * std::cos(th), r * std::sin(th), z};
+                el.nodes.push_back(node);
+              }
+            }
+          }
+          elements_.push_back(std::move(el));
+        }
+      }
+    }
+  }
+  element_length_m_ = 0.5 * (arc_sum * r_mid / arc_count + dz);
+
+  // DOFs: three per node; simply supported end faces hold u_x and u_y
+  node_dof_.assign(3 * nodes_total, -1);
+  int64_t next = 0;
+  for (int64_t node = 0; node < nodes_total; ++node) {
+    const int row = static_cast<int>((node / columns) % rows_);
+    const bool end = row == 0 || row == rows_ - 1;
+    for (int d = 0; d < 3; ++d) {
+      if (structure_.ends == TubeEnds::kSimplySupported && end && d < 2) continue;
+      node_dof_[3 * node + d] = next++;
+    }
+  }
+}
+
+void SolidTubeModel::Assemble() {
+  const int p = static_cast<int>(mesh_.degree_wall);
+  const int q = static_cast<int>(mesh_.degree_thickness);
+  const GllRule wall = MakeGllRule(p), thick = MakeGllRule(q);
+  const double e_mod = material_.youngs_modulus_pa, nu = material_.poisson_ratio;
+  const double lambda = e_mod * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  const double mu = e_mod / (2.0 * (1.0 + nu));
+  const double rho = material_.density_kg_m3;
+  const double r_out = tube_.outer_radius_m;
+  const int n_local = (p + 1) * (p + 1) * (q + 1);
+  const int64_t n_dofs = *std::max_element(node_dof_.begin(), node_dof_.end()) + 1;
+  mass_kg_ = Eigen::VectorXd::Zero(n_dofs);
+
+  // holes: each quadrature point keeps the material of the part of its cell (the span halfway to
+  // its neighbours along the arc and the axis) that lies outside every hole, sampled on an 8 x 8
+  // sub-grid, so the removed area converges with the mesh
+  const double hole_r = 0.5 * structure_.hole_diameter_m;
+  auto in_hole = [&](double z, double th) {
+    for (size_t h = 0; h < structure_.hole_z_m.size(); ++h) {
+      const double dth =
+          WrapFrom(th - structure_.hole_theta_deg[h] * std::numbers::pi / 180.0, -std::numbers::pi);
+      const double dz = z - structure_.hole_z_m[h];
+      if (dz * dz + (r_out * dth) * (r_out * dth) < hole_r * hole_r) return true;
+    }
+    return false;
+  };
+  auto cell = [&](int i, double x0, double span, double* lo, double* hi) {
+    const double a = i > 0 ? 0.5 * (wall.points(i - 1) + wall.points(i)) : -1.0;
+    const double b = i < p ? 0.5 * (wall.points(i) + wall.points(i + 1)) : 1.0;
+    *lo = x0 + 0.5 * (a + 1.0) * span;
+    *hi = x0 + 0.5 * (b + 1.0) * span;
+  };
+  auto fill = [&](const Element& el, int i, int j) {
+    if (structure_.hole_z_m.empty()) return 1.0;
+    double th0, th1, z0, z1;
+    cell(i, el.theta0_rad, el.dtheta_rad, &th0, &th1);
+    cell(j, el.z0_m, el.dz_m, &z0, &z1);
+    constexpr int kSub = 8;
+    int inside = 0;
+    for (int a = 0; a < kSub; ++a) {
+      for (int b = 0; b < kSub; ++b) {
+        inside += in_hole(z0 + (b + 0.5) / kSub * (z1 - z0), th0 + (a + 0.5) / kSub * (th1 - th0));
+      }
+    }
+    const double open = static_cast<double>(inside) / (kSub * kSub);
+    return 1.0 - open * (1.0 - kHoleFill);
+  };
+  auto local = [&](int i, int j, int k) { return (k * (p + 1) + j) * (p + 1) + i; };
+
+  // element matrices in chunks of elements, each chunk summed into its own sparse matrix
+  constexpr int64_t kChunk = 64;
+  const int64_t n_elements = elements();
+  const int64_t n_chunks = (n_elements + kChunk - 1) / kChunk;
+  std::vector<Eigen::SparseMatrix<double>> parts(n_chunks);
+  std::vector<Eigen::VectorXd> masses(n_chunks);
+  tbb::parallel_for(int64_t{0}, n_chunks, [&](int64_t chunk) {
+    std::vector<Eigen::Triplet<double>> triplets;
+    Eigen::VectorXd mass = Eigen::VectorXd::Zero(n_dofs);
+    Eigen::MatrixXd ke(3 * n_local, 3 * n_local);
+    std::vector<std::pair<int, Eigen::Vector3d>> line;  // (local node, physical gradient 1/m)
+    for (int64_t ei = chunk * kChunk; ei < std::min(n_elements, (chunk + 1) * kChunk); ++ei) {
+      const Element& el = elements_[ei];
+      ke.setZero();
+      for (int k = 0; k <= q; ++k) {
+        for (int j = 0; j <= p; ++j) {
+          for (int i = 0; i <= p; ++i) {
+            const double th = el.theta0_rad + 0.5 * (wall.points(i) + 1.0) * el.dtheta_rad;
+            const double r = el.r0_m + 0.5 * (thick.points(k) + 1.0) * el.dr_m;
+            const Eigen::Vector3d e_r(std::cos(th), std::sin(th), 0.0);
+            const Eigen::Vector3d e_th(-std::sin(th), std::cos(th), 0.0);
+            const Eigen::Vector3d e_z(0.0, 0.0, 1.0);
+            // quadrature weight times the Jacobian r (dth/2)(dz/2)(dr/2), times the hole fill
+            const double w = wall.weights(i) * wall.weights(j) * thick.weights(k) * r * 0.125 *
+                             el.dtheta_rad * el.dz_m * el.dr_m * fill(el, i, j);
+            const int qn = local(i, j, k);
+            for (int d = 0; d < 3; ++d) {
+              const int64_t dof = node_dof_[3 * el.nodes[qn] + d];
+              if (dof >= 0) mass(dof) += rho * w;
+            }
+            // basis gradients at this point: only the nodes on its three grid lines
+            line.clear();
+            const Eigen::Vector3d g_th = e_th * (2.0 / (r * el.dtheta_rad));
+            const Eigen::Vector3d g_z = e_z * (2.0 / el.dz_m);
+            const Eigen::Vector3d g_r = e_r * (2.0 / el.dr_m);
+            line.emplace_back(qn, wall.derivative(i, i) * g_th + wall.derivative(j, j) * g_z +
+                                      thick.derivative(k, k) * g_r);
+            for (int a = 0; a <= p; ++a) {
+              if (a != i) line.emplace_back(local(a, j, k), wall.derivative(i, a) * g_th);
+              if (a != j) line.emplace_back(local(i, a, k), wall.derivative(j, a) * g_z);
+            }
+            for (int a = 0; a <= q; ++a) {
+              if (a != k) line.emplace_back(local(i, j, a), thick.derivative(k, a) * g_r);
+            }
+            // isotropic elasticity: K_(a i)(b j) += w [lambda g_a,i g_b,j + mu g_a,j g_b,i
+            // + mu delta_ij g_a . g_b]
+            for (const auto& [a, ga] : line) {
+              for (const auto& [b, gb] : line) {
+                const Eigen::Matrix3d block =
+                    w * (lambda * ga * gb.transpose() + mu * gb * ga.transpose() +
+                         mu * ga.dot(gb) * Eigen::Matrix3d::Identity());
+                ke.block<3, 3>(3 * a, 3 * b) += block;
+              }
+            }
+          }
+        }
+      }
+      for (int a = 0; a < n_local; ++a) {
+        for (int da = 0; da < 3; ++da) {
+          const int64_t row = node_dof_[3 * el.nodes[a] + da];
+          if (row < 0) continue;
+          for (int b = 0; b < n_local; ++b) {
+            for (int db = 0; db < 3; ++db) {
+              const int64_t col = node_dof_[3 * el.nodes[b] + db];
+              const double v = ke(3 * a + da, 3 * b + db);
+              if (col >= 0 && v != 0.0) triplets.emplace_back(row, col, v);
+            }
+          }
+        }
+      }
+    }
+    parts[chunk].resize(n_dofs, n_dofs);
+    parts[chunk].setFromTriplets(triplets.begin(), triplets.end());
+    masses[chunk] = std::move(mass);
+  });
+  // sum the chunks in order (the same sums for any thread count)
+  stiffness_.resize(n_dofs, n_dofs);
+  for (int64_t c = 0; c < n_chunks; ++c) {
+    stiffness_ += parts[c];
+    mass_kg_ += masses[c];
+    parts[c] = Eigen::SparseMatrix<double>();
+  }
+}
+
+void SolidTubeModel::AddSprings() {
+  const int q = static_cast<int>(mesh_.degree_thickness);
+  const GllRule wall = MakeGllRule(static_cast<int>(mesh_.degree_wall)), thick = MakeGllRule(q);
+  const int columns = static_cast<int>(column_theta_rad_.size());
+  const int64_t n_dofs = dofs();
+  // share of the wall each node layer stands for (thickness quadrature weights, sum 1)
+  std::vector<double> layer_share(layers_, 0.0);
+  for (int64_t er = 0; er < mesh_.elements_through; ++er) {
+    for (int k = 0; k <= q; ++k) {
+      layer_share[er * q + k] += 0.5 * thick.weights(k) / mesh_.elements_through;
+    }
+  }
+  auto node_at = [&](int layer, int row, int column) {
+    return (static_cast<int64_t>(layer) * rows_ + row) * columns + column;
+  };
+  std::vector<Eigen::Triplet<double>> triplets;
+  auto spring = [&](int64_t node_a, int64_t node_b, double k) {
+    for (int d = 0; d < 3; ++d) {
+      const int64_t a = node_dof_[3 * node_a + d];
+      const int64_t b = node_b >= 0 ? node_dof_[3 * node_b + d] : -1;
+      if (a >= 0) triplets.emplace_back(a, a, k);
+      if (b >= 0) triplets.emplace_back(b, b, k);
+      if (a >= 0 && b >= 0) {
+        triplets.emplace_back(a, b, -k);
+        triplets.emplace_back(b, a, -k);
+      }
+    }
+  };
+
+  // bolts: across each seam, between the last column before it and the first after it
+  const double z_first = -0.5 * tube_.length_m;
+  const int p = static_cast<int>(mesh_.degree_wall);
+  const int nz = (rows_ - 1) / p;
+  const double dz = tube_.length_m / nz;
+  if (!structure_.seam_theta_deg.empty()) {
+    // column c ends a sector where column c + 1 starts the next at the same theta
+    for (int c = 0; c < columns; ++c) {
+      const int next = (c + 1) % columns;
+      const double gap = std::abs(WrapFrom(column_theta_rad_[next] - column_theta_rad_[c], -1.0));
+      if (gap > 1e-12) continue;
+      for (size_t b = 0; b < structure_.bolt_z_m.size(); ++b) {
+        // the bolt acts at its own z: each face's displacement there is interpolated along the
+        // axis (Lagrange basis of the element row holding z), so it moves with no mesh row
+        const double z = structure_.bolt_z_m[b];
+        const int ez = std::clamp(static_cast<int>((z - z_first) / dz), 0, nz - 1);
+        Eigen::VectorXd l, dl;
+        LagrangeBasis(wall, 2.0 * (z - (z_first + ez * dz)) / dz - 1.0, &l, &dl);
+        for (int layer = 0; layer < layers_; ++layer) {
+          const double k = structure_.bolt_stiffness_n_m[b] * layer_share[layer];
+          for (int d = 0; d < 3; ++d) {
+            // dofs and weights of (face c) - (face next) at z
+            std::vector<std::pair<int64_t, double>> terms;
+            for (int j = 0; j <= p; ++j) {
+              const int row = ez * p + j;
+              const int64_t a = node_dof_[3 * node_at(layer, row, c) + d];
+              const int64_t bb = node_dof_[3 * node_at(layer, row, next) + d];
+              if (a >= 0) terms.emplace_back(a, l(j));
+              if (bb >= 0) terms.emplace_back(bb, -l(j));
+            }
+            for (const auto& [ra, wa] : terms) {
+              for (const auto& [rb, wb] : terms) triplets.emplace_back(ra, rb, k * wa * wb);
+            }
+          }
+        }
+      }
+    }
+  }
+
+  // mounts: springs to ground along each end rim, by the arc each node column stands for
+  std::vector<double> column_arc_m(columns, 0.0);
+  for (const Element& el : elements_) {
+    if (el.z0_m > z_first + 1e-12 ||
+        el.r0_m > tube_.outer_radius_m - tube_.wall_thickness_m + 1e-12)
+      continue;  // one element per arc span: the first axial, innermost
+    for (int i = 0; i <= p; ++i) {
+      const int c = static_cast<int>(el.nodes[i] % columns);
+      column_arc_m[c] += 0.5 * wall.weights(i) * el.dtheta_rad * tube_.mid_radius_m();
+    }
+  }
+  for (const auto& [row, k_per_m] : {std::pair{0, structure_.flange_mount_stiffness_n_m2},
+                                     std::pair{rows_ - 1, structure_.tool_mount_stiffness_n_m2}}) {
+    if (k_per_m <= 0.0) continue;
+    for (int c = 0; c < columns; ++c) {
+      for (int layer = 0; layer < layers_; ++layer) {
+        spring(node_at(layer, row, c), -1, k_per_m * column_arc_m[c] * layer_share[layer]);
+      }
+    }
+  }
+  if (triplets.empty()) return;
+  Eigen::SparseMatrix<double> springs(n_dofs, n_dofs);
+  springs.setFromTriplets(triplets.begin(), triplets.end());
+  stiffness_ += springs;
+  stiffness_.makeCompressed();
+}
+
+Eigen::SparseMatrix<double> SolidTubeModel::MassScaledStiffness() const {
+  const Eigen::VectorXd s = mass_kg_.cwiseSqrt().cwiseInverse();
+  Eigen::SparseMatrix<double> a = s.asDiagonal() * stiffness_ * s.asDiagonal();
+  a.makeCompressed();
+  return a;
+}
+
+const SolidTubeModel::Element& SolidTubeModel::Locate(double z_m, double theta_rad, double* xi,
+                                                      double* eta) const {
+  const double half = 0.5 * tube_.length_m;
+  if (!(std::abs(z_m) <= half)) {
+    throw ConfigError(
+        fmt::format("reference model: z = {} m lies off the tube (|z| <= {} m)", z_m, half));
+  }
+  const double r_outer_in = tube_.outer_radius_m - 1e-9;
+  for (const Element& el : elements_) {
+    if (el.r0_m + el.dr_m < r_outer_in) continue;  // outer layer only
+    const double th = WrapFrom(theta_rad, el.theta0_rad);
+    if (th > el.theta0_rad + el.dtheta_rad + 1e-12) continue;
+    if (z_m < el.z0_m - 1e-12 || z_m > el.z0_m + el.dz_m + 1e-12) continue;
+    *xi = std::clamp(2.0 * (th - el.theta0_rad) / el.dtheta_rad - 1.0, -1.0, 1.0);
+    *eta = std::clamp(2.0 * (z_m - el.z0_m) / el.dz_m - 1.0, -1.0, 1.0);
+    return el;
+  }
+  SONICBOOM_DEMAND(false && "every surface point lies in an element");
+  return elements_.front();
+}
+
+Eigen::VectorXd SolidTubeModel::RadialForceWeights(double z_m, double theta_rad) const {
+  const int p = static_cast<int>(mesh_.degree_wall), q = static_cast<int>(mesh_.degree_thickness);
+  const GllRule wall = MakeGllRule(p);
+  double xi, eta;
+  const Element& el = Locate(z_m, theta_rad, &xi, &eta);
+  Eigen::VectorXd li, dli, lj, dlj;
+  LagrangeBasis(wall, xi, &li, &dli);
+  LagrangeBasis(wall, eta, &lj, &dlj);
+  const Eigen::Vector3d normal(std::cos(theta_rad), std::sin(theta_rad), 0.0);
+  Eigen::VectorXd row = Eigen::VectorXd::Zero(dofs());
+  for (int j = 0; j <= p; ++j) {
+    for (int i = 0; i <= p; ++i) {
+      const int64_t node = el.nodes[(q * (p + 1) + j) * (p + 1) + i];  // outer layer, k = q
+      for (int d = 0; d < 3; ++d) {
+        const int64_t dof = node_dof_[3 * node + d];
+        if (dof >= 0) row(dof) += li(i) * lj(j) * normal(d);
+      }
+    }
+  }
+  return row;
+}
+
+void SolidTubeModel::AddSurfaceStrain(const Element& el, double xi, double eta, double scale,
+                                      Eigen::VectorXd* row) const {
+  const int p = static_cast<int>(mesh_.degree_wall), q = static_cast<int>(mesh_.degree_thickness);
+  const GllRule wall = MakeGllRule(p), thick = MakeGllRule(q);
+  Eigen::VectorXd li, dli, lj, dlj;
+  LagrangeBasis(wall, xi, &li, &dli);
+  LagrangeBasis(wall, eta, &lj, &dlj);
+  const double th = el.theta0_rad + 0.5 * (xi + 1.0) * el.dtheta_rad;
+  const double r = el.r0_m + el.dr_m;
+  const Eigen::Vector3d e_r(std::cos(th), std::sin(th), 0.0),
+      e_th(-std::sin(th), std::cos(th), 0.0);
+  const Eigen::Vector3d e_z(0.0, 0.0, 1.0);
+  for (int k = 0; k <= q; ++k) {
+    const double lk = k == q ? 1.0 : 0.0;       // l_k(1)
+    const double dlk = thick.derivative(q, k);  // l_k'(1)
+    for (int j = 0; j <= p; ++j) {
+      for (int i = 0; i <= p; ++i) {
+        const Eigen::Vector3d g = e_th * (2.0 / (r * el.dtheta_rad)) * dli(i) * lj(j) * lk +
+                                  e_z * (2.0 / el.dz_m) * li(i) * dlj(j) * lk +
+                                  e_r * (2.0 / el.dr_m) * li(i) * lj(j) * dlk;
+        if (g.isZero(0.0)) continue;
+        // eps_zz + eps_thth = sum_a (e_z . u_a)(e_z . g_a) + (e_th . u_a)(e_th . g_a)
+        const Eigen::Vector3d c = e_z * g.z() + e_th * e_th.dot(g);
+        const int64_t node = el.nodes[(k * (p + 1) + j) * (p + 1) + i];
+        for (int d = 0; d < 3; ++d) {
+          const int64_t dof = node_dof_[3 * node + d];
+          if (dof >= 0) (*row)(dof) += scale * c(d);
+        }
+      }
+    }
+  }
+}
+
+Eigen::VectorXd SolidTubeModel::SensorRow(double z_m, double theta_rad, double diameter_m) const {
+  // polar quadrature of the disc: Gauss-Legendre in radius (weight rho d rho), uniform in angle
+  constexpr int kRings = 5, kAngles = 24;
+  static const double kGauss[kRings] = {-0.9061798459386640, -0.5384693101056831, 0.0,
+                                        0.5384693101056831, 0.9061798459386640};
+  static const double kGaussW[kRings] = {0.2369268850561891, 0.4786286704993665, 0.5688888888888889,
+                                         0.4786286704993665, 0.2369268850561891};
+  const double a = 0.5 * diameter_m, r_out = tube_.outer_radius_m;
+  Eigen::VectorXd row = Eigen::VectorXd::Zero(dofs());
+  double total = 0.0;
+  for (int ir = 0; ir < kRings; ++ir) {
+    const double rho = 0.5 * a * (kGauss[ir] + 1.0);
+    const double w_r = 0.5 * a * kGaussW[ir] * rho;
+    for (int ia = 0; ia < kAngles; ++ia) {
+      const double phi = 2.0 * std::numbers::pi * (ia + 0.5) / kAngles;
+      const double z = z_m + rho * std::cos(phi), th = theta_rad + rho * std::sin(phi) / r_out;
+      double xi, eta;
+      const Element& el = Locate(z, th, &xi, &eta);
+      AddSurfaceStrain(el, xi, eta, w_r, &row);
+      total += w_r;
+    }
+  }
+  return row / total;
+}
+
+Eigen::MatrixXd SolidTubeModel::SensorRows(const MicArrayConfig& mics) const {
+  Eigen::MatrixXd rows(mics.count(), dofs());
+  for (int m = 0; m < mics.count(); ++m) {
+    rows.row(m) =
+        SensorRow(mics.z_m[m], mics.theta_deg[m] * std::numbers::pi / 180.0, mics.disc_diameter_m)
+            .transpose();
+  }
+  return rows;
+}
+
+Eigen::VectorXd SolidTubeModel::Sample(
+    const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& field) const {
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(dofs());
+  for (int64_t node = 0; node < nodes(); ++node) {
+    const Eigen::Vector3d value = field(node_position_m_[node]);
+    for (int d = 0; d < 3; ++d) {
+      const int64_t dof = node_dof_[3 * node + d];
+      if (dof >= 0) u(dof) = value(d);
+    }
+  }
+  return u;
+}
+
+double SolidTubeModel::KineticEnergy(const Eigen::VectorXd& v_m_s) const {
+  return 0.5 * v_m_s.cwiseProduct(v_m_s).dot(mass_kg_);
+}
+
+}  // namespace sonicboom::solid

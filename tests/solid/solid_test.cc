@@ -1,0 +1,254 @@
+// The reference solid (solid/): spectral-element building blocks, exact invariants of the mesh
+// and K, and its modes against the closed-form theory of the ideal tube and the plate.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/solid/gll.h"
+#include "sonicboom/solid/solid_modes.h"
+#include "sonicboom/solid/solid_response.h"
+#include "sonicboom/solid/solid_tube.h"
+#include "sonicboom/solid/theory.h"
+
+namespace sonicboom::solid {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+TEST(GllTest, IntegratesPolynomialsToDegreeTwoNMinusOneAndDifferentiatesExactly) {
+  for (int n = 1; n <= 8; ++n) {
+    const GllRule rule = MakeGllRule(n);
+    EXPECT_DOUBLE_EQ(rule.points(0), -1.0);
+    EXPECT_DOUBLE_EQ(rule.points(n), 1.0);
+    for (int k = 0; k <= 2 * n - 1; ++k) {
+      const double exact = k % 2 == 1 ? 0.0 : 2.0 / (k + 1);
+      double sum = 0.0;
+      for (int i = 0; i <= n; ++i) sum += rule.weights(i) * std::pow(rule.points(i), k);
+      EXPECT_NEAR(sum, exact, 1e-13) << "degree " << n << " monomial " << k;
+    }
+    // D x^n at the nodes = n x^(n-1)
+    const Eigen::VectorXd f = rule.points.array().pow(n);
+    const Eigen::VectorXd df = rule.derivative * f;
+    for (int i = 0; i <= n; ++i) EXPECT_NEAR(df(i), n * std::pow(rule.points(i), n - 1), 1e-11);
+    // the basis at an arbitrary point interpolates x^n exactly
+    Eigen::VectorXd l, dl;
+    LagrangeBasis(rule, 0.3141, &l, &dl);
+    EXPECT_NEAR(l.dot(f), std::pow(0.3141, n), 1e-13);
+    EXPECT_NEAR(dl.dot(f), n * std::pow(0.3141, n - 1), 1e-11);
+  }
+}
+
+SolidStructure Ideal(TubeEnds ends) {
+  SolidStructure s;
+  s.ends = ends;
+  return s;
+}
+
+SolidMeshConfig Coarse() {
+  SolidMeshConfig m;
+  m.element_arc_m = 0.03;
+  m.element_axial_m = 0.05;
+  m.degree_wall = 3;
+  return m;
+}
+
+TEST(SolidTubeTest, MassIsTheTubesAndRigidMotionsCostNoEnergy) {
+  const TubeConfig tube;
+  const MaterialConfig pvc;
+  const SolidTubeModel model(tube, pvc, Ideal(TubeEnds::kFree), Coarse());
+  const double r_in = tube.outer_radius_m - tube.wall_thickness_m;
+  const double exact = pvc.density_kg_m3 * kPi *
+                       (tube.outer_radius_m * tube.outer_radius_m - r_in * r_in) * tube.length_m;
+  // each of the three components carries the whole mass
+  EXPECT_NEAR(model.mass_kg().sum() / 3.0, exact, 1e-12 * exact);
+  // translations and the rotation about z: K u = 0 to round-off
+  const int64_t n = model.dofs();
+  for (int d = 0; d < 3; ++d) {
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(n);
+    for (int64_t i = d; i < n; i += 3) u(i) = 1.0;
+    EXPECT_LT((model.stiffness() * u).cwiseAbs().maxCoeff(),
+              1e-9 * model.stiffness().coeffs().cwiseAbs().maxCoeff());
+  }
+}
+
+TEST(SolidTubeTest, SensorReadsUniformHoopAndAxialStrainAndTheForceRowReadsRadialMotion) {
+  const TubeConfig tube;
+  const SolidTubeModel model(tube, MaterialConfig{}, Ideal(TubeEnds::kFree), Coarse());
+  const double eps = 1e-4;
+  const Eigen::VectorXd hoop = model.Sample(
+      [&](const Eigen::Vector3d& x) { return Eigen::Vector3d(eps * x.x(), eps * x.y(), 0.0); });
+  const Eigen::VectorXd axial = model.Sample(
+      [&](const Eigen::Vector3d& x) { return Eigen::Vector3d(0.0, 0.0, eps * x.z()); });
+  const Eigen::VectorXd shift =
+      model.Sample([&](const Eigen::Vector3d&) { return Eigen::Vector3d(1e-3, -2e-3, 5e-4); });
+  for (const auto& [z, th] :
+       {std::pair{0.013, 0.7}, std::pair{-0.13, 2.0 * kPi / 3.0}, std::pair{0.1, -0.2}}) {
+    const Eigen::VectorXd row = model.SensorRow(z, th, 0.02);
+    // the cylindrical mapping is interpolated, not exact: 1e-5 of the field at degree 3
+    EXPECT_NEAR(row.dot(hoop), eps, 1e-4 * eps) << z << " " << th;
+    EXPECT_NEAR(row.dot(axial), eps, 1e-12 * eps);
+    EXPECT_NEAR(row.dot(shift), 0.0, 1e-10 * eps);
+    const Eigen::VectorXd force = model.RadialForceWeights(z, th);
+    EXPECT_NEAR(force.dot(hoop), eps * tube.outer_radius_m, 1e-4 * eps * tube.outer_radius_m);
+    EXPECT_NEAR(force.dot(axial), 0.0, 1e-15);
+  }
+  EXPECT_THROW(model.RadialForceWeights(0.2, 0.0), ConfigError);
+}
+
+TEST(SolidTubeTest, RefusesMeshesThatCannotBeBuiltNamingTheKey) {
+  SolidMeshConfig mesh;
+  mesh.element_arc_m = 0.5;
+  try {
+    SolidTubeModel(TubeConfig{}, MaterialConfig{}, Ideal(TubeEnds::kFree), mesh);
+    FAIL() << "accepted a 0.5 m element around a 0.33 m circumference";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("reference.element_arc_m"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SolidTheoryTest, LambWaveLiesBetweenMindlinAndKirchhoffLimits) {
+  const MaterialConfig pvc;
+  const double h = 0.00305;
+  // long waves: all three agree; at kh ~ 1 Kirchhoff is far too stiff, Mindlin close to exact
+  const double k_low = 5.0;
+  EXPECT_NEAR(RayleighLambA0(pvc, h, k_low) / KirchhoffFlexural(pvc, h, k_low), 1.0, 1e-4);
+  const double k = 1.0 / h;
+  const double exact = RayleighLambA0(pvc, h, k);
+  EXPECT_NEAR(MindlinFlexural(pvc, h, k) / exact, 1.0, 0.01);
+  EXPECT_GT(KirchhoffFlexural(pvc, h, k) / exact, 1.15);
+  // docs/reference_model.md: at kh = 0.92 (Kirchhoff's wavenumber at 20 kHz for this wall) the
+  // exact frequency is 13 % below Kirchhoff's; at 20 kHz the exact wavenumber is 8 % above it
+  const double k_20 = 0.92 / h;
+  EXPECT_NEAR(RayleighLambA0(pvc, h, k_20) / KirchhoffFlexural(pvc, h, k_20), 0.873, 0.002);
+  EXPECT_NEAR(MindlinFlexural(pvc, h, k_20) / RayleighLambA0(pvc, h, k_20), 1.0, 0.01);
+  const double omega = 2.0 * kPi * 20000.0;
+  auto wavenumber = [&](auto dispersion) {
+    double lo = 10.0, hi = 2000.0;
+    for (int i = 0; i < 100; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (dispersion(pvc, h, mid) < omega ? lo : hi) = mid;
+    }
+    return lo;
+  };
+  const double k_kirchhoff = wavenumber(KirchhoffFlexural);
+  const double k_lamb = wavenumber(RayleighLambA0);
+  EXPECT_NEAR(k_kirchhoff / k_lamb, 0.926, 0.003);
+  EXPECT_NEAR(wavenumber(MindlinFlexural) / k_lamb, 1.0, 0.006);
+}
+
+TEST(SolidTheoryTest, RichardsonRecoversLimitAndOrder) {
+  const std::vector<double> h{0.04, 0.03, 0.02};
+  std::vector<double> f;
+  for (double x : h) f.push_back(1000.0 + 3e8 * std::pow(x, 6.0));
+  const Extrapolation e = Richardson(h, f);
+  EXPECT_NEAR(e.limit, 1000.0, 1e-6);
+  EXPECT_NEAR(e.order, 6.0, 1e-6);
+  EXPECT_NEAR(e.error, 3e8 * std::pow(0.02, 6.0), 1e-6);
+  // oscillating differences: no order, the last difference as the bound
+  const Extrapolation bad = Richardson(h, {1.0, 1.2, 1.1});
+  EXPECT_EQ(bad.order, 0.0);
+  EXPECT_NEAR(bad.error, 0.1, 1e-12);
+}
+
+// every simply supported (shear-diaphragm) mode below 1.6 kHz against Flügge's shell theory: the
+// sorted lists agree within 1.5 % (3-D elasticity against a thin shell of h / R = 0.06): the
+// solid's shear and rotary inertia put it 0-1.1 % below the shell, the more the higher n, and
+// never above it by more than the mesh's own error (0.3 %)
+TEST(SolidModesTest, SimplySupportedTubeMatchesFluggeBelow1600Hz) {
+  const TubeConfig tube;
+  const MaterialConfig pvc;
+  SolidMeshConfig mesh;
+  mesh.element_arc_m = 0.025;
+  mesh.element_axial_m = 0.05;
+  const SolidTubeModel model(tube, pvc, Ideal(TubeEnds::kSimplySupported), mesh);
+  SolidModeRequest request;
+  request.max_frequency_hz = 1600.0;
+  request.with_shapes = false;
+  const SolidModes modes = SolveSolidModes(model, request);
+  std::vector<double> theory;
+  for (const acoustics::ShellMode& m : acoustics::SimplySupportedModes(tube, pvc, 1600.0)) {
+    theory.push_back(m.frequency_hz);
+    if (m.n > 0) theory.push_back(m.frequency_hz);
+  }
+  std::sort(theory.begin(), theory.end());
+  EXPECT_EQ(modes.rigid_body_modes, 1);  // a shear diaphragm lets the tube slide along z
+  ASSERT_GE(modes.omega_rad_s.size(), 10);
+  const size_t compare = std::min<size_t>(theory.size(), modes.omega_rad_s.size()) - 1;
+  for (size_t i = 0; i < compare; ++i) {
+    const double ratio = modes.omega_rad_s(i) / (2.0 * kPi) / theory[i];
+    EXPECT_GT(ratio, 0.985) << "mode " << i;
+    EXPECT_LT(ratio, 1.003) << "mode " << i;
+  }
+}
+
+// the free tube: six rigid-body modes, then Rayleigh's n = 2 ring pair near 220 Hz
+TEST(SolidModesTest, FreeTubeHasSixRigidModesThenTheOvalPair) {
+  const TubeConfig tube;
+  const MaterialConfig pvc;
+  SolidMeshConfig mesh;
+  mesh.element_arc_m = 0.04;
+  mesh.element_axial_m = 0.05;
+  const SolidTubeModel model(tube, pvc, Ideal(TubeEnds::kFree), mesh);
+  SolidModeRequest request;
+  request.max_frequency_hz = 400.0;
+  const SolidModes modes = SolveSolidModes(model, request);
+  EXPECT_EQ(modes.rigid_body_modes, 6);
+  ASSERT_GE(modes.omega_rad_s.size(), 2);
+  const double rayleigh = acoustics::RayleighFrequency(tube, pvc, 2);
+  EXPECT_NEAR(modes.omega_rad_s(0) / (2.0 * kPi) / rayleigh, 1.0, 0.02);
+  EXPECT_NEAR(modes.omega_rad_s(1) / modes.omega_rad_s(0), 1.0, 1e-6);  // the degenerate pair
+  // mass-normalized shapes
+  const Eigen::VectorXd phi = modes.shapes.col(0);
+  EXPECT_NEAR(phi.cwiseProduct(phi).dot(model.mass_kg()), 1.0, 1e-8);
+  EXPECT_EQ(CountSolidModesBelow(model, 400.0), 6 + modes.omega_rad_s.size());
+}
+
+// a seam cuts the tube in two: without bolts the halves move freely (12 rigid-body modes), three
+// bolts join them again (6)
+TEST(SolidModesTest, BoltsJoinTheHalvesOfASeamedTube) {
+  SolidMeshConfig mesh = Coarse();
+  SolidStructure loose = Ideal(TubeEnds::kFree);
+  loose.seam_theta_deg = {90.0, 270.0};
+  SolidStructure bolted = loose;
+  bolted.bolt_z_m = {-0.1, 0.0, 0.1};
+  bolted.bolt_stiffness_n_m = {2e6, 2e6, 2e6};
+  SolidModeRequest request;
+  request.max_frequency_hz = 60.0;
+  request.with_shapes = false;
+  const TubeConfig tube;
+  const MaterialConfig pvc;
+  EXPECT_EQ(SolveSolidModes(SolidTubeModel(tube, pvc, loose, mesh), request).rigid_body_modes, 12);
+  EXPECT_EQ(SolveSolidModes(SolidTubeModel(tube, pvc, bolted, mesh), request).rigid_body_modes, 6);
+}
+
+// one mode struck by a short half-sine: after the pulse, the response is the impulse response
+// (area 2T/pi) e^(-zeta w t) sin(w_d t) / w_d; arrivals interpolate between samples
+TEST(SolidResponseTest, ShortPulseGivesTheImpulseResponseAndArrivalsInterpolate) {
+  PulseResponseConfig pulse;
+  pulse.pulse_duration_s = 2e-5;
+  pulse.sample_rate_hz = 1e7;
+  pulse.window_s = 2e-3;
+  pulse.loss_factor = 0.02;
+  const double w = 2.0 * kPi * 1000.0, zeta = 0.01, wd = w * std::sqrt(1.0 - zeta * zeta);
+  const Eigen::MatrixXd y =
+      PulseResponse(Eigen::VectorXd::Constant(1, w), Eigen::MatrixXd::Constant(1, 1, 2.0),
+                    Eigen::VectorXd::Constant(1, 0.5), pulse);
+  const double area = 2.0 * pulse.pulse_duration_s / kPi;
+  for (const double t : {2.5e-4, 7.1e-4, 1.3e-3}) {
+    const Eigen::Index k = static_cast<Eigen::Index>(std::lround(t * pulse.sample_rate_hz)) - 1;
+    const double tc = (k + 1) / pulse.sample_rate_hz - 0.5 * pulse.pulse_duration_s;
+    const double exact = 2.0 * 0.5 * area * std::exp(-zeta * w * tc) * std::sin(wd * tc) / wd;
+    EXPECT_NEAR(y(0, k), exact, 2e-3 * area / wd) << t;
+  }
+  Eigen::MatrixXd ramp(2, 5);
+  ramp << 0.0, 1.0, 2.0, 3.0, 10.0, 0.0, 0.0, -4.0, 1.0, 0.0;
+  const Eigen::VectorXd t = ThresholdArrivals(ramp, 1000.0, 0.25);
+  EXPECT_NEAR(t(0), 2.5e-3, 1e-12);   // 2.5 reached halfway between samples 2 and 3
+  EXPECT_NEAR(t(1), 1.25e-3, 1e-12);  // |-4| >= 1 a quarter of the way from sample 1 to 2
+}
+
+}  // namespace
+}  // namespace sonicboom::solid
