@@ -174,7 +174,16 @@ SolidModes SolveSolidModes(const SolidTubeModel& model, const SolidModeRequest& 
     SolveSlice(a, slices[i], request.with_shapes || project, &values[i], &vectors[i]);
     if (project) {
       projected[i] = request.projection_rows * (inv_sqrt_mass.asDiagonal() * vectors[i]);
-      if (!request.with_shapes) vectors[i] = Eigen::MatrixXd();
+    }
+    if (!request.with_shapes) {
+      vectors[i] = Eigen::MatrixXd();
+    } else if (!request.shape_dofs.empty()) {
+      // keep the asked rows only, mass-scaled here
+      Eigen::MatrixXd kept(request.shape_dofs.size(), vectors[i].cols());
+      for (size_t r = 0; r < request.shape_dofs.size(); ++r) {
+        kept.row(r) = inv_sqrt_mass(request.shape_dofs[r]) * vectors[i].row(request.shape_dofs[r]);
+      }
+      vectors[i] = std::move(kept);
     }
   });
 
@@ -196,12 +205,18 @@ SolidModes SolveSolidModes(const SolidTubeModel& model, const SolidModeRequest& 
   std::sort(order.begin(), order.end());
   const Eigen::Index m = static_cast<Eigen::Index>(order.size());
   modes.omega_rad_s.resize(m);
-  if (request.with_shapes) modes.shapes.resize(model.dofs(), m);
+  const bool subset = !request.shape_dofs.empty();
+  if (request.with_shapes) {
+    modes.shapes.resize(subset ? request.shape_dofs.size() : model.dofs(), m);
+  }
   if (project) modes.projections.resize(request.projection_rows.rows(), m);
   for (Eigen::Index k = 0; k < m; ++k) {
     modes.omega_rad_s(k) = std::sqrt(order[k].first);
     const auto& [s, i] = where[order[k].second];
-    if (request.with_shapes) modes.shapes.col(k) = inv_sqrt_mass.cwiseProduct(vectors[s].col(i));
+    if (request.with_shapes) {
+      modes.shapes.col(k) = subset ? vectors[s].col(i)
+                                   : Eigen::VectorXd(inv_sqrt_mass.cwiseProduct(vectors[s].col(i)));
+    }
     if (project) modes.projections.col(k) = projected[s].col(i);
   }
   return modes;

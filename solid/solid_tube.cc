@@ -522,6 +522,18 @@ Eigen::MatrixXd SolidTubeModel::SensorRows(const MicArrayConfig& mics) const {
   return rows;
 }
 
+std::vector<int64_t> SolidTubeModel::OuterSurfaceDofs() const {
+  const int64_t per_layer = nodes() / layers_;
+  std::vector<int64_t> out;
+  for (int64_t node = (layers_ - 1) * per_layer; node < nodes(); ++node) {
+    for (int d = 0; d < 3; ++d) {
+      if (node_dof_[3 * node + d] >= 0) out.push_back(node_dof_[3 * node + d]);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 Eigen::VectorXd SolidTubeModel::Sample(
     const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& field) const {
   Eigen::VectorXd u = Eigen::VectorXd::Zero(dofs());

@@ -1,13 +1,21 @@
 // The reference solid (solid/): spectral-element building blocks, exact invariants of the mesh
 // and K, and its modes against the closed-form theory of the ideal tube and the plate.
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
 #include <numbers>
 
 #include "sonicboom/acoustics/cylinder_modes.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/solid/gll.h"
+#include "sonicboom/solid/reference_render.h"
+#include "sonicboom/solid/reference_tube.h"
 #include "sonicboom/solid/solid_modes.h"
 #include "sonicboom/solid/solid_response.h"
 #include "sonicboom/solid/solid_tube.h"
@@ -45,6 +53,23 @@ SolidStructure Ideal(TubeEnds ends) {
   SolidStructure s;
   s.ends = ends;
   return s;
+}
+
+// an ideal tube on elements of arc x axial metres and its modes up to max_frequency_hz
+struct IdealSolve {
+  std::unique_ptr<SolidTubeModel> model;
+  SolidModes modes;
+};
+IdealSolve SolveIdeal(TubeEnds ends, double arc_m, double axial_m, double max_frequency_hz) {
+  SolidMeshConfig mesh;
+  mesh.element_arc_m = arc_m;
+  mesh.element_axial_m = axial_m;
+  IdealSolve out;
+  out.model = std::make_unique<SolidTubeModel>(TubeConfig{}, MaterialConfig{}, Ideal(ends), mesh);
+  SolidModeRequest request;
+  request.max_frequency_hz = max_frequency_hz;
+  out.modes = SolveSolidModes(*out.model, request);
+  return out;
 }
 
 SolidMeshConfig Coarse() {
@@ -160,14 +185,7 @@ TEST(SolidTheoryTest, RichardsonRecoversLimitAndOrder) {
 TEST(SolidModesTest, SimplySupportedTubeMatchesFluggeBelow1600Hz) {
   const TubeConfig tube;
   const MaterialConfig pvc;
-  SolidMeshConfig mesh;
-  mesh.element_arc_m = 0.025;
-  mesh.element_axial_m = 0.05;
-  const SolidTubeModel model(tube, pvc, Ideal(TubeEnds::kSimplySupported), mesh);
-  SolidModeRequest request;
-  request.max_frequency_hz = 1600.0;
-  request.with_shapes = false;
-  const SolidModes modes = SolveSolidModes(model, request);
+  const SolidModes modes = SolveIdeal(TubeEnds::kSimplySupported, 0.025, 0.05, 1600.0).modes;
   std::vector<double> theory;
   for (const acoustics::ShellMode& m : acoustics::SimplySupportedModes(tube, pvc, 1600.0)) {
     theory.push_back(m.frequency_hz);
@@ -188,13 +206,9 @@ TEST(SolidModesTest, SimplySupportedTubeMatchesFluggeBelow1600Hz) {
 TEST(SolidModesTest, FreeTubeHasSixRigidModesThenTheOvalPair) {
   const TubeConfig tube;
   const MaterialConfig pvc;
-  SolidMeshConfig mesh;
-  mesh.element_arc_m = 0.04;
-  mesh.element_axial_m = 0.05;
-  const SolidTubeModel model(tube, pvc, Ideal(TubeEnds::kFree), mesh);
-  SolidModeRequest request;
-  request.max_frequency_hz = 400.0;
-  const SolidModes modes = SolveSolidModes(model, request);
+  const IdealSolve solve = SolveIdeal(TubeEnds::kFree, 0.04, 0.05, 400.0);
+  const SolidModes& modes = solve.modes;
+  const SolidTubeModel* model = solve.model.get();
   EXPECT_EQ(modes.rigid_body_modes, 6);
   ASSERT_GE(modes.omega_rad_s.size(), 2);
   const double rayleigh = acoustics::RayleighFrequency(tube, pvc, 2);
@@ -202,8 +216,17 @@ TEST(SolidModesTest, FreeTubeHasSixRigidModesThenTheOvalPair) {
   EXPECT_NEAR(modes.omega_rad_s(1) / modes.omega_rad_s(0), 1.0, 1e-6);  // the degenerate pair
   // mass-normalized shapes
   const Eigen::VectorXd phi = modes.shapes.col(0);
-  EXPECT_NEAR(phi.cwiseProduct(phi).dot(model.mass_kg()), 1.0, 1e-8);
-  EXPECT_EQ(CountSolidModesBelow(model, 400.0), 6 + modes.omega_rad_s.size());
+  EXPECT_NEAR(phi.cwiseProduct(phi).dot(model->mass_kg()), 1.0, 1e-8);
+  EXPECT_EQ(CountSolidModesBelow(*model, 400.0), 6 + modes.omega_rad_s.size());
+  // asked for the surface rows alone, the solve returns exactly those rows of the shapes
+  SolidModeRequest surface;
+  surface.max_frequency_hz = 400.0;
+  surface.shape_dofs = model->OuterSurfaceDofs();
+  const SolidModes rows = SolveSolidModes(*model, surface);
+  ASSERT_EQ(rows.shapes.rows(), static_cast<Eigen::Index>(surface.shape_dofs.size()));
+  for (size_t r = 0; r < surface.shape_dofs.size(); r += 97) {
+    EXPECT_EQ(rows.shapes.row(r), modes.shapes.row(surface.shape_dofs[r]));
+  }
 }
 
 // a seam cuts the tube in two: without bolts the halves move freely (12 rigid-body modes), three
@@ -248,6 +271,104 @@ TEST(SolidResponseTest, ShortPulseGivesTheImpulseResponseAndArrivalsInterpolate)
   const Eigen::VectorXd t = ThresholdArrivals(ramp, 1000.0, 0.25);
   EXPECT_NEAR(t(0), 2.5e-3, 1e-12);   // 2.5 reached halfway between samples 2 and 3
   EXPECT_NEAR(t(1), 1.25e-3, 1e-12);  // |-4| >= 1 a quarter of the way from sample 1 to 2
+}
+
+ReferenceTubeConfig CoarseReference(const std::string& cache_dir = "") {
+  ReferenceTubeConfig c;
+  c.structure = Ideal(TubeEnds::kFree);
+  c.mesh = Coarse();
+  c.max_frequency_hz = 3000.0;
+  c.cache_dir = cache_dir;
+  return c;
+}
+
+// a lossless strike: the striker's kinetic energy goes into its rebound and the modes, nothing
+// lost (the stepped integration keeps the balance to 0.5 %)
+TEST(ReferenceRenderTest, LosslessStrikeConservesEnergy) {
+  const ReferenceTube tube(CoarseReference());
+  ReferenceStrike strike;
+  strike.z_m = 0.02;
+  strike.theta_rad = 0.3;
+  strike.striker_mass_kg = 0.1;  // a heavy soft mallet: a long contact that drives the low modes
+  strike.striker_youngs_modulus_pa = 5e7;
+  strike.striker_radius_m = 0.01;
+  ReferenceRenderConfig config;
+  config.loss_factor = 0.0;
+  const ReferenceRender r = RenderReferenceStrike(tube, strike, config);
+  EXPECT_GT(r.wall_energy_j, 0.05 * r.striker_energy_in_j);
+  EXPECT_NEAR(r.striker_energy_out_j + r.wall_energy_j, r.striker_energy_in_j,
+              5e-3 * r.striker_energy_in_j);
+  // momentum: the impulse reverses the striker, 2 m v at most (m v (1 + e))
+  EXPECT_GT(r.impulse_ns, strike.striker_mass_kg * strike.speed_m_s);
+  EXPECT_LT(r.impulse_ns, 2.0 * strike.striker_mass_kg * strike.speed_m_s * 1.0001);
+}
+
+// a soft striker on the tube: Hertz's duration 2.9432 delta_max / v of a rigid target within 5 %,
+// and its v^-1/5 law between 0.1 and 1 m/s within 2 %
+TEST(ReferenceRenderTest, SoftStrikerFollowsHertzDuration) {
+  const ReferenceTube tube(CoarseReference());
+  ReferenceStrike strike;
+  strike.striker_youngs_modulus_pa = 2e7;
+  strike.striker_poisson_ratio = 0.45;
+  strike.striker_radius_m = 0.005;
+  strike.striker_mass_kg = 0.005;
+  ReferenceRenderConfig config;
+  config.samples = 2000;
+  std::vector<double> duration;
+  for (const double v : {0.1, 1.0}) {
+    strike.speed_m_s = v;
+    const ReferenceRender r = RenderReferenceStrike(tube, strike, config);
+    EXPECT_EQ(r.touches, 1);
+    const double k = ReferenceHertzStiffness(strike, TubeConfig{}, MaterialConfig{});
+    const double delta_max = std::pow(5.0 * strike.striker_mass_kg * v * v / (4.0 * k), 0.4);
+    EXPECT_NEAR(r.duration_s / (2.9432 * delta_max / v), 1.0, 0.05) << v;
+    duration.push_back(r.duration_s);
+  }
+  EXPECT_NEAR(duration[1] / duration[0], std::pow(10.0, -0.2), 0.02 * std::pow(10.0, -0.2));
+}
+
+TEST(ReferenceRenderTest, SilentBeforeTheOnsetAndRefusesABandAboveNyquist) {
+  const ReferenceTube tube(CoarseReference());
+  ReferenceStrike strike;
+  strike.onset_s = 0.01;
+  ReferenceRenderConfig config;
+  const ReferenceRender r = RenderReferenceStrike(tube, strike, config);
+  const int64_t onset = static_cast<int64_t>(std::ceil(0.01 * config.sample_rate_hz));
+  EXPECT_EQ(r.strain.leftCols(onset).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT(r.strain.rightCols(config.samples - onset).cwiseAbs().maxCoeff(), 1e-8);
+  config.sample_rate_hz = 4000.0;
+  try {
+    RenderReferenceStrike(tube, strike, config);
+    FAIL() << "rendered 3 kHz modes at 4 kHz";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("audio.sample_rate_hz"), std::string::npos) << e.what();
+  }
+}
+
+// the cache returns the solve bit for bit; a damaged file is solved again, not trusted
+TEST(ReferenceTubeTest, CacheRoundTripsAndRecomputesADamagedFile) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / fmt::format("sb-reference-{}", ::getpid());
+  std::filesystem::remove_all(dir);
+  const ReferenceTube solved(CoarseReference(dir.string()));
+  EXPECT_FALSE(solved.from_cache());
+  const ReferenceTube cached(CoarseReference(dir.string()));
+  EXPECT_TRUE(cached.from_cache());
+  EXPECT_EQ(cached.omega_rad_s(), solved.omega_rad_s());
+  EXPECT_EQ(cached.disc_strain(), solved.disc_strain());
+  EXPECT_EQ(cached.ModalDrive(0.01, 1.0), solved.ModalDrive(0.01, 1.0));
+  // flip one byte in the middle of the payload
+  const auto file = std::filesystem::directory_iterator(dir)->path();
+  const auto size = std::filesystem::file_size(file);
+  {
+    std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(static_cast<std::streamoff>(size / 2));
+    f.put('\x5a');
+  }
+  const ReferenceTube again(CoarseReference(dir.string()));
+  EXPECT_FALSE(again.from_cache());
+  EXPECT_EQ(again.omega_rad_s(), solved.omega_rad_s());
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

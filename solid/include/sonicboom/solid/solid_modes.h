@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <vector>
 
 #include "sonicboom/solid/solid_tube.h"
 
@@ -18,7 +19,9 @@ inline constexpr double kSolidRigidBodyHz = 20.0;
 struct SolidModeRequest {
   double max_frequency_hz{20000.0};  // every elastic mode up to here
   bool with_shapes{true};            // false: frequencies only
-  int64_t modes_per_slice{120};      // target size of one Lanczos slice
+  // with_shapes: the DOFs whose rows of the shapes are kept, ascending (empty: all)
+  std::vector<int64_t> shape_dofs;
+  int64_t modes_per_slice{120};  // target size of one Lanczos slice
   // (rows x dofs) linear read-outs (sensor rows, force weights) to apply to every shape; empty:
   // none. Cheaper in memory than the shapes themselves for large meshes.
   Eigen::MatrixXd projection_rows;

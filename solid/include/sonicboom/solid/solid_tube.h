@@ -87,6 +87,8 @@ class SolidTubeModel {
   Eigen::VectorXd SensorRow(double z_m, double theta_rad, double diameter_m) const;
   /// (count x dofs) SensorRow of every disc of the array.
   Eigen::MatrixXd SensorRows(const MicArrayConfig& mics) const;
+  /// Every DOF of the nodes on the outer surface, ascending: the support of RadialForceWeights.
+  std::vector<int64_t> OuterSurfaceDofs() const;
   /// (dofs) a displacement field u(x) (m, tube frame) sampled at the nodes (held components
   /// left out): the spectral interpolation of the field.
   Eigen::VectorXd Sample(const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& field) const;
