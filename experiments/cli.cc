@@ -41,12 +41,12 @@ int RunCli(int argc, char** argv) {
   // subcommands, each registered beside its Run function (internal/subcommands.h)
   Runner run;
   for (auto* register_subcommand :
-       {RegisterDemo,     RegisterGenerate, RegisterMerge,         RegisterSynth,
-        RegisterModes,    RegisterFidelity, RegisterReference,     RegisterVariants,
-        RegisterFeatures, RegisterTrain,    RegisterEval,          RegisterCalibrate,
-        RegisterBaseline, RegisterAblate,   RegisterLocalize,      RegisterImport,
-        RegisterExport,   RegisterListen,   RegisterGeometryCheck, RegisterFk,
-        RegisterInspect,  RegisterConfig}) {
+       {RegisterDemo,      RegisterGenerate, RegisterMerge,     RegisterSynth,
+        RegisterModes,     RegisterFidelity, RegisterReference, RegisterRerender,
+        RegisterVariants,  RegisterFeatures, RegisterTrain,     RegisterEval,
+        RegisterCalibrate, RegisterBaseline, RegisterAblate,    RegisterLocalize,
+        RegisterImport,    RegisterExport,   RegisterListen,    RegisterGeometryCheck,
+        RegisterFk,        RegisterInspect,  RegisterConfig}) {
     register_subcommand(app, g, &run);
   }
 

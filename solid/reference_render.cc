@@ -1,7 +1,9 @@
 #include "sonicboom/solid/reference_render.h"
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
+#include <numbers>
 #include <vector>
 
 #include <fmt/format.h>
@@ -36,16 +38,21 @@ ReferenceRender RenderReferenceStrike(const ReferenceTube& tube, const Reference
   const Eigen::VectorXd drive = tube.ModalDrive(strike.z_m, strike.theta_rad);  // (modes)
   const double k_hertz =
       ReferenceHertzStiffness(strike, tube.config().tube, tube.config().material);
-  const double zeta = 0.5 * config.loss_factor;
+  // damping ratio of mode n: half its loss factor
+  auto zeta_of = [&](Eigen::Index n) {
+    const double f = omega(n) / (2.0 * std::numbers::pi);
+    return 0.5 * config.loss_factor * std::pow(f / 2000.0, config.loss_exponent);
+  };
 
   // each mode as a complex one-pole z = q' + (zeta w + i w_d) q, z' = p z + f; q = Im z / w_d
   std::vector<std::complex<double>> pole(modes), z(modes, 0.0);
-  std::vector<double> wd(modes);
+  std::vector<double> wd(modes), zeta(modes);
   const double dt = t_audio / config.contact_substeps;
   std::vector<std::complex<double>> step(modes), gain(modes);
   for (Eigen::Index n = 0; n < modes; ++n) {
-    wd[n] = omega(n) * std::sqrt(1.0 - zeta * zeta);
-    pole[n] = {-zeta * omega(n), wd[n]};
+    zeta[n] = std::min(0.5, zeta_of(n));
+    wd[n] = omega(n) * std::sqrt(1.0 - zeta[n] * zeta[n]);
+    pole[n] = {-zeta[n] * omega(n), wd[n]};
     step[n] = std::exp(pole[n] * dt);
     gain[n] = (step[n] - 1.0) / pole[n];
   }
@@ -95,7 +102,7 @@ ReferenceRender RenderReferenceStrike(const ReferenceTube& tube, const Reference
   out.duration_s = (last_release >= 0.0 ? last_release : t) - strike.onset_s;
   out.striker_energy_out_j = 0.5 * strike.striker_mass_kg * u * u;
   for (Eigen::Index n = 0; n < modes; ++n) {
-    const double qn = z[n].imag() / wd[n], vn = z[n].real() - zeta * omega(n) * qn;
+    const double qn = z[n].imag() / wd[n], vn = z[n].real() - zeta[n] * omega(n) * qn;
     out.wall_energy_j += 0.5 * (vn * vn + omega(n) * omega(n) * qn * qn);
   }
 
@@ -105,7 +112,8 @@ ReferenceRender RenderReferenceStrike(const ReferenceTube& tube, const Reference
     for (Eigen::Index n = 0; n < modes; ++n) {
       std::complex<double> zn = z[n] * std::exp(pole[n] * (next_sample * t_audio - t));
       const std::complex<double> per_sample = std::exp(pole[n] * t_audio);
-      const int64_t ring = static_cast<int64_t>(floor / (zeta * omega(n) + 1e-30) * fs) + 1;
+      const int64_t ring =
+          static_cast<int64_t>(std::min(1e12, floor / (zeta[n] * omega(n) + 1e-30) * fs)) + 1;
       const int64_t end = std::min<int64_t>(config.samples, next_sample + ring);
       const Eigen::VectorXd sensor = tube.disc_strain().col(n) / wd[n];
       for (int64_t k = next_sample; k < end; ++k) {

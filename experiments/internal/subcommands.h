@@ -40,6 +40,7 @@ void RegisterSynth(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterModes(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterRerender(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterVariants(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run);

@@ -30,8 +30,9 @@ enum class Stream : uint64_t {
   kSplit = 5,
   kTrain = 6,
   kScene = 7,  // object drawn per strike, scene shapes
-  kRandomize = 8
-};  // randomized structure and sensor chain
+  kRandomize = 8,  // randomized structure and sensor chain
+  kReference = 9   // the reference solid's own striker, damping and sensor chain (rerender)
+};
 
 /// xoshiro256** generator with its own uniform and normal draws (no implementation-defined
 /// std distributions, so numbers are identical across standard libraries).

@@ -26,8 +26,11 @@ struct ReferenceStrike {
 
 struct ReferenceRenderConfig {
   double sample_rate_hz{44100.0};
-  int64_t samples{4410};          // record length
-  double loss_factor{0.02};       // eta of every mode (damping ratio eta / 2)
+  int64_t samples{4410};     // record length
+  double loss_factor{0.02};  // eta of every mode (damping ratio eta / 2)
+  // eta(f) = loss_factor (f / 2 kHz)^loss_exponent: 0 is PVC's flat loss; a positive exponent
+  // damps the high modes more (joints, glue, the discs)
+  double loss_exponent{0.0};
   int64_t contact_substeps{64};   // integration steps per audio sample near the contact
   double watch_after_s{5e-4};     // keep stepping this long after a release (re-contact)
   double decay_floor_db{-100.0};  // a mode stops ringing once decayed this far

@@ -1,0 +1,183 @@
+// `rerender`: a dataset's strikes rendered again by the reference solid (solid/): same labels,
+// proprioception and contacts, new audio from another theory with its own contact, damping and
+// sensor chain drawn per strike from its own ranges (docs/reference_model.md). Its use: a held-out
+// family that shares nothing of the shell model's physics.
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/core/dataset.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/progress.h"
+#include "sonicboom/core/rng.h"
+#include "sonicboom/experiments/commands.h"
+#include "sonicboom/solid/reference_chain.h"
+#include "sonicboom/solid/reference_render.h"
+#include "sonicboom/solid/reference_tube.h"
+
+#include "internal/reference.h"
+#include "internal/report.h"
+#include "internal/subcommands.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+using nlohmann::json;
+
+struct RerenderOptions {
+  std::string in, out;
+  int64_t count = 0;  // 0 = every sample
+  double max_frequency_hz = 15000.0;
+  double element_m = 0.0135;
+  bool force = false;
+};
+
+// the draws of one strike's own physics, in kVariationNames' order
+const std::vector<std::string> kVariationNames{
+    "ref_striker_modulus_pa", "ref_tip_radius_m", "ref_loss_factor", "ref_loss_exponent",
+    "ref_full_scale_strain",  "ref_high_pass_hz", "ref_low_pass_hz", "ref_noise_dbfs"};
+
+// one sample's audio by the reference: the label's contact struck by a striker drawn here
+void Render(const solid::ReferenceTube& tube, double sample_rate_hz, int64_t frames,
+            StrikeSample* sample) {
+  Rng rng(sample->seed, Stream::kReference);
+  solid::ReferenceStrike strike;
+  strike.z_m = sample->label.z_m;
+  strike.theta_rad = sample->label.theta_rad;
+  strike.speed_m_s = sample->label.normal_speed_m_s > 0.0 ? sample->label.normal_speed_m_s : 0.3;
+  strike.onset_s = sample->label.time_s;
+  const double mass = sample->contacts.empty() ? 0.0 : sample->contacts.front().effective_mass_kg;
+  strike.striker_mass_kg = mass > 0.0 ? mass : 0.01;
+  // its own ranges: wood across and along the grain, hard plastics; tips 3-15 mm
+  strike.striker_youngs_modulus_pa = 1e9 * std::pow(15.0, rng.Uniform());
+  strike.striker_radius_m = 0.003 * std::pow(5.0, rng.Uniform());
+  solid::ReferenceRenderConfig render;
+  render.sample_rate_hz = sample_rate_hz;
+  render.samples = frames;
+  render.loss_factor = 0.01 * std::pow(4.0, rng.Uniform());
+  render.loss_exponent = rng.Uniform(-0.3, 0.3);
+  const solid::ReferenceRender r = solid::RenderReferenceStrike(tube, strike, render);
+  const solid::ReferenceChainDraw chain =
+      solid::DrawReferenceChain(&rng, static_cast<int>(r.strain.rows()));
+  Rng noise(sample->seed, Stream::kNoise);
+  sample->audio =
+      solid::ApplyReferenceChain(r.strain, chain, sample_rate_hz, &noise, &sample->clipped);
+  sample->label.impulse_Ns = r.impulse_ns;
+  sample->label.duration_s = r.duration_s;
+  double hp = 0.0;
+  for (double f : chain.high_pass_hz) hp += f / chain.high_pass_hz.size();
+  sample->variation = {strike.striker_youngs_modulus_pa,
+                       strike.striker_radius_m,
+                       render.loss_factor,
+                       render.loss_exponent,
+                       chain.full_scale_strain,
+                       hp,
+                       chain.low_pass_hz,
+                       chain.noise_dbfs};
+}
+
+}  // namespace
+
+CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
+  RefuseOverwritingInput(o.out, o.in, "--in");
+  CheckOutput(o.out, o.force);
+  if (o.count < 0) throw ConfigError(fmt::format("--count must be >= 0, got {}", o.count));
+  const SonicBoomConfig config = ResolveWithDataset(g, o.in);
+  DatasetReader reader(o.in);
+  DatasetInfo info = reader.info();
+  if (!(o.max_frequency_hz > 100.0 && o.max_frequency_hz < 0.5 * info.sample_rate_hz)) {
+    throw ConfigError(fmt::format(
+        "--max-frequency {} Hz must lie in (100, {}) Hz: below the Nyquist frequency of {}",
+        o.max_frequency_hz, 0.5 * info.sample_rate_hz, o.in));
+  }
+  const int64_t n = o.count > 0 ? std::min(o.count, reader.size()) : reader.size();
+
+  // the reference tube: solved once (or read from the mode cache)
+  const auto t0 = std::chrono::steady_clock::now();
+  solid::ReferenceTubeConfig rc;
+  rc.tube = config.tube;
+  rc.material = config.material;
+  rc.structure = ReferenceStructure(config.shell, config.shell.ends, false);
+  rc.mesh.element_arc_m = o.element_m;
+  rc.mesh.element_axial_m = o.element_m;
+  rc.mics = config.mics;
+  rc.max_frequency_hz = o.max_frequency_hz;
+  rc.cache_dir = acoustics::DefaultModeCacheDir();
+  const solid::ReferenceTube tube(rc);
+  const double solve_s = MillisecondsSince(t0) / 1e3;
+  spdlog::info("reference tube: {} modes to {} Hz, {} ({:.1f} s)", tube.omega_rad_s().size(),
+               o.max_frequency_hz, tube.from_cache() ? "from the cache" : "solved", solve_s);
+
+  info.config_yaml += fmt::format(
+      "\n# audio rendered again by the reference solid (sonicboom rerender --max-frequency {} "
+      "--element-m {}) from {}\n",
+      o.max_frequency_hz, o.element_m, o.in);
+  info.variation_names = kVariationNames;
+  info.num_samples = 0;
+  DatasetWriter writer(o.out, info);
+  const auto t1 = std::chrono::steady_clock::now();
+  constexpr int64_t kBlock = 16;
+  Progress progress("rerender", n);
+  for (int64_t first = 0; first < n; first += kBlock) {
+    const int64_t count = std::min(kBlock, n - first);
+    std::vector<StrikeSample> block(count);
+    for (int64_t i = 0; i < count; ++i) block[i] = reader.ReadMeta(first + i);
+    std::vector<DatasetWriter::EncodedSample> encoded(count);
+    tbb::parallel_for(int64_t{0}, count, [&](int64_t i) {
+      StrikeSample& s = block[i];
+      if (s.valid) {
+        Render(tube, info.sample_rate_hz, info.audio_frames, &s);
+      } else {
+        s.audio = Eigen::MatrixXf::Zero(info.channels, info.audio_frames);
+        s.variation.assign(kVariationNames.size(), 0.0);
+      }
+      encoded[i] = writer.Encode(s);
+    });
+    for (auto& e : encoded) writer.AppendEncoded(e);
+    progress.Add(count);
+  }
+  progress.Finish();
+  writer.Finish();
+  WriteConfigBeside(o.out, config);
+  const double render_s = MillisecondsSince(t1) / 1e3;
+  json j = {{"out", o.out},
+            {"samples", n},
+            {"modes", tube.omega_rad_s().size()},
+            {"max_frequency_hz", o.max_frequency_hz},
+            {"modes_from_cache", tube.from_cache()},
+            {"solve_s", solve_s},
+            {"render_s", render_s},
+            {"ms_per_strike", n > 0 ? 1e3 * render_s / n : 0.0}};
+  const std::string text = fmt::format(
+      "{}: {} strikes rendered by the reference solid ({} modes to {} Hz{}), {:.1f} ms per "
+      "strike\n",
+      o.out, n, tube.omega_rad_s().size(), o.max_frequency_hz,
+      tube.from_cache() ? ", from the cache" : fmt::format(", solved in {:.0f} s", solve_s),
+      n > 0 ? 1e3 * render_s / n : 0.0);
+  return {j.dump(), text};
+}
+
+void RegisterRerender(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto o = std::make_shared<RerenderOptions>();
+  auto* cmd = app.add_subcommand(
+      "rerender", "a dataset's strikes with audio from the reference solid (another theory)");
+  cmd->add_option("--in", o->in, "dataset whose strikes to render")->required();
+  cmd->add_option("--out", o->out, "output dataset")->required();
+  cmd->add_option("--count", o->count, "first N samples (0 = all)");
+  cmd->add_option("--max-frequency", o->max_frequency_hz, "modes of the reference up to here (Hz)");
+  cmd->add_option("--element-m", o->element_m, "element length of the reference mesh (m)");
+  cmd->add_flag("--force", o->force, "replace an existing output");
+  cmd->callback([&g, run, o] { *run = [&g, o] { return RunRerender(g, *o); }; });
+}
+
+}  // namespace sonicboom::experiments

@@ -1,0 +1,70 @@
+// `sonicboom rerender` and `sonicboom reference` end to end: a dataset's strikes rendered again by
+// the reference solid keep their labels, get new audio that does not depend on the thread count,
+// and bad requests are refused naming the option.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "common/test_util.h"
+#include "sonicboom/core/dataset.h"
+
+namespace sonicboom {
+namespace {
+
+using testing::RunCli;
+using testing::TempDir;
+
+const std::string kCoarse = " --max-frequency 3000 --element-m 0.04 -q";
+
+TEST(ReferenceCliTest, RerenderKeepsLabelsAndRendersNewAudioDeterministically) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  ASSERT_EQ(RunCli(testing::kShortRecordArgs + "generate --count 6 --out D.h5 -q", cwd).exit_code,
+            0);
+  auto run = RunCli("rerender --in D.h5 --out R.h5" + kCoarse, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli("rerender --in D.h5 --out R1.h5 --threads 1" + kCoarse, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const DatasetReader base(cwd + "/D.h5"), ref(cwd + "/R.h5"), ref1(cwd + "/R1.h5");
+  ASSERT_EQ(ref.size(), base.size());
+  EXPECT_EQ(ref.info().variation_names.size(), 8u);
+  const double fs = ref.info().sample_rate_hz;
+  int rendered = 0;
+  for (int64_t i = 0; i < base.size(); ++i) {
+    const StrikeSample b = base.Read(i), r = ref.Read(i), r1 = ref1.Read(i);
+    EXPECT_EQ(r.label.z_m, b.label.z_m);
+    EXPECT_EQ(r.label.theta_rad, b.label.theta_rad);
+    EXPECT_EQ(r.label.time_s, b.label.time_s);
+    EXPECT_EQ(r.audio, r1.audio) << "sample " << i << " depends on the thread count";
+    if (!b.valid) continue;
+    // noise before the onset (a 3 kHz band leaves the strike 10-40 dB above it), the strike
+    // after it, and not the shell model's audio
+    const Eigen::Index onset = static_cast<Eigen::Index>(r.label.time_s * fs);
+    const float before = r.audio.leftCols(onset - 10).cwiseAbs().maxCoeff();
+    const float after = r.audio.rightCols(r.audio.cols() - onset).cwiseAbs().maxCoeff();
+    EXPECT_GT(after, 5.0f * before) << "sample " << i;
+    EXPECT_GT((r.audio - b.audio).cwiseAbs().maxCoeff(), 0.01f);
+    ++rendered;
+  }
+  EXPECT_GT(rendered, 0);
+}
+
+TEST(ReferenceCliTest, RefusesItsInputAsOutputAndABandAboveNyquist) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  ASSERT_EQ(RunCli(testing::kShortRecordArgs + "generate --count 2 --out D.h5 -q", cwd).exit_code,
+            0);
+  auto run = RunCli("rerender --in D.h5 --out D.h5 --force" + kCoarse, cwd);
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("--in"), std::string::npos) << run.err;
+  run = RunCli("rerender --in D.h5 --out R.h5 --max-frequency 30000 -q", cwd);
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("Nyquist"), std::string::npos) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "R.h5"));
+  run = RunCli("reference --levels 2", cwd);
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("--levels"), std::string::npos) << run.err;
+}
+
+}  // namespace
+}  // namespace sonicboom
