@@ -121,6 +121,9 @@ solid::SolidStructure ReferenceStructure(const acoustics::ShellConfig& shell, Tu
     const double scale = shell.bolt_stiffness_scale.empty() ? 1.0 : shell.bolt_stiffness_scale[b];
     s.bolt_stiffness_n_m.push_back(shell.bolt_stiffness_n_m * scale);
   }
+  // a point bolt clamps a washer's width; a tie spreads over its length
+  s.bolt_patch_half_length_m =
+      shell.bolt_model == acoustics::BoltModel::kTie ? 0.5 * shell.bolt_tie_length_m : 0.004;
   s.hole_z_m = shell.hole_z_m;
   s.hole_theta_deg = shell.hole_theta_deg;
   s.hole_diameter_m = shell.hole_diameter_m;

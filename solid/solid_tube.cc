@@ -350,26 +350,34 @@ void SolidTubeModel::AddSprings() {
       const double gap = std::abs(WrapFrom(column_theta_rad_[next] - column_theta_rad_[c], -1.0));
       if (gap > 1e-12) continue;
       for (size_t b = 0; b < structure_.bolt_z_m.size(); ++b) {
-        // the bolt acts at its own z: each face's displacement there is interpolated along the
-        // axis (Lagrange basis of the element row holding z), so it moves with no mesh row
-        const double z = structure_.bolt_z_m[b];
-        const int ez = std::clamp(static_cast<int>((z - z_first) / dz), 0, nz - 1);
-        Eigen::VectorXd l, dl;
-        LagrangeBasis(wall, 2.0 * (z - (z_first + ez * dz)) / dz - 1.0, &l, &dl);
-        for (int layer = 0; layer < layers_; ++layer) {
-          const double k = structure_.bolt_stiffness_n_m[b] * layer_share[layer];
-          for (int d = 0; d < 3; ++d) {
-            // dofs and weights of (face c) - (face next) at z
-            std::vector<std::pair<int64_t, double>> terms;
-            for (int j = 0; j <= p; ++j) {
-              const int row = ez * p + j;
-              const int64_t a = node_dof_[3 * node_at(layer, row, c) + d];
-              const int64_t bb = node_dof_[3 * node_at(layer, row, next) + d];
-              if (a >= 0) terms.emplace_back(a, l(j));
-              if (bb >= 0) terms.emplace_back(bb, -l(j));
-            }
-            for (const auto& [ra, wa] : terms) {
-              for (const auto& [rb, wb] : terms) triplets.emplace_back(ra, rb, k * wa * wb);
+        // the bolt clamps a patch of the two faces, bolt_patch_half_length_m either side of its
+        // z, as springs spread evenly over kPatchPoints points (a point spring on a 3-D solid
+        // would soften without limit as the mesh is refined); each face's displacement at a
+        // point is interpolated along the axis with the element row's Lagrange basis
+        constexpr int kPatchPoints = 8;
+        for (int g = 0; g < kPatchPoints; ++g) {
+          const double z =
+              std::clamp(structure_.bolt_z_m[b] + structure_.bolt_patch_half_length_m *
+                                                      (2.0 * (g + 0.5) / kPatchPoints - 1.0),
+                         z_first, -z_first);
+          const int ez = std::clamp(static_cast<int>((z - z_first) / dz), 0, nz - 1);
+          Eigen::VectorXd l, dl;
+          LagrangeBasis(wall, 2.0 * (z - (z_first + ez * dz)) / dz - 1.0, &l, &dl);
+          for (int layer = 0; layer < layers_; ++layer) {
+            const double k = structure_.bolt_stiffness_n_m[b] * layer_share[layer] / kPatchPoints;
+            for (int d = 0; d < 3; ++d) {
+              // dofs and weights of (face c) - (face next) at z
+              std::vector<std::pair<int64_t, double>> terms;
+              for (int j = 0; j <= p; ++j) {
+                const int row = ez * p + j;
+                const int64_t a = node_dof_[3 * node_at(layer, row, c) + d];
+                const int64_t bb = node_dof_[3 * node_at(layer, row, next) + d];
+                if (a >= 0) terms.emplace_back(a, l(j));
+                if (bb >= 0) terms.emplace_back(bb, -l(j));
+              }
+              for (const auto& [ra, wa] : terms) {
+                for (const auto& [rb, wb] : terms) triplets.emplace_back(ra, rb, k * wa * wb);
+              }
             }
           }
         }

@@ -12,11 +12,11 @@
 ///
 /// Structure: a seam is a cut through the wall at a fixed theta (element boundaries are placed on
 /// it and its node columns doubled), bridged by bolts: three springs (x, y, z) of the bolt's
-/// stiffness between the two faces at the node row nearest the bolt, shared by the nodes through
-/// the wall. A hole takes its material out of the quadrature points that lie inside it (their mass
-/// and stiffness weights times kHoleFill). Mounts are springs to ground in every direction,
-/// per metre of the end rim. Simply supported ends hold u_x = u_y = 0 (radial and arc motion) on
-/// the end faces and leave u_z free (a shear diaphragm).
+/// stiffness between the two faces, spread over the patch the bolt clamps (bolt_patch_half_length_m
+/// either side of its z) and through the wall. A hole takes its material out of the quadrature
+/// points that lie inside it (their mass and stiffness weights times kHoleFill). Mounts are springs
+/// to ground in every direction, per metre of the end rim. Simply supported ends hold u_x = u_y = 0
+/// (radial and arc motion) on the end faces and leave u_z free (a shear diaphragm).
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -55,6 +55,7 @@ struct SolidStructure {
   std::vector<double> seam_theta_deg;      // saw cuts through the wall
   std::vector<double> bolt_z_m;            // bolts along every seam, tube frame
   std::vector<double> bolt_stiffness_n_m;  // per bolt, per direction
+  double bolt_patch_half_length_m{0.004};  // each bolt clamps the faces over z +- this
   std::vector<double> hole_z_m, hole_theta_deg;
   double hole_diameter_m{0.0};
   double flange_mount_stiffness_n_m2{0.0};  // springs to ground per metre of the z = -L/2 rim
