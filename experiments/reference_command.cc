@@ -14,6 +14,8 @@
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
+#include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
@@ -41,7 +43,8 @@ struct ReferenceOptions {
   int64_t degree_thickness = 3;
   int64_t levels = 3;
   double ratio = 1.25;
-  std::string out;  // markdown report; "" = print only
+  std::string out;             // markdown report; "" = print only
+  bool compare_shell = false;  // the shell model's arrivals against the finest mesh's
 };
 
 // probe strikes (z m, theta deg): inside the contact region, between and in front of discs
@@ -96,6 +99,33 @@ Level SolveLevel(const SonicBoomConfig& config, const solid::SolidStructure& str
       1e3 * level.h_m, level.dofs, level.f_hz.size(), max_frequency_hz, level.build_s,
       level.solve_s);
   return level;
+}
+
+// the probes' disc arrivals of the same pulse through the shell model's modes (acoustics/shell.h)
+// on a grid of axial spacing axial_m: (probe) x (disc), s
+std::vector<std::vector<double>> ShellArrivals(const SonicBoomConfig& config, TubeEnds ends,
+                                               bool ideal, double axial_m, double max_frequency_hz,
+                                               int64_t* modes_out) {
+  acoustics::ShellConfig shell = config.shell;
+  shell.ends = ends;
+  shell.ideal = shell.ideal || ideal;
+  shell.axial_spacing_m = axial_m;
+  const acoustics::ShellModel model(config.tube, config.material, shell);
+  const acoustics::ShellModes modes = acoustics::CachedShellModes(model, max_frequency_hz, 0, true,
+                                                                  acoustics::DefaultModeCacheDir());
+  *modes_out = modes.omega_rad_s.size();
+  const Eigen::MatrixXd sensor = model.SensorRows(config.mics) * modes.shapes;  // (discs x modes)
+  solid::PulseResponseConfig pulse;
+  pulse.loss_factor = config.material.loss_factor;
+  std::vector<std::vector<double>> t;
+  for (const auto& [z, theta_deg] : kProbes) {
+    const Eigen::VectorXd force =
+        modes.shapes.transpose() * model.RadialForceWeights(z, theta_deg * kDeg);
+    const Eigen::MatrixXd y = solid::PulseResponse(modes.omega_rad_s, sensor, force, pulse);
+    const Eigen::VectorXd a = solid::ThresholdArrivals(y, pulse.sample_rate_hz, 0.2);
+    t.emplace_back(a.data(), a.data() + a.size());
+  }
+  return t;
 }
 
 // the q-quantile (0 to 1) of v, by rank
@@ -210,10 +240,10 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   // report
   std::string md = fmt::format(
       "Made by `sonicboom reference --boundary {} --max-frequency {} --element-m {} "
-      "--degree-wall {} --degree-thickness {} --levels {} --ratio {}{}` "
+      "--degree-wall {} --degree-thickness {} --levels {} --ratio {}{}{}` "
       "(experiments/reference_command.cc).\n\n",
       NameOf(o.ends), o.max_frequency_hz, o.element_m, o.degree_wall, o.degree_thickness, o.levels,
-      o.ratio, o.ideal ? " --ideal" : "");
+      o.ratio, o.ideal ? " --ideal" : "", o.compare_shell ? " --compare-shell" : "");
   md += "| mesh h (mm) | DOFs | modes to f_max | build (s) | modes and projections (s) |\n";
   md += "|---|---|---|---|---|\n";
   json levels_json = json::array();
@@ -263,10 +293,54 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
       1e6 * Quantile(arrival_err, 0.9), 1e6 * arrival_max, jumps(arrival_err), arrival_err.size(),
       1e6 * Median(delay_err), 1e6 * Quantile(delay_err, 0.9), 1e6 * delay_max, jumps(delay_err),
       delay_err.size());
+  // rungs against the finest mesh: arrival and inter-disc delay errors over the probes
+  auto errors = [&](const std::vector<std::vector<double>>& t, std::vector<double>* arrival,
+                    std::vector<double>* delay) {
+    const auto& ref = levels.back().t;
+    for (size_t p = 0; p < ref.size(); ++p) {
+      for (int a = 0; a < discs; ++a) {
+        arrival->push_back(std::abs(t[p][a] - ref[p][a]));
+        for (int b = a + 1; b < discs; ++b) {
+          delay->push_back(std::abs((t[p][a] - t[p][b]) - (ref[p][a] - ref[p][b])));
+        }
+      }
+    }
+  };
+  md +=
+      "\n| rung, against the finest mesh | modes | arrival error median / 90 % / max (us) | "
+      "delay error median / 90 % / max (us) |\n|---|---|---|---|\n";
+  json rungs_json = json::array();
+  auto add_rung = [&](const std::string& name, int64_t modes,
+                      const std::vector<std::vector<double>>& t) {
+    std::vector<double> arrival, delay;
+    errors(t, &arrival, &delay);
+    md += fmt::format("| {} | {} | {:.1f} / {:.1f} / {:.1f} | {:.1f} / {:.1f} / {:.1f} |\n", name,
+                      modes, 1e6 * Median(arrival), 1e6 * Quantile(arrival, 0.9),
+                      1e6 * Quantile(arrival, 1.0), 1e6 * Median(delay), 1e6 * Quantile(delay, 0.9),
+                      1e6 * Quantile(delay, 1.0));
+    rungs_json.push_back({{"rung", name},
+                          {"modes", modes},
+                          {"arrival_error_s", {Median(arrival), Quantile(arrival, 0.9)}},
+                          {"delay_error_s", {Median(delay), Quantile(delay, 0.9)}}});
+  };
+  for (size_t l = 0; l + 1 < levels.size(); ++l) {
+    add_rung(fmt::format("reference, h = {:.1f} mm", 1e3 * levels[l].h_m),
+             static_cast<int64_t>(levels[l].f_hz.size()), levels[l].t);
+  }
+  if (o.compare_shell) {
+    for (const double axial : {config.shell.AxialSpacing(), config.shell.grid_spacing_m}) {
+      int64_t modes = 0;
+      const auto t = ShellArrivals(config, o.ends, o.ideal, axial, o.max_frequency_hz, &modes);
+      add_rung(fmt::format("shell modal, {:.1f} x {:.1f} mm grid",
+                           1e3 * config.shell.grid_spacing_m, 1e3 * axial),
+               modes, t);
+    }
+  }
   if (!o.out.empty()) WriteTextAtomic(o.out, md);
   json j = {{"levels", levels_json},
             {"bands", bands_json},
             {"modes", modes_json},
+            {"rungs", rungs_json},
             {"arrival_error_s", {{"median", Median(arrival_err)}, {"max", arrival_max}}},
             {"delay_error_s", {{"median", Median(delay_err)}, {"max", delay_max}}}};
   return {j.dump(), md};
@@ -286,6 +360,9 @@ void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run) {
   cmd->add_option("--levels", o->levels, "meshes, each --ratio finer than the last");
   cmd->add_option("--ratio", o->ratio, "refinement ratio between levels");
   cmd->add_option("--out", o->out, "markdown report (\"\" = print only)");
+  cmd->add_flag(
+      "--compare-shell", o->compare_shell,
+      "also the shell model's arrivals (default and 2.5 mm grids) against the finest mesh");
   cmd->callback([&g, run, o] { *run = [&g, o] { return RunReference(g, *o); }; });
 }
 

@@ -44,6 +44,7 @@ for family in shell reference; do
       --data "$OUT/$family.h5" --json > "$OUT/constant_$family.json"
   for run in "$@"; do
     name=$(basename "$run")
+    [ "$name" = model ] && name=$(basename "$(dirname "$run")")  # the demo's RUN/model
     [ -f "$OUT/${name}_$family.json" ] ||
       "$BIN" --threads "$THREADS" -q eval --model "$run" --data "$OUT/$family.h5" \
         --json > "$OUT/${name}_$family.json"
