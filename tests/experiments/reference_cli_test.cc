@@ -5,6 +5,8 @@
 
 #include <filesystem>
 
+#include <nlohmann/json.hpp>
+
 #include "common/test_util.h"
 #include "sonicboom/core/dataset.h"
 
@@ -64,6 +66,27 @@ TEST(ReferenceCliTest, RefusesItsInputAsOutputAndABandAboveNyquist) {
   run = RunCli("reference --levels 2", cwd);
   EXPECT_NE(run.exit_code, 0);
   EXPECT_NE(run.err.find("--levels"), std::string::npos) << run.err;
+}
+
+// the convergence report on coarse meshes, with the shell model's arrivals beside the reference's:
+// every rung is reported, and the shell, a model of the same tube, times the discs' arrivals
+// within a tenth of a millisecond of the solid's (a unit or sign error would not)
+TEST(ReferenceCliTest, ConvergenceReportComparesTheShellWithTheSolid) {
+  TempDir dir;
+  const auto run = RunCli(
+      "reference --compare-shell --ideal --element-m 0.04 --max-frequency 1500 --levels 3 "
+      "--ratio 1.3 --out R.md --json -q",
+      dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const auto j = nlohmann::json::parse(run.out);
+  ASSERT_EQ(j["rungs"].size(), 4u);  // two coarser meshes, two shell grids
+  for (const auto& rung : j["rungs"]) {
+    const double arrival = rung["arrival_error_s"][0], delay = rung["delay_error_s"][0];
+    EXPECT_LT(arrival, 1e-4) << rung["rung"];
+    EXPECT_LT(delay, 1e-4) << rung["rung"];
+  }
+  EXPECT_GT(j["levels"][2]["dofs"].get<int64_t>(), j["levels"][0]["dofs"].get<int64_t>());
+  EXPECT_TRUE(std::filesystem::exists(dir.path() / "R.md"));
 }
 
 }  // namespace
