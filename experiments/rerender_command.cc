@@ -40,6 +40,7 @@ struct RerenderOptions {
   double max_frequency_hz = 15000.0;
   double element_m = 0.0135;
   bool force = false;
+  bool ideal = false;  // a uniform tube: no seams, holes, bolts or mounts (a diagnostic)
 };
 
 // the draws of one strike's own physics, in kVariationNames' order
@@ -107,7 +108,7 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
   solid::ReferenceTubeConfig rc;
   rc.tube = config.tube;
   rc.material = config.material;
-  rc.structure = ReferenceStructure(config.shell, config.shell.ends, false);
+  rc.structure = ReferenceStructure(config.shell, config.shell.ends, o.ideal);
   rc.mesh.element_arc_m = o.element_m;
   rc.mesh.element_axial_m = o.element_m;
   rc.mics = config.mics;
@@ -120,8 +121,8 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
 
   info.config_yaml += fmt::format(
       "\n# audio rendered again by the reference solid (sonicboom rerender --max-frequency {} "
-      "--element-m {}) from {}\n",
-      o.max_frequency_hz, o.element_m, o.in);
+      "--element-m {}{}) from {}\n",
+      o.max_frequency_hz, o.element_m, o.ideal ? " --ideal" : "", o.in);
   info.variation_names = kVariationNames;
   info.num_samples = 0;
   DatasetWriter writer(o.out, info);
@@ -177,6 +178,8 @@ void RegisterRerender(CLI::App& app, GlobalOptions& g, Runner* run) {
   cmd->add_option("--max-frequency", o->max_frequency_hz, "modes of the reference up to here (Hz)");
   cmd->add_option("--element-m", o->element_m, "element length of the reference mesh (m)");
   cmd->add_flag("--force", o->force, "replace an existing output");
+  cmd->add_flag("--ideal", o->ideal,
+                "render a uniform tube (no seams, holes, bolts or mounts): a diagnostic");
   cmd->callback([&g, run, o] { *run = [&g, o] { return RunRerender(g, *o); }; });
 }
 
