@@ -27,7 +27,13 @@ TEST(ReferenceCliTest, RerenderKeepsLabelsAndRendersNewAudioDeterministically) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   run = RunCli("rerender --in D.h5 --out R1.h5 --threads 1" + kCoarse, cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
-  const DatasetReader base(cwd + "/D.h5"), ref(cwd + "/R.h5"), ref1(cwd + "/R1.h5");
+  run = RunCli("rerender --ideal --in D.h5 --out RI.h5" + kCoarse, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const DatasetReader base(cwd + "/D.h5"), ref(cwd + "/R.h5"), ref1(cwd + "/R1.h5"),
+      ideal(cwd + "/RI.h5");
+  // the uniform tube is another structure: other audio, and its config says how it was made
+  EXPECT_NE(ideal.info().config_yaml.find("--ideal"), std::string::npos);
+  EXPECT_GT((ideal.Read(0).audio - ref.Read(0).audio).cwiseAbs().maxCoeff(), 1e-3f);
   ASSERT_EQ(ref.size(), base.size());
   EXPECT_EQ(ref.info().variation_names.size(), 8u);
   const double fs = ref.info().sample_rate_hz;
