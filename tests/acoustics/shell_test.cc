@@ -421,7 +421,20 @@ TEST(ShellSynthTest, ResidualRestoresTheTruncatedModes) {
   const double corrected =
       RelativeError(ModalRun(model, band, weights, force, sensors, 600, fs, true), reference);
   std::cout << "5 kHz band: error " << plain << " without residual, " << corrected << " with\n";
-  EXPECT_LT(corrected, plain);
+  EXPECT_LT(corrected, 0.8 * plain);
+  // a slow (5 ms) load is nearly static for every dropped mode: there the residual stands for
+  // their quasi-static response and must take at least half the truncation error away (it takes
+  // 65 %: 0.074 -> 0.026; a missing or mis-signed residual leaves 100 % or more)
+  const std::vector<double> slow = Pulse(fs, 5e-3, 50.0);
+  const Eigen::MatrixXd slow_reference =
+      ModalRun(model, all, weights, slow, sensors, 600, fs, true);
+  const double slow_plain =
+      RelativeError(ModalRun(model, band, weights, slow, sensors, 600, fs, false), slow_reference);
+  const double slow_corrected =
+      RelativeError(ModalRun(model, band, weights, slow, sensors, 600, fs, true), slow_reference);
+  std::cout << "5 ms load: error " << slow_plain << " without residual, " << slow_corrected
+            << " with\n";
+  EXPECT_LT(slow_corrected, 0.5 * slow_plain);
 }
 
 }  // namespace

@@ -73,12 +73,14 @@ TEST(StrikeRenderTest, ModalRungIsFiniteDeterministicAndCarriesTheCues) {
   EXPECT_FALSE(a.clipped);
   EXPECT_GT(a.modes_used, 50);
   EXPECT_EQ(a.touches, 1);
-  // the contact is coupled to the wall: close to, but not exactly, the rigid-wall Hertz pulse
+  // the contact is coupled to the wall: the same order as the rigid-wall Hertz pulse
   const HertzImpact rigid =
       SolveHertzImpact(Dowel(-0.09, 0.0, 0.1), TubeConfig{}, MaterialConfig{});
   EXPECT_GT(a.duration_s, 0.9 * rigid.duration_s);
   EXPECT_LT(a.duration_s, 2.0 * rigid.duration_s);
-  EXPECT_NE(a.duration_s, rigid.duration_s);
+  // the wall yields, so the contact lasts clearly longer than against a rigid wall (1.9x here; a
+  // contact solved without the wall's compliance would give 1.0x)
+  EXPECT_GT(a.duration_s, 1.2 * rigid.duration_s);
   EXPECT_LE(a.impulse_ns, 2 * 0.03 * 0.1 * 1.001);
   // arrival-time and level cues: the near ring (mics 0-2) hears first and louder than the far one
   const MicArrayConfig mics;
