@@ -59,6 +59,25 @@ struct Level {
   std::vector<std::vector<double>> t;  // (probe) x (disc) first arrival, s
 };
 
+// the first arrival at each disc of the probe pulse through a model's modes: omega (modes),
+// disc_modal (discs x modes) each disc's read-out of each shape, probe_modal (probes x modes) each
+// probe's radial drive of each shape. (probe) x (disc), s. The one measurement every rung gets.
+std::vector<std::vector<double>> ProbeArrivals(const Eigen::VectorXd& omega_rad_s,
+                                               const Eigen::MatrixXd& disc_modal,
+                                               const Eigen::MatrixXd& probe_modal,
+                                               double loss_factor) {
+  solid::PulseResponseConfig pulse;
+  pulse.loss_factor = loss_factor;
+  std::vector<std::vector<double>> t;
+  for (Eigen::Index p = 0; p < probe_modal.rows(); ++p) {
+    const Eigen::MatrixXd y =
+        solid::PulseResponse(omega_rad_s, disc_modal, probe_modal.row(p).transpose(), pulse);
+    const Eigen::VectorXd a = solid::ThresholdArrivals(y, pulse.sample_rate_hz, 0.2);
+    t.emplace_back(a.data(), a.data() + a.size());
+  }
+  return t;
+}
+
 Level SolveLevel(const SonicBoomConfig& config, const solid::SolidStructure& structure,
                  const solid::SolidMeshConfig& mesh, double max_frequency_hz) {
   Level level;
@@ -84,15 +103,8 @@ Level SolveLevel(const SonicBoomConfig& config, const solid::SolidStructure& str
   for (Eigen::Index k = 0; k < modes.omega_rad_s.size(); ++k) {
     level.f_hz.push_back(modes.omega_rad_s(k) / (2.0 * std::numbers::pi));
   }
-  solid::PulseResponseConfig pulse;
-  pulse.loss_factor = config.material.loss_factor;
-  for (int p = 0; p < probes; ++p) {
-    const Eigen::MatrixXd y =
-        solid::PulseResponse(modes.omega_rad_s, modes.projections.topRows(discs),
-                             modes.projections.row(discs + p).transpose(), pulse);
-    const Eigen::VectorXd t = solid::ThresholdArrivals(y, pulse.sample_rate_hz, 0.2);
-    level.t.emplace_back(t.data(), t.data() + t.size());
-  }
+  level.t = ProbeArrivals(modes.omega_rad_s, modes.projections.topRows(discs),
+                          modes.projections.bottomRows(probes), config.material.loss_factor);
   spdlog::info(
       "reference: h = {:.2f} mm, {} DOFs, {} modes to {} Hz; built in {:.1f} s, solved in "
       "{:.1f} s",
@@ -114,18 +126,12 @@ std::vector<std::vector<double>> ShellArrivals(const SonicBoomConfig& config, Tu
   const acoustics::ShellModes modes = acoustics::CachedShellModes(model, max_frequency_hz, 0, true,
                                                                   acoustics::DefaultModeCacheDir());
   *modes_out = modes.omega_rad_s.size();
-  const Eigen::MatrixXd sensor = model.SensorRows(config.mics) * modes.shapes;  // (discs x modes)
-  solid::PulseResponseConfig pulse;
-  pulse.loss_factor = config.material.loss_factor;
-  std::vector<std::vector<double>> t;
-  for (const auto& [z, theta_deg] : kProbes) {
-    const Eigen::VectorXd force =
-        modes.shapes.transpose() * model.RadialForceWeights(z, theta_deg * kDeg);
-    const Eigen::MatrixXd y = solid::PulseResponse(modes.omega_rad_s, sensor, force, pulse);
-    const Eigen::VectorXd a = solid::ThresholdArrivals(y, pulse.sample_rate_hz, 0.2);
-    t.emplace_back(a.data(), a.data() + a.size());
+  Eigen::MatrixXd drive(std::size(kProbes), model.dofs());  // (probes x dofs)
+  for (size_t p = 0; p < std::size(kProbes); ++p) {
+    drive.row(p) = model.RadialForceWeights(kProbes[p].first, kProbes[p].second * kDeg).transpose();
   }
-  return t;
+  return ProbeArrivals(modes.omega_rad_s, model.SensorRows(config.mics) * modes.shapes,
+                       drive * modes.shapes, config.material.loss_factor);
 }
 
 // the q-quantile (0 to 1) of v, by rank

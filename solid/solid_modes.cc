@@ -153,7 +153,9 @@ SolidModes SolveSolidModes(const SolidTubeModel& model, const SolidModeRequest& 
       const double lo_hz = std::sqrt(std::max(slices[i].lo, 0.0)) / (2.0 * std::numbers::pi);
       const double hi_hz = std::sqrt(slices[i].hi) / (2.0 * std::numbers::pi);
       const double mid = Lambda(0.5 * (lo_hz + hi_hz));
-      const int64_t below_lo = slices[i].lo < 0.0 ? 0 : Inertia(a, slices[i].lo);
+      // the slices run contiguously from the start, below which no mode lies
+      int64_t below_lo = 0;
+      for (size_t j = 0; j < i; ++j) below_lo += slices[j].count;
       const int64_t in_lower = Inertia(a, mid) - below_lo;
       const Slice upper{mid, slices[i].hi, slices[i].count - in_lower};
       slices[i] = {slices[i].lo, mid, in_lower};
@@ -172,16 +174,16 @@ SolidModes SolveSolidModes(const SolidTubeModel& model, const SolidModeRequest& 
   tbb::parallel_for(size_t{0}, slices.size(), [&](size_t i) {
     if (slices[i].count == 0) return;
     SolveSlice(a, slices[i], request.with_shapes || project, &values[i], &vectors[i]);
-    if (project) {
-      projected[i] = request.projection_rows * (inv_sqrt_mass.asDiagonal() * vectors[i]);
-    }
+    if (vectors[i].size() == 0) return;
+    // the mass-normalized shapes phi = M^-1/2 y, their read-outs, and the rows asked for
+    vectors[i] = inv_sqrt_mass.asDiagonal() * vectors[i];
+    if (project) projected[i] = request.projection_rows * vectors[i];
     if (!request.with_shapes) {
       vectors[i] = Eigen::MatrixXd();
     } else if (!request.shape_dofs.empty()) {
-      // keep the asked rows only, mass-scaled here
       Eigen::MatrixXd kept(request.shape_dofs.size(), vectors[i].cols());
       for (size_t r = 0; r < request.shape_dofs.size(); ++r) {
-        kept.row(r) = inv_sqrt_mass(request.shape_dofs[r]) * vectors[i].row(request.shape_dofs[r]);
+        kept.row(r) = vectors[i].row(request.shape_dofs[r]);
       }
       vectors[i] = std::move(kept);
     }
@@ -205,18 +207,14 @@ SolidModes SolveSolidModes(const SolidTubeModel& model, const SolidModeRequest& 
   std::sort(order.begin(), order.end());
   const Eigen::Index m = static_cast<Eigen::Index>(order.size());
   modes.omega_rad_s.resize(m);
-  const bool subset = !request.shape_dofs.empty();
   if (request.with_shapes) {
-    modes.shapes.resize(subset ? request.shape_dofs.size() : model.dofs(), m);
+    modes.shapes.resize(request.shape_dofs.empty() ? model.dofs() : request.shape_dofs.size(), m);
   }
   if (project) modes.projections.resize(request.projection_rows.rows(), m);
   for (Eigen::Index k = 0; k < m; ++k) {
     modes.omega_rad_s(k) = std::sqrt(order[k].first);
     const auto& [s, i] = where[order[k].second];
-    if (request.with_shapes) {
-      modes.shapes.col(k) = subset ? vectors[s].col(i)
-                                   : Eigen::VectorXd(inv_sqrt_mass.cwiseProduct(vectors[s].col(i)));
-    }
+    if (request.with_shapes) modes.shapes.col(k) = vectors[s].col(i);
     if (project) modes.projections.col(k) = projected[s].col(i);
   }
   return modes;

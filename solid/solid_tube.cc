@@ -25,14 +25,6 @@ double WrapFrom(double theta_rad, double start_rad) {
 
 }  // namespace
 
-void SolidMeshConfig::Serialize(Archive* a) {
-  a->Visit("element_arc_m", &element_arc_m, Bounds::Open(0.0, 1.0));
-  a->Visit("element_axial_m", &element_axial_m, Bounds::Open(0.0, 1.0));
-  a->Visit("degree_wall", &degree_wall, Bounds::Closed(1, 12));
-  a->Visit("degree_thickness", &degree_thickness, Bounds::Closed(1, 12));
-  a->Visit("elements_through", &elements_through, Bounds::Closed(1, 8));
-}
-
 void SolidMeshConfig::Validate(const TubeConfig& tube) const {
   const double arc = std::numbers::pi * tube.mid_radius_m();
   if (element_arc_m > arc) {
@@ -75,6 +67,8 @@ SolidTubeModel::SolidTubeModel(const TubeConfig& tube, const MaterialConfig& mat
   if (structure_.hole_z_m.size() != structure_.hole_theta_deg.size()) {
     throw ConfigError("reference structure: hole_z_m and hole_theta_deg differ in length");
   }
+  wall_ = MakeGllRule(static_cast<int>(mesh_.degree_wall));
+  thick_ = MakeGllRule(static_cast<int>(mesh_.degree_thickness));
   BuildMesh();
   Assemble();
   AddSprings();
@@ -84,7 +78,7 @@ void SolidTubeModel::BuildMesh() {
   const int p = static_cast<int>(mesh_.degree_wall);
   const int q = static_cast<int>(mesh_.degree_thickness);
   const int nr = static_cast<int>(mesh_.elements_through);
-  const GllRule wall = MakeGllRule(p), thick = MakeGllRule(q);
+  const GllRule &wall = wall_, &thick = thick_;
   const double r_mid = tube_.mid_radius_m(), h = tube_.wall_thickness_m;
   const double r_in = tube_.outer_radius_m - h;
 
@@ -179,7 +173,7 @@ void SolidTubeModel::BuildMesh() {
 void SolidTubeModel::Assemble() {
   const int p = static_cast<int>(mesh_.degree_wall);
   const int q = static_cast<int>(mesh_.degree_thickness);
-  const GllRule wall = MakeGllRule(p), thick = MakeGllRule(q);
+  const GllRule &wall = wall_, &thick = thick_;
   const double e_mod = material_.youngs_modulus_pa, nu = material_.poisson_ratio;
   const double lambda = e_mod * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
   const double mu = e_mod / (2.0 * (1.0 + nu));
@@ -236,9 +230,13 @@ void SolidTubeModel::Assemble() {
     Eigen::VectorXd mass = Eigen::VectorXd::Zero(n_dofs);
     Eigen::MatrixXd ke(3 * n_local, 3 * n_local);
     std::vector<std::pair<int, Eigen::Vector3d>> line;  // (local node, physical gradient 1/m)
+    Eigen::MatrixXd fills(p + 1, p + 1);                // (arc x axial) hole fill of each column
     for (int64_t ei = chunk * kChunk; ei < std::min(n_elements, (chunk + 1) * kChunk); ++ei) {
       const Element& el = elements_[ei];
       ke.setZero();
+      for (int j = 0; j <= p; ++j) {
+        for (int i = 0; i <= p; ++i) fills(i, j) = fill(el, i, j);
+      }
       for (int k = 0; k <= q; ++k) {
         for (int j = 0; j <= p; ++j) {
           for (int i = 0; i <= p; ++i) {
@@ -249,7 +247,7 @@ void SolidTubeModel::Assemble() {
             const Eigen::Vector3d e_z(0.0, 0.0, 1.0);
             // quadrature weight times the Jacobian r (dth/2)(dz/2)(dr/2), times the hole fill
             const double w = wall.weights(i) * wall.weights(j) * thick.weights(k) * r * 0.125 *
-                             el.dtheta_rad * el.dz_m * el.dr_m * fill(el, i, j);
+                             el.dtheta_rad * el.dz_m * el.dr_m * fills(i, j);
             const int qn = local(i, j, k);
             for (int d = 0; d < 3; ++d) {
               const int64_t dof = node_dof_[3 * el.nodes[qn] + d];
@@ -309,38 +307,33 @@ void SolidTubeModel::Assemble() {
   }
 }
 
+void SolidTubeModel::AddTie(const std::vector<std::pair<int64_t, double>>& terms, double k,
+                            std::vector<Eigen::Triplet<double>>* triplets) {
+  for (const auto& [ra, wa] : terms) {
+    for (const auto& [rb, wb] : terms) triplets->emplace_back(ra, rb, k * wa * wb);
+  }
+}
+
 void SolidTubeModel::AddSprings() {
+  const int p = static_cast<int>(mesh_.degree_wall);
   const int q = static_cast<int>(mesh_.degree_thickness);
-  const GllRule wall = MakeGllRule(static_cast<int>(mesh_.degree_wall)), thick = MakeGllRule(q);
   const int columns = static_cast<int>(column_theta_rad_.size());
   const int64_t n_dofs = dofs();
   // share of the wall each node layer stands for (thickness quadrature weights, sum 1)
   std::vector<double> layer_share(layers_, 0.0);
   for (int64_t er = 0; er < mesh_.elements_through; ++er) {
     for (int k = 0; k <= q; ++k) {
-      layer_share[er * q + k] += 0.5 * thick.weights(k) / mesh_.elements_through;
+      layer_share[er * q + k] += 0.5 * thick_.weights(k) / mesh_.elements_through;
     }
   }
   auto node_at = [&](int layer, int row, int column) {
     return (static_cast<int64_t>(layer) * rows_ + row) * columns + column;
   };
   std::vector<Eigen::Triplet<double>> triplets;
-  auto spring = [&](int64_t node_a, int64_t node_b, double k) {
-    for (int d = 0; d < 3; ++d) {
-      const int64_t a = node_dof_[3 * node_a + d];
-      const int64_t b = node_b >= 0 ? node_dof_[3 * node_b + d] : -1;
-      if (a >= 0) triplets.emplace_back(a, a, k);
-      if (b >= 0) triplets.emplace_back(b, b, k);
-      if (a >= 0 && b >= 0) {
-        triplets.emplace_back(a, b, -k);
-        triplets.emplace_back(b, a, -k);
-      }
-    }
-  };
+  std::vector<std::pair<int64_t, double>> terms;  // (DOF, weight) of one spring's stretch
 
   // bolts: across each seam, between the last column before it and the first after it
   const double z_first = -0.5 * tube_.length_m;
-  const int p = static_cast<int>(mesh_.degree_wall);
   const int nz = (rows_ - 1) / p;
   const double dz = tube_.length_m / nz;
   if (!structure_.seam_theta_deg.empty()) {
@@ -362,12 +355,12 @@ void SolidTubeModel::AddSprings() {
                          z_first, -z_first);
           const int ez = std::clamp(static_cast<int>((z - z_first) / dz), 0, nz - 1);
           Eigen::VectorXd l, dl;
-          LagrangeBasis(wall, 2.0 * (z - (z_first + ez * dz)) / dz - 1.0, &l, &dl);
+          LagrangeBasis(wall_, 2.0 * (z - (z_first + ez * dz)) / dz - 1.0, &l, &dl);
           for (int layer = 0; layer < layers_; ++layer) {
             const double k = structure_.bolt_stiffness_n_m[b] * layer_share[layer] / kPatchPoints;
             for (int d = 0; d < 3; ++d) {
-              // dofs and weights of (face c) - (face next) at z
-              std::vector<std::pair<int64_t, double>> terms;
+              // (face c) - (face next) at z
+              terms.clear();
               for (int j = 0; j <= p; ++j) {
                 const int row = ez * p + j;
                 const int64_t a = node_dof_[3 * node_at(layer, row, c) + d];
@@ -375,9 +368,7 @@ void SolidTubeModel::AddSprings() {
                 if (a >= 0) terms.emplace_back(a, l(j));
                 if (bb >= 0) terms.emplace_back(bb, -l(j));
               }
-              for (const auto& [ra, wa] : terms) {
-                for (const auto& [rb, wb] : terms) triplets.emplace_back(ra, rb, k * wa * wb);
-              }
+              AddTie(terms, k, &triplets);
             }
           }
         }
@@ -393,7 +384,7 @@ void SolidTubeModel::AddSprings() {
       continue;  // one element per arc span: the first axial, innermost
     for (int i = 0; i <= p; ++i) {
       const int c = static_cast<int>(el.nodes[i] % columns);
-      column_arc_m[c] += 0.5 * wall.weights(i) * el.dtheta_rad * tube_.mid_radius_m();
+      column_arc_m[c] += 0.5 * wall_.weights(i) * el.dtheta_rad * tube_.mid_radius_m();
     }
   }
   for (const auto& [row, k_per_m] : {std::pair{0, structure_.flange_mount_stiffness_n_m2},
@@ -401,7 +392,11 @@ void SolidTubeModel::AddSprings() {
     if (k_per_m <= 0.0) continue;
     for (int c = 0; c < columns; ++c) {
       for (int layer = 0; layer < layers_; ++layer) {
-        spring(node_at(layer, row, c), -1, k_per_m * column_arc_m[c] * layer_share[layer]);
+        for (int d = 0; d < 3; ++d) {
+          const int64_t dof = node_dof_[3 * node_at(layer, row, c) + d];
+          if (dof < 0) continue;
+          AddTie({{dof, 1.0}}, k_per_m * column_arc_m[c] * layer_share[layer], &triplets);
+        }
       }
     }
   }
@@ -442,12 +437,11 @@ const SolidTubeModel::Element& SolidTubeModel::Locate(double z_m, double theta_r
 
 Eigen::VectorXd SolidTubeModel::RadialForceWeights(double z_m, double theta_rad) const {
   const int p = static_cast<int>(mesh_.degree_wall), q = static_cast<int>(mesh_.degree_thickness);
-  const GllRule wall = MakeGllRule(p);
   double xi, eta;
   const Element& el = Locate(z_m, theta_rad, &xi, &eta);
   Eigen::VectorXd li, dli, lj, dlj;
-  LagrangeBasis(wall, xi, &li, &dli);
-  LagrangeBasis(wall, eta, &lj, &dlj);
+  LagrangeBasis(wall_, xi, &li, &dli);
+  LagrangeBasis(wall_, eta, &lj, &dlj);
   const Eigen::Vector3d normal(std::cos(theta_rad), std::sin(theta_rad), 0.0);
   Eigen::VectorXd row = Eigen::VectorXd::Zero(dofs());
   for (int j = 0; j <= p; ++j) {
@@ -465,18 +459,17 @@ Eigen::VectorXd SolidTubeModel::RadialForceWeights(double z_m, double theta_rad)
 void SolidTubeModel::AddSurfaceStrain(const Element& el, double xi, double eta, double scale,
                                       Eigen::VectorXd* row) const {
   const int p = static_cast<int>(mesh_.degree_wall), q = static_cast<int>(mesh_.degree_thickness);
-  const GllRule wall = MakeGllRule(p), thick = MakeGllRule(q);
   Eigen::VectorXd li, dli, lj, dlj;
-  LagrangeBasis(wall, xi, &li, &dli);
-  LagrangeBasis(wall, eta, &lj, &dlj);
+  LagrangeBasis(wall_, xi, &li, &dli);
+  LagrangeBasis(wall_, eta, &lj, &dlj);
   const double th = el.theta0_rad + 0.5 * (xi + 1.0) * el.dtheta_rad;
   const double r = el.r0_m + el.dr_m;
   const Eigen::Vector3d e_r(std::cos(th), std::sin(th), 0.0),
       e_th(-std::sin(th), std::cos(th), 0.0);
   const Eigen::Vector3d e_z(0.0, 0.0, 1.0);
   for (int k = 0; k <= q; ++k) {
-    const double lk = k == q ? 1.0 : 0.0;       // l_k(1)
-    const double dlk = thick.derivative(q, k);  // l_k'(1)
+    const double lk = k == q ? 1.0 : 0.0;        // l_k(1)
+    const double dlk = thick_.derivative(q, k);  // l_k'(1)
     for (int j = 0; j <= p; ++j) {
       for (int i = 0; i <= p; ++i) {
         const Eigen::Vector3d g = e_th * (2.0 / (r * el.dtheta_rad)) * dli(i) * lj(j) * lk +
@@ -553,10 +546,6 @@ Eigen::VectorXd SolidTubeModel::Sample(
     }
   }
   return u;
-}
-
-double SolidTubeModel::KineticEnergy(const Eigen::VectorXd& v_m_s) const {
-  return 0.5 * v_m_s.cwiseProduct(v_m_s).dot(mass_kg_);
 }
 
 }  // namespace sonicboom::solid

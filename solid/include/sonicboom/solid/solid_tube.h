@@ -24,8 +24,8 @@
 #include <functional>
 #include <vector>
 
-#include "sonicboom/core/archive.h"
 #include "sonicboom/core/tube.h"
+#include "sonicboom/solid/gll.h"
 
 namespace sonicboom::solid {
 
@@ -33,7 +33,8 @@ namespace sonicboom::solid {
 /// no mass; this keeps them, with the wave speed of the wall, far above the audio band).
 inline constexpr double kHoleFill = 1e-4;
 
-/// Keys under "reference": the discretization of the reference model.
+/// The discretization of the reference model (set by the options of `sonicboom reference` and
+/// `sonicboom rerender`).
 struct SolidMeshConfig {
   double element_arc_m{0.0135};    // target element length along the mid-surface arc
   double element_axial_m{0.0135};  // target element length along the axis
@@ -41,8 +42,7 @@ struct SolidMeshConfig {
   int64_t degree_thickness{3};     // GLL degree through the wall
   int64_t elements_through{1};     // elements through the wall
 
-  void Serialize(Archive* a);
-  /// Cross-field checks against the tube; throws ConfigError naming the key.
+  /// Range and cross-field checks against the tube; throws ConfigError naming the key.
   void Validate(const TubeConfig& tube) const;
   /// The same mesh with every element length divided by `factor` (h-refinement).
   SolidMeshConfig Refined(double factor) const;
@@ -93,8 +93,6 @@ class SolidTubeModel {
   /// (dofs) a displacement field u(x) (m, tube frame) sampled at the nodes (held components
   /// left out): the spectral interpolation of the field.
   Eigen::VectorXd Sample(const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& field) const;
-  /// Total kinetic energy 1/2 v^T M v (J) of a velocity vector (m/s per DOF).
-  double KineticEnergy(const Eigen::VectorXd& v_m_s) const;
   /// The mean element length along the arc and the axis (the h of h-refinement), m.
   double element_length_m() const { return element_length_m_; }
 
@@ -110,6 +108,10 @@ class SolidTubeModel {
     double r0_m, dr_m;              // radial span
     std::vector<int64_t> nodes;     // ((k * (p+1) + j) * (p+1) + i): i arc, j axial, k radial
   };
+  // k (sum_t w_t u_t)^2 added to the energy: a spring on a combination of DOFs (a DOF to ground,
+  // or an interpolated face against another), as triplets of K
+  static void AddTie(const std::vector<std::pair<int64_t, double>>& terms, double k,
+                     std::vector<Eigen::Triplet<double>>* triplets);
   void BuildMesh();
   void Assemble();
   void AddSprings();
@@ -124,6 +126,7 @@ class SolidTubeModel {
   MaterialConfig material_;
   SolidStructure structure_;
   SolidMeshConfig mesh_;
+  GllRule wall_, thick_;  // the GLL rules along the wall and through it
   std::vector<Element> elements_;
   std::vector<int64_t> node_dof_;  // (nodes x 3) DOF of each Cartesian component, -1 when held
   std::vector<Eigen::Vector3d> node_position_m_;
