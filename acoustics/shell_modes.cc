@@ -26,7 +26,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "internal/cache_file.h"
+#include "sonicboom/core/cache_file.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -776,7 +776,7 @@ namespace {
 
 constexpr char kCacheMagic[8] = {'S', 'B', 'M', 'O', 'D', 'E', 'S', '1'};
 
-// file layout (internal/cache_file.h): header {rigid, modes, rows}, omega (modes), shapes
+// file layout (sonicboom/core/cache_file.h): header {rigid, modes, rows}, omega (modes), shapes
 // (rows x modes)
 bool ReadModes(const std::string& path, const std::string& key, ShellModes* out) {
   std::ifstream in;
@@ -805,12 +805,7 @@ void WriteModes(const std::string& cache_dir, const std::string& path, const std
 }  // namespace
 
 uint64_t CacheKeyHash(const std::string& key) {
-  uint64_t h = 1469598103934665603ull;  // FNV-1a
-  for (unsigned char c : key) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return h;
+  return internal::Fnv1a(key.data(), key.size());
 }
 
 std::string DefaultModeCacheDir() {

@@ -14,7 +14,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "internal/cache_file.h"
+#include "sonicboom/core/cache_file.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -283,7 +283,7 @@ namespace {
 
 constexpr char kRitzMagic[8] = {'S', 'B', 'R', 'I', 'T', 'Z', '0', '1'};
 
-// file layout (internal/cache_file.h): header {modes, rows}, omega (modes), shapes at the rows
+// file layout (sonicboom/core/cache_file.h): header {modes, rows}, omega (modes), shapes at the rows
 // (rows x modes, float)
 bool ReadRitz(const std::string& path, const std::string& key, const std::vector<int64_t>& rows,
               ModeRows* out) {

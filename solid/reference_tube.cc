@@ -1,8 +1,6 @@
 #include "sonicboom/solid/reference_tube.h"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -12,8 +10,8 @@
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
+#include "sonicboom/core/cache_file.h"
 #include "sonicboom/core/errors.h"
-#include "sonicboom/core/files.h"
 #include "sonicboom/solid/solid_modes.h"
 
 namespace sonicboom::solid {
@@ -23,33 +21,13 @@ namespace {
 constexpr int kReferenceModelVersion = 1;
 constexpr char kMagic[8] = {'S', 'B', 'R', 'E', 'F', 'M', '0', '1'};
 
-uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h = 1469598103934665603ull) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
-  return h;
-}
-
-template <typename T>
-void Put(std::string* out, const T& v) {
-  out->append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
-void PutDoubles(std::string* out, const double* v, size_t n) {
-  out->append(reinterpret_cast<const char*>(v), n * sizeof(double));
-}
-
-// reads T from data at *pos; false past the end
-template <typename T>
-bool Get(const std::string& data, size_t* pos, T* v) {
-  if (*pos + sizeof(T) > data.size()) return false;
-  std::memcpy(v, data.data() + *pos, sizeof(T));
-  *pos += sizeof(T);
-  return true;
-}
-bool GetDoubles(const std::string& data, size_t* pos, double* v, size_t n) {
-  if (n > (data.size() - *pos) / sizeof(double)) return false;
-  std::memcpy(v, data.data() + *pos, n * sizeof(double));
-  *pos += n * sizeof(double);
-  return true;
+// the checksum of a cache file's header and arrays
+uint64_t Checksum(const int64_t (&header)[3], const Eigen::VectorXd& omega,
+                  const Eigen::MatrixXd& disc, const Eigen::MatrixXd& shapes) {
+  uint64_t h = internal::Fnv1a(header, sizeof header);
+  h = internal::Fnv1a(omega.data(), sizeof(double) * omega.size(), h);
+  h = internal::Fnv1a(disc.data(), sizeof(double) * disc.size(), h);
+  return internal::Fnv1a(shapes.data(), sizeof(double) * shapes.size(), h);
 }
 
 }  // namespace
@@ -94,41 +72,30 @@ void ReferenceTube::Solve() {
   std::string path;
   if (!config_.cache_dir.empty()) {
     path = (std::filesystem::path(config_.cache_dir) /
-            fmt::format("reference-{:016x}.bin", Fnv1a(key.data(), key.size())))
+            fmt::format("reference-{:016x}.bin", internal::Fnv1a(key.data(), key.size())))
                .string();
   }
-  // a cached file: magic, key, sizes, payload, and the payload's checksum last
+  // a cached file (sonicboom/core/cache_file.h): header {modes, mics, surface DOFs}, omega, the
+  // discs' read-outs, the surface shapes, and a checksum of all of them last
   if (!path.empty() && std::filesystem::is_regular_file(path)) {
-    std::string data;
-    try {
-      data = ReadText(path);
-    } catch (const Error&) {
-      data.clear();
-    }
-    size_t pos = 0;
-    uint64_t key_size = 0, modes = 0, mics = 0, dofs = 0, sum = 0;
-    const bool header =
-        data.size() > sizeof(kMagic) + 8 && std::memcmp(data.data(), kMagic, sizeof(kMagic)) == 0;
-    pos = sizeof(kMagic);
-    bool ok = header && Get(data, &pos, &key_size) && key_size < data.size() &&
-              data.compare(pos, key_size, key) == 0;
+    int64_t header[3] = {0, 0, 0};
+    std::ifstream in;
+    bool ok = internal::OpenCacheFile(path, kMagic, key, header, 3, &in) && header[0] >= 0 &&
+              header[0] < (1 << 20) && header[1] == config_.mics.count() &&
+              header[2] == static_cast<int64_t>(surface_dofs_.size());
+    uint64_t sum = 0;
     if (ok) {
-      pos += key_size;
-      const size_t payload = pos;
-      ok = Get(data, &pos, &modes) && Get(data, &pos, &mics) && Get(data, &pos, &dofs) &&
-           mics == static_cast<uint64_t>(config_.mics.count()) && dofs == surface_dofs_.size() &&
-           modes < (1u << 20);
-      if (ok) {
-        omega_rad_s_.resize(modes);
-        disc_strain_.resize(mics, modes);
-        surface_shapes_.resize(dofs, modes);
-        ok = GetDoubles(data, &pos, omega_rad_s_.data(), modes) &&
-             GetDoubles(data, &pos, disc_strain_.data(), mics * modes) &&
-             GetDoubles(data, &pos, surface_shapes_.data(), dofs * modes);
-        const size_t end = pos;
-        ok = ok && Get(data, &pos, &sum) && pos == data.size() &&
-             sum == Fnv1a(data.data() + payload, end - payload);
-      }
+      omega_rad_s_.resize(header[0]);
+      disc_strain_.resize(header[1], header[0]);
+      surface_shapes_.resize(header[2], header[0]);
+      ok = internal::ReadCacheBlock(in, omega_rad_s_.data(), sizeof(double) * omega_rad_s_.size(),
+                                    false) &&
+           internal::ReadCacheBlock(in, disc_strain_.data(), sizeof(double) * disc_strain_.size(),
+                                    false) &&
+           internal::ReadCacheBlock(in, surface_shapes_.data(),
+                                    sizeof(double) * surface_shapes_.size(), false) &&
+           internal::ReadCacheBlock(in, &sum, sizeof sum, true) &&
+           sum == Checksum(header, omega_rad_s_, disc_strain_, surface_shapes_);
     }
     if (ok) {
       from_cache_ = true;
@@ -146,24 +113,13 @@ void ReferenceTube::Solve() {
   disc_strain_ = modes.projections;
   surface_shapes_ = modes.shapes;
   if (path.empty()) return;
-
-  std::string out(kMagic, sizeof(kMagic));
-  Put(&out, static_cast<uint64_t>(key.size()));
-  out += key;
-  const size_t payload = out.size();
-  Put(&out, static_cast<uint64_t>(omega_rad_s_.size()));
-  Put(&out, static_cast<uint64_t>(disc_strain_.rows()));
-  Put(&out, static_cast<uint64_t>(surface_shapes_.rows()));
-  PutDoubles(&out, omega_rad_s_.data(), omega_rad_s_.size());
-  PutDoubles(&out, disc_strain_.data(), disc_strain_.size());
-  PutDoubles(&out, surface_shapes_.data(), surface_shapes_.size());
-  Put(&out, Fnv1a(out.data() + payload, out.size() - payload));
-  try {
-    MakeDirectories(config_.cache_dir);
-    WriteTextAtomic(path, out);
-  } catch (const Error& e) {
-    spdlog::warn("reference modes: not cached ({})", e.what());
-  }
+  const int64_t header[3] = {omega_rad_s_.size(), disc_strain_.rows(), surface_shapes_.rows()};
+  const uint64_t sum = Checksum(header, omega_rad_s_, disc_strain_, surface_shapes_);
+  internal::WriteCacheFile(config_.cache_dir, path, kMagic, key, {header[0], header[1], header[2]},
+                           {{omega_rad_s_.data(), sizeof(double) * omega_rad_s_.size()},
+                            {disc_strain_.data(), sizeof(double) * disc_strain_.size()},
+                            {surface_shapes_.data(), sizeof(double) * surface_shapes_.size()},
+                            {&sum, sizeof sum}});
 }
 
 Eigen::VectorXd ReferenceTube::ModalDrive(double z_m, double theta_rad) const {

@@ -1,5 +1,6 @@
 #pragma once
-// The mode caches' file format (base modes, Ritz variants): an 8-byte magic, the key (its length,
+// The mode caches' file format (the shell's base modes and Ritz variants, the reference solid's
+// modes): an 8-byte magic, the key (its length,
 // then its bytes), an int64 header, then raw arrays. A file is written to PATH.partial and renamed
 // into place, so a reader never sees half a file; a failed write only warns (the cache saves
 // time, it is never needed).
@@ -11,6 +12,10 @@
 #include <vector>
 
 namespace sonicboom::internal {
+
+/// FNV-1a over `bytes` bytes, continuing from `h` (chain calls to hash several pieces): the hash
+/// that names cache files and checksums their contents.
+uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h = 1469598103934665603ull);
 
 /// Opens `path` and reads past its magic, key and `header_count` header values into `header`;
 /// false when the file is absent, truncated, of another kind or made for another key.

@@ -1,4 +1,4 @@
-#include "internal/cache_file.h"
+#include "sonicboom/core/cache_file.h"
 
 #include <cstring>
 #include <filesystem>
@@ -7,6 +7,12 @@
 #include <spdlog/spdlog.h>
 
 namespace sonicboom::internal {
+
+uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
+  return h;
+}
 
 bool OpenCacheFile(const std::string& path, const char (&magic)[8], const std::string& key,
                    int64_t* header, size_t header_count, std::ifstream* in) {
