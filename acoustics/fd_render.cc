@@ -45,7 +45,8 @@ Eigen::MatrixXd FdRender(const ShellModel& model, const ShellFd& fd,
       const double t = k + static_cast<double>(s) / over;
       for (size_t e = 0; e < forces.size(); ++e) {
         const double f = force_at(forces[e], t);
-        for (const auto& [d, w] : weights[e]) nodal[d] += w * f;
+        // a positive force pushes the wall inward: against the outward weights
+        for (const auto& [d, w] : weights[e]) nodal[d] -= w * f;
       }
       fd.Step(&state, nodal);
       for (size_t e = 0; e < forces.size(); ++e) {

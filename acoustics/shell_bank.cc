@@ -447,9 +447,10 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
     const PointWeights p = SparseWeights(*m.model, m.w_row, f.z_m, f.theta_rad);
     Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
     Eigen::VectorXd stat = Eigen::VectorXd::Zero(mics);
+    // a positive force pushes the wall inward: against the outward weights
     for (size_t i = 0; i < p.dof.size(); ++i) {
-      b += p.weight[i] * m.shapes.row(p.dof[i]).head(n).transpose().cast<double>();
-      if (m.flexibility.size() > 0) stat += p.weight[i] * m.flexibility.row(p.dof[i]).transpose();
+      b -= p.weight[i] * m.shapes.row(p.dof[i]).head(n).transpose().cast<double>();
+      if (m.flexibility.size() > 0) stat -= p.weight[i] * m.flexibility.row(p.dof[i]).transpose();
     }
     // impulse per newton of sample force; drives 120 dB below the strongest are dropped (a mode
     // with a nodal line through the point would otherwise decay into subnormal floats)

@@ -193,7 +193,8 @@ Eigen::MatrixXd StrikeSynthesizer::Impl::ClosedFormStrain(const ContactEvent& co
     if (mb.frequency_hz > out->band_hz) break;
     ++out->modes_used;
     // drive at the contact and pickup at each mic (the degenerate pair collapses to cos n dtheta)
-    const double drive = mb.drive_w * std::sin(mb.wavenumber_m * x_c);
+    // (a positive contact force pushes the wall inward, against the outward w)
+    const double drive = -mb.drive_w * std::sin(mb.wavenumber_m * x_c);
     for (int i = 0; i < num_mics; ++i) {
       gain[i] = mb.response_scale * drive * mb.strain_factor * mb.mic_axial[i] *
                 std::cos(mb.n * (mic_theta_rad[i] - contact.theta_rad));

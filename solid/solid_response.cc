@@ -3,41 +3,59 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <vector>
 
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::solid {
 
+Eigen::MatrixXd ForcedResponse(const Eigen::VectorXd& omega_rad_s, const Eigen::VectorXd& zeta,
+                               const Eigen::MatrixXd& sensor_modal,
+                               const Eigen::VectorXd& force_modal, std::span<const double> force_n,
+                               int64_t first_sample, double sample_rate_hz, int64_t samples) {
+  SONICBOOM_DEMAND(sensor_modal.cols() == omega_rad_s.size());
+  SONICBOOM_DEMAND(force_modal.size() == omega_rad_s.size() && zeta.size() == omega_rad_s.size());
+  SONICBOOM_DEMAND(first_sample >= 0 && samples >= 0);
+  const double dt = 1.0 / sample_rate_hz;
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(sensor_modal.rows(), samples);
+  const int64_t force_end = first_sample + static_cast<int64_t>(force_n.size());
+  // each mode q'' + 2 zeta w q' + w^2 q = f(t) as a complex one-pole: z = q' + (zeta w + i w_d) q
+  // obeys z' = p z + f with p = -zeta w + i w_d; exact over a step for a held force. The sample
+  // k reads the state at k dt, before its own force acts.
+  for (Eigen::Index n = 0; n < omega_rad_s.size(); ++n) {
+    SONICBOOM_DEMAND(zeta(n) >= 0.0 && zeta(n) < 1.0);
+    const double w = omega_rad_s(n), wd = w * std::sqrt(1.0 - zeta(n) * zeta(n));
+    const std::complex<double> p(-zeta(n) * w, wd);
+    const std::complex<double> decay = std::exp(p * dt), gain = (decay - 1.0) / p;
+    const Eigen::VectorXd read = sensor_modal.col(n) / wd;  // q = Im z / w_d (q, q' real)
+    std::complex<double> z(0.0, 0.0);
+    for (int64_t k = first_sample; k < samples; ++k) {
+      out.col(k) += read * z.imag();
+      const double f = k < force_end ? force_n[static_cast<size_t>(k - first_sample)] : 0.0;
+      z = decay * z + gain * (force_modal(n) * f);
+    }
+  }
+  return out;
+}
+
 Eigen::MatrixXd PulseResponse(const Eigen::VectorXd& omega_rad_s,
                               const Eigen::MatrixXd& sensor_modal,
                               const Eigen::VectorXd& force_modal,
                               const PulseResponseConfig& config) {
-  SONICBOOM_DEMAND(sensor_modal.cols() == omega_rad_s.size());
-  SONICBOOM_DEMAND(force_modal.size() == omega_rad_s.size());
   const double dt = 1.0 / config.sample_rate_hz;
-  const Eigen::Index samples = static_cast<Eigen::Index>(std::ceil(config.window_s / dt));
+  const int64_t samples = static_cast<int64_t>(std::ceil(config.window_s / dt));
   // the force pulse (N), sampled at the middle of each step
-  Eigen::VectorXd force = Eigen::VectorXd::Zero(samples);
-  for (Eigen::Index k = 0; k < samples; ++k) {
+  std::vector<double> force(static_cast<size_t>(samples), 0.0);
+  for (int64_t k = 0; k < samples; ++k) {
     const double t = (k + 0.5) * dt;
     if (t < config.pulse_duration_s)
-      force(k) = std::sin(std::numbers::pi * t / config.pulse_duration_s);
+      force[static_cast<size_t>(k)] = std::sin(std::numbers::pi * t / config.pulse_duration_s);
   }
-  // each mode q'' + 2 zeta w q' + w^2 q = f(t) as a complex one-pole: z = q' + (zeta w + i w_d) q
-  // obeys z' = p z + f with p = -zeta w + i w_d; exact over a step for a held force
-  Eigen::MatrixXd modal_q(omega_rad_s.size(), samples);
-  const double zeta = 0.5 * config.loss_factor;
-  for (Eigen::Index n = 0; n < omega_rad_s.size(); ++n) {
-    const double w = omega_rad_s(n), wd = w * std::sqrt(1.0 - zeta * zeta);
-    const std::complex<double> p(-zeta * w, wd);
-    const std::complex<double> decay = std::exp(p * dt), gain = (decay - 1.0) / p;
-    std::complex<double> z(0.0, 0.0);
-    for (Eigen::Index k = 0; k < samples; ++k) {
-      z = decay * z + gain * (force_modal(n) * force(k));
-      modal_q(n, k) = z.imag() / wd;  // q and q' are real
-    }
-  }
-  return sensor_modal * modal_q;
+  // a sample reads the state after its own step, as the pulse's first sample is its first step
+  const Eigen::MatrixXd y = ForcedResponse(
+      omega_rad_s, Eigen::VectorXd::Constant(omega_rad_s.size(), 0.5 * config.loss_factor),
+      sensor_modal, force_modal, force, 0, config.sample_rate_hz, samples + 1);
+  return y.rightCols(samples);
 }
 
 Eigen::VectorXd ThresholdArrivals(const Eigen::MatrixXd& signals, double sample_rate_hz,

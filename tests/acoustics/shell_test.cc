@@ -16,6 +16,7 @@
 
 #include "sonicboom/acoustics/cylinder_modes.h"
 #include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/shell_bank.h"
 #include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/shell_synth.h"
@@ -435,6 +436,26 @@ TEST(ShellSynthTest, ResidualRestoresTheTruncatedModes) {
   std::cout << "5 ms load: error " << slow_plain << " without residual, " << slow_corrected
             << " with\n";
   EXPECT_LT(slow_corrected, 0.5 * slow_plain);
+}
+
+// Polarity: a positive ForceInput pushes the wall inward, and a disc reads outer-surface strain,
+// tension positive. Pushed slowly (5 ms) right under disc 0, the tube is dented there: the outer
+// face curves inward (bending compression) and the ring shrinks (hoop compression), so that disc
+// reads compression; a strike rendered with the opposite sign reads tension. The reference solid
+// checks the same (tests/solid), so that the two theories render one polarity.
+TEST(ShellBankTest, AnInwardPushCompressesTheDiscUnderIt) {
+  const ShellModel& model = SeamedTube10mm();
+  const double fs = 44100.0;
+  const MicArrayConfig mics;
+  const ShellModes modes = SolveShellModes(model, 15000.0, 0, true);
+  const ShellModalBank bank(model, modes, mics, fs, -100.0, true);
+  const ForceInput push{mics.z_m[0], mics.theta_deg[0] * kPi / 180.0, 0, Pulse(fs, 5e-3, 20.0)};
+  const Eigen::MatrixXd y =
+      bank.Render(std::span<const ForceInput>(&push, 1), modes.omega_rad_s.size(), 600);
+  Eigen::Index at = 0;
+  y.row(0).cwiseAbs().maxCoeff(&at);
+  std::cout << "inward 5 ms push under disc 0: its peak strain " << y(0, at) << "\n";
+  EXPECT_LT(y(0, at), 0.0);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <memory>
 #include <numbers>
 
@@ -25,6 +26,7 @@ namespace sonicboom::solid {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
+constexpr double kDeg = kPi / 180.0;
 
 TEST(GllTest, IntegratesPolynomialsToDegreeTwoNMinusOneAndDifferentiatesExactly) {
   for (int n = 1; n <= 8; ++n) {
@@ -325,6 +327,24 @@ TEST(ReferenceRenderTest, SoftStrikerFollowsHertzDuration) {
     duration.push_back(r.duration_s);
   }
   EXPECT_NEAR(duration[1] / duration[0], std::pow(10.0, -0.2), 0.02 * std::pow(10.0, -0.2));
+}
+
+// Polarity, as the shell's (tests/acoustics/shell_test.cc): a slow (5 ms) inward push right
+// under a disc dents the tube there, and the disc reads compression.
+TEST(SolidResponseTest, AnInwardPushCompressesTheDiscUnderIt) {
+  const ReferenceTube tube(CoarseReference());
+  const MicArrayConfig mics;
+  const double fs = 44100.0;
+  std::vector<double> force(300, 0.0);  // N per sample: a 5 ms half-sine
+  for (size_t k = 0; k < 221; ++k) force[k] = 20.0 * std::sin(std::numbers::pi * k / 220.0);
+  const Eigen::VectorXd omega = tube.omega_rad_s();
+  const Eigen::VectorXd inward = -tube.ModalDrive(mics.z_m[0], mics.theta_deg[0] * kDeg);
+  const Eigen::MatrixXd y = ForcedResponse(omega, Eigen::VectorXd::Constant(omega.size(), 0.01),
+                                           tube.disc_strain(), inward, force, 10, fs, 600);
+  Eigen::Index at = 0;
+  y.row(0).cwiseAbs().maxCoeff(&at);
+  std::cout << "inward 5 ms push under disc 0: its peak strain " << y(0, at) << "\n";
+  EXPECT_LT(y(0, at), 0.0);
 }
 
 TEST(ReferenceRenderTest, SilentBeforeTheOnsetAndRefusesABandAboveNyquist) {

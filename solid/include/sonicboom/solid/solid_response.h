@@ -3,6 +3,8 @@
 /// over modes with a constant loss factor per mode, and the first-arrival times read from them.
 
 #include <Eigen/Core>
+#include <cstdint>
+#include <span>
 
 namespace sonicboom::solid {
 
@@ -21,6 +23,16 @@ Eigen::MatrixXd PulseResponse(const Eigen::VectorXd& omega_rad_s,
                               const Eigen::MatrixXd& sensor_modal,
                               const Eigen::VectorXd& force_modal,
                               const PulseResponseConfig& config);
+
+/// (sensors x samples) strain at each sensor for a force given sample by sample (N, each held
+/// over its sample, zero-order hold) from first_sample on, at sample_rate_hz, from rest. omega
+/// (modes) rad/s, zeta (modes) damping ratio of each mode (< 1), sensor_modal (sensors x modes)
+/// each sensor's read-out of each mass-normalized shape, force_modal (modes) each shape's drive
+/// per newton of the force. Exact for each mode; every mode rings to the end of the record.
+Eigen::MatrixXd ForcedResponse(const Eigen::VectorXd& omega_rad_s, const Eigen::VectorXd& zeta,
+                               const Eigen::MatrixXd& sensor_modal,
+                               const Eigen::VectorXd& force_modal, std::span<const double> force_n,
+                               int64_t first_sample, double sample_rate_hz, int64_t samples);
 
 /// (rows) first time (s) each row of `signals` reaches `threshold` of its own peak magnitude,
 /// linearly interpolated between samples.
