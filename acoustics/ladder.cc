@@ -79,6 +79,11 @@ DrivingPoint VibrationRung::WallAt(double z_m, double theta_rad, double band_hz)
   return impl_->bank->WallAt(z_m, theta_rad, band_hz);
 }
 
+Eigen::VectorXd VibrationRung::FrequenciesHz() const {
+  if (impl_->fd) return {};
+  return impl_->modes.omega_rad_s / (2.0 * std::numbers::pi);
+}
+
 int64_t VibrationRung::dofs() const {
   return impl_->model->dofs();
 }

@@ -1,15 +1,18 @@
 // The fidelity ladder measured: every rung of the vibration model renders the same strikes (the
-// same contact forces), and is timed and compared against the finest FD reference.
+// same contact forces), and is timed and compared against the reference solid (solid/), a model
+// of another theory and discretization converged apart (docs/reference_model.md).
 #include <CLI/CLI.hpp>
 
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <complex>
+#include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <numbers>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -18,6 +21,9 @@
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
+#include "internal/fidelity_metrics.h"
+#include "internal/reference.h"
+#include "internal/report.h"
 #include "internal/subcommands.h"
 #include "sonicboom/acoustics/ladder.h"
 #include "sonicboom/acoustics/shell.h"
@@ -28,6 +34,8 @@
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/sim/scene.h"
+#include "sonicboom/solid/reference_tube.h"
+#include "sonicboom/solid/solid_response.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -61,101 +69,96 @@ ContactEvent StrikeEvent(const TestStrike& s, double time_s) {
   return c;
 }
 
-// relative L2 error over all channels
-double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref) {
-  return (y - ref).norm() / ref.norm();
-}
-
-// arrival of each channel: first crossing of 20 % of its peak |y|, linear between samples
-Eigen::VectorXd Arrivals(const Eigen::MatrixXd& y) {
-  Eigen::VectorXd t(y.rows());
-  for (Eigen::Index i = 0; i < y.rows(); ++i) {
-    const double thr = 0.2 * y.row(i).cwiseAbs().maxCoeff();
-    t[i] = 0;
-    for (Eigen::Index k = 1; k < y.cols(); ++k) {
-      const double a = std::abs(y(i, k - 1)), b = std::abs(y(i, k));
-      if (b >= thr) {
-        t[i] = (k - 1) + (b > a ? (thr - a) / (b - a) : 1.0);
-        break;
-      }
-    }
-  }
-  return t;
-}
-
-// mean over the channel pairs of the inter-channel delay error, microseconds
-double DelayErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref, double fs) {
-  const Eigen::VectorXd a = Arrivals(y), b = Arrivals(ref);
-  double sum = 0;
-  int pairs = 0;
-  for (Eigen::Index i = 0; i < y.rows(); ++i) {
-    for (Eigen::Index j = i + 1; j < y.rows(); ++j) {
-      sum += std::abs((a[j] - a[i]) - (b[j] - b[i]));
-      ++pairs;
-    }
-  }
-  return sum / pairs / fs * 1e6;
-}
-
-// octave-band energies (centres 250 Hz .. 16 kHz) summed over channels, by a direct DFT
-Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double fs) {
-  const std::vector<double> centres{250, 500, 1000, 2000, 4000, 8000, 16000};
-  Eigen::VectorXd e = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(centres.size()));
-  const Eigen::Index n = y.cols();
-  for (Eigen::Index bin = 1; bin < n / 2; ++bin) {
-    const double f = bin * fs / n;
-    int band = -1;
-    for (size_t b = 0; b < centres.size(); ++b) {
-      if (f >= centres[b] / std::sqrt(2.0) && f < centres[b] * std::sqrt(2.0))
-        band = static_cast<int>(b);
-    }
-    if (band < 0) continue;
-    // one bin of every channel: rotate a unit phasor through the record
-    const std::complex<double> step = std::polar(1.0, -2 * kPi * bin / n);
-    for (Eigen::Index i = 0; i < y.rows(); ++i) {
-      std::complex<double> acc = 0, w = 1;
-      for (Eigen::Index k = 0; k < n; ++k) {
-        acc += y(i, k) * w;
-        w *= step;
-      }
-      e[band] += std::norm(acc);
-    }
-  }
-  return e;
-}
-
-// mean |dB| difference over the bands that hold energy in the reference
-double BandEnergyErrorDb(const Eigen::VectorXd& e, const Eigen::VectorXd& ref) {
-  const double floor = 1e-6 * ref.maxCoeff();
-  double sum = 0;
-  int bands = 0;
-  for (Eigen::Index b = 0; b < ref.size(); ++b) {
-    if (ref[b] <= floor) continue;
-    sum += std::abs(10 * std::log10(std::max(e[b], 1e-300) / ref[b]));
-    ++bands;
-  }
-  return bands > 0 ? sum / bands : 0.0;
-}
-
-// one grid of the shell and what was built on it
+// one grid of the shell
 struct Grid {
   std::string name;
   double arc_m, axial_m;
 };
 
-struct Rung {
+// what the ladder asks of a rung, whichever model renders it
+class LadderRung {
+ public:
+  virtual ~LadderRung() = default;
+  /// (mics x samples) sensor strain of the forces from rest.
+  virtual Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces, int64_t samples,
+                                 double derived_band_hz) const = 0;
+  /// (modes) the frequencies of the modes a render plays, ascending, Hz (empty: not modal).
+  virtual Eigen::VectorXd PlayedFrequenciesHz(double derived_band_hz) const = 0;
+  virtual int64_t dofs() const = 0;
+  /// FD: time steps per audio sample (its cost per sample is constant); 0 for a modal rung.
+  virtual int64_t oversampling() const { return 0; }
+};
+
+// a rung of the shell (acoustics/ladder.h): modal or FD on one grid
+class ShellRung final : public LadderRung {
+ public:
+  explicit ShellRung(std::unique_ptr<acoustics::VibrationRung> rung) : rung_(std::move(rung)) {}
+  Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces, int64_t samples,
+                         double derived_band_hz) const override {
+    return rung_->Render(forces, samples, derived_band_hz);
+  }
+  Eigen::VectorXd PlayedFrequenciesHz(double derived_band_hz) const override {
+    if (rung_->fd()) return {};
+    return rung_->FrequenciesHz().head(rung_->ModesPlayed(derived_band_hz));
+  }
+  int64_t dofs() const override { return rung_->dofs(); }
+  int64_t oversampling() const override { return rung_->oversampling(); }
+  const acoustics::VibrationRung& vibration_rung() const { return *rung_; }
+
+ private:
+  std::unique_ptr<acoustics::VibrationRung> rung_;
+};
+
+// a rung of the reference solid: its modes below band_hz, each damped by zeta(omega), driven by
+// the forces at their points (solid/solid_response.h)
+class SolidRung final : public LadderRung {
+ public:
+  SolidRung(std::shared_ptr<const solid::ReferenceTube> tube, double band_hz, double sample_rate_hz,
+            const std::function<double(double)>& zeta_of_omega)
+      : tube_(std::move(tube)), sample_rate_hz_(sample_rate_hz) {
+    const Eigen::VectorXd& omega = tube_->omega_rad_s();
+    modes_ = (omega.array() < 2 * kPi * band_hz).count();
+    zeta_.resize(modes_);
+    for (Eigen::Index n = 0; n < modes_; ++n) zeta_(n) = std::min(0.5, zeta_of_omega(omega(n)));
+  }
+  Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces, int64_t samples,
+                         double /*derived_band_hz*/) const override {
+    const Eigen::VectorXd omega = tube_->omega_rad_s().head(modes_);
+    const Eigen::MatrixXd read = tube_->disc_strain().leftCols(modes_);  // (mics x modes)
+    Eigen::MatrixXd y = Eigen::MatrixXd::Zero(read.rows(), samples);
+    for (const acoustics::ForceInput& f : forces) {
+      // a strike pushes the wall inward: against the outward drive of each shape
+      const Eigen::VectorXd drive = -tube_->ModalDrive(f.z_m, f.theta_rad).head(modes_);
+      y += solid::ForcedResponse(omega, zeta_, read, drive, f.force_n, f.first_sample,
+                                 sample_rate_hz_, samples);
+    }
+    return y;
+  }
+  Eigen::VectorXd PlayedFrequenciesHz(double /*derived_band_hz*/) const override {
+    return tube_->omega_rad_s().head(modes_) / (2 * kPi);
+  }
+  int64_t dofs() const override { return tube_->model().dofs(); }
+
+ private:
+  std::shared_ptr<const solid::ReferenceTube> tube_;
+  double sample_rate_hz_;
+  Eigen::Index modes_{0};
+  Eigen::VectorXd zeta_;  // (modes)
+};
+
+// one row of the ladder: what it is, and how to build it
+struct RungEntry {
   std::string name;
-  acoustics::VibrationModel kind;  // modal or fd
-  Grid grid;
-  double band_hz{0};      // modal: fixed band; 0 = derived from the contact
-  int64_t mode_count{0};  // modal: fixed count
-  bool residual{true};
-  int64_t oversampling_factor{1};  // fd: multiple of the smallest stable oversampling
+  std::string kind;  // "solid", "modal" or "fd"
+  std::string grid;  // its discretization, as the table prints it
+  std::function<std::unique_ptr<LadderRung>()> build;
 };
 
 struct RungResult {
-  double ms_per_strike{0}, rel_error{0}, delay_error_us{0}, band_error_db{0};
-  double modes{0}, dofs{0}, oversampling{0};
+  double ms_per_strike{0}, rel_error{0}, arrival_us{0}, delay_us{0}, delay_max_us{0};
+  double band_error_db{0}, modes{0}, dofs{0}, oversampling{0};
+  FrequencyError frequency;
+  bool frequency_of_grid{false};  // an FD rung: its grid's modal frequencies
 };
 
 // the strikes every rung renders: their contact forces (solved once against the configured
@@ -167,53 +170,69 @@ struct LadderStrikes {
   int64_t one_second{0};  // samples
 };
 
-// The reference's strain of each strike (the first rung's) and its octave-band energies.
-struct Reference {
-  std::vector<Eigen::MatrixXd> signal;  // [strike] 6 x window
+// The yardstick's signals (low-passed to its band), octave energies and mode frequencies.
+struct Yardstick {
+  double band_hz{0.0};
+  std::vector<Eigen::MatrixXd> signal;  // [strike] mics x window
   std::vector<Eigen::VectorXd> bands;   // [strike] octave energies
+  Eigen::VectorXd frequencies_hz;       // (modes) ascending
 };
 
-// Times one rung on every strike and measures its error against the reference (which this rung
-// becomes when `reference` is still empty).
-RungResult MeasureRung(const Rung& rung, const acoustics::VibrationRung& built,
-                       const LadderStrikes& strikes, double fs, Reference* reference) {
+// Seconds a rung takes for 1 s of 6 channels of one strike: FD timed on the window and scaled
+// (its cost per sample is constant), a modal rung on a whole second, best of three.
+double SecondsPerStrike(const LadderRung& rung, std::span<const acoustics::ForceInput> forces,
+                        double band, const LadderStrikes& strikes, double window_seconds) {
+  if (rung.oversampling() > 0) {
+    return window_seconds * static_cast<double>(strikes.one_second) /
+           static_cast<double>(strikes.window);
+  }
+  double best = 1e30;
+  for (int rep = 0; rep < 3; ++rep) {
+    const auto t0 = Clock::now();
+    const Eigen::MatrixXd full = rung.Render(forces, strikes.one_second, band);
+    best = std::min(best, Seconds(t0));
+    if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
+  }
+  return best;
+}
+
+// Times one rung on every strike and measures it against the yardstick (which the rung becomes
+// when the yardstick is still empty). Signals are compared low-passed to the yardstick's band.
+RungResult MeasureRung(const RungEntry& entry, const LadderRung& rung, const LadderStrikes& strikes,
+                       double fs, double frequency_max_hz, Yardstick* yardstick) {
   RungResult r;
-  r.dofs = static_cast<double>(built.dofs());
-  r.oversampling = static_cast<double>(built.oversampling());
+  r.dofs = static_cast<double>(rung.dofs());
+  r.oversampling = static_cast<double>(rung.oversampling());
   const size_t n = strikes.forces.size();
-  const bool is_reference = reference->signal.empty();
+  const bool is_yardstick = yardstick->signal.empty();
   for (size_t s = 0; s < n; ++s) {
     const auto& f = strikes.forces[s];
     const double band = strikes.derived_band_hz[s];
     const auto start = Clock::now();
-    const Eigen::MatrixXd y = built.Render(f, strikes.window, band);
-    double seconds = 0;
-    if (built.fd()) {
-      // FD cost is the same for every sample: time the window, scale to one second
-      seconds = Seconds(start) * static_cast<double>(strikes.one_second) /
-                static_cast<double>(strikes.window);
-    } else {
-      r.modes += static_cast<double>(built.ModesPlayed(band)) / n;
-      // a whole second, best of three
-      seconds = 1e30;
-      for (int rep = 0; rep < 3; ++rep) {
-        const auto t0 = Clock::now();
-        const Eigen::MatrixXd full = built.Render(f, strikes.one_second, band);
-        seconds = std::min(seconds, Seconds(t0));
-        if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
-      }
+    const Eigen::MatrixXd raw = rung.Render(f, strikes.window, band);
+    const double window_seconds = Seconds(start);
+    if (!raw.allFinite())
+      throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", entry.name));
+    const Eigen::MatrixXd y = LowPass(raw, yardstick->band_hz, fs);
+    r.ms_per_strike += 1e3 * SecondsPerStrike(rung, f, band, strikes, window_seconds) / n;
+    r.modes += static_cast<double>(rung.PlayedFrequenciesHz(band).size()) / n;
+    if (is_yardstick) {
+      yardstick->signal.push_back(y);
+      yardstick->bands.push_back(OctaveEnergies(y, fs));
     }
-    if (!y.allFinite())
-      throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", rung.name));
-    r.ms_per_strike += 1e3 * seconds / n;
-    if (is_reference) {
-      reference->signal.push_back(y);
-      reference->bands.push_back(OctaveEnergies(y, fs));
-    }
-    r.rel_error += RelativeError(y, reference->signal[s]) / n;
-    r.delay_error_us += DelayErrorUs(y, reference->signal[s], fs) / n;
-    r.band_error_db += BandEnergyErrorDb(OctaveEnergies(y, fs), reference->bands[s]) / n;
+    const TimingError t = TimingErrorUs(y, yardstick->signal[s], fs);
+    r.rel_error += RelativeError(y, yardstick->signal[s]) / n;
+    r.arrival_us += t.arrival_us / n;
+    r.delay_us += t.delay_us / n;
+    r.delay_max_us = std::max(r.delay_max_us, t.delay_max_us);
+    r.band_error_db += BandEnergyErrorDb(OctaveEnergies(y, fs), yardstick->bands[s]) / n;
   }
+  // frequencies: the modes it plays for the widest of the strikes' bands
+  const double widest =
+      *std::max_element(strikes.derived_band_hz.begin(), strikes.derived_band_hz.end());
+  const Eigen::VectorXd played = rung.PlayedFrequenciesHz(widest);
+  if (is_yardstick) yardstick->frequencies_hz = played;
+  r.frequency = RankedFrequencyError(played, yardstick->frequencies_hz, frequency_max_hz);
   return r;
 }
 
@@ -241,35 +260,6 @@ std::pair<double, double> WholeStrikeMs(const SonicBoomConfig& config, const Gri
   return {1e3 * Seconds(t0) / reps, 1e3 * vibration_s / reps};
 }
 
-// The table's rows (markdown and JSON).
-void LadderRows(const std::vector<Rung>& rungs, const std::vector<RungResult>& results,
-                std::string* md, json* rows_json) {
-  for (size_t i = 0; i < rungs.size(); ++i) {
-    const Rung& rung = rungs[i];
-    const RungResult& r = results[i];
-    const std::string size = rung.kind == acoustics::VibrationModel::kFd
-                                 ? fmt::format("{:.0f}x", r.oversampling)
-                                 : fmt::format("{:.0f}", r.modes);
-    *md += fmt::format("| {} | {:.1f} x {:.1f} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} |\n",
-                       rung.name, rung.grid.arc_m * 1e3, rung.grid.axial_m * 1e3, r.dofs, size,
-                       r.ms_per_strike, 1e3 / r.ms_per_strike,
-                       i == 0 ? "—" : fmt::format("{:.3f}", r.rel_error),
-                       i == 0 ? "—" : fmt::format("{:.1f}", r.delay_error_us),
-                       i == 0 ? "—" : fmt::format("{:.2f}", r.band_error_db));
-    rows_json->push_back({{"rung", rung.name},
-                          {"kind", NameOf(rung.kind)},
-                          {"grid_arc_m", rung.grid.arc_m},
-                          {"grid_axial_m", rung.grid.axial_m},
-                          {"dofs", r.dofs},
-                          {"modes", r.modes},
-                          {"oversampling", r.oversampling},
-                          {"ms_per_strike", r.ms_per_strike},
-                          {"relative_error", r.rel_error},
-                          {"delay_error_us", r.delay_error_us},
-                          {"band_energy_error_db", r.band_error_db}});
-  }
-}
-
 // The FD rung's damping against the loss law (shell.damping = law): the Rayleigh curve meets the
 // law at shell.loss_low_hz and loss_high_hz and departs from it elsewhere. Appends the section
 // to `md`; returns its rows (empty for Rayleigh damping).
@@ -291,158 +281,389 @@ json DampingSection(const SonicBoomConfig& config, std::string* md) {
   return damping_json;
 }
 
-// --strikes, --window-s and --out's directory, before any work.
-void CheckFidelityOptions(const std::string& out_md, int64_t strikes, double window_s) {
-  if (strikes < 1 || strikes > static_cast<int64_t>(std::size(kStrikes))) {
-    throw ConfigError(
-        fmt::format("--strikes must be in [1, {}], got {}", std::size(kStrikes), strikes));
+// The table's rows (markdown and JSON).
+void LadderRows(const std::vector<RungEntry>& rungs, const std::vector<RungResult>& results,
+                std::string* md, json* rows_json) {
+  for (size_t i = 0; i < rungs.size(); ++i) {
+    const RungEntry& rung = rungs[i];
+    const RungResult& r = results[i];
+    const std::string size = r.oversampling > 0 ? fmt::format("{:.0f}x", r.oversampling)
+                                                : fmt::format("{:.0f}", r.modes);
+    const FrequencyError& f = r.frequency;
+    const std::string freq =
+        i == 0 ? "—"
+               : fmt::format("{:.2f} / {:.2f} ({} / {}){}", f.median_pct, f.max_pct, f.modes,
+                             f.reference_modes, r.frequency_of_grid ? " grid" : "");
+    auto err = [&](double v, const char* spec) {
+      return i == 0 ? std::string("—") : fmt::format(fmt::runtime(spec), v);
+    };
+    *md += fmt::format("| {} | {} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} | {} | {} |\n",
+                       rung.name, rung.grid, r.dofs, size, r.ms_per_strike, 1e3 / r.ms_per_strike,
+                       freq, err(r.arrival_us, "{:.1f}"),
+                       i == 0 ? "—" : fmt::format("{:.1f} / {:.0f}", r.delay_us, r.delay_max_us),
+                       err(r.rel_error, "{:.3f}"), err(r.band_error_db, "{:.2f}"));
+    rows_json->push_back({{"rung", rung.name},
+                          {"kind", rung.kind},
+                          {"grid", rung.grid},
+                          {"dofs", r.dofs},
+                          {"modes", r.modes},
+                          {"oversampling", r.oversampling},
+                          {"ms_per_strike", r.ms_per_strike},
+                          {"frequency_median_pct", f.median_pct},
+                          {"frequency_max_pct", f.max_pct},
+                          {"frequency_modes", f.modes},
+                          {"frequency_reference_modes", f.reference_modes},
+                          {"frequency_of_grid", r.frequency_of_grid},
+                          {"arrival_error_us", r.arrival_us},
+                          {"delay_error_us", r.delay_us},
+                          {"delay_error_max_us", r.delay_max_us},
+                          {"relative_error", r.rel_error},
+                          {"band_energy_error_db", r.band_error_db}});
   }
-  if (!(window_s >= 0.005 && window_s <= 1.0)) {
-    throw ConfigError(fmt::format("--window-s must be in [0.005, 1], got {}", window_s));
-  }
-  if (!out_md.empty()) {
-    const std::filesystem::path parent = std::filesystem::path(out_md).parent_path();
-    if (!parent.empty() && !std::filesystem::is_directory(parent)) {
-      throw IoError(fmt::format("--out {}: directory {} does not exist", out_md, parent.string()));
+}
+
+// Which rung for which job, from the measured rows: the cheapest that meets each job's need.
+std::string Recommendations(const std::vector<RungEntry>& rungs,
+                            const std::vector<RungResult>& results) {
+  auto cheapest = [&](auto&& meets) -> int {
+    int best = -1;
+    for (size_t i = 1; i < rungs.size(); ++i) {
+      if (!meets(rungs[i], results[i])) continue;
+      if (best < 0 || results[i].ms_per_strike < results[best].ms_per_strike)
+        best = static_cast<int>(i);
     }
+    return best;
+  };
+  auto shell = [](const RungEntry& e) { return e.kind != "solid"; };
+  auto describe = [&](int i) {
+    return fmt::format(
+        "{} on {} ({:.3g} ms per strike; delay error {:.1f} µs, band energy "
+        "{:.2f} dB)",
+        rungs[i].name, rungs[i].grid, results[i].ms_per_strike, results[i].delay_us,
+        results[i].band_error_db);
+  };
+  std::string md = "\nWhich rung for which job (the cheapest that meets the job's need):\n\n";
+  const int timing = cheapest(
+      [&](const RungEntry& e, const RungResult& r) { return shell(e) && r.delay_us <= 20; });
+  const int closest = cheapest([&](const RungEntry& e, const RungResult& r) {
+    if (!shell(e)) return false;
+    for (size_t j = 1; j < rungs.size(); ++j)
+      if (shell(rungs[j]) && results[j].delay_us < r.delay_us) return false;
+    return true;
+  });
+  md += timing >= 0 ? fmt::format(
+                          "- Localization datasets (inter-channel delay within 20 µs of "
+                          "the reference): {}.\n",
+                          describe(timing))
+                    : fmt::format(
+                          "- Localization datasets: no shell rung is within 20 µs of the "
+                          "reference in inter-channel delay; the closest is {}. Strikes "
+                          "timed like the reference come from `sonicboom rerender`.\n",
+                          describe(closest));
+  const int spectra = cheapest(
+      [&](const RungEntry& e, const RungResult& r) { return shell(e) && r.band_error_db <= 1.0; });
+  if (spectra >= 0)
+    md += fmt::format("- Spectra and ringing (octave-band energy within 1 dB): {}.\n",
+                      describe(spectra));
+  const int smoke = cheapest([&](const RungEntry& e, const RungResult&) { return shell(e); });
+  md += fmt::format("- Smoke tests and quick checks of the pipeline: {}.\n", describe(smoke));
+  const int second =
+      cheapest([&](const RungEntry& e, const RungResult&) { return e.kind == "solid"; });
+  if (second >= 0)
+    md += fmt::format("- A second theory (held-out test strikes, cross-checks): {}.\n",
+                      describe(second));
+  return md;
+}
+
+// The options, the output's directory and the plot script, before any work.
+void CheckFidelityOptions(const FidelityOptions& o, double sample_rate_hz) {
+  if (o.strikes < 1 || o.strikes > static_cast<int64_t>(std::size(kStrikes))) {
+    throw ConfigError(
+        fmt::format("--strikes must be in [1, {}], got {}", std::size(kStrikes), o.strikes));
+  }
+  if (!(o.window_s >= 0.005 && o.window_s <= 1.0)) {
+    throw ConfigError(fmt::format("--window-s must be in [0.005, 1], got {}", o.window_s));
+  }
+  if (!(o.reference_band_hz >= 1000.0 && o.reference_band_hz <= 0.45 * sample_rate_hz)) {
+    throw ConfigError(fmt::format(
+        "--reference-band must be in [1000, {:.0f}] Hz (0.45 of audio.sample_rate_hz), got {}",
+        0.45 * sample_rate_hz, o.reference_band_hz));
+  }
+  if (!(o.reference_element_m >= 0.005 && o.reference_element_m <= 0.05)) {
+    throw ConfigError(fmt::format("--reference-element must be in [0.005, 0.05] m, got {}",
+                                  o.reference_element_m));
+  }
+  if (!o.out.empty()) RequireParentDir(o.out);
+  if (!o.plot_script.empty() && !o.out.empty() && !std::filesystem::is_regular_file(o.plot_script))
+    throw IoError(
+        fmt::format("--plot {}: no such script (--plot \"\" draws no figure)", o.plot_script));
+}
+
+// The reference solid of the configured structure on elements of element_m, modes to band_hz
+// (from the mode cache when there); logs its size and the time it took.
+std::shared_ptr<const solid::ReferenceTube> BuildReference(const SonicBoomConfig& config,
+                                                           double element_m, double band_hz,
+                                                           const std::string& cache,
+                                                           std::string* md) {
+  solid::ReferenceTubeConfig rc;
+  rc.tube = config.tube;
+  rc.material = config.material;
+  rc.structure = ReferenceStructure(config.shell, config.shell.ends, false);
+  rc.mesh.element_arc_m = element_m;
+  rc.mesh.element_axial_m = element_m;
+  rc.mics = config.mics;
+  rc.max_frequency_hz = band_hz;
+  rc.cache_dir = cache;
+  const auto t0 = Clock::now();
+  auto tube = std::make_shared<const solid::ReferenceTube>(rc);
+  *md += fmt::format(
+      "- Reference solid, elements of {:.1f} mm: {} DOFs, {} modes to {:.0f} Hz, "
+      "{} in {:.0f} s.\n",
+      1e3 * element_m, tube->model().dofs(), tube->omega_rad_s().size(), band_hz,
+      tube->from_cache() ? "read from the mode cache" : "solved", Seconds(t0));
+  return tube;
+}
+
+// The rungs, the yardstick first: the reference solid, its cheaper settings, then the shell's
+// FD and modal rungs on their grids.
+std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const FidelityOptions& o,
+                                   const std::string& cache, std::string* solves_md) {
+  const double fs = config.audio.sample_rate_hz;
+  const double arc = config.shell.grid_spacing_m, axial = config.shell.AxialSpacing();
+  const double finest = o.quick ? 0.005 : std::min(arc, axial);
+  const Grid configured{"configured", o.quick ? 0.005 : arc, o.quick ? 0.01 : axial};
+  const Grid fine{"fine", finest, finest};
+  const Grid coarse{"coarse", 2 * configured.arc_m, 2 * configured.axial_m};
+  const Grid coarser{"coarser", 0.01, 0.02};
+  const double ref_band = o.quick ? std::min(o.reference_band_hz, 5000.0) : o.reference_band_hz;
+  const double ref_element =
+      o.quick ? std::max(o.reference_element_m, 0.03) : o.reference_element_m;
+  const double cut_band = std::min(10000.0, 2.0 / 3.0 * ref_band);
+  // every rung damps by the FD rung's Rayleigh curve (the solid's modes too), so that the table
+  // measures discretization, theory and truncation; the law's fit error is the section below
+  auto rayleigh_material = std::make_shared<MaterialConfig>(config.material);
+  auto rayleigh_shell = std::make_shared<acoustics::ShellConfig>(config.shell);
+  acoustics::UseFdDamping(config.tube, rayleigh_material.get(), rayleigh_shell.get());
+  acoustics::ShellConfig damping_grid = *rayleigh_shell;
+  damping_grid.grid_spacing_m = coarser.arc_m;
+  damping_grid.axial_spacing_m = coarser.axial_m;
+  auto damping =
+      std::make_shared<const acoustics::ShellModel>(config.tube, *rayleigh_material, damping_grid);
+  const auto zeta = [damping](double w) { return damping->DampingRatio(w); };
+  // the modes every modal rung draws from: the production default (20 kHz below Nyquist)
+  const double full_band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
+                                                             : std::min(20000.0, 0.95 * 0.5 * fs);
+
+  auto yard = BuildReference(config, ref_element, ref_band, cache, solves_md);
+  auto cheap = BuildReference(config, 4.0 / 3.0 * ref_element, ref_band, cache, solves_md);
+  auto solid_rung = [=](std::shared_ptr<const solid::ReferenceTube> tube, double band) {
+    return [=] { return std::make_unique<SolidRung>(tube, band, fs, zeta); };
+  };
+  auto solid_grid = [](const solid::ReferenceTube& t) {
+    return fmt::format("solid, h {:.1f} mm, p {}/{}", 1e3 * t.config().mesh.element_arc_m,
+                       t.config().mesh.degree_wall, t.config().mesh.degree_thickness);
+  };
+  auto shell = [=, &config](acoustics::RungSpec spec, const Grid& grid) {
+    spec.arc_m = grid.arc_m;
+    spec.axial_m = grid.axial_m;
+    return [=, &config]() -> std::unique_ptr<LadderRung> {
+      return std::make_unique<ShellRung>(std::make_unique<acoustics::VibrationRung>(
+          config.tube, *rayleigh_material, *rayleigh_shell, config.mics, fs, spec, full_band,
+          config.acoustics.decay_floor_db, cache));
+    };
+  };
+  auto grid_name = [](const Grid& g) {
+    return fmt::format("shell, {:.1f} x {:.1f} mm", 1e3 * g.arc_m, 1e3 * g.axial_m);
+  };
+  const auto fd = acoustics::VibrationModel::kFd, modal = acoustics::VibrationModel::kModal;
+  auto modal_spec = [&](double band, int64_t count, bool residual) {
+    acoustics::RungSpec s;
+    s.model = modal;
+    s.band_hz = band;
+    s.mode_count = count;
+    s.residual = residual;
+    return s;
+  };
+  acoustics::RungSpec fd_spec;
+  fd_spec.model = fd;
+  const std::string cut = fmt::format("{:.0f} kHz", cut_band / 1000);
+  std::vector<RungEntry> rungs{
+      {"reference solid (the yardstick)", "solid", solid_grid(*yard), solid_rung(yard, ref_band)},
+      {"reference solid, coarser mesh", "solid", solid_grid(*cheap), solid_rung(cheap, ref_band)},
+      {"reference solid, " + cut, "solid", solid_grid(*yard), solid_rung(yard, cut_band)},
+      {"FD", "fd", grid_name(configured), shell(fd_spec, configured)},
+      {"FD", "fd", grid_name(coarse), shell(fd_spec, coarse)},
+      {"FD", "fd", grid_name(coarser), shell(fd_spec, coarser)},
+      {"modal, derived band (default)", "modal", grid_name(configured),
+       shell(modal_spec(0, 0, true), configured)},
+      {"modal, all modes", "modal", grid_name(configured),
+       shell(modal_spec(full_band, 0, true), configured)},
+      {"modal, all modes, no residual", "modal", grid_name(configured),
+       shell(modal_spec(full_band, 0, false), configured)},
+      {"modal, 10 kHz", "modal", grid_name(configured),
+       shell(modal_spec(10000, 0, true), configured)},
+      {"modal, 5 kHz", "modal", grid_name(configured),
+       shell(modal_spec(5000, 0, true), configured)},
+      {"modal, 2 kHz", "modal", grid_name(configured),
+       shell(modal_spec(2000, 0, true), configured)},
+      {"modal, 100 modes", "modal", grid_name(configured),
+       shell(modal_spec(0, 100, true), configured)},
+      {"modal, all modes", "modal", grid_name(fine), shell(modal_spec(full_band, 0, true), fine)},
+      {"modal, derived band", "modal", grid_name(coarse), shell(modal_spec(0, 0, true), coarse)},
+      {"modal, derived band", "modal", grid_name(coarser), shell(modal_spec(0, 0, true), coarser)}};
+  // a grid that coincides with another (--quick: coarse is coarser) is measured once
+  for (size_t i = 1; i < rungs.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if (rungs[j].name == rungs[i].name && rungs[j].grid == rungs[i].grid) {
+        rungs.erase(rungs.begin() + static_cast<std::ptrdiff_t>(i--));
+        break;
+      }
+    }
+  }
+  return rungs;
+}
+
+// An FD rung's frequencies are its grid's: those of the modal rung with the most modes there.
+void FrequenciesOfGrids(const std::vector<RungEntry>& rungs, std::vector<RungResult>* results) {
+  for (size_t i = 0; i < rungs.size(); ++i) {
+    if (rungs[i].kind != "fd") continue;
+    int64_t most = -1;
+    for (size_t j = 0; j < rungs.size(); ++j) {
+      if (rungs[j].kind == "modal" && rungs[j].grid == rungs[i].grid &&
+          (*results)[j].frequency.modes > most) {
+        most = (*results)[j].frequency.modes;
+        (*results)[i].frequency = (*results)[j].frequency;
+        (*results)[i].frequency_of_grid = true;
+      }
+    }
+  }
+}
+
+// OUT's JSON beside it, and its Pareto figure drawn from that by the plot script.
+void WriteFigure(const FidelityOptions& o, const json& j) {
+  const std::filesystem::path out(o.out);
+  const std::string json_path = std::filesystem::path(out).replace_extension(".json").string();
+  const std::string png_path = (out.parent_path() / (out.stem().string() + "_pareto.png")).string();
+  WriteTextAtomic(json_path, j.dump(2) + "\n");
+  if (o.plot_script.empty()) return;
+  const std::string cmd =
+      fmt::format("/usr/bin/python3 '{}' '{}' '{}'", o.plot_script, json_path, png_path);
+  if (std::system(cmd.c_str()) != 0) {
+    throw Error(
+        fmt::format("fidelity: the plot script {} failed on {} (the table and the JSON "
+                    "are written; --plot \"\" skips the figure)",
+                    o.plot_script, json_path));
   }
 }
 
 }  // namespace
 
-CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
-                          double window_s, bool quick) {
+CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
   const SonicBoomConfig config = ResolveConfig(g.sources);
-  CheckFidelityOptions(out_md, strikes, window_s);
   const double fs = config.audio.sample_rate_hz;
+  CheckFidelityOptions(o, fs);
   const double onset_s = 0.001;
   LadderStrikes ladder;
   ladder.one_second = static_cast<int64_t>(std::llround(fs));
-  ladder.window = static_cast<int64_t>(std::llround((onset_s + window_s) * fs));
+  ladder.window = static_cast<int64_t>(std::llround((onset_s + o.window_s) * fs));
   const std::string cache = config.acoustics.mode_cache_dir.empty()
                                 ? acoustics::DefaultModeCacheDir()
                                 : config.acoustics.mode_cache_dir;
+  std::string solves_md;
+  const std::vector<RungEntry> rungs = LadderRungs(config, o, cache, &solves_md);
 
-  // grids: the configured one (the production rung's), coarser ones, and the reference
-  const double arc = config.shell.grid_spacing_m, axial = config.shell.AxialSpacing();
-  const double finest = quick ? 0.005 : std::min(arc, axial);
-  const Grid reference{"reference", finest, finest};
-  const Grid configured{"configured", quick ? 0.005 : arc, quick ? 0.01 : axial};
-  const Grid coarse{"coarse", 2 * configured.arc_m, 2 * configured.axial_m};
-  const Grid coarser{"coarser", 0.01, 0.02};
-  // every rung, modal and FD, damps by the FD rung's Rayleigh curve, so that the table measures
-  // discretization and truncation alone; the law's own fit error is the section below the table
-  MaterialConfig rayleigh_material = config.material;
-  acoustics::ShellConfig rayleigh_shell = config.shell;
-  acoustics::UseFdDamping(config.tube, &rayleigh_material, &rayleigh_shell);
-  // the modes every modal rung draws from: the production default (20 kHz below Nyquist)
+  // the contact forces, solved once against the configured grid's modal wall (the default rung)
+  const auto is_default = [](const RungEntry& e) { return e.name.ends_with("(default)"); };
+  const auto wall = std::find_if(rungs.begin(), rungs.end(), is_default)->build();
   const double full_band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
                                                              : std::min(20000.0, 0.95 * 0.5 * fs);
-  auto build = [&](const Rung& rung) {
-    acoustics::RungSpec spec;
-    spec.model = rung.kind;
-    spec.arc_m = rung.grid.arc_m;
-    spec.axial_m = rung.grid.axial_m;
-    spec.band_hz = rung.band_hz;
-    spec.mode_count = rung.mode_count;
-    spec.residual = rung.residual;
-    spec.oversampling_factor = rung.oversampling_factor;
-    return std::make_unique<acoustics::VibrationRung>(
-        config.tube, rayleigh_material, rayleigh_shell, config.mics, fs, spec, full_band,
-        config.acoustics.decay_floor_db, cache);
-  };
-
-  // the contact forces, solved once against the configured grid's modal wall
-  spdlog::info("fidelity: modes of the configured grid ({} x {} mm)", configured.arc_m * 1e3,
-               configured.axial_m * 1e3);
-  const auto wall = build({"wall", acoustics::VibrationModel::kModal, configured, 0, 0, true, 1});
-  for (int64_t s = 0; s < strikes; ++s) {
-    acoustics::SolvedForce solved =
-        acoustics::SolveRigidStrikeForce(StrikeEvent(kStrikes[s], onset_s), *wall, config.tube,
-                                         config.material, config.acoustics, fs, full_band);
+  for (int64_t s = 0; s < o.strikes; ++s) {
+    acoustics::SolvedForce solved = acoustics::SolveRigidStrikeForce(
+        StrikeEvent(kStrikes[s], onset_s), dynamic_cast<const ShellRung&>(*wall).vibration_rung(),
+        config.tube, config.material, config.acoustics, fs, full_band);
     ladder.derived_band_hz.push_back(solved.derived_band_hz);
     ladder.forces.push_back({std::move(solved.force)});
   }
 
-  // the rungs, the reference first
-  const auto fd = acoustics::VibrationModel::kFd, modal = acoustics::VibrationModel::kModal;
-  const std::vector<Rung> rungs{
-      {"FD reference (2x stable oversampling)", fd, reference, 0, 0, true, 2},
-      {"FD", fd, configured, 0, 0, true, 1},
-      {"FD", fd, coarse, 0, 0, true, 1},
-      {"FD", fd, coarser, 0, 0, true, 1},
-      {"modal, derived band (default)", modal, configured, 0, 0, true, 1},
-      {"modal, all modes", modal, configured, full_band, 0, true, 1},
-      {"modal, all modes, no residual", modal, configured, full_band, 0, false, 1},
-      {"modal, 10 kHz", modal, configured, 10000, 0, true, 1},
-      {"modal, 5 kHz", modal, configured, 5000, 0, true, 1},
-      {"modal, 2 kHz", modal, configured, 2000, 0, true, 1},
-      {"modal, 100 modes", modal, configured, 0, 100, true, 1},
-      {"modal, derived band", modal, coarse, 0, 0, true, 1},
-      {"modal, derived band", modal, coarser, 0, 0, true, 1}};
-  Reference ref;
+  Yardstick yardstick;
+  yardstick.band_hz = o.quick ? std::min(o.reference_band_hz, 5000.0) : o.reference_band_hz;
+  const double frequency_max_hz = std::min(10000.0, yardstick.band_hz);
   std::vector<RungResult> results;
-  for (const Rung& rung : rungs) {
-    spdlog::info("fidelity: {} on the {} grid", rung.name, rung.grid.name);
-    results.push_back(MeasureRung(rung, *build(rung), ladder, fs, &ref));
+  for (const RungEntry& rung : rungs) {
+    spdlog::info("fidelity: {} ({})", rung.name, rung.grid);
+    results.push_back(MeasureRung(rung, *rung.build(), ladder, fs, frequency_max_hz, &yardstick));
   }
-  const auto [whole_ms, whole_vibration_ms] = WholeStrikeMs(config, configured, quick, strikes);
+  FrequenciesOfGrids(rungs, &results);
+  const Grid configured{"configured", o.quick ? 0.005 : config.shell.grid_spacing_m,
+                        o.quick ? 0.01 : config.shell.AxialSpacing()};
+  const auto [whole_ms, whole_vibration_ms] = WholeStrikeMs(config, configured, o.quick, o.strikes);
 
   // the table
   std::string md = fmt::format(
       "# Fidelity ladder: speed against accuracy\n\n"
       "Made by `sonicboom fidelity --out docs/fidelity.md{}` (experiments/fidelity.cc); do not "
-      "edit "
-      "by hand. One core, {}.\n\n"
-      "Every rung renders the same {} strikes (wooden rod, 0.05–1 m/s, contact forces solved once "
-      "against the configured grid's modal wall). Time: the vibration model for 1 s of 6 channels "
-      "(FD: timed on the {:.0f} ms window and scaled; its cost per sample is constant). Errors: "
-      "sensor strain over the first {:.0f} ms after the onset against the reference, averaged "
-      "over the strikes: relative L2 error over all channels; inter-channel delay error (20 % "
-      "threshold arrival, mean over the 15 pairs); octave-band energy error (250 Hz–16 kHz, mean "
-      "|dB|).\n\n"
-      "| rung | grid (arc x axial mm) | DOFs | modes / oversampling | ms per strike | strikes/s | "
-      "relative error | delay error (µs) | band-energy error (dB) |\n"
-      "|---|---|---|---|---|---|---|---|---|\n",
-      quick ? " --quick" : "", fmt::format("{} Hz", fs), strikes, window_s * 1e3, window_s * 1e3);
+      "edit by hand. One core, {} Hz. The figure (docs/fidelity_pareto.png) and the numbers "
+      "(docs/fidelity.json) come with it.\n\n"
+      "The yardstick is the reference solid (docs/reference_model.md): the tube as a 3-D elastic "
+      "solid on spectral elements, another theory and discretization than the shell's, with the "
+      "same seam, bolts, holes and mounts. Every rung renders the same {} strikes (wooden rod, "
+      "0.05–1 m/s; contact forces solved once against the default rung's wall, so that rungs "
+      "differ in the vibration model alone) and is damped by the same Rayleigh curve.\n\n"
+      "Columns. Time: the vibration model for 1 s of 6 channels of one strike (FD: timed on the "
+      "{:.0f} ms window and scaled; its cost per sample is constant; the solid: its modal sum "
+      "after the solve below). Frequency: the modes below {:.0f} kHz matched by rank with the "
+      "yardstick's, median / max |error| (%), with the count of modes each holds there (an FD "
+      "rung's are its grid's modes). Signals: sensor strain over the first {:.0f} ms after the "
+      "onset, both low-passed at {:.0f} kHz (the yardstick's band), averaged over the strikes: "
+      "first-arrival error (20 % of each channel's peak, mean over channels), inter-channel delay "
+      "error (mean over the 15 pairs / worst pair), relative L2 error, octave-band energy error "
+      "(250 Hz–16 kHz, mean |dB|).\n\n{}\n"
+      "| rung | discretization | DOFs | modes / oversampling | ms per strike | strikes/s | "
+      "frequency error (%) | arrival error (µs) | delay error mean / max (µs) | relative error | "
+      "band-energy error (dB) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+      o.quick ? " --quick" : "", fs, o.strikes, o.window_s * 1e3, frequency_max_hz / 1e3,
+      o.window_s * 1e3, yardstick.band_hz / 1e3, solves_md);
   json rows_json = json::array();
   LadderRows(rungs, results, &md, &rows_json);
+  md += Recommendations(rungs, results);
   md += fmt::format(
       "\nWhole default strike through `StrikeSynthesizer` (acoustics.model = {}, contact solve "
-      "with "
-      "the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike = "
-      "{:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
+      "with the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike "
+      "= {:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
       NameOf(config.acoustics.model), whole_ms, 1e3 / whole_ms, whole_vibration_ms);
   const json damping_json = DampingSection(config, &md);
   json j = {{"rungs", rows_json},
-            {"strikes", strikes},
-            {"window_s", window_s},
+            {"strikes", o.strikes},
+            {"window_s", o.window_s},
+            {"yardstick_band_hz", yardstick.band_hz},
+            {"frequency_max_hz", frequency_max_hz},
             {"damping", damping_json},
             {"whole_strike_ms", whole_ms},
             {"whole_strike_vibration_ms", whole_vibration_ms},
-            {"quick", quick}};
-  if (!out_md.empty()) WriteTextAtomic(out_md, md);
+            {"quick", o.quick}};
+  if (!o.out.empty()) {
+    WriteTextAtomic(o.out, md);
+    WriteFigure(o, j);
+  }
   return {j.dump(), md};
 }
 
 void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run) {
-  struct Options {
-    std::string out = "docs/fidelity.md";
-    int64_t strikes = 4;
-    double window_s = 0.03;
-    bool quick = false;
-  };
-  auto o = std::make_shared<Options>();
+  auto o = std::make_shared<FidelityOptions>();
   auto* fidelity = app.add_subcommand("fidelity",
                                       "time and error of every vibration-model rung "
-                                      "against the finest FD reference");
+                                      "against the reference solid");
   fidelity->add_option("--out", o->out, "markdown table (\"\" = print only)");
   fidelity->add_option("--strikes", o->strikes, "test strikes (1-6)");
   fidelity->add_option("--window-s", o->window_s, "compared signal after the onset, s");
-  fidelity->add_flag("--quick", o->quick, "coarse grids only (a smoke run)");
-  fidelity->callback([&g, run, o] {
-    *run = [&g, o] { return RunFidelity(g, o->out, o->strikes, o->window_s, o->quick); };
-  });
+  fidelity->add_option("--reference-band", o->reference_band_hz,
+                       "the yardstick's modes up to here, Hz");
+  fidelity->add_option("--reference-element", o->reference_element_m,
+                       "the yardstick's element size, m");
+  fidelity->add_option("--plot", o->plot_script,
+                       "script drawing OUT's Pareto figure (\"\" = no figure)");
+  fidelity->add_flag("--quick", o->quick, "coarse grids and reference only (a smoke run)");
+  fidelity->callback([&g, run, o] { *run = [&g, o] { return RunFidelity(g, *o); }; });
 }
 
 }  // namespace sonicboom::experiments

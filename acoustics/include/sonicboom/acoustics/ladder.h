@@ -57,6 +57,9 @@ class VibrationRung {
   /// The wall a contact sees at (z, theta) through the modes up to band_hz (modal rungs only;
   /// Error for an FD rung).
   DrivingPoint WallAt(double z_m, double theta_rad, double band_hz) const;
+  /// (modes) the modal rung's elastic mode frequencies, ascending, Hz (empty
+  /// for an FD rung: its grid's are those of a modal rung on the same grid).
+  Eigen::VectorXd FrequenciesHz() const;
   int64_t dofs() const;
   int64_t oversampling() const;  // FD steps per audio sample (0 for a modal rung)
   bool fd() const;

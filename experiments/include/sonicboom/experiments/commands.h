@@ -42,10 +42,23 @@ CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
 CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64_t index,
                        bool force);
 CommandResult RunModes(const GlobalOptions& g, TubeEnds ends, bool ideal, int64_t count);
-/// The fidelity ladder's speed-accuracy table (docs/fidelity.md): every rung against the finest
-/// FD reference on `strikes` test strikes over `window_s` after the onset.
-CommandResult RunFidelity(const GlobalOptions& g, const std::string& out_md, int64_t strikes,
-                          double window_s, bool quick);
+/// Options of `sonicboom fidelity`.
+struct FidelityOptions {
+  std::string out{"docs/fidelity.md"};  // markdown table; "" = print only
+  int64_t strikes{4};                   // test strikes (1-6)
+  double window_s{0.03};                // compared signal after the onset, s
+  bool quick{false};                    // coarse grids and a coarse reference (a smoke run)
+  // the yardstick: the reference solid's modes up to here, on elements of this size
+  double reference_band_hz{15000.0};
+  double reference_element_m{0.0135};
+  // draws OUT's Pareto figure from OUT's JSON (/usr/bin/python3, matplotlib); "" = no figure
+  std::string plot_script{"scripts/plot_fidelity.py"};
+};
+/// The fidelity ladder's speed-accuracy table (docs/fidelity.md): every rung of the shell
+/// (modal, FD) and the reference solid at cheaper settings, timed and measured against the
+/// reference solid (solid/) on the same contact forces. Writes OUT, OUT's .json and, with a plot
+/// script, OUT's _pareto.png.
+CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o);
 /// The structure pool's Ritz path against full mode solves: the first `check` variants of the
 /// configured pool are solved in full and compared in frequency, shape and signal; every
 /// variant's projection is timed. Writes out_md when not empty.
@@ -84,9 +97,8 @@ struct TrainOptions {
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
 /// `eval`: metrics of a run on a dataset; with `predictions_csv` also one row per strike
 /// (an existing file is replaced only with `force`).
-CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
-                      const std::string& data, const std::string& predictions_csv = "",
-                      bool force = false);
+CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir, const std::string& data,
+                      const std::string& predictions_csv = "", bool force = false);
 /// `calibrate`: refits the run's interval scales (learning::Recalibrate) on the labelled strikes
 /// of `data` (pooled), with the run's features; the run keeps its weights.
 CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,

@@ -1,0 +1,73 @@
+// How the fidelity ladder scores a rung (experiments/internal/fidelity_metrics.h): timing of known
+// delays, the comparison low-pass, rank-matched frequencies.
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
+#include <cmath>
+#include <numbers>
+
+#include "internal/fidelity_metrics.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kFs = 44100.0;
+
+// (6 x 400) a decaying 2 kHz burst starting at sample 50 + delay[c] on channel c
+Eigen::MatrixXd Bursts(const Eigen::VectorXd& delay_samples) {
+  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(6, 400);
+  for (int c = 0; c < 6; ++c) {
+    for (int k = 0; k < 400; ++k) {
+      const double t = (k - 50.0 - delay_samples[c]) / kFs;
+      if (t > 0) y(c, k) = std::sin(2 * kPi * 2000 * t) * std::exp(-t / 2e-3);
+    }
+  }
+  return y;
+}
+
+TEST(FidelityMetricsTest, TimingErrorsOfAKnownDelay) {
+  const Eigen::VectorXd none = Eigen::VectorXd::Zero(6);
+  Eigen::VectorXd late = none;
+  late[2] = 3.0;  // channel 2 three samples late: 5 of the 15 pairs are off by 3 samples
+  const TimingError e = TimingErrorUs(Bursts(late), Bursts(none), kFs);
+  const double sample_us = 1e6 / kFs;
+  EXPECT_NEAR(e.arrival_us, 3.0 / 6.0 * sample_us, 0.05 * sample_us);
+  EXPECT_NEAR(e.delay_us, 3.0 * 5.0 / 15.0 * sample_us, 0.05 * sample_us);
+  EXPECT_NEAR(e.delay_max_us, 3.0 * sample_us, 0.05 * sample_us);
+  // the same delay on every channel moves the arrivals, not the inter-channel delays
+  const TimingError common =
+      TimingErrorUs(Bursts(Eigen::VectorXd::Constant(6, 2.0)), Bursts(none), kFs);
+  EXPECT_NEAR(common.arrival_us, 2.0 * sample_us, 0.05 * sample_us);
+  EXPECT_LT(common.delay_us, 0.01 * sample_us);
+  EXPECT_DOUBLE_EQ(RelativeError(Bursts(none), Bursts(none)), 0.0);
+}
+
+TEST(FidelityMetricsTest, LowPassKeepsThePassBandAndStopsTheStopBand) {
+  Eigen::MatrixXd y(2, 2000);
+  for (int k = 0; k < 2000; ++k) {
+    y(0, k) = std::sin(2 * kPi * 1000 * k / kFs);
+    y(1, k) = std::sin(2 * kPi * 18000 * k / kFs);
+  }
+  const Eigen::MatrixXd out = LowPass(y, 15000.0, kFs);
+  // away from the record's ends (the kernel is 101 taps)
+  const Eigen::MatrixXd mid = out.middleCols(200, 1600), in = y.middleCols(200, 1600);
+  EXPECT_LT((mid.row(0) - in.row(0)).cwiseAbs().maxCoeff(), 1e-3);
+  EXPECT_LT(mid.row(1).cwiseAbs().maxCoeff(), 1e-3);
+  // zero phase: the kept sine is not shifted
+  EXPECT_NEAR(out(0, 1000), y(0, 1000), 1e-3);
+}
+
+TEST(FidelityMetricsTest, FrequenciesMatchByRankBelowTheLimit) {
+  Eigen::VectorXd rung(3), reference(4);
+  rung << 100.0, 200.0, 300.0;
+  reference << 101.0, 200.0, 330.0, 20000.0;
+  const FrequencyError e = RankedFrequencyError(rung, reference, 10000.0);
+  EXPECT_EQ(e.modes, 3);
+  EXPECT_EQ(e.reference_modes, 3);
+  EXPECT_NEAR(e.median_pct, 100.0 * (1.0 - 100.0 / 101.0), 1e-9);
+  EXPECT_NEAR(e.max_pct, 100.0 * (1.0 - 300.0 / 330.0), 1e-9);
+}
+
+}  // namespace
+}  // namespace sonicboom::experiments
