@@ -458,5 +458,151 @@ TEST(ShellBankTest, AnInwardPushCompressesTheDiscUnderIt) {
   EXPECT_LT(y(0, at), 0.0);
 }
 
+// ---- the extremes matrix (issue 31 item 5): each end of each range against a law that can fail
+
+// the lowest mode whose radial motion has circumferential order n (Hz; 0 if none)
+double LowestOfOrder(const ShellModel& model, const ShellModes& modes, int n) {
+  for (Eigen::Index k = 0; k < modes.omega_rad_s.size(); ++k) {
+    if (CircumferentialOrder(model, modes.shapes.col(k)) == n) return Hz(modes.omega_rad_s[k]);
+  }
+  return 0.0;
+}
+
+// E from 0.1 to 100 GPa: K scales with E, so every frequency of the ideal tube scales with
+// sqrt(E / rho), mode by mode, to the solver's precision
+TEST(ExtremesTest, FrequenciesScaleAsTheRootOfStiffness) {
+  const TubeConfig tube;
+  const ShellConfig grid = Ideal(TubeEnds::kFree, 0.01, 0.01);
+  const ShellModel base(tube, MaterialConfig{}, grid);
+  const ShellModes at_base = SolveShellModes(base, 2000.0, 0, false);
+  ASSERT_GT(at_base.omega_rad_s.size(), 20);
+  for (const double e_pa : {1e8, 1e11}) {
+    MaterialConfig material;
+    material.youngs_modulus_pa = e_pa;
+    const double scale = std::sqrt(e_pa / MaterialConfig{}.youngs_modulus_pa);
+    const ShellModes m =
+        SolveShellModes(ShellModel(tube, material, grid), 2000.0 * scale, 0, false);
+    ASSERT_EQ(m.omega_rad_s.size(), at_base.omega_rad_s.size()) << e_pa;
+    EXPECT_EQ(m.rigid_body_modes, 6) << e_pa;
+    const double worst =
+        (m.omega_rad_s.array() / (scale * at_base.omega_rad_s.array()) - 1.0).abs().maxCoeff();
+    std::cout << "E = " << e_pa << " Pa: frequencies / (sqrt(E/E0) f0) - 1 at most " << worst
+              << "\n";
+    EXPECT_LT(worst, 1e-6) << e_pa;
+  }
+}
+
+// walls of 0.5 and 10 mm: the oval (n = 2) pair, the free tube's lowest elastic modes, is
+// Rayleigh's inextensional bending mode, whose frequency is proportional to h (at the mid radius):
+// each within 3 % of it on a 5 mm grid (0.6 % and 1.8 % below), and their ratio, the law itself,
+// within 2 % (1.2 % below: the 10 mm wall is a thick shell, h / R = 0.2). The lossless FD scheme
+// at its automatic step keeps its energy at both.
+TEST(ExtremesTest, BendingFrequencyFollowsTheWallAndFdStaysStable) {
+  std::vector<double> found, expected;
+  for (const double h_m : {0.0005, 0.01}) {
+    TubeConfig tube;
+    tube.wall_thickness_m = h_m;
+    MaterialConfig material;
+    const double rayleigh_hz = RayleighFrequency(tube, material, 2);
+    const ShellModel model(tube, material, Ideal(TubeEnds::kFree, 0.005, 0.005));
+    const ShellModes modes = SolveShellModes(model, 1.5 * rayleigh_hz, 0, true);
+    const double oval_hz = LowestOfOrder(model, modes, 2);
+    std::cout << "wall " << h_m * 1e3 << " mm: oval mode " << oval_hz << " Hz, Rayleigh "
+              << rayleigh_hz << " Hz\n";
+    EXPECT_NEAR(oval_hz / rayleigh_hz, 1.0, 0.03) << h_m;
+    found.push_back(oval_hz);
+    expected.push_back(rayleigh_hz);
+    // FD, lossless, a push then free vibration
+    material.loss_factor = 0.0;
+    const ShellModel lossless(tube, material, Ideal(TubeEnds::kFree, 0.01, 0.01));
+    const ShellFd fd(lossless, 44100.0, 0);
+    ShellFdState state = fd.Rest();
+    const Eigen::VectorXd push = lossless.RadialForceWeights(0.03, 0.4);
+    for (int n = 0; n < 20; ++n) fd.Step(&state, 10.0 * push);
+    const double e0 = fd.Energy(state);
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(lossless.dofs());
+    double worst = 0.0;
+    for (int n = 0; n < 5000; ++n) {
+      fd.Step(&state, zero);
+      if (n % 100 == 0) worst = std::max(worst, std::abs(fd.Energy(state) / e0 - 1.0));
+    }
+    EXPECT_LT(worst, 1e-10) << h_m << " mm wall, oversampling " << fd.oversampling();
+  }
+  EXPECT_NEAR((found[1] / found[0]) / (expected[1] / expected[0]), 1.0, 0.02);
+}
+
+// the decay rate (1/s) of the strongest channel of y after sample `from`: a straight line fitted
+// to the log of its peaks down to 80 dB below the first
+double DecayRate(const Eigen::MatrixXd& y, int64_t from, double fs) {
+  Eigen::Index c = 0;
+  y.rightCols(y.cols() - from).cwiseAbs().rowwise().maxCoeff().maxCoeff(&c);
+  std::vector<double> t, log_peak;
+  double first = 0.0;
+  for (Eigen::Index k = from + 1; k + 1 < y.cols(); ++k) {
+    const double a = std::abs(y(c, k));
+    if (a < std::abs(y(c, k - 1)) || a < std::abs(y(c, k + 1)) || a == 0.0) continue;
+    if (first == 0.0) first = a;
+    if (a < 1e-4 * first) break;
+    t.push_back(k / fs);
+    log_peak.push_back(std::log(a));
+  }
+  const double n = static_cast<double>(t.size());
+  double st = 0, sl = 0, stt = 0, stl = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    st += t[i], sl += log_peak[i], stt += t[i] * t[i], stl += t[i] * log_peak[i];
+  }
+  return -(n * stl - st * sl) / (n * stt - st * st);
+}
+
+// loss factors 1e-4 to 0.2: one mode played alone decays at sigma = (eta / 2) omega within 2 %.
+// At eta = 1e-4 its pole lies 1.5e-6 inside the unit circle and the bank's recursion runs in
+// float (steps of 6e-8 there): it decays 1.1 % slow; at 0.02 and 0.2 within 0.01 %.
+TEST(ExtremesTest, DecayFollowsTheLossFactor) {
+  const double fs = 44100.0;
+  for (const double eta : {1e-4, 0.02, 0.2}) {
+    MaterialConfig material;
+    material.loss_factor = eta;
+    const ShellModel model(TubeConfig{}, material, Ideal(TubeEnds::kFree, 0.01, 0.01));
+    const ShellModes modes = SolveShellModes(model, 500.0, 0, true);
+    const ShellModalBank bank(model, modes, MicArrayConfig{}, fs, -200.0, false);
+    const ForceInput tap{0.02, 0.3, 0, Pulse(fs, 0.4e-3, 10.0)};
+    const int64_t samples = eta < 1e-3 ? 44100 : 8820;
+    const Eigen::MatrixXd y = bank.Render(std::span<const ForceInput>(&tap, 1), 1, samples);
+    const double expected = 0.5 * eta * modes.omega_rad_s[0];
+    const double measured = DecayRate(y, 200, fs);
+    std::cout << "eta " << eta << ": mode at " << Hz(modes.omega_rad_s[0]) << " Hz decays at "
+              << measured << " /s, (eta / 2) omega = " << expected << " /s\n";
+    EXPECT_NEAR(measured / expected, 1.0, 0.02) << eta;
+  }
+}
+
+// sample rates 16 and 192 kHz: the same force renders the same continuous response; the 192 kHz
+// record taken at every 12th sample is the 16 kHz record
+TEST(ExtremesTest, TheSampleRateLeavesTheResponse) {
+  const ShellModel& model = SeamedTube10mm();
+  const ShellModes modes = SolveShellModes(model, 6000.0, 0, true);
+  std::vector<Eigen::MatrixXd> records;
+  for (const double fs : {16000.0, 192000.0}) {
+    // a 2 ms sin^1.5 push of 20 N peak from t = 1 ms, each sample its interval's mean
+    const int64_t per = 16;
+    std::vector<double> force(static_cast<size_t>(0.004 * fs), 0.0);
+    for (size_t k = 0; k < force.size(); ++k) {
+      for (int64_t s = 0; s < per; ++s) {
+        const double t = (static_cast<double>(k) + (s + 0.5) / per) / fs - 1e-3;
+        if (t > 0 && t < 2e-3) force[k] += 20.0 * std::pow(std::sin(kPi * t / 2e-3), 1.5) / per;
+      }
+    }
+    const ShellModalBank bank(model, modes, MicArrayConfig{}, fs, -120.0, true);
+    const ForceInput push{0.02, 1.0, 0, force};
+    records.push_back(bank.Render(std::span<const ForceInput>(&push, 1), modes.omega_rad_s.size(),
+                                  static_cast<int64_t>(0.02 * fs)));
+  }
+  Eigen::MatrixXd decimated(records[0].rows(), records[0].cols());
+  for (Eigen::Index k = 0; k < decimated.cols(); ++k) decimated.col(k) = records[1].col(12 * k);
+  const double error = RelativeError(records[0], decimated);
+  std::cout << "16 kHz against 192 kHz (every 12th sample): relative error " << error << "\n";
+  EXPECT_LT(error, 0.05);
+}
+
 }  // namespace
 }  // namespace sonicboom::acoustics
