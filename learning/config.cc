@@ -97,6 +97,7 @@ void TrainConfig::Serialize(Archive* a) {
   a->Visit("time_shift_frames", &time_shift_frames, Bounds::NonNegative());
   a->Visit("time_mask_frames", &time_mask_frames, Bounds::NonNegative());
   a->Visit("freq_mask_bands", &freq_mask_bands, Bounds::NonNegative());
+  a->Visit("polarity_flip", &polarity_flip);
   a->Visit("normalize", &normalize);
   a->Visit("keep_best", &keep_best);
   a->Visit("ensemble_members", &ensemble_members, AtLeastOne());

@@ -140,6 +140,8 @@ Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, in
       mels);
   a.freq_mask_start =
       static_cast<int64_t>(rng.UniformInt(static_cast<uint64_t>(mels - a.freq_mask_width + 1)));
+  // polarity last: the draws above stay what they were without it
+  if (config.polarity_flip && rng.UniformInt(2) == 1) a.sign = -1.0f;
   return a;
 }
 
@@ -175,7 +177,7 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
             const int64_t src_t = start + t;
             const bool masked = band_masked || (t >= a.time_mask_start &&
                                                 t < a.time_mask_start + a.time_mask_width);
-            row[t] = (masked || src_t < 0 || src_t >= f.frames) ? mel_fill[c] : src[src_t];
+            row[t] = (masked || src_t < 0 || src_t >= f.frames) ? mel_fill[c] : a.sign * src[src_t];
           }
         }
       }

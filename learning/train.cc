@@ -269,6 +269,13 @@ std::vector<int64_t> CheckedTrainingRecords(const FeatureSet& train, const Featu
         "features (0 for features.audio_representation = waveform)",
         train_config.freq_mask_bands, train.mels));
   }
+  // a sign belongs to a waveform (one sample per frame), not to a log-mel image
+  if (use.audio && train_config.augment && train_config.polarity_flip &&
+      train.frame_hop_samples != 1) {
+    throw ConfigError(
+        "config key 'train.polarity_flip' = true: needs features.audio_representation = "
+        "waveform (a log-mel image has no sign)");
+  }
   // data parallel: every process's part of a batch needs two records
   if (world > 1 && train_config.batch_size < 2 * world) {
     throw ConfigError(fmt::format(

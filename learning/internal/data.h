@@ -45,6 +45,7 @@ struct Augmentation {
   int64_t time_mask_width{0};
   int64_t freq_mask_start{0};
   int64_t freq_mask_width{0};
+  float sign{1.0f};  // -1: the record's audio inverted (train.polarity_flip)
 };
 /// Draws the augmentation of record `record` in epoch `epoch` (deterministic in all three).
 Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, int64_t mels,

@@ -361,8 +361,8 @@ TEST(AssembleBatchTest, ProprioceptionShiftsByTheAudioShiftsTime) {
   auto shifted_rows = [&](int64_t hop) {
     f.frame_hop_samples = hop;
     const internal::Batch b = internal::AssembleBatch(f, {0}, use, 32, &augment, fill);
-    const torch::Tensor record = torch::from_blob(
-        f.proprio.data(), {f.proprio_rows, f.proprio_features}, torch::kFloat32);
+    const torch::Tensor record =
+        torch::from_blob(f.proprio.data(), {f.proprio_rows, f.proprio_features}, torch::kFloat32);
     for (int64_t shift = 0; shift < f.proprio_rows; ++shift) {
       if (torch::equal(b.proprio[0].slice(0, 0, f.proprio_rows - shift),
                        record.slice(0, shift, f.proprio_rows))) {
@@ -377,6 +377,50 @@ TEST(AssembleBatchTest, ProprioceptionShiftsByTheAudioShiftsTime) {
   EXPECT_EQ(shifted_rows(128), 1);
   EXPECT_EQ(shifted_rows(1), 0);
   EXPECT_EQ(shifted_rows(441), 3);
+}
+
+TEST(AugmentationTest, PolarityFlipInvertsHalfTheRecordsAndChangesNothingElse) {
+  TrainConfig off, on;
+  on.polarity_flip = true;
+  int flipped = 0;
+  for (int64_t r = 0; r < 400; ++r) {
+    const internal::Augmentation a = internal::DrawAugmentation(off, 32, 50, 7, 3, r);
+    const internal::Augmentation b = internal::DrawAugmentation(on, 32, 50, 7, 3, r);
+    EXPECT_EQ(a.sign, 1.0f);
+    // the other draws are the ones made without the flip
+    EXPECT_EQ(a.shift_frames, b.shift_frames);
+    EXPECT_EQ(a.time_mask_start, b.time_mask_start);
+    EXPECT_EQ(a.freq_mask_width, b.freq_mask_width);
+    flipped += b.sign < 0 ? 1 : 0;
+  }
+  EXPECT_GT(flipped, 160);  // binomial(400, 1/2): 200 +- 10
+  EXPECT_LT(flipped, 240);
+  // a flipped record's audio is the record's negated, its masks and fills untouched
+  FeatureSet f = MakeFeatures(1, 3);
+  internal::ModalitySet use;
+  use.audio = true;
+  const std::vector<float> fill(f.channels, 0.25f);
+  internal::Augmentation plain, inverted;
+  plain.time_mask_width = inverted.time_mask_width = 4;
+  inverted.sign = -1.0f;
+  const std::vector<internal::Augmentation> p{plain}, n{inverted};
+  const torch::Tensor a = internal::AssembleBatch(f, {0}, use, 32, &p, fill).mel;
+  const torch::Tensor b = internal::AssembleBatch(f, {0}, use, 32, &n, fill).mel;
+  EXPECT_TRUE(torch::equal(a.select(3, 0), b.select(3, 0)));  // masked frame: the fill
+  EXPECT_TRUE(torch::equal(a.slice(3, 4, 32), -b.slice(3, 4, 32)));
+}
+
+TEST_F(TrainingTest, PolarityFlipOfALogMelImageIsAConfigError) {
+  const FeatureSet train = MakeFeatures(4, 5);  // log-mel, 128-sample hop
+  TrainConfig config = TinyTraining(1);
+  config.polarity_flip = true;
+  try {
+    Train(train, train, TinyModel(), config, kRadius, 1, Dir("run"), false, false);
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("train.polarity_flip"));
+    EXPECT_THAT(e.what(), HasSubstr("waveform"));
+  }
 }
 
 TEST(Conv1dEncoderTest, OutputDoesNotDependOnTheRecordsLevel) {
@@ -683,8 +727,8 @@ TEST_F(TrainingTest, EnsembleTrainsItsMembersAndPredictsTheirMixture) {
   single_config.ensemble_members = 1;
   TrainEnsemble(train, val, TinyModel(), single_config, kRadius, 7, Dir("single"), false, false);
   EXPECT_EQ(EnsembleMembers(Dir("single")).size(), 0u);
-  const Localizer member0(run + "/member0"), member1(run + "/member1"),
-      member2(run + "/member2"), single(Dir("single"));
+  const Localizer member0(run + "/member0"), member1(run + "/member1"), member2(run + "/member2"),
+      single(Dir("single"));
   const std::vector<Prediction> p0 = member0.Predict(val), p1 = member1.Predict(val),
                                 p2 = member2.Predict(val), ps = single.Predict(val);
   EXPECT_EQ(p0[0].z_m, ps[0].z_m);

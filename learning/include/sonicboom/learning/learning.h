@@ -76,6 +76,10 @@ struct TrainConfig {
   int64_t time_shift_frames{34};  // +- mel frames, applied to every time-aligned input
   int64_t time_mask_frames{40};
   int64_t freq_mask_bands{5};
+  // Flip the sign of every channel of a record at random (half the records, every epoch): a
+  // model that must not depend on the wiring's polarity of the discs (waveform features only;
+  // a mel image has no sign). Drawn after the other augmentations, so that off changes nothing.
+  bool polarity_flip{false};
   bool normalize{true};  // per-mic normalization, train-split statistics
   // Save the epoch with the lowest validation loss instead of the last (early stopping without
   // stopping: every epoch still runs). Meant for fine-tuning on few strikes.
@@ -255,9 +259,10 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
 /// directory as it writes it. More: member k in run_dir/member<k> (seed: `seed` for member 0,
 /// SampleSeed(seed, k) for the others; the same train and val sets), then run_dir/ensemble.json
 /// naming them, with the calibration of their combination fitted on `val`; Localizer loads the
-/// directory as one model. Returns the metrics of the calibrated combined predictions on `val`. A fine-tune of an ensemble (fine_tune.init_from an ensemble directory)
-/// fine-tunes member k from the pretrained member k; the member counts must agree
-/// (ConfigError naming train.ensemble_members).
+/// directory as one model. Returns the metrics of the calibrated combined predictions on `val`. A
+/// fine-tune of an ensemble (fine_tune.init_from an ensemble directory) fine-tunes member k from
+/// the pretrained member k; the member counts must agree (ConfigError naming
+/// train.ensemble_members).
 Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
                       const ModelConfig& model_config, const TrainConfig& train_config,
                       double surface_radius_m, uint64_t seed, const std::string& run_dir,
