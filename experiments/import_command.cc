@@ -39,6 +39,7 @@ hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const Import
   s.outer_radius_m = config.tube.outer_radius_m;
   s.z_limit_m = 0.5 * config.tube.length_m;
   s.skip_bad = o.skip_bad;
+  s.invert_polarity = o.invert_polarity;
   s.threads = threads;
   // the tube's orientation from the joint log where x_t.npy has none
   s.tube_pose_from_joints = PandaTubePose(config.tube.center_from_flange_m);
@@ -135,6 +136,8 @@ void RegisterImport(CLI::App& app, GlobalOptions& g, Runner* run) {
                          "contact when the object comes this close (default 0.002)");
   import_cmd->add_flag("--skip-bad", o->skip_bad,
                        "import the good captures when some are bad (they are listed)");
+  import_cmd->add_flag("--invert-polarity", o->invert_polarity,
+                       "negate every channel: discs wired the other way (docs/conventions.md)");
   import_cmd->add_flag("--force", o->force, "replace an existing output");
   import_cmd->callback([&g, run, o] { *run = [&g, o] { return RunImport(g, *o); }; });
 }

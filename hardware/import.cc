@@ -108,6 +108,8 @@ Eigen::MatrixXf CheckedRecord(const std::string& wav, const ImportSettings& sett
   const int64_t keep = std::min<int64_t>(x.cols(), settings.record_frames);
   record.leftCols(keep) = x.leftCols(keep);
   for (int64_t t = keep; t < settings.record_frames; ++t) record.col(t) = x.col(x.cols() - 1);
+  // (full scale is symmetric: a record that passed the clipping check negates exactly)
+  if (settings.invert_polarity) record = -record;
   return record;
 }
 

@@ -96,6 +96,16 @@ TEST(ImportTest, ExportThenImportReproducesAudioLabelsAndPoses) {
     EXPECT_EQ(y.provenance,
               (fs::path(dir / "trials") / ("trial" + std::to_string(i)) / "mic2.wav").string());
   }
+  // inverted on import: every channel negated exactly, labels untouched
+  ImportSettings inverted = Trials();
+  inverted.invert_polarity = true;
+  ASSERT_EQ(ImportCaptures(dir / "trials", dir / "inv.h5", inverted, DatasetInfo{}).imported, 4);
+  DatasetReader c(dir / "inv.h5");
+  for (int64_t i = 0; i < 4; ++i) {
+    const StrikeSample y = b.Read(i), z = c.Read(i);
+    EXPECT_EQ(z.audio, (-y.audio).eval());
+    EXPECT_EQ(z.label.theta_rad, y.label.theta_rad);
+  }
   // the output directory is never overwritten
   EXPECT_THAT(ThrownMessage<IoError>(
                   [&] { ExportTrials(dir / "d.h5", dir / "trials", AngleConvention::kTube); }),

@@ -150,7 +150,8 @@ struct ImportOptions {
   double object_scale{1.0};           // object file units to metres (0.001: millimetres)
   double contact_tolerance_m{0.002};  // contact when the object comes this close
   bool skip_bad{false};
-  bool force{false};  // replace an existing output
+  bool invert_polarity{false};  // every channel negated (discs wired the other way)
+  bool force{false};            // replace an existing output
 };
 CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o);
 /// `listen`: live localization. Strikes are cut from a device stream (or a WAV read as one) by

@@ -61,7 +61,9 @@ struct ImportSettings {
   double outer_radius_m{0.05355};  // label point on the surface
   double z_limit_m{0.1524};        // |z| beyond this (half the tube length) is not on the tube
   bool skip_bad{false};            // import the good captures when some are bad
-  int threads{1};                  // reading and compression workers (0: all cores)
+  // every channel negated: discs poled or wired the other way from docs/conventions.md ("Signs")
+  bool invert_polarity{false};
+  int threads{1};  // reading and compression workers (0: all cores)
   /// Tube pose (base frame) for a joint vector, used when x_t.npy has no orientation
   /// (3 columns) and q_t.npy is present; unset: such trials are bad.
   TubePoseFromJoints tube_pose_from_joints;
