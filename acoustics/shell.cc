@@ -386,6 +386,13 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
         eta_high, eta_low, shell.loss_low_hz, shell.loss_high_hz, alpha_, beta_));
   }
 
+  // Every field of these structs that sets K or M is in the key (the grid targets through nz
+  // and nth); left out on purpose: the contact region and the damping keys (they change no
+  // mode). A struct that grows fails here, so that its new field is put into the key, or these
+  // sizes updated, on purpose (x86-64 sizes).
+  static_assert(sizeof(TubeConfig) == 48 && sizeof(MaterialConfig) == 32 &&
+                    sizeof(ShellConfig) == 240,
+                "a config struct changed: update ShellModel's cache key and these sizes");
   key_ = fmt::format(
       "shell-v1 R={:.17g} h={:.17g} L={:.17g} E={:.17g} nu={:.17g} rho={:.17g} nz={} nth={} "
       "ends={} ideal={} seams={} bolts={} kb={:.17g} holes={}/{} dh={:.17g} kf={:.17g} kt={:.17g}",

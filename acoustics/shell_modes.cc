@@ -774,24 +774,24 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
 
 namespace {
 
-constexpr char kCacheMagic[8] = {'S', 'B', 'M', 'O', 'D', 'E', 'S', '1'};
+constexpr char kCacheMagic[8] = {'S', 'B', 'M', 'O', 'D', 'E', 'S', '2'};
 
 // file layout (sonicboom/core/cache_file.h): header {rigid, modes, rows}, omega (modes), shapes
-// (rows x modes)
+// (rows x modes), checksum
 bool ReadModes(const std::string& path, const std::string& key, ShellModes* out) {
-  std::ifstream in;
+  internal::CacheFileReader in;
   int64_t header[3];
-  if (!internal::OpenCacheFile(path, kCacheMagic, key, header, 3, &in) || header[1] < 0 ||
-      header[2] < 0) {
-    return false;
+  if (!in.Open(path, kCacheMagic, key, header, 3)) return false;
+  const bool sized = header[0] >= 0 && header[1] >= 0 && header[1] < (1 << 24) && header[2] >= 0 &&
+                     header[2] < (1 << 28);
+  if (sized) {
+    out->rigid_body_modes = header[0];
+    out->omega_rad_s.resize(header[1]);
+    out->shapes.resize(header[2], header[2] > 0 ? header[1] : 0);
+    in.Read(out->omega_rad_s.data(), sizeof(double) * out->omega_rad_s.size());
+    in.Read(out->shapes.data(), sizeof(double) * out->shapes.size());
   }
-  out->rigid_body_modes = header[0];
-  out->omega_rad_s.resize(header[1]);
-  out->shapes.resize(header[2], header[2] > 0 ? header[1] : 0);
-  const size_t omega_bytes = sizeof(double) * out->omega_rad_s.size();
-  return internal::ReadCacheBlock(in, out->omega_rad_s.data(), omega_bytes, false) &&
-         internal::ReadCacheBlock(in, out->shapes.data(), sizeof(double) * out->shapes.size(),
-                                  true);
+  return in.Finish() && sized;
 }
 
 void WriteModes(const std::string& cache_dir, const std::string& path, const std::string& key,

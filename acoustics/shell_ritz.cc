@@ -281,26 +281,26 @@ RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& vari
 
 namespace {
 
-constexpr char kRitzMagic[8] = {'S', 'B', 'R', 'I', 'T', 'Z', '0', '1'};
+constexpr char kRitzMagic[8] = {'S', 'B', 'R', 'I', 'T', 'Z', '0', '2'};
 
-// file layout (sonicboom/core/cache_file.h): header {modes, rows}, omega (modes), shapes at the rows
-// (rows x modes, float)
+// file layout (sonicboom/core/cache_file.h): header {modes, rows}, omega (modes), shapes at the
+// rows (rows x modes, float), checksum
 bool ReadRitz(const std::string& path, const std::string& key, const std::vector<int64_t>& rows,
               ModeRows* out) {
-  std::ifstream in;
+  internal::CacheFileReader in;
   int64_t header[2];
-  if (!internal::OpenCacheFile(path, kRitzMagic, key, header, 2, &in) || header[0] < 0 ||
-      header[1] != static_cast<int64_t>(rows.size())) {
-    return false;
+  if (!in.Open(path, kRitzMagic, key, header, 2)) return false;
+  const bool sized =
+      header[0] >= 0 && header[0] < (1 << 24) && header[1] == static_cast<int64_t>(rows.size());
+  Eigen::MatrixXf part;
+  if (sized) {
+    out->rigid_body_modes = 0;
+    out->omega_rad_s.resize(header[0]);
+    part.resize(header[1], header[0]);
+    in.Read(out->omega_rad_s.data(), sizeof(double) * out->omega_rad_s.size());
+    in.Read(part.data(), sizeof(float) * part.size());
   }
-  out->rigid_body_modes = 0;
-  out->omega_rad_s.resize(header[0]);
-  Eigen::MatrixXf part(header[1], header[0]);
-  const size_t omega_bytes = sizeof(double) * out->omega_rad_s.size();
-  if (!internal::ReadCacheBlock(in, out->omega_rad_s.data(), omega_bytes, false) ||
-      !internal::ReadCacheBlock(in, part.data(), sizeof(float) * part.size(), true)) {
-    return false;
-  }
+  if (!in.Finish() || !sized) return false;
   out->dofs = rows;
   out->shapes = part.cast<double>();
   return true;

@@ -14,27 +14,41 @@ uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h) {
   return h;
 }
 
-bool OpenCacheFile(const std::string& path, const char (&magic)[8], const std::string& key,
-                   int64_t* header, size_t header_count, std::ifstream* in) {
-  in->open(path, std::ios::binary);
-  if (!*in) return false;
+bool CacheFileReader::Open(const std::string& path, const char (&magic)[8], const std::string& key,
+                           int64_t* header, size_t header_count) {
+  path_ = path;
+  in_.open(path, std::ios::binary);
+  if (!in_) return false;
   // magic and key length, then the key itself
   char stored_magic[8];
   uint64_t key_size = 0;
-  in->read(stored_magic, 8);
-  in->read(reinterpret_cast<char*>(&key_size), sizeof key_size);
-  if (!*in || std::memcmp(stored_magic, magic, 8) != 0 || key_size != key.size()) return false;
+  in_.read(stored_magic, 8);
+  in_.read(reinterpret_cast<char*>(&key_size), sizeof key_size);
+  if (!in_ || std::memcmp(stored_magic, magic, 8) != 0 || key_size != key.size()) return false;
   std::string stored(key_size, '\0');
-  in->read(stored.data(), static_cast<std::streamsize>(key_size));
-  in->read(reinterpret_cast<char*>(header),
-           static_cast<std::streamsize>(sizeof(int64_t) * header_count));
-  return static_cast<bool>(*in) && stored == key;
+  in_.read(stored.data(), static_cast<std::streamsize>(key_size));
+  const size_t header_bytes = sizeof(int64_t) * header_count;
+  in_.read(reinterpret_cast<char*>(header), static_cast<std::streamsize>(header_bytes));
+  if (!in_ || stored != key) return false;
+  hash_ = Fnv1a(header, header_bytes);
+  return true;
 }
 
-bool ReadCacheBlock(std::ifstream& in, void* data, size_t bytes, bool last) {
-  in.read(static_cast<char*>(data), static_cast<std::streamsize>(bytes));
-  if (!in) return false;
-  return !last || in.peek() == std::char_traits<char>::eof();
+bool CacheFileReader::Read(void* data, size_t bytes) {
+  if (failed_) return false;
+  in_.read(static_cast<char*>(data), static_cast<std::streamsize>(bytes));
+  failed_ = !in_;
+  if (!failed_) hash_ = Fnv1a(data, bytes, hash_);
+  return !failed_;
+}
+
+bool CacheFileReader::Finish() {
+  // the checksum itself is not part of what it sums
+  uint64_t stored = 0;
+  if (!failed_) in_.read(reinterpret_cast<char*>(&stored), sizeof stored);
+  const bool ok = !failed_ && in_ && stored == hash_ && in_.peek() == std::char_traits<char>::eof();
+  if (!ok) spdlog::warn("mode cache: {} is damaged or incomplete; solving again", path_);
+  return ok;
 }
 
 void WriteCacheFile(const std::string& cache_dir, const std::string& path, const char (&magic)[8],
@@ -56,9 +70,12 @@ void WriteCacheFile(const std::string& cache_dir, const std::string& path, const
     out.write(key.data(), static_cast<std::streamsize>(key.size()));
     out.write(reinterpret_cast<const char*>(header.data()),
               static_cast<std::streamsize>(sizeof(int64_t) * header.size()));
+    uint64_t hash = Fnv1a(header.data(), sizeof(int64_t) * header.size());
     for (const CacheBlock& b : blocks) {
       out.write(static_cast<const char*>(b.data), static_cast<std::streamsize>(b.bytes));
+      hash = Fnv1a(b.data, b.bytes, hash);
     }
+    out.write(reinterpret_cast<const char*>(&hash), sizeof hash);
     if (!out) {
       spdlog::warn("mode cache: cannot write {}; continuing without it", partial);
       std::filesystem::remove(partial, ec);

@@ -21,15 +21,6 @@ namespace {
 constexpr int kReferenceModelVersion = 1;
 constexpr char kMagic[8] = {'S', 'B', 'R', 'E', 'F', 'M', '0', '1'};
 
-// the checksum of a cache file's header and arrays
-uint64_t Checksum(const int64_t (&header)[3], const Eigen::VectorXd& omega,
-                  const Eigen::MatrixXd& disc, const Eigen::MatrixXd& shapes) {
-  uint64_t h = internal::Fnv1a(header, sizeof header);
-  h = internal::Fnv1a(omega.data(), sizeof(double) * omega.size(), h);
-  h = internal::Fnv1a(disc.data(), sizeof(double) * disc.size(), h);
-  return internal::Fnv1a(shapes.data(), sizeof(double) * shapes.size(), h);
-}
-
 }  // namespace
 
 // Every field of these structs is in the key below, or deliberately left out (the tube's contact
@@ -76,32 +67,25 @@ void ReferenceTube::Solve() {
                .string();
   }
   // a cached file (sonicboom/core/cache_file.h): header {modes, mics, surface DOFs}, omega, the
-  // discs' read-outs, the surface shapes, and a checksum of all of them last
-  if (!path.empty() && std::filesystem::is_regular_file(path)) {
-    int64_t header[3] = {0, 0, 0};
-    std::ifstream in;
-    bool ok = internal::OpenCacheFile(path, kMagic, key, header, 3, &in) && header[0] >= 0 &&
-              header[0] < (1 << 20) && header[1] == config_.mics.count() &&
-              header[2] == static_cast<int64_t>(surface_dofs_.size());
-    uint64_t sum = 0;
-    if (ok) {
+  // discs' read-outs, the surface shapes, checksum
+  internal::CacheFileReader in;
+  int64_t header[3] = {0, 0, 0};
+  if (!path.empty() && in.Open(path, kMagic, key, header, 3)) {
+    const bool sized = header[0] >= 0 && header[0] < (1 << 20) &&
+                       header[1] == config_.mics.count() &&
+                       header[2] == static_cast<int64_t>(surface_dofs_.size());
+    if (sized) {
       omega_rad_s_.resize(header[0]);
       disc_strain_.resize(header[1], header[0]);
       surface_shapes_.resize(header[2], header[0]);
-      ok = internal::ReadCacheBlock(in, omega_rad_s_.data(), sizeof(double) * omega_rad_s_.size(),
-                                    false) &&
-           internal::ReadCacheBlock(in, disc_strain_.data(), sizeof(double) * disc_strain_.size(),
-                                    false) &&
-           internal::ReadCacheBlock(in, surface_shapes_.data(),
-                                    sizeof(double) * surface_shapes_.size(), false) &&
-           internal::ReadCacheBlock(in, &sum, sizeof sum, true) &&
-           sum == Checksum(header, omega_rad_s_, disc_strain_, surface_shapes_);
+      in.Read(omega_rad_s_.data(), sizeof(double) * omega_rad_s_.size());
+      in.Read(disc_strain_.data(), sizeof(double) * disc_strain_.size());
+      in.Read(surface_shapes_.data(), sizeof(double) * surface_shapes_.size());
     }
-    if (ok) {
+    if (in.Finish() && sized) {
       from_cache_ = true;
       return;
     }
-    spdlog::warn("reference modes: {} is damaged or from another build; solving again", path);
   }
 
   SolidModeRequest request;
@@ -113,13 +97,11 @@ void ReferenceTube::Solve() {
   disc_strain_ = modes.projections;
   surface_shapes_ = modes.shapes;
   if (path.empty()) return;
-  const int64_t header[3] = {omega_rad_s_.size(), disc_strain_.rows(), surface_shapes_.rows()};
-  const uint64_t sum = Checksum(header, omega_rad_s_, disc_strain_, surface_shapes_);
-  internal::WriteCacheFile(config_.cache_dir, path, kMagic, key, {header[0], header[1], header[2]},
+  internal::WriteCacheFile(config_.cache_dir, path, kMagic, key,
+                           {omega_rad_s_.size(), disc_strain_.rows(), surface_shapes_.rows()},
                            {{omega_rad_s_.data(), sizeof(double) * omega_rad_s_.size()},
                             {disc_strain_.data(), sizeof(double) * disc_strain_.size()},
-                            {surface_shapes_.data(), sizeof(double) * surface_shapes_.size()},
-                            {&sum, sizeof sum}});
+                            {surface_shapes_.data(), sizeof(double) * surface_shapes_.size()}});
 }
 
 Eigen::VectorXd ReferenceTube::ModalDrive(double z_m, double theta_rad) const {

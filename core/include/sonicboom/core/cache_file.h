@@ -1,7 +1,7 @@
 #pragma once
 // The mode caches' file format (the shell's base modes and Ritz variants, the reference solid's
-// modes): an 8-byte magic, the key (its length,
-// then its bytes), an int64 header, then raw arrays. A file is written to PATH.partial and renamed
+// modes): an 8-byte magic, the key (its length, then its bytes), an int64 header, raw arrays, and
+// a checksum of the header and the arrays. A file is written to PATH.partial and renamed
 // into place, so a reader never sees half a file; a failed write only warns (the cache saves
 // time, it is never needed).
 
@@ -17,13 +17,27 @@ namespace sonicboom::internal {
 /// that names cache files and checksums their contents.
 uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h = 1469598103934665603ull);
 
-/// Opens `path` and reads past its magic, key and `header_count` header values into `header`;
-/// false when the file is absent, truncated, of another kind or made for another key.
-bool OpenCacheFile(const std::string& path, const char (&magic)[8], const std::string& key,
-                   int64_t* header, size_t header_count, std::ifstream* in);
+/// A cache file being read. Every header value and block read joins a running FNV-1a, which
+/// Finish compares with the checksum the writer put last: a damaged file is found, not used.
+class CacheFileReader {
+ public:
+  /// Opens `path` and reads its magic, key and `header_count` header values into `header`; false
+  /// when the file is absent, truncated, of another kind or made for another key (nothing to
+  /// warn about: the caller solves and writes it).
+  bool Open(const std::string& path, const char (&magic)[8], const std::string& key,
+            int64_t* header, size_t header_count);
+  /// Reads `bytes` raw bytes into `data`; false (and remembered) past the end of the file.
+  bool Read(void* data, size_t bytes);
+  /// True when every read held, the checksum matches and the file ends there. Otherwise warns
+  /// that the file (named) is damaged and will be solved again, and returns false.
+  bool Finish();
 
-/// Reads `bytes` raw bytes into `data`; with `last`, also requires the file to end there.
-bool ReadCacheBlock(std::ifstream& in, void* data, size_t bytes, bool last);
+ private:
+  std::string path_;
+  std::ifstream in_;
+  uint64_t hash_{0};
+  bool failed_{false};
+};
 
 /// One raw array of a cache file.
 struct CacheBlock {
@@ -31,7 +45,8 @@ struct CacheBlock {
   size_t bytes;
 };
 
-/// Writes `path` (in `cache_dir`, created when missing) atomically: magic, key, header, blocks.
+/// Writes `path` (in `cache_dir`, created when missing) atomically: magic, key, header, blocks,
+/// and last the FNV-1a checksum of the header and the blocks.
 void WriteCacheFile(const std::string& cache_dir, const std::string& path, const char (&magic)[8],
                     const std::string& key, const std::vector<int64_t>& header,
                     const std::vector<CacheBlock>& blocks);
