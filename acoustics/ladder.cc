@@ -6,6 +6,7 @@
 #include <numbers>
 #include <utility>
 
+#include "sonicboom/acoustics/closed_form_bank.h"
 #include "sonicboom/acoustics/fd_render.h"
 #include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
@@ -30,6 +31,8 @@ struct VibrationRung::Impl {
   std::unique_ptr<ShellFd> fd;
   ShellModes modes;
   std::unique_ptr<ShellModalBank> bank;
+  std::unique_ptr<ClosedFormBank> closed_form;
+  double full_band_hz{0.0};
 };
 
 VibrationRung::VibrationRung(const TubeConfig& tube, const MaterialConfig& material,
@@ -39,6 +42,13 @@ VibrationRung::VibrationRung(const TubeConfig& tube, const MaterialConfig& mater
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.spec = spec;
+  m.full_band_hz = full_band_hz;
+  if (spec.model == VibrationModel::kModalClosedForm) {
+    // the ideal tube in closed form: no grid, no shell
+    m.closed_form = std::make_unique<ClosedFormBank>(tube, material, mics, sample_rate_hz,
+                                                     full_band_hz, decay_floor_db);
+    return;
+  }
   ShellConfig grid = shell;
   grid.grid_spacing_m = spec.arc_m;
   grid.axial_spacing_m = spec.axial_m;
@@ -54,7 +64,8 @@ VibrationRung::VibrationRung(const TubeConfig& tube, const MaterialConfig& mater
     m.bank = std::make_unique<ShellModalBank>(*m.model, m.modes, mics, sample_rate_hz,
                                               decay_floor_db, spec.residual);
   } else {
-    throw ConfigError(fmt::format("a ladder rung is modal or fd, not {}", NameOf(spec.model)));
+    throw ConfigError(
+        fmt::format("a ladder rung is modal, fd or modal-closed-form, not {}", NameOf(spec.model)));
   }
 }
 
@@ -63,29 +74,36 @@ VibrationRung::~VibrationRung() = default;
 int64_t VibrationRung::ModesPlayed(double derived_band_hz) const {
   const Impl& m = *impl_;
   if (m.fd) return 0;
+  if (m.closed_form) return m.closed_form->FrequenciesHz(PlayedBand(derived_band_hz)).size();
   if (m.spec.mode_count > 0) return m.spec.mode_count;
-  return m.bank->ModesBelow(m.spec.band_hz > 0 ? m.spec.band_hz : derived_band_hz);
+  return m.bank->ModesBelow(PlayedBand(derived_band_hz));
 }
 
 Eigen::MatrixXd VibrationRung::Render(std::span<const ForceInput> forces, int64_t samples,
                                       double derived_band_hz) const {
   const Impl& m = *impl_;
   if (m.fd) return FdRender(*m.model, *m.fd, forces, m.sensor_rows, samples, -300.0);
+  if (m.closed_form) return m.closed_form->Render(forces, PlayedBand(derived_band_hz), samples);
   return m.bank->Render(forces, ModesPlayed(derived_band_hz), samples);
 }
 
 DrivingPoint VibrationRung::WallAt(double z_m, double theta_rad, double band_hz) const {
-  if (!impl_->bank) throw Error("VibrationRung::WallAt: an FD rung has no modal wall");
+  if (!impl_->bank) throw Error("VibrationRung::WallAt: only a modal rung has a modal wall");
   return impl_->bank->WallAt(z_m, theta_rad, band_hz);
+}
+
+double VibrationRung::PlayedBand(double derived_band_hz) const {
+  return impl_->spec.band_hz > 0 ? impl_->spec.band_hz : derived_band_hz;
 }
 
 Eigen::VectorXd VibrationRung::FrequenciesHz() const {
   if (impl_->fd) return {};
+  if (impl_->closed_form) return impl_->closed_form->FrequenciesHz(impl_->full_band_hz);
   return impl_->modes.omega_rad_s / (2.0 * std::numbers::pi);
 }
 
 int64_t VibrationRung::dofs() const {
-  return impl_->model->dofs();
+  return impl_->model ? impl_->model->dofs() : 0;
 }
 
 int64_t VibrationRung::oversampling() const {

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 
+#include "sonicboom/acoustics/closed_form_bank.h"
 #include "sonicboom/acoustics/cylinder_modes.h"
 #include "sonicboom/acoustics/fd_render.h"
 #include "sonicboom/acoustics/shell_bank.h"
@@ -26,19 +27,6 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 // the default grid (2.5 mm) has >= 6 points per bending wavelength up to about here
 constexpr double kDefaultModeBandHz = 20000.0;
-
-// one precomputed mode: recursion pole, drive and sensor factors
-struct ModeBank {
-  double frequency_hz;
-  double pole_re, pole_im;  // exp((-sigma + i omega_d) T)
-  double decay_per_sample;  // sigma T
-  double response_scale;    // T / (omega_d M)
-  double wavenumber_m;      // k = m pi / L
-  int n;
-  double drive_w;             // W: radial part of the shape
-  double strain_factor;       // surface strain per unit modal amplitude, aperture included
-  Eigen::VectorXd mic_axial;  // (mics) sin(k x_i)
-};
 
 }  // namespace
 
@@ -95,8 +83,7 @@ struct StrikeSynthesizer::Impl {
     return std::min(widest, ContactBandHz(c.synth.band_factor, contact_duration_s));
   }
   // modal-closed-form
-  std::vector<ModeBank> modes;    // ascending frequency, up to the widest band
-  Eigen::VectorXd mic_theta_rad;  // (mics)
+  std::unique_ptr<ClosedFormBank> closed_form;
   // modal and fd: the discretized shell, its modes, and the FD solver
   std::unique_ptr<ShellModel> shell;
   std::unique_ptr<ShellModalBank> bank;
@@ -111,7 +98,6 @@ struct StrikeSynthesizer::Impl {
   Eigen::MatrixXd sensor_rows;  // (mics x dofs) fd only
   std::unique_ptr<DaqChain> daq;
 
-  void BuildClosedForm();
   // the structure pool from the base modes (with shapes): variants drawn, Ritz modes, banks
   void BuildPool(const ShellModes& base_modes, double placement_margin_m);
   // the first contact's strain by the closed-form modes, (mics x T)
@@ -119,58 +105,12 @@ struct StrikeSynthesizer::Impl {
                                    RenderedStrike* out) const;
 };
 
-void StrikeSynthesizer::Impl::BuildClosedForm() {
-  const TubeConfig& tube = c.tube;
-  const MaterialConfig& material = c.material;
-  const double T = 1.0 / c.audio.sample_rate_hz;
-  const double R = tube.mid_radius_m();
-  const double h = tube.wall_thickness_m;
-  const double rho_h = material.density_kg_m3 * h;
-  const double zeta = 0.5 * material.loss_factor;
-  const int num_mics = c.mics.count();
-  mic_theta_rad.resize(num_mics);
-  for (int i = 0; i < num_mics; ++i) mic_theta_rad[i] = c.mics.theta_deg[i] * kPi / 180.0;
-  for (const ShellMode& sm : SimplySupportedModes(tube, material, widest_band_hz)) {
-    if (std::abs(sm.w) < 1e-9) continue;  // no radial part: a normal force cannot excite it
-    ModeBank mb;
-    mb.frequency_hz = sm.frequency_hz;
-    const double omega = 2 * kPi * sm.frequency_hz;
-    const double sigma = zeta * omega;
-    const double omega_d = omega * std::sqrt(1 - zeta * zeta);
-    const std::complex<double> pole = std::exp(std::complex<double>(-sigma * T, omega_d * T));
-    mb.pole_re = pole.real();
-    mb.pole_im = pole.imag();
-    mb.decay_per_sample = sigma * T;
-    // modal mass of one member of the pair: rho h R (L / 2) pi (2 pi for n = 0), unit-norm shape
-    const double modal_mass = rho_h * R * 0.5 * tube.length_m * (sm.n == 0 ? 2 * kPi : kPi);
-    mb.response_scale = T / (omega_d * modal_mass);
-    mb.wavenumber_m = sm.m * kPi / tube.length_m;
-    mb.n = sm.n;
-    mb.drive_w = sm.w;
-    // outer-surface strain eps_x + eps_th: membrane (-lambda U + n V + W) / R plus bending
-    const double lambda = mb.wavenumber_m * R;
-    const double membrane = (-lambda * sm.u + sm.n * sm.v + sm.w) / R;
-    const double bending = 0.5 * h * sm.w * (lambda * lambda + sm.n * sm.n) / (R * R);
-    // disc aperture: 2 J1(x) / x with x = k_t d / 2
-    const double k_t = std::hypot(mb.wavenumber_m, sm.n / tube.outer_radius_m);
-    const double x = 0.5 * k_t * c.mics.disc_diameter_m;
-    const double aperture = x < 1e-6 ? 1.0 : 2 * std::cyl_bessel_j(1.0, x) / x;
-    mb.strain_factor = (membrane + bending) * aperture;
-    mb.mic_axial.resize(num_mics);
-    for (int i = 0; i < num_mics; ++i) {
-      mb.mic_axial[i] = std::sin(mb.wavenumber_m * (c.mics.z_m[i] + 0.5 * tube.length_m));
-    }
-    modes.push_back(std::move(mb));
-  }
-}
-
 Eigen::MatrixXd StrikeSynthesizer::Impl::ClosedFormStrain(const ContactEvent& contact,
                                                           const HertzImpact& impact,
                                                           RenderedStrike* out) const {
   const double fs = c.audio.sample_rate_hz;
   const double T = 1.0 / fs;
   const int64_t num_frames = c.audio.num_samples();
-  const int num_mics = c.mics.count();
   // contact force at audio rate: Hertz pulse, averaged over substeps within each sample
   const int64_t k_first = static_cast<int64_t>(std::floor(contact.time_s * fs));
   const int64_t k_last = static_cast<int64_t>(std::ceil((contact.time_s + impact.duration_s) * fs));
@@ -184,35 +124,9 @@ Eigen::MatrixXd StrikeSynthesizer::Impl::ClosedFormStrain(const ContactEvent& co
     }
     force[j] = acc / sub;
   }
-  // modal superposition: strain at each mic, (mics x T) in double
-  Eigen::MatrixXd strain = Eigen::MatrixXd::Zero(num_mics, num_frames);
-  const double x_c = contact.z_m + 0.5 * c.tube.length_m;
-  const double floor_ln = std::abs(c.synth.decay_floor_db) / 20.0 * std::log(10.0);
-  Eigen::VectorXd gain(num_mics);
-  for (const ModeBank& mb : modes) {
-    if (mb.frequency_hz > out->band_hz) break;
-    ++out->modes_used;
-    // drive at the contact and pickup at each mic (the degenerate pair collapses to cos n dtheta)
-    // (a positive contact force pushes the wall inward, against the outward w)
-    const double drive = -mb.drive_w * std::sin(mb.wavenumber_m * x_c);
-    for (int i = 0; i < num_mics; ++i) {
-      gain[i] = mb.response_scale * drive * mb.strain_factor * mb.mic_axial[i] *
-                std::cos(mb.n * (mic_theta_rad[i] - contact.theta_rad));
-    }
-    // complex one-pole recursion z[k] = p z[k-1] + F[k]; q = Im(z) T / (omega_d M)
-    const int64_t k_end = std::min<int64_t>(
-        num_frames, k_last + 1 + static_cast<int64_t>(floor_ln / mb.decay_per_sample));
-    double zr = 0, zi = 0;
-    for (int64_t k = std::max<int64_t>(k_first, 0); k < k_end; ++k) {
-      const int64_t j = k - k_first;
-      const double f = j < static_cast<int64_t>(force.size()) ? force[j] : 0.0;
-      const double nr = zr * mb.pole_re - zi * mb.pole_im + f;
-      zi = zr * mb.pole_im + zi * mb.pole_re;
-      zr = nr;
-      strain.col(k) += gain * zi;
-    }
-  }
-  return strain;
+  const ForceInput input{contact.z_m, contact.theta_rad, k_first, std::move(force)};
+  return closed_form->Render(std::span<const ForceInput>(&input, 1), out->band_hz, num_frames,
+                             &out->modes_used);
 }
 
 namespace {
@@ -286,7 +200,9 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   m.daq = std::make_unique<DaqChain>(config.daq, config.noise, config.mics.count(),
                                      audio.sample_rate_hz, audio.num_samples());
   if (synth.model == VibrationModel::kModalClosedForm) {
-    m.BuildClosedForm();
+    m.closed_form =
+        std::make_unique<ClosedFormBank>(m.c.tube, m.c.material, m.c.mics, m.c.audio.sample_rate_hz,
+                                         m.widest_band_hz, m.c.synth.decay_floor_db);
     return;
   }
 
@@ -337,7 +253,8 @@ const std::vector<double>& StrikeSynthesizer::StructureValues(int64_t variant) c
 }
 
 int64_t StrikeSynthesizer::mode_count() const {
-  return impl_->bank ? impl_->bank->modes() : static_cast<int64_t>(impl_->modes.size());
+  if (impl_->bank) return impl_->bank->modes();
+  return impl_->closed_form ? impl_->closed_form->families() : 0;
 }
 
 double StrikeSynthesizer::BandFor(double contact_duration_s) const {

@@ -149,7 +149,7 @@ class SolidRung final : public LadderRung {
 // one row of the ladder: what it is, and how to build it
 struct RungEntry {
   std::string name;
-  std::string kind;  // "solid", "modal" or "fd"
+  std::string kind;  // "solid", "modal", "fd" or "closed-form"
   std::string grid;  // its discretization, as the table prints it
   std::function<std::unique_ptr<LadderRung>()> build;
 };
@@ -486,6 +486,8 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const Fidelity
   };
   acoustics::RungSpec fd_spec;
   fd_spec.model = fd;
+  acoustics::RungSpec closed_spec;
+  closed_spec.model = acoustics::VibrationModel::kModalClosedForm;
   const std::string cut = fmt::format("{:.0f} kHz", cut_band / 1000);
   std::vector<RungEntry> rungs{
       {"reference solid (the yardstick)", "solid", solid_grid(*yard), solid_rung(yard, ref_band)},
@@ -494,6 +496,8 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const Fidelity
       {"FD", "fd", grid_name(configured), shell(fd_spec, configured)},
       {"FD", "fd", grid_name(coarse), shell(fd_spec, coarse)},
       {"FD", "fd", grid_name(coarser), shell(fd_spec, coarser)},
+      {"closed form, derived band", "closed-form", "ideal simply supported tube (Flügge)",
+       shell(closed_spec, configured)},
       {"modal, derived band (default)", "modal", grid_name(configured),
        shell(modal_spec(0, 0, true), configured)},
       {"modal, all modes", "modal", grid_name(configured),
@@ -608,7 +612,9 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
       "solid on spectral elements, another theory and discretization than the shell's, with the "
       "same seam, bolts, holes and mounts. Every rung renders the same {} strikes (wooden rod, "
       "0.05–1 m/s; contact forces solved once against the default rung's wall, so that rungs "
-      "differ in the vibration model alone) and is damped by the same Rayleigh curve.\n\n"
+      "differ in the vibration model alone) and is damped by the same Rayleigh curve (the closed "
+      "form, the ideal simply supported tube of acoustics.model = modal-closed-form, by its own "
+      "constant loss factor, the curve's value at shell.loss_low_hz).\n\n"
       "Columns. Time: the vibration model for 1 s of 6 channels of one strike (FD: timed on the "
       "{:.0f} ms window and scaled; its cost per sample is constant; the solid: its modal sum "
       "after the solve below). Frequency: the modes below {:.0f} kHz matched by rank with the "

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 src, png = sys.argv[1], sys.argv[2]
 data = json.load(open(src))
 rows = data["rungs"][1:]  # the first row is the yardstick itself
-colours = {"solid": "tab:green", "modal": "tab:blue", "fd": "tab:red"}
+colours = {"solid": "tab:green", "modal": "tab:blue", "fd": "tab:red", "closed-form": "tab:purple"}
 panels = [("delay_error_us", "inter-channel delay error (µs, mean over pairs)", 20.0),
           ("frequency_median_pct",
            f"frequency error to {data['frequency_max_hz'] / 1000:.0f} kHz (%, median)", 1.0),

@@ -100,13 +100,28 @@ TEST(LadderTest, FdAndModalRungsOfOneGridAgree) {
   EXPECT_LT((a - b).norm() / b.norm(), 0.05);
 }
 
-TEST(LadderTest, FdRungHasNoModalWall) {
+TEST(LadderTest, OnlyAModalRungHasAModalWall) {
   EXPECT_THROW(Rung(VibrationModel::kFd)->WallAt(0.0, 0.0, 5000.0), Error);
-  RungSpec spec;
-  spec.model = VibrationModel::kModalClosedForm;
-  EXPECT_THROW(VibrationRung(TubeConfig{}, MaterialConfig{}, ShellConfig{}, MicArrayConfig{}, kFs,
-                             spec, kBandHz, -80.0, Cache().path().string()),
-               ConfigError);
+  EXPECT_THROW(Rung(VibrationModel::kModalClosedForm)->WallAt(0.0, 0.0, 5000.0), Error);
+}
+
+// the closed-form rung (the ideal simply supported tube): a slow inward push right under a disc
+// compresses that disc (the sign every rung shares, docs/conventions.md), it plays the modes of
+// its band, and it has no grid
+TEST(LadderTest, ClosedFormRungPushesInwardAndPlaysItsBand) {
+  const auto rung = Rung(VibrationModel::kModalClosedForm);
+  const MicArrayConfig mics;
+  ForceInput push{mics.z_m[0], mics.theta_deg[0] * std::numbers::pi / 180.0, 10, {}};
+  for (int k = 0; k <= 220; ++k)
+    push.force_n.push_back(20.0 * std::sin(std::numbers::pi * k / 220));
+  const Eigen::MatrixXd y = rung->Render(std::span<const ForceInput>(&push, 1), 600, 5000.0);
+  Eigen::Index at = 0;
+  y.row(0).cwiseAbs().maxCoeff(&at);
+  EXPECT_LT(y(0, at), 0.0);
+  EXPECT_EQ(rung->dofs(), 0);
+  const Eigen::VectorXd f = rung->FrequenciesHz();
+  EXPECT_EQ(rung->ModesPlayed(5000.0), (f.array() <= 5000.0).count());
+  EXPECT_GT(rung->ModesPlayed(5000.0), 20);
 }
 
 }  // namespace

@@ -133,7 +133,7 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
              dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
-  ASSERT_EQ(j["rungs"].size(), 14u);
+  ASSERT_EQ(j["rungs"].size(), 15u);
   const json& rungs = j["rungs"];
   EXPECT_EQ(rungs[0]["kind"], "solid");
   EXPECT_EQ(rungs[0]["relative_error"].get<double>(), 0.0);

@@ -27,7 +27,7 @@ void UseFdDamping(const TubeConfig& tube, MaterialConfig* material, ShellConfig*
 
 /// One rung: the model, its grid, and its truncation.
 struct RungSpec {
-  VibrationModel model{VibrationModel::kModal};  // modal or fd
+  VibrationModel model{VibrationModel::kModal};  // modal, fd or modal-closed-form
   double arc_m{0.0025};                          // grid spacing around the tube
   double axial_m{0.005};                         // grid spacing along it
   double band_hz{0.0};             // modal: the modes below this; 0 = the strike's derived band
@@ -40,7 +40,8 @@ struct RungSpec {
 /// modes up to full_band_hz (cached in cache_dir). Render is const.
 class VibrationRung {
  public:
-  /// Throws ConfigError for a model other than modal or fd, or a bad grid (naming the key).
+  /// Throws ConfigError for a bad grid (naming the key). A closed-form rung (the ideal simply
+  /// supported tube, closed_form_bank.h) has no grid and no DOFs.
   VibrationRung(const TubeConfig& tube, const MaterialConfig& material, const ShellConfig& shell,
                 const MicArrayConfig& mics, double sample_rate_hz, const RungSpec& spec,
                 double full_band_hz, double decay_floor_db, const std::string& cache_dir);
@@ -52,10 +53,12 @@ class VibrationRung {
   /// spec asks for, or those below derived_band_hz.
   Eigen::MatrixXd Render(std::span<const ForceInput> forces, int64_t samples,
                          double derived_band_hz) const;
+  /// The band a render plays: the spec's, or the strike's derived band.
+  double PlayedBand(double derived_band_hz) const;
   /// Modes a render plays (0 for an FD rung).
   int64_t ModesPlayed(double derived_band_hz) const;
   /// The wall a contact sees at (z, theta) through the modes up to band_hz (modal rungs only;
-  /// Error for an FD rung).
+  /// Error for an FD or closed-form rung).
   DrivingPoint WallAt(double z_m, double theta_rad, double band_hz) const;
   /// (modes) the modal rung's elastic mode frequencies, ascending, Hz (empty
   /// for an FD rung: its grid's are those of a modal rung on the same grid).
