@@ -146,6 +146,22 @@ double Median(const std::vector<double>& v) {
 
 }  // namespace
 
+solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
+                                     int64_t degree_thickness, const TubeConfig& tube,
+                                     const std::string& option) {
+  solid::SolidMeshConfig mesh;
+  mesh.element_arc_m = element_m;
+  mesh.element_axial_m = element_m;
+  mesh.degree_wall = degree_wall;
+  mesh.degree_thickness = degree_thickness;
+  try {
+    mesh.Validate(tube);
+  } catch (const ConfigError& e) {
+    throw ConfigError(fmt::format("{} {}: {}", option, element_m, e.what()));
+  }
+  return mesh;
+}
+
 solid::SolidStructure ReferenceStructure(const acoustics::ShellConfig& shell, TubeEnds ends,
                                          bool ideal) {
   solid::SolidStructure s;
@@ -183,12 +199,8 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
     if (!std::filesystem::is_directory(parent))
       throw IoError(fmt::format("--out {}: directory {} does not exist", o.out, parent.string()));
   }
-  solid::SolidMeshConfig base;
-  base.element_arc_m = o.element_m;
-  base.element_axial_m = o.element_m;
-  base.degree_wall = o.degree_wall;
-  base.degree_thickness = o.degree_thickness;
-  base.Validate(config.tube);
+  const solid::SolidMeshConfig base =
+      ReferenceMesh(o.element_m, o.degree_wall, o.degree_thickness, config.tube, "--element-m");
   const solid::SolidStructure structure = ReferenceStructure(config.shell, o.ends, o.ideal);
 
   std::vector<Level> levels;

@@ -109,8 +109,8 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
   rc.tube = config.tube;
   rc.material = config.material;
   rc.structure = ReferenceStructure(config.shell, config.shell.ends, o.ideal);
-  rc.mesh.element_arc_m = o.element_m;
-  rc.mesh.element_axial_m = o.element_m;
+  rc.mesh = ReferenceMesh(o.element_m, rc.mesh.degree_wall, rc.mesh.degree_thickness, config.tube,
+                          "--element-m");
   rc.mics = config.mics;
   rc.max_frequency_hz = o.max_frequency_hz;
   rc.cache_dir = acoustics::DefaultModeCacheDir();

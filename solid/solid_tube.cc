@@ -26,24 +26,28 @@ double WrapFrom(double theta_rad, double start_rad) {
 }  // namespace
 
 void SolidMeshConfig::Validate(const TubeConfig& tube) const {
+  // from kMinElementM (below it the unknowns run into the millions) up to half the mid-surface
+  // circumference around the tube and the tube's length along it
   const double arc = std::numbers::pi * tube.mid_radius_m();
-  if (element_arc_m > arc) {
+  if (!(element_arc_m >= kMinElementM && element_arc_m <= arc)) {
     throw ConfigError(fmt::format(
-        "reference.element_arc_m = {} m is longer than half the mid-surface circumference ({} m)",
-        element_arc_m, arc));
+        "solid mesh: element_arc_m = {} m must lie in [{}, {:.4f}] m (half the mid-surface "
+        "circumference)",
+        element_arc_m, kMinElementM, arc));
   }
-  if (element_axial_m > tube.length_m) {
-    throw ConfigError(fmt::format("reference.element_axial_m = {} m is longer than the tube ({} m)",
-                                  element_axial_m, tube.length_m));
+  if (!(element_axial_m >= kMinElementM && element_axial_m <= tube.length_m)) {
+    throw ConfigError(
+        fmt::format("solid mesh: element_axial_m = {} m must lie in [{}, {}] m (the tube's length)",
+                    element_axial_m, kMinElementM, tube.length_m));
   }
   if (degree_wall < 1 || degree_wall > 12 || degree_thickness < 1 || degree_thickness > 12) {
-    throw ConfigError(fmt::format(
-        "reference.degree_wall = {} and reference.degree_thickness = {} must lie in [1, 12]",
-        degree_wall, degree_thickness));
+    throw ConfigError(
+        fmt::format("solid mesh: degree_wall = {} and degree_thickness = {} must lie in [1, 12]",
+                    degree_wall, degree_thickness));
   }
   if (elements_through < 1 || elements_through > 8) {
     throw ConfigError(
-        fmt::format("reference.elements_through = {} must lie in [1, 8]", elements_through));
+        fmt::format("solid mesh: elements_through = {} must lie in [1, 8]", elements_through));
   }
 }
 

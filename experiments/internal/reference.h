@@ -1,10 +1,20 @@
 #pragma once
 /// What the reference-model commands (reference, rerender) share. Private to experiments.
 
+#include <cstdint>
+#include <string>
 #include "sonicboom/acoustics/shell.h"
+
+#include "sonicboom/core/tube.h"
 #include "sonicboom/solid/solid_tube.h"
 
 namespace sonicboom::experiments {
+
+/// The reference mesh of a command's options (elements of element_m, the GLL degrees), checked
+/// against the tube; a ConfigError names `option` and its value with the limit it broke.
+solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
+                                     int64_t degree_thickness, const TubeConfig& tube,
+                                     const std::string& option);
 
 /// The physics of the configured structure (the shell section's seams, bolts, holes, mounts),
 /// none of its discretization; `ideal` (or shell.ideal) leaves a uniform tube.

@@ -72,6 +72,15 @@ TEST(ReferenceCliTest, RefusesItsInputAsOutputAndABandAboveNyquist) {
   run = RunCli("reference --levels 2", cwd);
   EXPECT_NE(run.exit_code, 0);
   EXPECT_NE(run.err.find("--levels"), std::string::npos) << run.err;
+  // a mesh that cannot be built is refused before any work, naming the option and the limit
+  for (const char* cmd :
+       {"reference --element-m 0", "rerender --in D.h5 --out R.h5 --element-m 0"}) {
+    run = RunCli(std::string(cmd) + " -q", cwd);
+    EXPECT_EQ(run.exit_code, 1) << cmd;
+    EXPECT_NE(run.err.find("--element-m 0"), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find("0.004"), std::string::npos) << run.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "R.h5"));
 }
 
 // the convergence report on coarse meshes, with the shell model's arrivals beside the reference's:

@@ -126,13 +126,17 @@ TEST(SolidTubeTest, SensorReadsUniformHoopAndAxialStrainAndTheForceRowReadsRadia
 }
 
 TEST(SolidTubeTest, RefusesMeshesThatCannotBeBuiltNamingTheKey) {
-  SolidMeshConfig mesh;
-  mesh.element_arc_m = 0.5;
-  try {
-    SolidTubeModel(TubeConfig{}, MaterialConfig{}, Ideal(TubeEnds::kFree), mesh);
-    FAIL() << "accepted a 0.5 m element around a 0.33 m circumference";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("reference.element_arc_m"), std::string::npos) << e.what();
+  // too long for the circumference, zero, not a number, and below the smallest element
+  for (const double arc_m : {0.5, 0.0, std::nan(""), 0.001}) {
+    SolidMeshConfig mesh;
+    mesh.element_arc_m = arc_m;
+    try {
+      SolidTubeModel(TubeConfig{}, MaterialConfig{}, Ideal(TubeEnds::kFree), mesh);
+      FAIL() << "accepted an element of " << arc_m << " m around the tube";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("element_arc_m"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("0.004"), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -41,8 +41,11 @@ struct SolidMeshConfig {
   int64_t degree_wall{4};          // GLL degree along the arc and the axis
   int64_t degree_thickness{3};     // GLL degree through the wall
   int64_t elements_through{1};     // elements through the wall
+  // the shortest element accepted: 4 mm elements of the 4" tube hold over a million unknowns
+  static constexpr double kMinElementM = 0.004;
 
-  /// Range and cross-field checks against the tube; throws ConfigError naming the key.
+  /// Range and cross-field checks against the tube; throws ConfigError naming the field and its
+  /// limits (a command that sets the mesh from its options names the option too).
   void Validate(const TubeConfig& tube) const;
   /// The same mesh with every element length divided by `factor` (h-refinement).
   SolidMeshConfig Refined(double factor) const;
