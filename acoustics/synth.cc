@@ -30,6 +30,15 @@ constexpr double kDefaultModeBandHz = 20000.0;
 
 }  // namespace
 
+double SynthConfig::ModeBandHz(double sample_rate_hz) const {
+  return mode_band_hz > 0 ? mode_band_hz
+                          : std::min(0.95 * 0.5 * sample_rate_hz, kDefaultModeBandHz);
+}
+
+std::string SynthConfig::ModeCacheDir() const {
+  return mode_cache_dir.empty() ? DefaultModeCacheDir() : mode_cache_dir;
+}
+
 void SynthConfig::Serialize(Archive* a) {
   a->Visit("model", &model);
   a->Visit("max_frequency_hz", &max_frequency_hz, Bounds::NonNegative());
@@ -159,8 +168,7 @@ void StrikeSynthesizer::Impl::BuildPool(const ShellModes& base_modes, double pla
     return *projector;
   };
   const std::vector<int64_t> rows = ShellModalBank::RowsRead(*shell, c.mics, placement_margin_m);
-  const std::string cache =
-      c.synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : c.synth.mode_cache_dir;
+  const std::string cache = c.synth.ModeCacheDir();
   // each variant alone: its draws, its shell, Ritz modes to the base band, its bank
   tbb::parallel_for(int64_t{0}, count, [&](int64_t v) {
     const StructureVariant draw =
@@ -210,16 +218,14 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
   config.shell.Validate(config.tube);
   m.shell = std::make_unique<ShellModel>(config.tube, config.material, config.shell);
   // modes to the configured band; by default what the grid resolves (20 kHz) below Nyquist
-  const double mode_band =
-      synth.mode_band_hz > 0 ? synth.mode_band_hz : std::min(0.95 * nyquist, kDefaultModeBandHz);
+  const double mode_band = synth.ModeBandHz(config.audio.sample_rate_hz);
   if (mode_band >= nyquist) {
     throw ConfigError(
         fmt::format("acoustics.mode_band_hz = {} must be below the Nyquist frequency "
                     "{} Hz",
                     synth.mode_band_hz, nyquist));
   }
-  const std::string cache =
-      synth.mode_cache_dir.empty() ? DefaultModeCacheDir() : synth.mode_cache_dir;
+  const std::string cache = synth.ModeCacheDir();
   const ShellModes modes = CachedShellModes(*m.shell, mode_band, 0, true, cache);
   m.widest_band_hz = std::min(m.widest_band_hz, mode_band);
   m.mode_band_hz = mode_band;

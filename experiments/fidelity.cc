@@ -103,7 +103,6 @@ class ShellRung final : public LadderRung {
   }
   int64_t dofs() const override { return rung_->dofs(); }
   int64_t oversampling() const override { return rung_->oversampling(); }
-  const acoustics::VibrationRung& vibration_rung() const { return *rung_; }
 
  private:
   std::unique_ptr<acoustics::VibrationRung> rung_;
@@ -399,63 +398,86 @@ void CheckFidelityOptions(const FidelityOptions& o, double sample_rate_hz) {
         fmt::format("--plot {}: no such script (--plot \"\" draws no figure)", o.plot_script));
 }
 
+// What every rung of one ladder shares, derived once from the config and the options: the
+// shell grids, the yardstick's band and mesh, the modes' band and cache, and the damping every
+// rung realizes (the FD rung's Rayleigh curve, so that the table measures discretization, theory
+// and truncation; the law's own fit error is the section below the table).
+struct LadderSettings {
+  double fs{0.0};
+  Grid configured, fine, coarse, coarser;
+  double reference_band_hz{0.0};    // the yardstick's modes, and the comparison's low-pass
+  double reference_element_m{0.0};  // the yardstick's mesh
+  double full_band_hz{0.0};         // the modes every modal rung draws from
+  std::string cache;
+  MaterialConfig rayleigh_material;
+  acoustics::ShellConfig rayleigh_shell;
+};
+
+LadderSettings SettingsOf(const SonicBoomConfig& config, const FidelityOptions& o) {
+  LadderSettings s;
+  s.fs = config.audio.sample_rate_hz;
+  const double arc = config.shell.grid_spacing_m, axial = config.shell.AxialSpacing();
+  const double finest = o.quick ? 0.005 : std::min(arc, axial);
+  s.configured = {"configured", o.quick ? 0.005 : arc, o.quick ? 0.01 : axial};
+  s.fine = {"fine", finest, finest};
+  s.coarse = {"coarse", 2 * s.configured.arc_m, 2 * s.configured.axial_m};
+  s.coarser = {"coarser", 0.01, 0.02};
+  s.reference_band_hz = o.quick ? std::min(o.reference_band_hz, 5000.0) : o.reference_band_hz;
+  s.reference_element_m = o.quick ? std::max(o.reference_element_m, 0.03) : o.reference_element_m;
+  s.full_band_hz = config.acoustics.ModeBandHz(s.fs);
+  s.cache = config.acoustics.ModeCacheDir();
+  s.rayleigh_material = config.material;
+  s.rayleigh_shell = config.shell;
+  acoustics::UseFdDamping(config.tube, &s.rayleigh_material, &s.rayleigh_shell);
+  return s;
+}
+
+// A rung of the shell on `grid` (modal, FD or the closed form, by spec.model).
+std::unique_ptr<acoustics::VibrationRung> BuildShellRung(const SonicBoomConfig& config,
+                                                         const LadderSettings& s,
+                                                         acoustics::RungSpec spec,
+                                                         const Grid& grid) {
+  spec.arc_m = grid.arc_m;
+  spec.axial_m = grid.axial_m;
+  return std::make_unique<acoustics::VibrationRung>(
+      config.tube, s.rayleigh_material, s.rayleigh_shell, config.mics, s.fs, spec, s.full_band_hz,
+      config.acoustics.decay_floor_db, s.cache);
+}
+
 // The reference solid of the configured structure on elements of element_m, modes to band_hz
 // (from the mode cache when there); logs its size and the time it took.
 std::shared_ptr<const solid::ReferenceTube> BuildReference(const SonicBoomConfig& config,
-                                                           double element_m, double band_hz,
-                                                           const std::string& cache,
-                                                           std::string* md) {
-  solid::ReferenceTubeConfig rc;
-  rc.tube = config.tube;
-  rc.material = config.material;
-  rc.structure = ReferenceStructure(config.shell, config.shell.ends, false);
-  rc.mesh.element_arc_m = element_m;
-  rc.mesh.element_axial_m = element_m;
-  rc.mics = config.mics;
-  rc.max_frequency_hz = band_hz;
-  rc.cache_dir = cache;
+                                                           const LadderSettings& s,
+                                                           double element_m, std::string* md) {
+  solid::SolidMeshConfig mesh;
+  mesh.element_arc_m = mesh.element_axial_m = element_m;
   const auto t0 = Clock::now();
-  auto tube = std::make_shared<const solid::ReferenceTube>(rc);
+  auto tube = std::make_shared<const solid::ReferenceTube>(
+      ReferenceTubeOf(config, mesh, s.reference_band_hz, false, s.cache));
   *md += fmt::format(
       "- Reference solid, elements of {:.1f} mm: {} DOFs, {} modes to {:.0f} Hz, "
       "{} in {:.0f} s.\n",
-      1e3 * element_m, tube->model().dofs(), tube->omega_rad_s().size(), band_hz,
+      1e3 * element_m, tube->model().dofs(), tube->omega_rad_s().size(), s.reference_band_hz,
       tube->from_cache() ? "read from the mode cache" : "solved", Seconds(t0));
   return tube;
 }
 
 // The rungs, the yardstick first: the reference solid, its cheaper settings, then the shell's
-// FD and modal rungs on their grids.
-std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const FidelityOptions& o,
-                                   const std::string& cache, std::string* solves_md) {
-  const double fs = config.audio.sample_rate_hz;
-  const double arc = config.shell.grid_spacing_m, axial = config.shell.AxialSpacing();
-  const double finest = o.quick ? 0.005 : std::min(arc, axial);
-  const Grid configured{"configured", o.quick ? 0.005 : arc, o.quick ? 0.01 : axial};
-  const Grid fine{"fine", finest, finest};
-  const Grid coarse{"coarse", 2 * configured.arc_m, 2 * configured.axial_m};
-  const Grid coarser{"coarser", 0.01, 0.02};
-  const double ref_band = o.quick ? std::min(o.reference_band_hz, 5000.0) : o.reference_band_hz;
-  const double ref_element =
-      o.quick ? std::max(o.reference_element_m, 0.03) : o.reference_element_m;
-  const double cut_band = std::min(10000.0, 2.0 / 3.0 * ref_band);
-  // every rung damps by the FD rung's Rayleigh curve (the solid's modes too), so that the table
-  // measures discretization, theory and truncation; the law's fit error is the section below
-  auto rayleigh_material = std::make_shared<MaterialConfig>(config.material);
-  auto rayleigh_shell = std::make_shared<acoustics::ShellConfig>(config.shell);
-  acoustics::UseFdDamping(config.tube, rayleigh_material.get(), rayleigh_shell.get());
-  acoustics::ShellConfig damping_grid = *rayleigh_shell;
-  damping_grid.grid_spacing_m = coarser.arc_m;
-  damping_grid.axial_spacing_m = coarser.axial_m;
+// FD, closed-form and modal rungs on their grids.
+std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSettings& s,
+                                   std::string* solves_md) {
+  const double cut_band = std::min(10000.0, 2.0 / 3.0 * s.reference_band_hz);
+  // the solid's modes are damped by the same Rayleigh curve as the shell's rungs
+  acoustics::ShellConfig damping_grid = s.rayleigh_shell;
+  damping_grid.grid_spacing_m = s.coarser.arc_m;
+  damping_grid.axial_spacing_m = s.coarser.axial_m;
   auto damping =
-      std::make_shared<const acoustics::ShellModel>(config.tube, *rayleigh_material, damping_grid);
+      std::make_shared<const acoustics::ShellModel>(config.tube, s.rayleigh_material, damping_grid);
   const auto zeta = [damping](double w) { return damping->DampingRatio(w); };
-  // the modes every modal rung draws from: the production default (20 kHz below Nyquist)
-  const double full_band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
-                                                             : std::min(20000.0, 0.95 * 0.5 * fs);
+  const double fs = s.fs;
 
-  auto yard = BuildReference(config, ref_element, ref_band, cache, solves_md);
-  auto cheap = BuildReference(config, 4.0 / 3.0 * ref_element, ref_band, cache, solves_md);
+  auto yard = BuildReference(config, s, s.reference_element_m, solves_md);
+  auto cheap = BuildReference(config, s, 4.0 / 3.0 * s.reference_element_m, solves_md);
   auto solid_rung = [=](std::shared_ptr<const solid::ReferenceTube> tube, double band) {
     return [=] { return std::make_unique<SolidRung>(tube, band, fs, zeta); };
   };
@@ -463,13 +485,9 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const Fidelity
     return fmt::format("solid, h {:.1f} mm, p {}/{}", 1e3 * t.config().mesh.element_arc_m,
                        t.config().mesh.degree_wall, t.config().mesh.degree_thickness);
   };
-  auto shell = [=, &config](acoustics::RungSpec spec, const Grid& grid) {
-    spec.arc_m = grid.arc_m;
-    spec.axial_m = grid.axial_m;
-    return [=, &config]() -> std::unique_ptr<LadderRung> {
-      return std::make_unique<ShellRung>(std::make_unique<acoustics::VibrationRung>(
-          config.tube, *rayleigh_material, *rayleigh_shell, config.mics, fs, spec, full_band,
-          config.acoustics.decay_floor_db, cache));
+  auto shell = [&](const acoustics::RungSpec& spec, const Grid& grid) {
+    return [&config, &s, spec, grid]() -> std::unique_ptr<LadderRung> {
+      return std::make_unique<ShellRung>(BuildShellRung(config, s, spec, grid));
     };
   };
   auto grid_name = [](const Grid& g) {
@@ -477,12 +495,12 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const Fidelity
   };
   const auto fd = acoustics::VibrationModel::kFd, modal = acoustics::VibrationModel::kModal;
   auto modal_spec = [&](double band, int64_t count, bool residual) {
-    acoustics::RungSpec s;
-    s.model = modal;
-    s.band_hz = band;
-    s.mode_count = count;
-    s.residual = residual;
-    return s;
+    acoustics::RungSpec spec;
+    spec.model = modal;
+    spec.band_hz = band;
+    spec.mode_count = count;
+    spec.residual = residual;
+    return spec;
   };
   acoustics::RungSpec fd_spec;
   fd_spec.model = fd;
@@ -490,31 +508,36 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const Fidelity
   closed_spec.model = acoustics::VibrationModel::kModalClosedForm;
   const std::string cut = fmt::format("{:.0f} kHz", cut_band / 1000);
   std::vector<RungEntry> rungs{
-      {"reference solid (the yardstick)", "solid", solid_grid(*yard), solid_rung(yard, ref_band)},
-      {"reference solid, coarser mesh", "solid", solid_grid(*cheap), solid_rung(cheap, ref_band)},
+      {"reference solid (the yardstick)", "solid", solid_grid(*yard),
+       solid_rung(yard, s.reference_band_hz)},
+      {"reference solid, coarser mesh", "solid", solid_grid(*cheap),
+       solid_rung(cheap, s.reference_band_hz)},
       {"reference solid, " + cut, "solid", solid_grid(*yard), solid_rung(yard, cut_band)},
-      {"FD", "fd", grid_name(configured), shell(fd_spec, configured)},
-      {"FD", "fd", grid_name(coarse), shell(fd_spec, coarse)},
-      {"FD", "fd", grid_name(coarser), shell(fd_spec, coarser)},
+      {"FD", "fd", grid_name(s.configured), shell(fd_spec, s.configured)},
+      {"FD", "fd", grid_name(s.coarse), shell(fd_spec, s.coarse)},
+      {"FD", "fd", grid_name(s.coarser), shell(fd_spec, s.coarser)},
       {"closed form, derived band", "closed-form", "ideal simply supported tube (Flügge)",
-       shell(closed_spec, configured)},
-      {"modal, derived band (default)", "modal", grid_name(configured),
-       shell(modal_spec(0, 0, true), configured)},
-      {"modal, all modes", "modal", grid_name(configured),
-       shell(modal_spec(full_band, 0, true), configured)},
-      {"modal, all modes, no residual", "modal", grid_name(configured),
-       shell(modal_spec(full_band, 0, false), configured)},
-      {"modal, 10 kHz", "modal", grid_name(configured),
-       shell(modal_spec(10000, 0, true), configured)},
-      {"modal, 5 kHz", "modal", grid_name(configured),
-       shell(modal_spec(5000, 0, true), configured)},
-      {"modal, 2 kHz", "modal", grid_name(configured),
-       shell(modal_spec(2000, 0, true), configured)},
-      {"modal, 100 modes", "modal", grid_name(configured),
-       shell(modal_spec(0, 100, true), configured)},
-      {"modal, all modes", "modal", grid_name(fine), shell(modal_spec(full_band, 0, true), fine)},
-      {"modal, derived band", "modal", grid_name(coarse), shell(modal_spec(0, 0, true), coarse)},
-      {"modal, derived band", "modal", grid_name(coarser), shell(modal_spec(0, 0, true), coarser)}};
+       shell(closed_spec, s.configured)},
+      {"modal, derived band (default)", "modal", grid_name(s.configured),
+       shell(modal_spec(0, 0, true), s.configured)},
+      {"modal, all modes", "modal", grid_name(s.configured),
+       shell(modal_spec(s.full_band_hz, 0, true), s.configured)},
+      {"modal, all modes, no residual", "modal", grid_name(s.configured),
+       shell(modal_spec(s.full_band_hz, 0, false), s.configured)},
+      {"modal, 10 kHz", "modal", grid_name(s.configured),
+       shell(modal_spec(10000, 0, true), s.configured)},
+      {"modal, 5 kHz", "modal", grid_name(s.configured),
+       shell(modal_spec(5000, 0, true), s.configured)},
+      {"modal, 2 kHz", "modal", grid_name(s.configured),
+       shell(modal_spec(2000, 0, true), s.configured)},
+      {"modal, 100 modes", "modal", grid_name(s.configured),
+       shell(modal_spec(0, 100, true), s.configured)},
+      {"modal, all modes", "modal", grid_name(s.fine),
+       shell(modal_spec(s.full_band_hz, 0, true), s.fine)},
+      {"modal, derived band", "modal", grid_name(s.coarse),
+       shell(modal_spec(0, 0, true), s.coarse)},
+      {"modal, derived band", "modal", grid_name(s.coarser),
+       shell(modal_spec(0, 0, true), s.coarser)}};
   // a grid that coincides with another (--quick: coarse is coarser) is measured once
   for (size_t i = 1; i < rungs.size(); ++i) {
     for (size_t j = 0; j < i; ++j) {
@@ -570,27 +593,25 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
   LadderStrikes ladder;
   ladder.one_second = static_cast<int64_t>(std::llround(fs));
   ladder.window = static_cast<int64_t>(std::llround((onset_s + o.window_s) * fs));
-  const std::string cache = config.acoustics.mode_cache_dir.empty()
-                                ? acoustics::DefaultModeCacheDir()
-                                : config.acoustics.mode_cache_dir;
+  const LadderSettings settings = SettingsOf(config, o);
   std::string solves_md;
-  const std::vector<RungEntry> rungs = LadderRungs(config, o, cache, &solves_md);
+  const std::vector<RungEntry> rungs = LadderRungs(config, settings, &solves_md);
 
-  // the contact forces, solved once against the configured grid's modal wall (the default rung)
-  const auto is_default = [](const RungEntry& e) { return e.name.ends_with("(default)"); };
-  const auto wall = std::find_if(rungs.begin(), rungs.end(), is_default)->build();
-  const double full_band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
-                                                             : std::min(20000.0, 0.95 * 0.5 * fs);
+  // the contact forces, solved once against the default rung's wall (the configured grid's
+  // modes, the strike's derived band)
+  acoustics::RungSpec default_rung;
+  default_rung.model = acoustics::VibrationModel::kModal;
+  const auto wall = BuildShellRung(config, settings, default_rung, settings.configured);
   for (int64_t s = 0; s < o.strikes; ++s) {
     acoustics::SolvedForce solved = acoustics::SolveRigidStrikeForce(
-        StrikeEvent(kStrikes[s], onset_s), dynamic_cast<const ShellRung&>(*wall).vibration_rung(),
-        config.tube, config.material, config.acoustics, fs, full_band);
+        StrikeEvent(kStrikes[s], onset_s), *wall, config.tube, config.material, config.acoustics,
+        fs, settings.full_band_hz);
     ladder.derived_band_hz.push_back(solved.derived_band_hz);
     ladder.forces.push_back({std::move(solved.force)});
   }
 
   Yardstick yardstick;
-  yardstick.band_hz = o.quick ? std::min(o.reference_band_hz, 5000.0) : o.reference_band_hz;
+  yardstick.band_hz = settings.reference_band_hz;
   const double frequency_max_hz = std::min(10000.0, yardstick.band_hz);
   std::vector<RungResult> results;
   for (const RungEntry& rung : rungs) {
@@ -598,9 +619,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
     results.push_back(MeasureRung(rung, *rung.build(), ladder, fs, frequency_max_hz, &yardstick));
   }
   FrequenciesOfGrids(rungs, &results);
-  const Grid configured{"configured", o.quick ? 0.005 : config.shell.grid_spacing_m,
-                        o.quick ? 0.01 : config.shell.AxialSpacing()};
-  const auto [whole_ms, whole_vibration_ms] = WholeStrikeMs(config, configured, o.quick, o.strikes);
+  const auto [whole_ms, whole_vibration_ms] =
+      WholeStrikeMs(config, settings.configured, o.quick, o.strikes);
 
   // the table
   std::string md = fmt::format(

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "sonicboom/core/errors.h"
+#include "sonicboom/solid/solid_response.h"
 
 namespace sonicboom::experiments {
 
@@ -17,25 +18,12 @@ double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref) {
   return (y - ref).norm() / ref.norm();
 }
 
-Eigen::VectorXd ThresholdArrivalSamples(const Eigen::MatrixXd& y) {
-  Eigen::VectorXd t = Eigen::VectorXd::Zero(y.rows());
-  for (Eigen::Index i = 0; i < y.rows(); ++i) {
-    const double thr = 0.2 * y.row(i).cwiseAbs().maxCoeff();
-    for (Eigen::Index k = 1; k < y.cols(); ++k) {
-      const double a = std::abs(y(i, k - 1)), b = std::abs(y(i, k));
-      if (b >= thr) {
-        t[i] = (k - 1) + (b > a ? (thr - a) / (b - a) : 1.0);
-        break;
-      }
-    }
-  }
-  return t;
-}
-
 TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
                           double sample_rate_hz) {
-  const Eigen::VectorXd a = ThresholdArrivalSamples(y), b = ThresholdArrivalSamples(ref);
-  const double us = 1e6 / sample_rate_hz;
+  // first arrivals (s): 20 % of each channel's own peak, as the reference command reads them
+  const Eigen::VectorXd a = solid::ThresholdArrivals(y, sample_rate_hz, 0.2);
+  const Eigen::VectorXd b = solid::ThresholdArrivals(ref, sample_rate_hz, 0.2);
+  const double us = 1e6;  // per second
   TimingError e;
   e.arrival_us = (a - b).cwiseAbs().mean() * us;
   int pairs = 0;

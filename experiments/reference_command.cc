@@ -162,6 +162,20 @@ solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
   return mesh;
 }
 
+solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
+                                           const solid::SolidMeshConfig& mesh, double band_hz,
+                                           bool ideal, const std::string& cache_dir) {
+  solid::ReferenceTubeConfig rc;
+  rc.tube = config.tube;
+  rc.material = config.material;
+  rc.structure = ReferenceStructure(config.shell, config.shell.ends, ideal);
+  rc.mesh = mesh;
+  rc.mics = config.mics;
+  rc.max_frequency_hz = band_hz;
+  rc.cache_dir = cache_dir;
+  return rc;
+}
+
 solid::SolidStructure ReferenceStructure(const acoustics::ShellConfig& shell, TubeEnds ends,
                                          bool ideal) {
   solid::SolidStructure s;

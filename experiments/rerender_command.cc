@@ -105,16 +105,12 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
 
   // the reference tube: solved once (or read from the mode cache)
   const auto t0 = std::chrono::steady_clock::now();
-  solid::ReferenceTubeConfig rc;
-  rc.tube = config.tube;
-  rc.material = config.material;
-  rc.structure = ReferenceStructure(config.shell, config.shell.ends, o.ideal);
-  rc.mesh = ReferenceMesh(o.element_m, rc.mesh.degree_wall, rc.mesh.degree_thickness, config.tube,
-                          "--element-m");
-  rc.mics = config.mics;
-  rc.max_frequency_hz = o.max_frequency_hz;
-  rc.cache_dir = acoustics::DefaultModeCacheDir();
-  const solid::ReferenceTube tube(rc);
+  const solid::SolidMeshConfig defaults;
+  const solid::ReferenceTube tube(
+      ReferenceTubeOf(config,
+                      ReferenceMesh(o.element_m, defaults.degree_wall, defaults.degree_thickness,
+                                    config.tube, "--element-m"),
+                      o.max_frequency_hz, o.ideal, acoustics::DefaultModeCacheDir()));
   const double solve_s = MillisecondsSince(t0) / 1e3;
   spdlog::info("reference tube: {} modes to {} Hz, {} ({:.1f} s)", tube.omega_rad_s().size(),
                o.max_frequency_hz, tube.from_cache() ? "from the cache" : "solved", solve_s);

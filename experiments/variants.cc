@@ -87,11 +87,8 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
                     r.structure_variants, check));
   }
   const double fs = config.audio.sample_rate_hz;
-  const double band = config.acoustics.mode_band_hz > 0 ? config.acoustics.mode_band_hz
-                                                        : std::min(20000.0, 0.95 * 0.5 * fs);
-  const std::string cache = config.acoustics.mode_cache_dir.empty()
-                                ? acoustics::DefaultModeCacheDir()
-                                : config.acoustics.mode_cache_dir;
+  const double band = config.acoustics.ModeBandHz(fs);
+  const std::string cache = config.acoustics.ModeCacheDir();
   const acoustics::ShellModel base(config.tube, config.material, config.shell);
   const acoustics::ShellModes base_modes = acoustics::CachedShellModes(base, band, 0, true, cache);
   auto t = Clock::now();

@@ -11,12 +11,9 @@ namespace sonicboom::experiments {
 /// Relative L2 error over all channels, ||y - ref|| / ||ref||.
 double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref);
 
-/// (channels) first sample (fractional) at which each channel's |y| reaches 20 % of its own
-/// peak, linear between samples.
-Eigen::VectorXd ThresholdArrivalSamples(const Eigen::MatrixXd& y);
-
-/// Timing of y against ref, microseconds: mean over channels of |arrival error|, and mean and
-/// max over channel pairs of |inter-channel delay error|.
+/// Timing of y against ref, microseconds, from each channel's first arrival (the first time its
+/// |signal| reaches 20 % of its own peak, solid::ThresholdArrivals): mean over channels of
+/// |arrival error|, and mean and max over channel pairs of |inter-channel delay error|.
 struct TimingError {
   double arrival_us{0.0};
   double delay_us{0.0};

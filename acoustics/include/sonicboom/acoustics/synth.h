@@ -56,6 +56,12 @@ struct SynthConfig {
   ContactConfig contact;       // the striker-tube contact solve
 
   void Serialize(Archive* a);
+
+  /// The band the shell's modes are solved to: mode_band_hz, or by default what the grid
+  /// resolves (20 kHz) below 0.95 of the Nyquist frequency of sample_rate_hz.
+  double ModeBandHz(double sample_rate_hz) const;
+  /// The mode cache: mode_cache_dir, or DefaultModeCacheDir() (shell_modes.h) when empty.
+  std::string ModeCacheDir() const;
 };
 
 /// Everything the strike renderer depends on.
