@@ -204,12 +204,6 @@ void CheckBody(const DrivingPoint& body, const char* side) {
   }
 }
 
-// rigid-target Hertz duration for mass m_kg at speed v (docs/physics.md, "Hertz impact")
-double HertzDuration(double m_kg, double stiffness_n_m15, double v_m_s) {
-  const double delta_max = std::pow(5.0 * m_kg * v_m_s * v_m_s / (4.0 * stiffness_n_m15), 0.4);
-  return kHertzDuration * delta_max / v_m_s;
-}
-
 // both bodies reduced to the compression delta = x_tube - x_striker: a rigid part with inverse
 // mass 1/m_tube + 1/m_striker and modes y_i = phi_i q_i (the striker's sign flipped), each
 // y_i'' + 2 zeta_i omega_i y_i' + omega_i^2 y_i = -gain_i F, gain_i = phi_i^2
@@ -493,6 +487,11 @@ Pass SolveAtSubsteps(const Reduced& body, const PassSetup& setup, const ContactC
 }
 
 }  // namespace
+
+double HertzDuration(double m_kg, double stiffness_n_m15, double v_m_s) {
+  const double delta_max = std::pow(5.0 * m_kg * v_m_s * v_m_s / (4.0 * stiffness_n_m15), 0.4);
+  return kHertzDuration * delta_max / v_m_s;
+}
 
 void ContactConfig::Serialize(Archive* a) {
   a->Visit("substeps_per_duration", &substeps_per_duration, Bounds::Closed(50, 100000));

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <limits>
 #include <numbers>
 #include <utility>
 
@@ -87,6 +88,14 @@ Eigen::MatrixXd VibrationRung::Render(std::span<const ForceInput> forces, int64_
   return m.bank->Render(forces, ModesPlayed(derived_band_hz), samples);
 }
 
+Eigen::MatrixXd VibrationRung::RenderImpacts(std::span<const FdImpact> impacts,
+                                             const ContactConfig& contact,
+                                             int64_t samples) const {
+  const Impl& m = *impl_;
+  if (!m.fd) throw Error("VibrationRung::RenderImpacts: only an FD rung closes its own contact");
+  return FdRender(*m.model, *m.fd, {}, impacts, contact, m.sensor_rows, samples, -300.0).strain;
+}
+
 DrivingPoint VibrationRung::WallAt(double z_m, double theta_rad, double band_hz) const {
   if (!impl_->bank) throw Error("VibrationRung::WallAt: only a modal rung has a modal wall");
   return impl_->bank->WallAt(z_m, theta_rad, band_hz);
@@ -131,6 +140,19 @@ SolvedForce SolveRigidStrikeForce(const ContactEvent& contact, const VibrationRu
       std::min(full_band_hz, ContactBandHz(synth.band_factor, cf.first_closure_s));
   out.force = {contact.z_m, contact.theta_rad, cf.first_sample, std::move(cf.force_n)};
   return out;
+}
+
+FdImpact RigidStrikeImpact(const ContactEvent& contact, const TubeConfig& tube,
+                           const MaterialConfig& material) {
+  FdImpact impact;
+  impact.time_s = contact.time_s;
+  impact.z_m = contact.z_m;
+  impact.theta_rad = contact.theta_rad;
+  impact.approach_speed_m_s = contact.normal_speed_m_s;
+  impact.tube_side_kg = std::numeric_limits<double>::infinity();
+  impact.striker.rigid_mass_kg = contact.effective_mass_kg;
+  impact.stiffness_n_m15 = SolveHertzImpact(contact, tube, material).stiffness_n_m15;
+  return impact;
 }
 
 }  // namespace sonicboom::acoustics

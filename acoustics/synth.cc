@@ -419,9 +419,21 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
     // the wall at the contact: its modes in the band the rigid-wall pulse suggests
     const double frequency_scale = varied_structure ? variation->frequency_scale() : 1.0;
     const double contact_band = m.Band(impact.duration_s, frequency_scale);
+    // the fd rung with a yielding wall closes its impacts against the FD grid itself, in the run
+    const bool fd_wall = m.fd && m.c.synth.contact.wall == ContactWall::kCoupled;
     std::vector<ForceInput> forces;
+    std::vector<FdImpact> fd_impacts;
+    // solves an impact (or hands it to the FD run, where the rigid-wall Hertz pulse's duration
+    // stands in for it until then)
     auto play_contact = [&](double time_s, double z_m, double theta_rad, double speed_m_s,
                             double tube_side_kg, const DrivingPoint& other) {
+      if (fd_wall) {
+        fd_impacts.push_back({time_s, z_m, theta_rad, speed_m_s, tube_side_kg, other,
+                              impact.stiffness_n_m15});
+        ContactForce pending;
+        pending.duration_s = pending.first_closure_s = impact.duration_s;
+        return pending;
+      }
       // a rigid wall is a held half-space: no modes, no rigid motion
       DrivingPoint wall;
       if (m.c.synth.contact.wall == ContactWall::kCoupled) {
@@ -434,13 +446,9 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
       forces.push_back({z_m, theta_rad, cf.first_sample, std::move(cf.force_n)});
       return cf;
     };
-    const ContactForce first =
+    ContactForce first =
         play_contact(contact.time_s, contact.z_m, contact.theta_rad, contact.normal_speed_m_s,
                      contact.robot_side_mass_kg, striker);
-    out.impulse_ns = first.impulse_ns;
-    out.duration_s = first.duration_s;
-    out.peak_force_n = first.peak_force_n;
-    out.touches = first.touches;
     // the other episodes of the record: bounces and later impacts, presses, brushes
     Rng rng(sample_seed, Stream::kAcoustics);
     for (const ContactEpisode& e : episodes) {
@@ -473,16 +481,23 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
       play_contact(e.time_s, e.z_m, e.theta_rad, e.normal_speed_m_s * speed_scale,
                    contact.robot_side_mass_kg, other);
     }
-    out.forces_played = static_cast<int64_t>(forces.size());
+    out.forces_played = static_cast<int64_t>(forces.size() + fd_impacts.size());
 
+    if (m.fd) {
+      out.modes_used = 0;
+      FdRun run = FdRender(*m.shell, *m.fd, forces, fd_impacts, m.c.synth.contact, m.sensor_rows,
+                           num_frames, m.c.synth.decay_floor_db);
+      strain = std::move(run.strain);
+      if (fd_wall) first = std::move(run.impacts.front());
+    }
+    out.impulse_ns = first.impulse_ns;
+    out.duration_s = first.duration_s;
+    out.peak_force_n = first.peak_force_n;
+    out.touches = first.touches;
     // vibration: the band the first contact excites, or the configured count
     // (the first closure sets it: a chatter's later touches are softer and no shorter)
     out.band_hz = m.Band(first.first_closure_s, frequency_scale);
-    if (m.fd) {
-      out.modes_used = 0;
-      strain =
-          FdRender(*m.shell, *m.fd, forces, m.sensor_rows, num_frames, m.c.synth.decay_floor_db);
-    } else {
+    if (!m.fd) {
       const Variation* structure = varied_structure ? variation : nullptr;
       out.modes_used = m.c.synth.mode_count > 0 ? std::min(m.c.synth.mode_count, bank->modes())
                                                 : bank->ModesBelow(out.band_hz, structure);

@@ -38,7 +38,7 @@ function(sonicboom_add_test name)
     string(SUBSTRING "${group}" 0 ${eq} label)
     math(EXPR first "${eq} + 1")
     string(SUBSTRING "${group}" ${first} -1 filter)
-    gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST TEST_FILTER "${filter}"
+    gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120 TEST_FILTER "${filter}"
       PROPERTIES LABELS "${label}" ENVIRONMENT "${environment}"
       WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR})
     list(APPEND grouped "${filter}")
@@ -48,7 +48,7 @@ function(sonicboom_add_test name)
     list(JOIN grouped ":" negative)
     set(rest "-${negative}")
   endif()
-  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST TEST_FILTER "${rest}"
+  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120 TEST_FILTER "${rest}"
     PROPERTIES LABELS unit ENVIRONMENT "${environment}"
     WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR})
 endfunction()

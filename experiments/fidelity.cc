@@ -79,8 +79,10 @@ struct Grid {
 class LadderRung {
  public:
   virtual ~LadderRung() = default;
-  /// (mics x samples) sensor strain of the forces from rest.
-  virtual Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces, int64_t samples,
+  /// (mics x samples) sensor strain of the strike from rest: its forces, or (a rung that closes
+  /// its own contact) its impact.
+  virtual Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces,
+                                 const acoustics::FdImpact& impact, int64_t samples,
                                  double derived_band_hz) const = 0;
   /// (modes) the frequencies of the modes a render plays, ascending, Hz (empty: not modal).
   virtual Eigen::VectorXd PlayedFrequenciesHz(double derived_band_hz) const = 0;
@@ -92,9 +94,14 @@ class LadderRung {
 // a rung of the shell (acoustics/ladder.h): modal or FD on one grid
 class ShellRung final : public LadderRung {
  public:
-  explicit ShellRung(std::unique_ptr<acoustics::VibrationRung> rung) : rung_(std::move(rung)) {}
-  Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces, int64_t samples,
+  // own_contact: an FD rung that closes the strike's impact against its own wall
+  ShellRung(std::unique_ptr<acoustics::VibrationRung> rung, bool own_contact,
+            const acoustics::ContactConfig& contact)
+      : rung_(std::move(rung)), own_contact_(own_contact), contact_(contact) {}
+  Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces,
+                         const acoustics::FdImpact& impact, int64_t samples,
                          double derived_band_hz) const override {
+    if (own_contact_) return rung_->RenderImpacts(std::span(&impact, 1), contact_, samples);
     return rung_->Render(forces, samples, derived_band_hz);
   }
   Eigen::VectorXd PlayedFrequenciesHz(double derived_band_hz) const override {
@@ -106,6 +113,8 @@ class ShellRung final : public LadderRung {
 
  private:
   std::unique_ptr<acoustics::VibrationRung> rung_;
+  bool own_contact_;
+  acoustics::ContactConfig contact_;
 };
 
 // a rung of the reference solid: its modes below band_hz, each damped by zeta(omega), driven by
@@ -120,7 +129,8 @@ class SolidRung final : public LadderRung {
     zeta_.resize(modes_);
     for (Eigen::Index n = 0; n < modes_; ++n) zeta_(n) = std::min(0.5, zeta_of_omega(omega(n)));
   }
-  Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces, int64_t samples,
+  Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces,
+                         const acoustics::FdImpact& /*impact*/, int64_t samples,
                          double /*derived_band_hz*/) const override {
     const Eigen::VectorXd omega = tube_->omega_rad_s().head(modes_);
     const Eigen::MatrixXd read = tube_->disc_strain().leftCols(modes_);  // (mics x modes)
@@ -161,9 +171,11 @@ struct RungResult {
 };
 
 // the strikes every rung renders: their contact forces (solved once against the configured
-// grid's modal wall) and derived bands
+// grid's modal wall), the same strikes as impacts (for a rung that closes its own contact) and
+// derived bands
 struct LadderStrikes {
   std::vector<std::vector<acoustics::ForceInput>> forces;  // [strike][contact]
+  std::vector<acoustics::FdImpact> impacts;                // [strike]
   std::vector<double> derived_band_hz;                     // [strike]
   int64_t window{0};      // samples compared after the start of the record
   int64_t one_second{0};  // samples
@@ -179,8 +191,8 @@ struct Yardstick {
 
 // Seconds a rung takes for 1 s of 6 channels of one strike: FD timed on the window and scaled
 // (its cost per sample is constant), a modal rung on a whole second, best of three.
-double SecondsPerStrike(const LadderRung& rung, std::span<const acoustics::ForceInput> forces,
-                        double band, const LadderStrikes& strikes, double window_seconds) {
+double SecondsPerStrike(const LadderRung& rung, size_t strike, const LadderStrikes& strikes,
+                        double window_seconds) {
   if (rung.oversampling() > 0) {
     return window_seconds * static_cast<double>(strikes.one_second) /
            static_cast<double>(strikes.window);
@@ -188,7 +200,9 @@ double SecondsPerStrike(const LadderRung& rung, std::span<const acoustics::Force
   double best = 1e30;
   for (int rep = 0; rep < 3; ++rep) {
     const auto t0 = Clock::now();
-    const Eigen::MatrixXd full = rung.Render(forces, strikes.one_second, band);
+    const Eigen::MatrixXd full =
+        rung.Render(strikes.forces[strike], strikes.impacts[strike], strikes.one_second,
+                    strikes.derived_band_hz[strike]);
     best = std::min(best, Seconds(t0));
     if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
   }
@@ -208,12 +222,12 @@ RungResult MeasureRung(const RungEntry& entry, const LadderRung& rung, const Lad
     const auto& f = strikes.forces[s];
     const double band = strikes.derived_band_hz[s];
     const auto start = Clock::now();
-    const Eigen::MatrixXd raw = rung.Render(f, strikes.window, band);
+    const Eigen::MatrixXd raw = rung.Render(f, strikes.impacts[s], strikes.window, band);
     const double window_seconds = Seconds(start);
     if (!raw.allFinite())
       throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", entry.name));
     const Eigen::MatrixXd y = LowPass(raw, yardstick->band_hz, fs);
-    r.ms_per_strike += 1e3 * SecondsPerStrike(rung, f, band, strikes, window_seconds) / n;
+    r.ms_per_strike += 1e3 * SecondsPerStrike(rung, s, strikes, window_seconds) / n;
     r.modes += static_cast<double>(rung.PlayedFrequenciesHz(band).size()) / n;
     if (is_yardstick) {
       yardstick->signal.push_back(y);
@@ -485,9 +499,10 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
     return fmt::format("solid, h {:.1f} mm, p {}/{}", 1e3 * t.config().mesh.element_arc_m,
                        t.config().mesh.degree_wall, t.config().mesh.degree_thickness);
   };
-  auto shell = [&](const acoustics::RungSpec& spec, const Grid& grid) {
-    return [&config, &s, spec, grid]() -> std::unique_ptr<LadderRung> {
-      return std::make_unique<ShellRung>(BuildShellRung(config, s, spec, grid));
+  auto shell = [&](const acoustics::RungSpec& spec, const Grid& grid, bool own_contact = false) {
+    return [&config, &s, spec, grid, own_contact]() -> std::unique_ptr<LadderRung> {
+      return std::make_unique<ShellRung>(BuildShellRung(config, s, spec, grid), own_contact,
+                                         config.acoustics.contact);
     };
   };
   auto grid_name = [](const Grid& g) {
@@ -514,6 +529,8 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
        solid_rung(cheap, s.reference_band_hz)},
       {"reference solid, " + cut, "solid", solid_grid(*yard), solid_rung(yard, cut_band)},
       {"FD", "fd", grid_name(s.configured), shell(fd_spec, s.configured)},
+      {"FD, contact on its own wall", "fd", grid_name(s.configured),
+       shell(fd_spec, s.configured, true)},
       {"FD", "fd", grid_name(s.coarse), shell(fd_spec, s.coarse)},
       {"FD", "fd", grid_name(s.coarser), shell(fd_spec, s.coarser)},
       {"closed form, derived band", "closed-form", "ideal simply supported tube (Flügge)",
@@ -608,6 +625,9 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
         fs, settings.full_band_hz);
     ladder.derived_band_hz.push_back(solved.derived_band_hz);
     ladder.forces.push_back({std::move(solved.force)});
+    ladder.impacts.push_back(
+        acoustics::RigidStrikeImpact(StrikeEvent(kStrikes[s], onset_s), config.tube,
+                                     config.material));
   }
 
   Yardstick yardstick;
@@ -632,7 +652,9 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
       "solid on spectral elements, another theory and discretization than the shell's, with the "
       "same seam, bolts, holes and mounts. Every rung renders the same {} strikes (wooden rod, "
       "0.05–1 m/s; contact forces solved once against the default rung's wall, so that rungs "
-      "differ in the vibration model alone) and is damped by the same Rayleigh curve (the closed "
+      "differ in the vibration model alone; the row 'FD, contact on its own wall' instead closes "
+      "each impact against the FD grid in its run, an FD strike independent of the modal rung) "
+      "and is damped by the same Rayleigh curve (the closed "
       "form, the ideal simply supported tube of acoustics.model = modal-closed-form, by its own "
       "constant loss factor, the curve's value at shell.loss_low_hz).\n\n"
       "Columns. Time: the vibration model for 1 s of 6 channels of one strike (FD: timed on the "

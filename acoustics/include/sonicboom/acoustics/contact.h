@@ -47,6 +47,10 @@ struct DrivingPoint {
   Eigen::VectorXd phi;  // (modes) mass-normalized shape at the contact, 1/sqrt(kg)
 };
 
+/// Rigid-target Hertz contact time of a mass m_kg arriving at v_m_s on a spring F = K delta^1.5
+/// (docs/physics.md, "Hertz impact"), s.
+double HertzDuration(double m_kg, double stiffness_n_m15, double v_m_s);
+
 /// Euler-Bernoulli rod clamped at one end (cantilever) or both.
 struct BeamSpec {
   double length_m{0.42};

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "sonicboom/acoustics/contact.h"
+#include "sonicboom/acoustics/fd_render.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_bank.h"
 #include "sonicboom/acoustics/synth.h"
@@ -53,6 +54,10 @@ class VibrationRung {
   /// spec asks for, or those below derived_band_hz.
   Eigen::MatrixXd Render(std::span<const ForceInput> forces, int64_t samples,
                          double derived_band_hz) const;
+  /// FD rungs only (Error otherwise): sensor strain (mics x samples) of impacts closed against
+  /// the FD wall itself (fd_render.h), from rest.
+  Eigen::MatrixXd RenderImpacts(std::span<const FdImpact> impacts, const ContactConfig& contact,
+                                int64_t samples) const;
   /// The band a render plays: the spec's, or the strike's derived band.
   double PlayedBand(double derived_band_hz) const;
   /// Modes a render plays (0 for an FD rung).
@@ -84,5 +89,10 @@ SolvedForce SolveRigidStrikeForce(const ContactEvent& contact, const VibrationRu
                                   const TubeConfig& tube, const MaterialConfig& material,
                                   const SynthConfig& synth, double sample_rate_hz,
                                   double full_band_hz);
+
+/// The same strike as an impact an FD rung closes against its own wall: the striker's Hertz
+/// stiffness on the tube, a rigid striker of contact.effective_mass_kg, the tube held.
+FdImpact RigidStrikeImpact(const ContactEvent& contact, const TubeConfig& tube,
+                           const MaterialConfig& material);
 
 }  // namespace sonicboom::acoustics

@@ -48,6 +48,9 @@ class ShellFd {
   double stability_limit_s() const { return k_max_s_; }
   double omega_max_rad_s() const { return omega_max_; }
   int64_t oversampling() const { return oversampling_; }
+  /// (dofs) what a step adds to each DOF's new displacement per N of nodal force on it, m/N
+  /// (k^2 / (m (1 + alpha k / 2))): the wall's compliance within one step.
+  const Eigen::VectorXd& force_gain() const { return c_force_; }
 
   ShellFdState Rest() const;
   /// One step with nodal force f (dofs, N), in place. Safe to call from several threads on
