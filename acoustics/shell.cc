@@ -97,51 +97,23 @@ void ShellConfig::Validate(const TubeConfig& tube) const {
   }
 }
 
-ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
-                       const ShellConfig& shell)
-    : tube_(tube), material_(material), shell_(shell) {
-  tube.Validate();
-  shell.Validate(tube);
-  const double R = tube.mid_radius_m();
-  const double h = tube.wall_thickness_m;
-  const double E = material.youngs_modulus_pa, nu = material.poisson_ratio;
-  const double rho_h = material.density_kg_m3 * h;
-  const double C = E * h / (1.0 - nu * nu);                   // membrane stiffness, N/m
-  const double D = E * h * h * h / (12.0 * (1.0 - nu * nu));  // bending stiffness, N m
-  radius_m_ = R;
+namespace {
 
-  // grid: nz intervals along the tube, nth points around it
-  nz_ = std::max(4, static_cast<int>(std::lround(tube.length_m / shell.AxialSpacing())));
-  nth_ = std::max(8, static_cast<int>(std::lround(2.0 * kPi * R / shell.grid_spacing_m)));
-  dz_m_ = tube.length_m / nz_;
-  dth_rad_ = 2.0 * kPi / nth_;
-  const double dz = dz_m_, dth = dth_rad_, ds = R * dth;
-  const int nz = nz_, nth = nth_;
-  auto wrap = [nth](int j) { return ((j % nth) + nth) % nth; };
-  auto z_of = [&](double i) { return -0.5 * tube.length_m + i * dz; };
+// The grid of a shell: nz intervals along the tube, nth points around it, the seams' cuts, the
+// holes; the w points sit at (i, j), u at (i + 1/2, j), v at (i, j + 1/2).
+struct GridLayout {
+  const TubeConfig& tube;
+  const ShellConfig& shell;
+  double R{0.0}, dz{0.0}, dth{0.0}, ds{0.0};  // mid radius, m; spacings, m, rad, m of arc
+  int nz{0}, nth{0};
+  bool real{false};       // seams, bolts, holes and mounts (not the ideal tube)
+  bool supported{false};  // simply supported ends
+  std::vector<int> seams{};          // the v column js of each cut
+  std::vector<bool> seam_v{}, edge{};  // (nth) v on a cut; w/u column beside a cut
 
-  // seams: the v point (i, js) lies on the cut at theta = (js + 1/2) dth
-  const bool real = !shell.ideal;
-  std::vector<int> seams;
-  if (real) {
-    for (double deg : shell.seam_theta_deg) {
-      const double theta = deg * kPi / 180.0;
-      const int js = wrap(static_cast<int>(std::lround(theta / dth - 0.5)));
-      if (std::find(seams.begin(), seams.end(), js) != seams.end()) {
-        throw ConfigError(fmt::format(
-            "shell.seam_theta_deg: two seams fall on the same grid column (at {} deg); use a finer "
-            "shell.grid_spacing_m",
-            deg));
-      }
-      seams.push_back(js);
-    }
-  }
-  std::vector<bool> seam_v(static_cast<size_t>(nth), false), edge(static_cast<size_t>(nth), false);
-  for (int js : seams) {
-    seam_v[js] = true;
-    edge[js] = edge[wrap(js + 1)] = true;
-  }
-  auto in_hole = [&](double z_m, double theta_rad) {
+  int Wrap(int j) const { return ((j % nth) + nth) % nth; }
+  double Z(double i) const { return -0.5 * tube.length_m + i * dz; }
+  bool InHole(double z_m, double theta_rad) const {
     if (!real) return false;
     for (size_t k = 0; k < shell.hole_z_m.size(); ++k) {
       const double dzh = z_m - shell.hole_z_m[k];
@@ -149,18 +121,61 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       if (std::hypot(dzh, dsh) < 0.5 * shell.hole_diameter_m) return true;
     }
     return false;
-  };
-  const bool supported = shell.ends == TubeEnds::kSimplySupported;
+  }
+  double Fz(int i) const { return (i == 0 || i == nz) ? 0.5 : 1.0; }  // end rows carry half
+  double Fth(int j) const { return edge[j] ? 0.5 : 1.0; }             // seam edges carry half
+};
 
-  // DOF numbering: w, u, v point by point; lumped masses from the area each point carries
+GridLayout LayOut(const TubeConfig& tube, const ShellConfig& shell) {
+  GridLayout g{tube, shell};
+  g.R = tube.mid_radius_m();
+  g.nz = std::max(4, static_cast<int>(std::lround(tube.length_m / shell.AxialSpacing())));
+  g.nth = std::max(8, static_cast<int>(std::lround(2.0 * kPi * g.R / shell.grid_spacing_m)));
+  g.dz = tube.length_m / g.nz;
+  g.dth = 2.0 * kPi / g.nth;
+  g.ds = g.R * g.dth;
+  g.real = !shell.ideal;
+  g.supported = shell.ends == TubeEnds::kSimplySupported;
+  // seams: the v point (i, js) lies on the cut at theta = (js + 1/2) dth
+  if (g.real) {
+    for (double deg : shell.seam_theta_deg) {
+      const double theta = deg * kPi / 180.0;
+      const int js = g.Wrap(static_cast<int>(std::lround(theta / g.dth - 0.5)));
+      if (std::find(g.seams.begin(), g.seams.end(), js) != g.seams.end()) {
+        throw ConfigError(fmt::format(
+            "shell.seam_theta_deg: two seams fall on the same grid column (at {} deg); use a finer "
+            "shell.grid_spacing_m",
+            deg));
+      }
+      g.seams.push_back(js);
+    }
+  }
+  g.seam_v.assign(static_cast<size_t>(g.nth), false);
+  g.edge.assign(static_cast<size_t>(g.nth), false);
+  for (int js : g.seams) {
+    g.seam_v[js] = true;
+    g.edge[js] = g.edge[g.Wrap(js + 1)] = true;
+  }
+  return g;
+}
+
+// Each field's DOF at every grid point (kAbsent, kFixed or the DOF) and every DOF's lumped mass
+struct DofNumbering {
+  std::vector<int64_t> w, u, v;  // (rows x nth) row-major
+  Eigen::VectorXd mass_kg;       // (dofs)
+};
+
+// DOF numbering: w, u, v point by point; lumped masses from the area each point carries
+DofNumbering NumberDofs(const GridLayout& g, double rho_h) {
+  DofNumbering n;
   std::vector<double> mass;
   auto number = [&](std::vector<int64_t>* index, int rows, double i_offset, double j_offset,
                     auto fixed, auto area) {
-    index->assign(static_cast<size_t>(rows) * nth, kAbsent);
+    index->assign(static_cast<size_t>(rows) * g.nth, kAbsent);
     for (int i = 0; i < rows; ++i) {
-      for (int j = 0; j < nth; ++j) {
-        if (in_hole(z_of(i + i_offset), (j + j_offset) * dth)) continue;
-        int64_t& slot = (*index)[static_cast<size_t>(i) * nth + j];
+      for (int j = 0; j < g.nth; ++j) {
+        if (g.InHole(g.Z(i + i_offset), (j + j_offset) * g.dth)) continue;
+        int64_t& slot = (*index)[static_cast<size_t>(i) * g.nth + j];
         if (fixed(i, j)) {
           slot = kFixed;
           continue;
@@ -170,222 +185,262 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
       }
     }
   };
-  auto fz = [&](int i) { return (i == 0 || i == nz) ? 0.5 : 1.0; };  // end rows carry half
-  auto fth = [&](int j) { return edge[j] ? 0.5 : 1.0; };             // seam edges carry half
+  const int nz = g.nz;
+  auto end_row = [&](int i, int) { return g.supported && (i == 0 || i == nz); };
+  number(&n.w, nz + 1, 0.0, 0.0, end_row,
+         [&](int i, int j) { return g.dz * g.Fz(i) * g.ds * g.Fth(j); });
   number(
-      &w_index_, nz + 1, 0.0, 0.0, [&](int i, int) { return supported && (i == 0 || i == nz); },
-      [&](int i, int j) { return dz * fz(i) * ds * fth(j); });
-  number(
-      &u_index_, nz, 0.5, 0.0, [](int, int) { return false; },
-      [&](int, int j) { return dz * ds * fth(j); });
-  number(
-      &v_index_, nz + 1, 0.0, 0.5, [&](int i, int) { return supported && (i == 0 || i == nz); },
-      [&](int i, int) { return dz * fz(i) * ds; });
+      &n.u, nz, 0.5, 0.0, [](int, int) { return false; },
+      [&](int, int j) { return g.dz * g.ds * g.Fth(j); });
+  number(&n.v, nz + 1, 0.0, 0.5, end_row, [&](int i, int) { return g.dz * g.Fz(i) * g.ds; });
   for (int i = 0; i <= nz; ++i) {
-    for (int j = 0; j < nth; ++j) {
-      if (seam_v[j]) v_index_[static_cast<size_t>(i) * nth + j] = kAbsent;
+    for (int j = 0; j < g.nth; ++j) {
+      if (g.seam_v[j]) n.v[static_cast<size_t>(i) * g.nth + j] = kAbsent;
     }
   }
   // renumber after the seam removals (drop the masses of removed v points)
-  {
-    std::vector<int64_t> remap(mass.size(), kAbsent);
-    std::vector<bool> used(mass.size(), false);
-    for (const auto* index : {&w_index_, &u_index_, &v_index_}) {
-      for (int64_t d : *index) {
-        if (d >= 0) used[static_cast<size_t>(d)] = true;
-      }
+  std::vector<int64_t> remap(mass.size(), kAbsent);
+  std::vector<bool> used(mass.size(), false);
+  for (const auto* index : {&n.w, &n.u, &n.v}) {
+    for (int64_t d : *index) {
+      if (d >= 0) used[static_cast<size_t>(d)] = true;
     }
-    std::vector<double> kept;
-    for (size_t d = 0; d < mass.size(); ++d) {
-      if (!used[d]) continue;
-      remap[d] = static_cast<int64_t>(kept.size());
-      kept.push_back(mass[d]);
-    }
-    for (auto* index : {&w_index_, &u_index_, &v_index_}) {
-      for (int64_t& d : *index) {
-        if (d >= 0) d = remap[static_cast<size_t>(d)];
-      }
-    }
-    mass_kg_ =
-        Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size()));
   }
+  std::vector<double> kept;
+  for (size_t d = 0; d < mass.size(); ++d) {
+    if (!used[d]) continue;
+    remap[d] = static_cast<int64_t>(kept.size());
+    kept.push_back(mass[d]);
+  }
+  for (auto* index : {&n.w, &n.u, &n.v}) {
+    for (int64_t& d : *index) {
+      if (d >= 0) d = remap[static_cast<size_t>(d)];
+    }
+  }
+  n.mass_kg =
+      Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size()));
+  return n;
+}
 
-  // strain samples: each row b_r with weight w_r adds w_r (b_r q)^2 / 2 to the energy
-  auto lookup = [&](Field f, int i, int j) -> int64_t {
-    const int rows = f == Field::kU ? nz : nz + 1;
-    if (i < 0 || i >= rows) return kAbsent;
-    const auto& index = f == Field::kU ? u_index_ : (f == Field::kV ? v_index_ : w_index_);
-    return index[static_cast<size_t>(i) * nth + wrap(j)];
-  };
+// Strain samples of the energy: each row b_r with weight w_r adds w_r (b_r q)^2 / 2, so that
+// K = B^T W B
+class StrainRows {
+ public:
+  StrainRows(const GridLayout& g, const DofNumbering& n) : g_(g), n_(n) {}
+
   // a linear form of grid values, or false when a point is absent
-  auto form = [&](std::initializer_list<Term> terms, Row* row) {
+  bool Form(std::initializer_list<Term> terms, Row* row) const {
     row->clear();
     for (const Term& t : terms) {
-      const int64_t d = lookup(t.field, t.i, t.j);
+      const int64_t d = Lookup(t.field, t.i, t.j);
       if (d == kAbsent) return false;
       if (d >= 0) row->push_back({d, t.c});
     }
     return true;
-  };
-  std::vector<Eigen::Triplet<double>> triplets;
-  std::vector<double> weights;
-  auto add = [&](const Row& a, double ca, const Row& b, double cb, double weight) {
+  }
+  void Add(const Row& a, double ca, const Row& b, double cb, double weight) {
     if (weight == 0.0) return;
-    const int64_t r = static_cast<int64_t>(weights.size());
-    for (const auto& [d, c] : a) triplets.emplace_back(r, d, ca * c);
-    for (const auto& [d, c] : b) triplets.emplace_back(r, d, cb * c);
-    weights.push_back(weight);
-  };
-  const Row none;
+    const int64_t r = static_cast<int64_t>(weights_.size());
+    for (const auto& [d, c] : a) triplets_.emplace_back(r, d, ca * c);
+    for (const auto& [d, c] : b) triplets_.emplace_back(r, d, cb * c);
+    weights_.push_back(weight);
+  }
   // the pair energy s (x^2 + y^2 + 2 nu x y) of two strains, or s (1 - nu^2) x^2 with y free
-  auto pair_energy = [&](bool has_x, const Row& x, bool has_y, const Row& y, double s,
-                         double area) {
+  void PairEnergy(bool has_x, const Row& x, bool has_y, const Row& y, double s, double nu,
+                  double area) {
+    const Row none;
     if (has_x && has_y) {
-      add(x, 1.0, y, 1.0, area * s * 0.5 * (1.0 + nu));
-      add(x, 1.0, y, -1.0, area * s * 0.5 * (1.0 - nu));
+      Add(x, 1.0, y, 1.0, area * s * 0.5 * (1.0 + nu));
+      Add(x, 1.0, y, -1.0, area * s * 0.5 * (1.0 - nu));
     } else if (has_x) {
-      add(x, 1.0, none, 0.0, area * s * (1.0 - nu * nu));
+      Add(x, 1.0, none, 0.0, area * s * (1.0 - nu * nu));
     } else if (has_y) {
-      add(y, 1.0, none, 0.0, area * s * (1.0 - nu * nu));
+      Add(y, 1.0, none, 0.0, area * s * (1.0 - nu * nu));
     }
-  };
-  Row ex, et, kx, kt, g, tw;
-  for (int i = 0; i <= nz; ++i) {
-    for (int j = 0; j < nth; ++j) {
-      if (in_hole(z_of(i), j * dth)) continue;
-      const double area = dz * fz(i) * ds * fth(j);
+  }
+  // K = B^T W B, (dofs x dofs), N/m
+  Eigen::SparseMatrix<double> Stiffness() const {
+    const Eigen::Index n = n_.mass_kg.size();
+    Eigen::SparseMatrix<double> B(static_cast<Eigen::Index>(weights_.size()), n);
+    B.setFromTriplets(triplets_.begin(), triplets_.end());
+    const Eigen::Map<const Eigen::VectorXd> w(weights_.data(),
+                                              static_cast<Eigen::Index>(weights_.size()));
+    const Eigen::SparseMatrix<double> WB = w.asDiagonal() * B;
+    Eigen::SparseMatrix<double> k(B.transpose() * WB);
+    k.makeCompressed();
+    return k;
+  }
+
+ private:
+  int64_t Lookup(Field f, int i, int j) const {
+    const int rows = f == Field::kU ? g_.nz : g_.nz + 1;
+    if (i < 0 || i >= rows) return kAbsent;
+    const auto& index = f == Field::kU ? n_.u : (f == Field::kV ? n_.v : n_.w);
+    return index[static_cast<size_t>(i) * g_.nth + g_.Wrap(j)];
+  }
+
+  const GridLayout& g_;
+  const DofNumbering& n_;
+  std::vector<Eigen::Triplet<double>> triplets_;
+  std::vector<double> weights_;
+};
+
+// Sanders' membrane and bending energy of every node (i, j) and corner (i + 1/2, j + 1/2)
+void AddShellEnergy(const GridLayout& g, const MaterialConfig& material, double h,
+                    StrainRows* rows) {
+  const double E = material.youngs_modulus_pa, nu = material.poisson_ratio;
+  const double C = E * h / (1.0 - nu * nu);                   // membrane stiffness, N/m
+  const double D = E * h * h * h / (12.0 * (1.0 - nu * nu));  // bending stiffness, N m
+  const double R = g.R, dz = g.dz, dth = g.dth, ds = g.ds;
+  const Row none;
+  Row ex, et, kx, kt, gm, tw;
+  for (int i = 0; i <= g.nz; ++i) {
+    for (int j = 0; j < g.nth; ++j) {
+      if (g.InHole(g.Z(i), j * dth)) continue;
+      const double area = dz * g.Fz(i) * ds * g.Fth(j);
       // node (i, j): eps_x = u_x, eps_th = (v_th + w) / R, kappa_x = -w_xx,
       // kappa_th = (v_th - w_thth) / R^2
       const bool has_ex =
-          form({{Field::kU, i, j, 1.0 / dz}, {Field::kU, i - 1, j, -1.0 / dz}}, &ex);
-      const bool has_et = form({{Field::kV, i, j, 1.0 / (R * dth)},
-                                {Field::kV, i, j - 1, -1.0 / (R * dth)},
-                                {Field::kW, i, j, 1.0 / R}},
-                               &et);
-      const bool has_kx = form({{Field::kW, i + 1, j, -1.0 / (dz * dz)},
-                                {Field::kW, i, j, 2.0 / (dz * dz)},
-                                {Field::kW, i - 1, j, -1.0 / (dz * dz)}},
-                               &kx);
-      const bool has_kt = form({{Field::kV, i, j, 1.0 / (R * R * dth)},
-                                {Field::kV, i, j - 1, -1.0 / (R * R * dth)},
-                                {Field::kW, i, j + 1, -1.0 / (R * R * dth * dth)},
-                                {Field::kW, i, j, 2.0 / (R * R * dth * dth)},
-                                {Field::kW, i, j - 1, -1.0 / (R * R * dth * dth)}},
-                               &kt);
-      pair_energy(has_ex, ex, has_et, et, C, area);
-      pair_energy(has_kx, kx, has_kt, kt, D, area);
+          rows->Form({{Field::kU, i, j, 1.0 / dz}, {Field::kU, i - 1, j, -1.0 / dz}}, &ex);
+      const bool has_et = rows->Form({{Field::kV, i, j, 1.0 / (R * dth)},
+                                      {Field::kV, i, j - 1, -1.0 / (R * dth)},
+                                      {Field::kW, i, j, 1.0 / R}},
+                                     &et);
+      const bool has_kx = rows->Form({{Field::kW, i + 1, j, -1.0 / (dz * dz)},
+                                      {Field::kW, i, j, 2.0 / (dz * dz)},
+                                      {Field::kW, i - 1, j, -1.0 / (dz * dz)}},
+                                     &kx);
+      const bool has_kt = rows->Form({{Field::kV, i, j, 1.0 / (R * R * dth)},
+                                      {Field::kV, i, j - 1, -1.0 / (R * R * dth)},
+                                      {Field::kW, i, j + 1, -1.0 / (R * R * dth * dth)},
+                                      {Field::kW, i, j, 2.0 / (R * R * dth * dth)},
+                                      {Field::kW, i, j - 1, -1.0 / (R * R * dth * dth)}},
+                                     &kt);
+      rows->PairEnergy(has_ex, ex, has_et, et, C, nu, area);
+      rows->PairEnergy(has_kx, kx, has_kt, kt, D, nu, area);
       // corner (i + 1/2, j + 1/2): shear gamma = v_x + u_th / R and Sanders' twist
       // tau = (-w_xth + 3/4 v_x - u_th / (4 R)) / R
-      if (i == nz || in_hole(z_of(i + 0.5), (j + 0.5) * dth)) continue;
-      if (form({{Field::kV, i + 1, j, 1.0 / dz},
-                {Field::kV, i, j, -1.0 / dz},
-                {Field::kU, i, j + 1, 1.0 / (R * dth)},
-                {Field::kU, i, j, -1.0 / (R * dth)}},
-               &g)) {
-        add(g, 1.0, none, 0.0, dz * ds * C * 0.5 * (1.0 - nu));
+      if (i == g.nz || g.InHole(g.Z(i + 0.5), (j + 0.5) * dth)) continue;
+      if (rows->Form({{Field::kV, i + 1, j, 1.0 / dz},
+                      {Field::kV, i, j, -1.0 / dz},
+                      {Field::kU, i, j + 1, 1.0 / (R * dth)},
+                      {Field::kU, i, j, -1.0 / (R * dth)}},
+                     &gm)) {
+        rows->Add(gm, 1.0, none, 0.0, dz * ds * C * 0.5 * (1.0 - nu));
       }
       const double cw = -1.0 / (R * dz * dth);
-      if (form({{Field::kW, i + 1, j + 1, cw},
-                {Field::kW, i + 1, j, -cw},
-                {Field::kW, i, j + 1, -cw},
-                {Field::kW, i, j, cw},
-                {Field::kV, i + 1, j, 0.75 / (R * dz)},
-                {Field::kV, i, j, -0.75 / (R * dz)},
-                {Field::kU, i, j + 1, -0.25 / (R * R * dth)},
-                {Field::kU, i, j, 0.25 / (R * R * dth)}},
-               &tw)) {
-        add(tw, 1.0, none, 0.0, dz * ds * 2.0 * D * (1.0 - nu));
+      if (rows->Form({{Field::kW, i + 1, j + 1, cw},
+                      {Field::kW, i + 1, j, -cw},
+                      {Field::kW, i, j + 1, -cw},
+                      {Field::kW, i, j, cw},
+                      {Field::kV, i + 1, j, 0.75 / (R * dz)},
+                      {Field::kV, i, j, -0.75 / (R * dz)},
+                      {Field::kU, i, j + 1, -0.25 / (R * R * dth)},
+                      {Field::kU, i, j, 0.25 / (R * R * dth)}},
+                     &tw)) {
+        rows->Add(tw, 1.0, none, 0.0, dz * ds * 2.0 * D * (1.0 - nu));
       }
     }
   }
+}
 
-  // springs: bolts across every seam (axial, arc and radial), mounts to ground at the end rims
+// Springs: bolts across every seam (axial, arc and radial), mounts to ground at the end rims
+void AddSprings(const GridLayout& g, StrainRows* rows) {
+  if (!g.real) return;
+  const ShellConfig& shell = g.shell;
+  const double length = g.tube.length_m;
+  const int nz = g.nz;
+  const Row none;
   Row a, b;
   auto spring = [&](Field f, int ia, int ja, Field g2, int ib, int jb, double k) {
     if (k <= 0.0) return;
-    const bool has_a = form({{f, ia, ja, 1.0}}, &a);
-    const bool has_b = form({{g2, ib, jb, -1.0}}, &b);
-    if (has_a && has_b) add(a, 1.0, b, 1.0, k);
+    const bool has_a = rows->Form({{f, ia, ja, 1.0}}, &a);
+    const bool has_b = rows->Form({{g2, ib, jb, -1.0}}, &b);
+    if (has_a && has_b) rows->Add(a, 1.0, b, 1.0, k);
   };
-  if (real) {
-    // one bolt at z: three springs of stiffness k across the cut at row (ib, iu)
-    auto bolt_springs = [&](int js, double z, double k) {
-      const int ib =
-          std::clamp(static_cast<int>(std::lround((z + 0.5 * tube.length_m) / dz)), 0, nz);
-      const int iu =
-          std::clamp(static_cast<int>(std::floor((z + 0.5 * tube.length_m) / dz)), 0, nz - 1);
-      spring(Field::kW, ib, js, Field::kW, ib, js + 1, k);
-      spring(Field::kU, iu, js, Field::kU, iu, js + 1, k);
-      spring(Field::kV, ib, js - 1, Field::kV, ib, js + 1, k);
-    };
-    for (int js : seams) {
-      for (size_t b = 0; b < shell.bolt_z_m.size(); ++b) {
-        const double z = shell.bolt_z_m[b];
-        const double k = shell.bolt_stiffness_n_m *
-                         (shell.bolt_stiffness_scale.empty() ? 1.0 : shell.bolt_stiffness_scale[b]);
-        if (shell.bolt_model == BoltModel::kPoint) {
-          bolt_springs(js, z, k);
-          continue;
-        }
-        // a tie: the same total stiffness over the rows within the tie length (at least one)
-        const int rows = std::max(1, static_cast<int>(std::lround(shell.bolt_tie_length_m / dz)));
-        for (int r = 0; r < rows; ++r) {
-          bolt_springs(js, z + (r - 0.5 * (rows - 1)) * dz, k / rows);
-        }
+  // one bolt at z: three springs of stiffness k across the cut at row (ib, iu)
+  auto bolt_springs = [&](int js, double z, double k) {
+    const int ib = std::clamp(static_cast<int>(std::lround((z + 0.5 * length) / g.dz)), 0, nz);
+    const int iu =
+        std::clamp(static_cast<int>(std::floor((z + 0.5 * length) / g.dz)), 0, nz - 1);
+    spring(Field::kW, ib, js, Field::kW, ib, js + 1, k);
+    spring(Field::kU, iu, js, Field::kU, iu, js + 1, k);
+    spring(Field::kV, ib, js - 1, Field::kV, ib, js + 1, k);
+  };
+  for (int js : g.seams) {
+    for (size_t bolt = 0; bolt < shell.bolt_z_m.size(); ++bolt) {
+      const double z = shell.bolt_z_m[bolt];
+      const double k =
+          shell.bolt_stiffness_n_m *
+          (shell.bolt_stiffness_scale.empty() ? 1.0 : shell.bolt_stiffness_scale[bolt]);
+      if (shell.bolt_model == BoltModel::kPoint) {
+        bolt_springs(js, z, k);
+        continue;
       }
-    }
-    for (const auto& [i, iu, k_per_m] : {std::tuple{0, 0, shell.flange_mount_stiffness_n_m2},
-                                         std::tuple{nz, nz - 1, shell.tool_mount_stiffness_n_m2}}) {
-      if (k_per_m <= 0.0) continue;
-      for (int j = 0; j < nth; ++j) {
-        const double k = k_per_m * ds * fth(j);
-        for (const auto& [f, ii] :
-             {std::pair{Field::kW, i}, std::pair{Field::kU, iu}, std::pair{Field::kV, i}}) {
-          if (form({{f, ii, j, 1.0}}, &a)) add(a, 1.0, none, 0.0, k);
-        }
+      // a tie: the same total stiffness over the rows within the tie length (at least one)
+      const int tie_rows = std::max(1, static_cast<int>(std::lround(shell.bolt_tie_length_m / g.dz)));
+      for (int r = 0; r < tie_rows; ++r) {
+        bolt_springs(js, z + (r - 0.5 * (tie_rows - 1)) * g.dz, k / tie_rows);
       }
     }
   }
+  for (const auto& [i, iu, k_per_m] : {std::tuple{0, 0, shell.flange_mount_stiffness_n_m2},
+                                       std::tuple{nz, nz - 1, shell.tool_mount_stiffness_n_m2}}) {
+    if (k_per_m <= 0.0) continue;
+    for (int j = 0; j < g.nth; ++j) {
+      const double k = k_per_m * g.ds * g.Fth(j);
+      for (const auto& [f, ii] :
+           {std::pair{Field::kW, i}, std::pair{Field::kU, iu}, std::pair{Field::kV, i}}) {
+        if (rows->Form({{f, ii, j, 1.0}}, &a)) rows->Add(a, 1.0, none, 0.0, k);
+      }
+    }
+  }
+}
 
-  // K = B^T W B
-  const Eigen::Index n = dofs();
-  Eigen::SparseMatrix<double> B(static_cast<Eigen::Index>(weights.size()), n);
-  B.setFromTriplets(triplets.begin(), triplets.end());
-  const Eigen::Map<const Eigen::VectorXd> w(weights.data(),
-                                            static_cast<Eigen::Index>(weights.size()));
-  const Eigen::SparseMatrix<double> WB = w.asDiagonal() * B;
-  stiffness_ = Eigen::SparseMatrix<double>(B.transpose() * WB);
-  stiffness_.makeCompressed();
+struct RayleighFit {
+  double alpha_1_s{0.0}, beta_s{0.0};
+  bool loss_law{true};
+};
 
-  // Rayleigh damping through (f_low, eta) and (f_high, eta_high): zeta = alpha/(2 w) + beta w / 2;
-  // under the loss law, through the law's own values there
-  loss_law_ = shell.damping == DampingModel::kLaw;
+// Rayleigh damping through (f_low, eta) and (f_high, eta_high): zeta = alpha/(2 w) + beta w / 2;
+// under the loss law, through the law's own values there. Throws ConfigError naming the keys when
+// no fit has non-negative coefficients.
+RayleighFit FitRayleigh(const MaterialConfig& material, const ShellConfig& shell) {
+  RayleighFit fit;
+  fit.loss_law = shell.damping == DampingModel::kLaw;
   auto law = [&](double f_hz) {
     return material.loss_factor * std::pow(f_hz / shell.loss_reference_hz, shell.loss_exponent);
   };
-  const double eta_low = loss_law_ ? law(shell.loss_low_hz) : material.loss_factor;
-  const double eta_high = loss_law_                      ? law(shell.loss_high_hz)
+  const double eta_low = fit.loss_law ? law(shell.loss_low_hz) : material.loss_factor;
+  const double eta_high = fit.loss_law                   ? law(shell.loss_high_hz)
                           : shell.loss_factor_high > 0.0 ? shell.loss_factor_high
                                                          : eta_low;
   const double w1 = 2.0 * kPi * shell.loss_low_hz, w2 = 2.0 * kPi * shell.loss_high_hz;
   const double z1 = 0.5 * eta_low, z2 = 0.5 * eta_high;
-  beta_ = 2.0 * (z2 * w2 - z1 * w1) / (w2 * w2 - w1 * w1);
-  alpha_ = 2.0 * w1 * z1 - beta_ * w1 * w1;
-  if ((alpha_ < 0.0 || beta_ < 0.0) && loss_law_) {
+  const double beta = 2.0 * (z2 * w2 - z1 * w1) / (w2 * w2 - w1 * w1);
+  const double alpha = 2.0 * w1 * z1 - beta * w1 * w1;
+  if ((alpha < 0.0 || beta < 0.0) && fit.loss_law) {
     throw ConfigError(fmt::format(
         "shell.loss_exponent = {}: the FD rung's Rayleigh curve through the loss law at {} and {} "
         "Hz needs a negative coefficient (alpha = {:.4g}, beta = {:.4g}); the law's ratio between "
         "them must stay within [f_low / f_high, f_high / f_low]",
-        shell.loss_exponent, shell.loss_low_hz, shell.loss_high_hz, alpha_, beta_));
+        shell.loss_exponent, shell.loss_low_hz, shell.loss_high_hz, alpha, beta));
   }
-  if (alpha_ < 0.0 || beta_ < 0.0) {
+  if (alpha < 0.0 || beta < 0.0) {
     throw ConfigError(fmt::format(
         "shell.loss_factor_high = {} with material.loss_factor = {} between {} and {} Hz has no "
         "Rayleigh fit with non-negative coefficients (alpha = {:.4g}, beta = {:.4g}); keep "
         "eta_high / eta_low within [f_low / f_high, f_high / f_low]",
-        eta_high, eta_low, shell.loss_low_hz, shell.loss_high_hz, alpha_, beta_));
+        eta_high, eta_low, shell.loss_low_hz, shell.loss_high_hz, alpha, beta));
   }
+  fit.alpha_1_s = alpha;
+  fit.beta_s = beta;
+  return fit;
+}
 
+// The mode cache's key of a structure on an nz x nth grid.
+std::string CacheKey(const TubeConfig& tube, const MaterialConfig& material,
+                     const ShellConfig& shell, int nz, int nth) {
   // Every field of these structs that sets K or M is in the key (the grid targets through nz
   // and nth); left out on purpose: the contact region and the damping keys (they change no
   // mode). A struct that grows fails here, so that its new field is put into the key, or these
@@ -393,20 +448,54 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   static_assert(sizeof(TubeConfig) == 48 && sizeof(MaterialConfig) == 32 &&
                     sizeof(ShellConfig) == 240,
                 "a config struct changed: update ShellModel's cache key and these sizes");
-  key_ = fmt::format(
+  std::string key = fmt::format(
       "shell-v1 R={:.17g} h={:.17g} L={:.17g} E={:.17g} nu={:.17g} rho={:.17g} nz={} nth={} "
       "ends={} ideal={} seams={} bolts={} kb={:.17g} holes={}/{} dh={:.17g} kf={:.17g} kt={:.17g}",
-      tube.outer_radius_m, h, tube.length_m, E, nu, material.density_kg_m3, nz, nth,
-      NameOf(shell.ends), shell.ideal, fmt::join(shell.seam_theta_deg, ","),
-      fmt::join(shell.bolt_z_m, ","), shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","),
+      tube.outer_radius_m, tube.wall_thickness_m, tube.length_m, material.youngs_modulus_pa,
+      material.poisson_ratio, material.density_kg_m3, nz, nth, NameOf(shell.ends), shell.ideal,
+      fmt::join(shell.seam_theta_deg, ","), fmt::join(shell.bolt_z_m, ","),
+      shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","),
       fmt::join(shell.hole_theta_deg, ","), shell.hole_diameter_m,
       shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
   // keys of structures made before per-bolt scales and ties existed stay as they were
   if (!shell.bolt_stiffness_scale.empty()) {
-    key_ += fmt::format(" kbs={:.17g}", fmt::join(shell.bolt_stiffness_scale, ","));
+    key += fmt::format(" kbs={:.17g}", fmt::join(shell.bolt_stiffness_scale, ","));
   }
   if (shell.bolt_model != BoltModel::kPoint)
-    key_ += fmt::format(" tie={:.17g}", shell.bolt_tie_length_m);
+    key += fmt::format(" tie={:.17g}", shell.bolt_tie_length_m);
+  return key;
+}
+
+}  // namespace
+
+ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
+                       const ShellConfig& shell)
+    : tube_(tube), material_(material), shell_(shell) {
+  tube.Validate();
+  shell.Validate(tube);
+  // the grid and its DOFs
+  const GridLayout grid = LayOut(tube, shell);
+  radius_m_ = grid.R;
+  nz_ = grid.nz;
+  nth_ = grid.nth;
+  dz_m_ = grid.dz;
+  dth_rad_ = grid.dth;
+  DofNumbering dofs = NumberDofs(grid, material.density_kg_m3 * tube.wall_thickness_m);
+  // K from the shell's energy and the springs
+  StrainRows rows(grid, dofs);
+  AddShellEnergy(grid, material, tube.wall_thickness_m, &rows);
+  AddSprings(grid, &rows);
+  stiffness_ = rows.Stiffness();
+  w_index_ = std::move(dofs.w);
+  u_index_ = std::move(dofs.u);
+  v_index_ = std::move(dofs.v);
+  mass_kg_ = std::move(dofs.mass_kg);
+  // the FD rung's damping, and the mode cache's key
+  const RayleighFit fit = FitRayleigh(material, shell);
+  alpha_ = fit.alpha_1_s;
+  beta_ = fit.beta_s;
+  loss_law_ = fit.loss_law;
+  key_ = CacheKey(tube, material, shell, nz_, nth_);
 }
 
 Eigen::SparseMatrix<double> ShellModel::MassScaledStiffness() const {
