@@ -34,6 +34,7 @@
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/sim/scene.h"
+#include "sonicboom/hardware/npy.h"
 #include "sonicboom/solid/reference_tube.h"
 #include "sonicboom/solid/solid_response.h"
 
@@ -43,6 +44,8 @@ namespace {
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 constexpr double kPi = std::numbers::pi;
+// an arrival this far off the yardstick's has caught another wave packet, us
+constexpr double kHopUs = 50.0;
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
@@ -165,6 +168,10 @@ struct RungEntry {
 
 struct RungResult {
   double ms_per_strike{0}, rel_error{0}, arrival_us{0}, delay_us{0}, delay_max_us{0};
+  // over every channel (pair) of every strike: medians, and the channels whose arrival is more
+  // than kHopUs off (the threshold caught another wave packet)
+  double arrival_median_us{0}, delay_median_us{0};
+  int64_t hops{0}, channels{0};
   double band_error_db{0}, modes{0}, dofs{0}, oversampling{0};
   FrequencyError frequency;
   bool frequency_of_grid{false};  // an FD rung: its grid's modal frequencies
@@ -212,12 +219,14 @@ double SecondsPerStrike(const LadderRung& rung, size_t strike, const LadderStrik
 // Times one rung on every strike and measures it against the yardstick (which the rung becomes
 // when the yardstick is still empty). Signals are compared low-passed to the yardstick's band.
 RungResult MeasureRung(const RungEntry& entry, const LadderRung& rung, const LadderStrikes& strikes,
-                       double fs, double frequency_max_hz, Yardstick* yardstick) {
+                       double fs, double frequency_max_hz, Yardstick* yardstick,
+                       std::vector<Eigen::MatrixXd>* signals) {
   RungResult r;
   r.dofs = static_cast<double>(rung.dofs());
   r.oversampling = static_cast<double>(rung.oversampling());
   const size_t n = strikes.forces.size();
   const bool is_yardstick = yardstick->signal.empty();
+  std::vector<double> arrivals, delays;  // every channel's, every pair's |error|, us
   for (size_t s = 0; s < n; ++s) {
     const auto& f = strikes.forces[s];
     const double band = strikes.derived_band_hz[s];
@@ -227,6 +236,7 @@ RungResult MeasureRung(const RungEntry& entry, const LadderRung& rung, const Lad
     if (!raw.allFinite())
       throw NumericalError(fmt::format("fidelity: {} produced a non-finite signal", entry.name));
     const Eigen::MatrixXd y = LowPass(raw, yardstick->band_hz, fs);
+    signals->push_back(y);
     r.ms_per_strike += 1e3 * SecondsPerStrike(rung, s, strikes, window_seconds) / n;
     r.modes += static_cast<double>(rung.PlayedFrequenciesHz(band).size()) / n;
     if (is_yardstick) {
@@ -234,12 +244,18 @@ RungResult MeasureRung(const RungEntry& entry, const LadderRung& rung, const Lad
       yardstick->bands.push_back(OctaveEnergies(y, fs));
     }
     const TimingError t = TimingErrorUs(y, yardstick->signal[s], fs);
+    arrivals.insert(arrivals.end(), t.arrival_errors_us.begin(), t.arrival_errors_us.end());
+    delays.insert(delays.end(), t.delay_errors_us.begin(), t.delay_errors_us.end());
     r.rel_error += RelativeError(y, yardstick->signal[s]) / n;
     r.arrival_us += t.arrival_us / n;
     r.delay_us += t.delay_us / n;
     r.delay_max_us = std::max(r.delay_max_us, t.delay_max_us);
     r.band_error_db += BandEnergyErrorDb(OctaveEnergies(y, fs), yardstick->bands[s]) / n;
   }
+  r.arrival_median_us = Median(arrivals);
+  r.delay_median_us = Median(delays);
+  r.channels = static_cast<int64_t>(arrivals.size());
+  r.hops = std::count_if(arrivals.begin(), arrivals.end(), [](double e) { return e > kHopUs; });
   // frequencies: the modes it plays for the widest of the strikes' bands
   const double widest =
       *std::max_element(strikes.derived_band_hz.begin(), strikes.derived_band_hz.end());
@@ -310,11 +326,16 @@ void LadderRows(const std::vector<RungEntry>& rungs, const std::vector<RungResul
     auto err = [&](double v, const char* spec) {
       return i == 0 ? std::string("—") : fmt::format(fmt::runtime(spec), v);
     };
-    *md += fmt::format("| {} | {} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} | {} | {} |\n",
-                       rung.name, rung.grid, r.dofs, size, r.ms_per_strike, 1e3 / r.ms_per_strike,
-                       freq, err(r.arrival_us, "{:.1f}"),
-                       i == 0 ? "—" : fmt::format("{:.1f} / {:.0f}", r.delay_us, r.delay_max_us),
-                       err(r.rel_error, "{:.3f}"), err(r.band_error_db, "{:.2f}"));
+    *md += fmt::format(
+        "| {} | {} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} | {} | {} |\n", rung.name,
+        rung.grid, r.dofs, size, r.ms_per_strike, 1e3 / r.ms_per_strike, freq,
+        i == 0 ? "—"
+               : fmt::format("{:.1f} / {:.1f} ({}/{})", r.arrival_us, r.arrival_median_us,
+                             r.hops, r.channels),
+        i == 0 ? "—"
+               : fmt::format("{:.1f} / {:.1f} / {:.0f}", r.delay_us, r.delay_median_us,
+                             r.delay_max_us),
+        err(r.rel_error, "{:.3f}"), err(r.band_error_db, "{:.2f}"));
     rows_json->push_back({{"rung", rung.name},
                           {"kind", rung.kind},
                           {"grid", rung.grid},
@@ -330,6 +351,10 @@ void LadderRows(const std::vector<RungEntry>& rungs, const std::vector<RungResul
                           {"arrival_error_us", r.arrival_us},
                           {"delay_error_us", r.delay_us},
                           {"delay_error_max_us", r.delay_max_us},
+                          {"arrival_error_median_us", r.arrival_median_us},
+                          {"delay_error_median_us", r.delay_median_us},
+                          {"arrival_hops", r.hops},
+                          {"arrival_channels", r.channels},
                           {"relative_error", r.rel_error},
                           {"band_energy_error_db", r.band_error_db}});
   }
@@ -350,10 +375,10 @@ std::string Recommendations(const std::vector<RungEntry>& rungs,
   auto shell = [](const RungEntry& e) { return e.kind != "solid"; };
   auto describe = [&](int i) {
     return fmt::format(
-        "{} on {} ({:.3g} ms per strike; delay error {:.1f} µs, band energy "
-        "{:.2f} dB)",
+        "{} on {} ({:.3g} ms per strike; delay error {:.1f} µs mean, {:.1f} µs median, band "
+        "energy {:.2f} dB)",
         rungs[i].name, rungs[i].grid, results[i].ms_per_strike, results[i].delay_us,
-        results[i].band_error_db);
+        results[i].delay_median_us, results[i].band_error_db);
   };
   std::string md = "\nWhich rung for which job (the cheapest that meets the job's need):\n\n";
   const int timing = cheapest(
@@ -410,6 +435,13 @@ void CheckFidelityOptions(const FidelityOptions& o, double sample_rate_hz) {
   if (!o.plot_script.empty() && !o.out.empty() && !std::filesystem::is_regular_file(o.plot_script))
     throw IoError(
         fmt::format("--plot {}: no such script (--plot \"\" draws no figure)", o.plot_script));
+  if (!o.signals_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.signals_dir, ec);
+    if (ec || !std::filesystem::is_directory(o.signals_dir))
+      throw IoError(fmt::format("--signals {}: cannot make the directory ({})", o.signals_dir,
+                                ec ? ec.message() : "not a directory"));
+  }
 }
 
 // What every rung of one ladder shares, derived once from the config and the options: the
@@ -567,6 +599,22 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
   return rungs;
 }
 
+// One rung's compared signals as DIR/NN.npy (strikes x mics x samples); its index.json entry.
+json WriteSignals(const std::string& dir, size_t index, const RungEntry& rung,
+                  const std::vector<Eigen::MatrixXd>& signals) {
+  const Eigen::Index mics = signals.front().rows(), samples = signals.front().cols();
+  std::vector<double> data;
+  data.reserve(signals.size() * static_cast<size_t>(mics * samples));
+  for (const Eigen::MatrixXd& y : signals) {
+    for (Eigen::Index m = 0; m < mics; ++m)
+      for (Eigen::Index t = 0; t < samples; ++t) data.push_back(y(m, t));
+  }
+  const std::string file = fmt::format("{:02d}.npy", index);
+  hardware::WriteNpy(dir + "/" + file,
+                     {static_cast<int64_t>(signals.size()), mics, samples}, data);
+  return {{"file", file}, {"rung", rung.name}, {"kind", rung.kind}, {"grid", rung.grid}};
+}
+
 // An FD rung's frequencies are its grid's: those of the modal rung with the most modes there.
 void FrequenciesOfGrids(const std::vector<RungEntry>& rungs, std::vector<RungResult>* results) {
   for (size_t i = 0; i < rungs.size(); ++i) {
@@ -634,9 +682,19 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
   yardstick.band_hz = settings.reference_band_hz;
   const double frequency_max_hz = std::min(10000.0, yardstick.band_hz);
   std::vector<RungResult> results;
-  for (const RungEntry& rung : rungs) {
+  json signal_index = json::array();
+  for (size_t i = 0; i < rungs.size(); ++i) {
+    const RungEntry& rung = rungs[i];
     spdlog::info("fidelity: {} ({})", rung.name, rung.grid);
-    results.push_back(MeasureRung(rung, *rung.build(), ladder, fs, frequency_max_hz, &yardstick));
+    std::vector<Eigen::MatrixXd> signals;  // [strike] (mics x window)
+    results.push_back(
+        MeasureRung(rung, *rung.build(), ladder, fs, frequency_max_hz, &yardstick, &signals));
+    if (!o.signals_dir.empty()) {
+      signal_index.push_back(WriteSignals(o.signals_dir, i, rung, signals));
+    }
+  }
+  if (!o.signals_dir.empty()) {
+    WriteTextAtomic(o.signals_dir + "/index.json", signal_index.dump(1) + "\n");
   }
   FrequenciesOfGrids(rungs, &results);
   const auto [whole_ms, whole_vibration_ms] =
@@ -663,11 +721,14 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
       "yardstick's, median / max |error| (%), with the count of modes each holds there (an FD "
       "rung's are its grid's modes). Signals: sensor strain over the first {:.0f} ms after the "
       "onset, both low-passed at {:.0f} kHz (the yardstick's band), averaged over the strikes: "
-      "first-arrival error (20 % of each channel's peak, mean over channels), inter-channel delay "
-      "error (mean over the 15 pairs / worst pair), relative L2 error, octave-band energy error "
+      "first-arrival error (20 % of each channel's peak; mean over channels and strikes / median, "
+      "and how many channels are more than 50 µs off: there the threshold caught another wave "
+      "packet, because the direct wave's share of the channel's peak differs between the "
+      "models, and such a hop dominates a mean), inter-channel delay error (mean over the 15 "
+      "pairs and the strikes / median / worst pair), relative L2 error, octave-band energy error "
       "(250 Hz–16 kHz, mean |dB|).\n\n{}\n"
       "| rung | discretization | DOFs | modes / oversampling | ms per strike | strikes/s | "
-      "frequency error (%) | arrival error (µs) | delay error mean / max (µs) | relative error | "
+      "frequency error (%) | arrival error mean / median (µs) (channels > 50 µs off) | delay error mean / median / max (µs) | relative error | "
       "band-energy error (dB) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
       o.quick ? " --quick" : "", fs, o.strikes, o.window_s * 1e3, frequency_max_hz / 1e3,
       o.window_s * 1e3, yardstick.band_hz / 1e3, solves_md);
@@ -702,6 +763,9 @@ void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run) {
                                       "time and error of every vibration-model rung "
                                       "against the reference solid");
   fidelity->add_option("--out", o->out, "markdown table (\"\" = print only)");
+  fidelity->add_option("--signals", o->signals_dir,
+                       "also write every rung's compared signals here (NN.npy: strikes x mics x "
+                       "samples; index.json names them)");
   fidelity->add_option("--strikes", o->strikes, "test strikes (1-6)");
   fidelity->add_option("--window-s", o->window_s, "compared signal after the onset, s");
   fidelity->add_option("--reference-band", o->reference_band_hz,

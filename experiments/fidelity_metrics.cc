@@ -1,6 +1,7 @@
 #include "internal/fidelity_metrics.h"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <complex>
 #include <numbers>
@@ -26,10 +27,12 @@ TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
   const double us = 1e6;  // per second
   TimingError e;
   e.arrival_us = (a - b).cwiseAbs().mean() * us;
+  for (Eigen::Index i = 0; i < y.rows(); ++i) e.arrival_errors_us.push_back(std::abs(a[i] - b[i]) * us);
   int pairs = 0;
   for (Eigen::Index i = 0; i < y.rows(); ++i) {
     for (Eigen::Index j = i + 1; j < y.rows(); ++j) {
       const double d = std::abs((a[j] - a[i]) - (b[j] - b[i])) * us;
+      e.delay_errors_us.push_back(d);
       e.delay_us += d;
       e.delay_max_us = std::max(e.delay_max_us, d);
       ++pairs;
@@ -37,6 +40,16 @@ TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
   }
   if (pairs > 0) e.delay_us /= pairs;
   return e;
+}
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const size_t mid = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mid), values.end());
+  const double upper = values[mid];
+  if (values.size() % 2 == 1) return upper;
+  return 0.5 * (upper + *std::max_element(values.begin(),
+                                          values.begin() + static_cast<std::ptrdiff_t>(mid)));
 }
 
 Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double sample_rate_hz) {

@@ -14,6 +14,7 @@ data = json.load(open(src))
 rows = data["rungs"][1:]  # the first row is the yardstick itself
 colours = {"solid": "tab:green", "modal": "tab:blue", "fd": "tab:red", "closed-form": "tab:purple"}
 panels = [("delay_error_us", "inter-channel delay error (µs, mean over pairs)", 20.0),
+          ("delay_error_median_us", "inter-channel delay error (µs, median over pairs)", 20.0),
           ("frequency_median_pct",
            f"frequency error to {data['frequency_max_hz'] / 1000:.0f} kHz (%, median)", 1.0),
           ("band_energy_error_db", "octave-band energy error (dB)", None)]
@@ -30,7 +31,7 @@ def pareto(points):
     return front
 
 
-fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 7))
+fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 7))
 for ax, (key, label, target) in zip(axes, panels):
     pts = [(r["ms_per_strike"], max(r[key], 1e-3)) for r in rows]
     for r, (x, y) in zip(rows, pts):

@@ -4,6 +4,7 @@
 /// at the same instant. Private to experiments.
 
 #include <Eigen/Core>
+#include <vector>
 #include <cstdint>
 
 namespace sonicboom::experiments {
@@ -13,14 +14,21 @@ double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref);
 
 /// Timing of y against ref, microseconds, from each channel's first arrival (the first time its
 /// |signal| reaches 20 % of its own peak, solid::ThresholdArrivals): mean over channels of
-/// |arrival error|, and mean and max over channel pairs of |inter-channel delay error|.
+/// |arrival error|, and mean and max over channel pairs of |inter-channel delay error|; and each
+/// channel's and pair's error, for medians over many strikes (a threshold that lands on another
+/// wave packet in one channel moves its arrival by hundreds of microseconds and dominates a mean).
 struct TimingError {
   double arrival_us{0.0};
   double delay_us{0.0};
   double delay_max_us{0.0};
+  std::vector<double> arrival_errors_us;  // (channels) |arrival error|
+  std::vector<double> delay_errors_us;    // (pairs) |inter-channel delay error|
 };
 TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
                           double sample_rate_hz);
+
+/// Median of the values (NaN when empty).
+double Median(std::vector<double> values);
 
 /// (7) octave-band energies (centres 250 Hz to 16 kHz) summed over channels.
 Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double sample_rate_hz);

@@ -129,7 +129,8 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
   TempDir dir;
   const std::string plot = std::string(SONICBOOM_SOURCE_DIR) + "/scripts/plot_fidelity.py";
   const auto run =
-      RunCli("fidelity --quick --strikes 1 --window-s 0.006 --out F.md --json -q --plot " + plot,
+      RunCli("fidelity --quick --strikes 1 --window-s 0.006 --out F.md --json -q --signals S "
+             "--plot " + plot,
              dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
@@ -168,6 +169,15 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
   EXPECT_TRUE(std::filesystem::exists(dir / "F.md"));
   EXPECT_TRUE(std::filesystem::exists(dir / "F.json"));
   EXPECT_GT(std::filesystem::file_size(dir / "F_pareto.png"), 10000u);
+  // --signals: one array per row (1 strike x 6 mics x the window's samples, float64) and an index
+  std::ifstream index(dir / "S/index.json");
+  ASSERT_TRUE(index) << "no S/index.json";
+  const json signals = json::parse(index);
+  ASSERT_EQ(signals.size(), 16u);
+  EXPECT_EQ(signals[0]["rung"], rungs[0]["rung"]);
+  // header (128 bytes for this shape) plus 1 x 6 x 309 doubles
+  EXPECT_EQ(std::filesystem::file_size(dir / ("S/" + signals[3]["file"].get<std::string>())),
+            128u + 8u * 6u * 309u);
   // bad options are refused before any work, naming them
   const auto bad = RunCli("fidelity --strikes 9 --out F.md", dir.path().string());
   EXPECT_EQ(bad.exit_code, 1);

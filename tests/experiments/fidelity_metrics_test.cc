@@ -43,6 +43,26 @@ TEST(FidelityMetricsTest, TimingErrorsOfAKnownDelay) {
   EXPECT_DOUBLE_EQ(RelativeError(Bursts(none), Bursts(none)), 0.0);
 }
 
+TEST(FidelityMetricsTest, MediansShowWhatOneHoppedChannelHides) {
+  // one channel 20 samples (454 us) late, as when the threshold lands on a later wave packet:
+  // the mean over pairs is 151 us, the median 0; every channel's and pair's error is kept
+  const Eigen::VectorXd none = Eigen::VectorXd::Zero(6);
+  Eigen::VectorXd hop = none;
+  hop[4] = 20.0;
+  const TimingError e = TimingErrorUs(Bursts(hop), Bursts(none), kFs);
+  const double sample_us = 1e6 / kFs;
+  ASSERT_EQ(e.arrival_errors_us.size(), 6u);
+  ASSERT_EQ(e.delay_errors_us.size(), 15u);
+  EXPECT_NEAR(e.arrival_errors_us[4], 20.0 * sample_us, 0.05 * sample_us);
+  EXPECT_NEAR(e.delay_us, 20.0 * 5.0 / 15.0 * sample_us, 0.05 * sample_us);
+  EXPECT_LT(Median(e.delay_errors_us), 0.05 * sample_us);
+  EXPECT_LT(Median(e.arrival_errors_us), 0.05 * sample_us);
+  // the median of an even count is the mean of the middle two; of nothing, NaN
+  EXPECT_DOUBLE_EQ(Median({4.0, 1.0, 3.0, 2.0}), 2.5);
+  EXPECT_DOUBLE_EQ(Median({5.0, 1.0, 3.0}), 3.0);
+  EXPECT_TRUE(std::isnan(Median({})));
+}
+
 TEST(FidelityMetricsTest, LowPassKeepsThePassBandAndStopsTheStopBand) {
   Eigen::MatrixXd y(2, 2000);
   for (int k = 0; k < 2000; ++k) {

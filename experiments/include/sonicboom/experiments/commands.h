@@ -53,6 +53,9 @@ struct FidelityOptions {
   double reference_element_m{0.0135};
   // draws OUT's Pareto figure from OUT's JSON (/usr/bin/python3, matplotlib); "" = no figure
   std::string plot_script{"scripts/plot_fidelity.py"};
+  // "" = none; else every rung's compared signals, DIR/NN.npy (strikes x mics x samples, strain,
+  // low-passed to the yardstick's band) with DIR/index.json naming each rung
+  std::string signals_dir;
 };
 /// The fidelity ladder's speed-accuracy table (docs/fidelity.md): every rung of the shell
 /// (modal, FD) and the reference solid at cheaper settings, timed and measured against the
