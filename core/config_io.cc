@@ -2,7 +2,9 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -10,6 +12,8 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <type_traits>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -81,11 +85,19 @@ namespace {
 
 // Deepest nesting a config may have; the config structs nest four levels at most.
 constexpr int kMaxConfigDepth = 32;
+// Most nodes a config may expand to, aliases followed (the defaults hold about 700): bounds the
+// expansion of nested aliases, which a YAML parser shares but every walk of the tree visits
+constexpr int64_t kMaxConfigNodes = 100000;
 
 // Refuses what a YAML parser accepts but a config cannot mean: a key twice in one mapping, and
 // nesting without end (an alias that refers to its own ancestor makes a cycle).
 void CheckTree(const YAML::Node& node, const std::string& path, const std::string& origin,
-               int depth) {
+               int depth, int64_t* nodes) {
+  if (++*nodes > kMaxConfigNodes) {
+    throw ConfigError(fmt::format(
+        "{}: expands to more than {} nodes (aliases of aliases?); a config is far smaller",
+        origin, kMaxConfigNodes));
+  }
   if (depth > kMaxConfigDepth) {
     const std::string shown = path.size() > 60 ? path.substr(0, 60) + "..." : path;
     throw ConfigError(
@@ -94,7 +106,7 @@ void CheckTree(const YAML::Node& node, const std::string& path, const std::strin
   }
   if (node.IsSequence()) {
     for (size_t i = 0; i < node.size(); ++i) {
-      CheckTree(node[i], fmt::format("{}[{}]", path, i), origin, depth + 1);
+      CheckTree(node[i], fmt::format("{}[{}]", path, i), origin, depth + 1, nodes);
     }
     return;
   }
@@ -109,7 +121,7 @@ void CheckTree(const YAML::Node& node, const std::string& path, const std::strin
     if (!keys.insert(key).second) {
       throw ConfigError(fmt::format("{}: key '{}' appears twice", origin, child));
     }
-    CheckTree(kv.second, child, origin, depth + 1);
+    CheckTree(kv.second, child, origin, depth + 1, nodes);
   }
 }
 
@@ -130,14 +142,21 @@ void ConfigLayers::AddFile(const std::string& path) {
 void ConfigLayers::AddText(const std::string& yaml_text, const std::string& origin) {
   YAML::Node node;
   try {
-    node = YAML::Load(yaml_text);
+    const std::vector<YAML::Node> documents = YAML::LoadAll(yaml_text);
+    if (documents.size() > 1) {
+      throw ConfigError(fmt::format(
+          "{}: holds {} YAML documents ('---' separated); a config is one document", origin,
+          documents.size()));
+    }
+    if (!documents.empty()) node = documents.front();
   } catch (const YAML::Exception& e) {
     throw ConfigError(fmt::format("{}: invalid YAML at line {}, column {}: {}", origin,
                                   e.mark.line + 1, e.mark.column + 1, e.msg));
   }
   if (node.IsNull()) return;
   if (!node.IsMap()) throw ConfigError(fmt::format("{}: a config must be a YAML mapping", origin));
-  CheckTree(node, "", origin, 0);
+  int64_t nodes = 0;
+  CheckTree(node, "", origin, 0, &nodes);
   impl_->Merge(impl_->merged, node, "", origin);
 }
 
@@ -149,6 +168,10 @@ void ConfigLayers::AddOverride(const std::string& assignment) {
   }
   const std::string key = assignment.substr(0, eq);
   const std::string value = assignment.substr(eq + 1);
+  if (value.find_first_not_of(" \t") == std::string::npos) {
+    throw ConfigError(fmt::format(
+        "--set '{}': empty value (give {} a value, or leave the option out)", assignment, key));
+  }
   YAML::Node leaf;
   try {
     leaf = YAML::Load(value);
@@ -169,7 +192,8 @@ void ConfigLayers::AddOverride(const std::string& assignment) {
     node.reset(parent);
   }
   const YAML::Node root = node;
-  CheckTree(root, "", "--set " + assignment, 0);
+  int64_t nodes = 0;
+  CheckTree(root, "", "--set " + assignment, 0, &nodes);
   impl_->Merge(impl_->merged, root, "", "--set " + assignment);
 }
 
@@ -287,21 +311,48 @@ class YamlReadArchive : public Archive {
     frame.visited.insert(std::string(name));
     if (!frame.node || !frame.node.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
     YAML::Node child = frame.node[std::string(name)];
-    if (!child || child.IsNull()) return YAML::Node(YAML::NodeType::Undefined);
+    if (!child) return YAML::Node(YAML::NodeType::Undefined);
+    // "key:" with nothing after it (an empty value, or a section whose keys were left out)
+    if (child.IsNull()) Fail(name, "has no value (an empty value or a bare section)", child);
     return child;
   }
   template <typename T>
   T Convert(const YAML::Node& node, std::string_view name, const char* expected) {
+    T value{};
     try {
       if (!node.IsScalar()) throw YAML::Exception(YAML::Mark::null_mark(), "not a scalar");
-      return node.as<T>();
+      value = node.as<T>();
     } catch (const YAML::Exception&) {
       Fail(name, fmt::format("expected {}", expected), node);
     }
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+      CheckNumberText(name, node, expected);
+      if constexpr (std::is_floating_point_v<T>) {
+        if (!std::isfinite(value)) Fail(name, "expected a finite number", node);
+      }
+    }
+    return value;
+  }
+  // A number written as YAML 1.1 reads it behind the user's back: a leading zero (010 is octal
+  // 8), hexadecimal or octal prefixes
+  void CheckNumberText(std::string_view name, const YAML::Node& node, const char* expected) {
+    const std::string& text = node.Scalar();
+    size_t i = (!text.empty() && (text[0] == '+' || text[0] == '-')) ? 1 : 0;
+    const char next = i + 1 < text.size() ? text[i + 1] : '\0';
+    if (text[i] == '0' && (std::isdigit(static_cast<unsigned char>(next)) ||
+                           std::strchr("xXoObB", next) != nullptr) && next != '\0') {
+      Fail(name,
+           fmt::format("expected {} in plain decimal (a leading zero or a 0x / 0o prefix reads "
+                       "as octal or hexadecimal)",
+                       expected),
+           node);
+    }
   }
   [[noreturn]] void Fail(std::string_view name, const std::string& what, const YAML::Node& node) {
-    std::string shown =
-        node.IsScalar() ? node.Scalar() : (node.IsSequence() ? "a list" : "a mapping");
+    std::string shown = node.IsScalar()     ? node.Scalar()
+                        : node.IsSequence() ? "a list"
+                        : node.IsNull()     ? "nothing"
+                                            : "a mapping";
     throw ConfigError(fmt::format("config key '{}' (from {}): {}, got '{}'", Path(name),
                                   origin_of_(Path(name)), what, shown));
   }

@@ -3,13 +3,20 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <string>
 #include <thread>
+
+#include <fmt/format.h>
+
+#include "sonicboom/core/errors.h"
 
 namespace sonicboom::internal {
 namespace {
@@ -69,6 +76,21 @@ void EnsureAltStack() {
   thread_local AltStack stack;
 }
 
+// SONICBOOM_READ_TIMEOUT_S: plain decimal seconds, 0 (no deadline) or from 0.5 to one day;
+// anything else (a word, a negative or non-finite number, hex) is refused, not read as "off"
+double ParseTimeout(const char* env) {
+  const std::string text(env);
+  const bool plain = text.find_first_not_of("0123456789.eE+-") == std::string::npos;
+  char* end = nullptr;
+  errno = 0;
+  const double v = plain ? std::strtod(env, &end) : -1.0;
+  const bool number = plain && end != env && *end == '\0' && errno == 0 && std::isfinite(v);
+  if (number && (v == 0.0 || (v >= 0.5 && v <= 86400.0))) return v;
+  throw ConfigError(fmt::format(
+      "SONICBOOM_READ_TIMEOUT_S = '{}': expected seconds from 0.5 to 86400, or 0 for no deadline",
+      text));
+}
+
 struct Monitor {
   std::mutex mutex;
   std::map<long long, std::pair<Clock::time_point, std::string>> open;  // id -> (deadline, what)
@@ -77,7 +99,7 @@ struct Monitor {
 
   Monitor() {
     if (const char* env = std::getenv("SONICBOOM_READ_TIMEOUT_S"); env != nullptr && *env) {
-      seconds = std::strtod(env, nullptr);
+      seconds = ParseTimeout(env);
     }
     if (!(seconds > 0.0)) return;
     struct sigaction action {};

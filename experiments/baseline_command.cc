@@ -140,11 +140,11 @@ void RegisterBaseline(CLI::App& app, GlobalOptions& g, Runner* run) {
                        "training dataset (.h5): knn and constant need it; tdoa fits its speed "
                        "scale on it");
   baseline->add_option("--data", o->data, "held-out dataset (.h5)")->required();
-  baseline->add_option("--k", o->k, "knn: neighbours")->check(CLI::PositiveNumber);
+  baseline->add_option("--k", o->k, "knn: neighbours")->check(NumberIn(1, 1e6, false, true));
   baseline
       ->add_option("--gcc-lags", o->knn_gcc_lags,
                    "knn: GCC-PHAT lags each side of zero in the feature vector (0 = none)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NumberIn(0, 1e6, false, true));
   baseline
       ->add_option("--bands", o->bands_hz, "tdoa: band edges in Hz, e.g. 1000,2000,4000,8000,16000")
       ->delimiter(',');
@@ -152,7 +152,7 @@ void RegisterBaseline(CLI::App& app, GlobalOptions& g, Runner* run) {
   baseline->add_flag("--no-fit", o->no_fit, "tdoa: analytic speeds only");
   baseline
       ->add_option("--fit-strikes", o->fit_strikes, "tdoa: training strikes used by the speed fit")
-      ->check(CLI::PositiveNumber);
+      ->check(NumberIn(1, 1e9, false, true));
   baseline->callback([&g, run, o] { *run = [&g, o] { return RunBaseline(g, *o); }; });
 }
 

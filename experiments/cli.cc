@@ -31,9 +31,9 @@ int RunCli(int argc, char** argv) {
   app.add_option("--config", g.sources.files, "YAML config file (repeatable, merged in order)");
   app.add_option("--set", g.sources.overrides, "override one key: dotted.key=value (repeatable)");
   app.add_option("--seed", g.sources.seed, "global seed (sample i uses seed and i)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NumberIn(0, 9.2e18, false, true));
   app.add_option("--threads", g.threads, "worker threads (0 = all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NumberIn(0, 4096, false, true));
   app.add_flag("-v,--verbose", verbose, "more log output (repeatable)");
   app.add_flag("-q,--quiet", g.quiet, "warnings and errors only, no progress");
   app.add_flag("--json", g.json, "machine-readable result on stdout (logs stay on stderr)");

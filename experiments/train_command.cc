@@ -128,9 +128,9 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
   AddEnumOption(train, "--norm", &o->train.norm,
                 "keep | refit the per-mic mel statistics (with --init-from; default keep)");
   train->add_option("--lr", o->lr, "learning rate (sets train.learning_rate)")
-      ->check(CLI::PositiveNumber);
+      ->check(NumberIn(0.0, 1.0, true));
   train->add_option("--epochs", o->epochs, "epochs (sets train.epochs)")
-      ->check(CLI::PositiveNumber);
+      ->check(NumberIn(1, 100000, false, true));
   train->callback([&g, run, o] {
     if (o->lr > 0.0) g.sources.overrides.push_back(fmt::format("train.learning_rate={}", o->lr));
     if (o->epochs > 0) g.sources.overrides.push_back(fmt::format("train.epochs={}", o->epochs));

@@ -6,6 +6,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <optional>
 #include <string>
@@ -31,6 +33,25 @@ CLI::Option* AddEnumOption(CLI::App* app, const std::string& name, E* value,
         *value = *e;
       },
       help);
+}
+
+/// A numeric option's check: a plain finite number in [lo, hi] ((lo, hi] when lo_open), a whole
+/// one when `whole`; its message says so in words (CLI11's range checks print the largest double
+/// in 309 digits and let NaN through).
+inline CLI::Validator NumberIn(double lo, double hi, bool lo_open = false, bool whole = false) {
+  const std::string range = (lo_open ? "(" : "[") + CLI::detail::to_string(lo) + ", " +
+                            CLI::detail::to_string(hi) + "]";
+  const std::string kind = whole ? "a whole number" : "a number";
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        const bool parsed = !text.empty() && end == text.c_str() + text.size() && std::isfinite(v);
+        const bool inside = parsed && (lo_open ? v > lo : v >= lo) && v <= hi &&
+                            (!whole || v == std::floor(v));
+        return inside ? std::string() : "'" + text + "' is not " + kind + " in " + range;
+      },
+      kind + " in " + range);
 }
 
 void RegisterDemo(CLI::App& app, GlobalOptions& g, Runner* run);

@@ -1,8 +1,11 @@
 // Config layers: defaults, files merged in order, --set overrides, strict reading.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+
+#include <fmt/format.h>
 
 #include "common/test_util.h"
 #include "sonicboom/core/config_io.h"
@@ -208,10 +211,12 @@ TEST(ConfigListTest, WrittenYamlReadsBackIdentically) {
   EXPECT_TRUE(FromYaml<ListRoot>(ToYaml(root), "round trip").scene.objects.empty());
 }
 
-TEST(ConfigListTest, AbsentListKeepsDefaults) {
+TEST(ConfigListTest, AbsentListKeepsDefaultsAndAnEmptyOneIsRefused) {
   EXPECT_EQ(ReadList(ConfigLayers()).scene.objects, kDefaultItems);
   EXPECT_EQ(ReadList(TextLayer("scene: {}\n")).scene.objects, kDefaultItems);
-  EXPECT_EQ(ReadList(TextLayer("scene:\n  objects:\n")).scene.objects, kDefaultItems);  // null
+  // an empty value is not read as "keep the defaults": it is refused, naming the key
+  EXPECT_NE(ErrorOf<ListRoot>(TextLayer("scene:\n  objects:\n")).find("scene.objects"),
+            std::string::npos);
 }
 
 TEST(ConfigListTest, PresentListReplacesDefaultsWithDefaultItems) {
@@ -304,6 +309,80 @@ TEST(ConfigTest, CrossFieldChecks) {
   MicArrayConfig mics;
   mics.z_m.pop_back();
   EXPECT_THROW(mics.Validate(TubeConfig{}), ConfigError);
+}
+
+}  // namespace
+}  // namespace sonicboom
+
+namespace sonicboom {
+namespace {
+
+// Numbers and layers read as the user wrote them, or refused naming what went wrong: YAML 1.1's
+// octal and hexadecimal integers, empty values and bare sections, a second document, and a
+// billion-laughs expansion of nested aliases (issue 33).
+// a root with an integer key, as train.epochs
+struct IntRoot {
+  TubeConfig tube;
+  MaterialConfig material;
+  struct Train {
+    int64_t epochs{10};
+    void Serialize(Archive* a) { a->Visit("epochs", &epochs, Bounds::Closed(1, 1000)); }
+  } train;
+  void Serialize(Archive* a) {
+    a->Visit("tube", &tube);
+    a->Visit("material", &material);
+    a->Visit("train", &train);
+  }
+};
+
+TEST(ConfigStrictTest, OctalEmptyValuesSecondDocumentsAndAliasBombsAreRefused) {
+  const auto read_error = [](const std::string& yaml) {
+    ConfigLayers layers;
+    try {
+      layers.AddText(yaml, "strict.yaml");
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return ErrorOf<IntRoot>(layers);
+  };
+  // 010 would read as 8, 0x10 as 16
+  std::string err = read_error("train:\n  epochs: 010\n");
+  EXPECT_NE(err.find("train.epochs"), std::string::npos) << err;
+  EXPECT_NE(err.find("leading zero"), std::string::npos) << err;
+  EXPECT_NE(read_error("train:\n  epochs: 0x10\n").find("leading zero"), std::string::npos);
+  EXPECT_NE(read_error("train:\n  epochs: -012\n").find("leading zero"), std::string::npos);
+  EXPECT_EQ(read_error("train:\n  epochs: 10\n"), "");
+  EXPECT_NE(read_error("tube:\n  length_m: 00.3\n").find("tube.length_m"), std::string::npos);
+  EXPECT_NE(read_error("tube:\n  length_m: .inf\n").find("finite"), std::string::npos);
+  // what stays plain: 0.3, 1400.0, 2.5e-2
+  EXPECT_EQ(read_error("tube:\n  length_m: 0.3\n"), "");
+  EXPECT_EQ(read_error("material:\n  density_kg_m3: 1400.0\n  loss_factor: 2.5e-2\n"), "");
+  // an empty value and a bare section
+  err = read_error("tube:\n  length_m:\n");
+  EXPECT_NE(err.find("tube.length_m"), std::string::npos) << err;
+  EXPECT_NE(err.find("has no value"), std::string::npos) << err;
+  EXPECT_NE(read_error("tube:\n").find("'tube'"), std::string::npos) << read_error("tube:\n");
+  ConfigLayers empty;
+  try {
+    empty.AddOverride("tube.length_m=");
+    ADD_FAILURE() << "--set with an empty value accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("empty value"), std::string::npos) << e.what();
+  }
+  // a second document is not silently dropped
+  err = read_error("tube:\n  length_m: 0.3\n---\ntube:\n  length_m: 0.4\n");
+  EXPECT_NE(err.find("2 YAML documents"), std::string::npos) << err;
+  // ten levels of ten aliases: refused at once, not expanded
+  std::string bomb = "a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n";
+  for (int level = 1; level < 10; ++level) {
+    bomb += fmt::format("a{}: &a{} [", level, level);
+    for (int k = 0; k < 10; ++k) bomb += fmt::format("{}*a{}", k ? ", " : "", level - 1);
+    bomb += "]\n";
+  }
+  const auto start = std::chrono::steady_clock::now();
+  err = read_error(bomb);
+  EXPECT_NE(err.find("expands to more than"), std::string::npos) << err;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2.0);
 }
 
 }  // namespace

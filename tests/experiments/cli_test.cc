@@ -432,6 +432,24 @@ TEST(CliErrorTest, FailedRunKeepsThePreviousFile) {
 
 // Counts and indices outside their limits are refused before anything is written (--first-index -1
 // once wrote index 0, a huge --first-index overflowed, --repeat 1e12 ran for ever).
+TEST(CliErrorTest, NumericOptionsAreFiniteNumbersInWords) {
+  // NaN passed CLI11's positive check and was dropped (the run kept its old rate); 0 was refused
+  // with the largest double in 309 digits
+  TempDir dir;
+  for (const auto& [args, said] : std::vector<std::pair<std::string, std::string>>{
+           {"train --data D.h5 --out R --lr nan", "'nan' is not a number in (0, 1]"},
+           {"train --data D.h5 --out R --lr 0", "'0' is not a number in (0, 1]"},
+           {"train --data D.h5 --out R --lr 1e308", "is not a number in (0, 1]"},
+           {"train --data D.h5 --out R --epochs 0", "is not a whole number in [1, 100000]"},
+           {"train --data D.h5 --out R --epochs 2.5", "is not a whole number"},
+           {"--threads -1 inspect D.h5", "is not a whole number in [0, 4096]"}}) {
+    const auto run = RunCli(args, dir.path().string());
+    EXPECT_EQ(run.exit_code, 2) << args << ": " << run.err;
+    EXPECT_NE(run.err.find(said), std::string::npos) << args << ": " << run.err;
+    EXPECT_EQ(run.err.find("1797693"), std::string::npos) << run.err;
+  }
+}
+
 TEST(CliErrorTest, CountsAndIndicesOutsideTheirLimitsNameTheOption) {
   TempDir dir;
   const std::string cwd = dir.path().string();

@@ -258,6 +258,12 @@ TEST_F(HostileInputTest, FilesLibhdf5FailsOnEndInAnErrorNotAHangOrACrash) {
   ExpectRefused("inspect LOOP.h5", {"LOOP.h5: reading", "does not finish", "corrupted"}, 1);
   ExpectRefused(kShortRecordArgs + "eval --model RUN --data LOOP.h5",
                 {"LOOP.h5", "does not finish"}, 1);
+  // a deadline that is not plain seconds is refused, not read as "none" (it hung) or as one
+  // that overflowed the clock (1e30 fired at once)
+  for (const char* bad : {"abc", "-1", "1e30", "0x10", "nan"}) {
+    setenv("SONICBOOM_READ_TIMEOUT_S", bad, 1);
+    ExpectRefused("inspect LOOP.h5", {"SONICBOOM_READ_TIMEOUT_S", bad}, 1);
+  }
   unsetenv("SONICBOOM_READ_TIMEOUT_S");
   ExpectRefused("inspect OVER.h5", {"OVER.h5: reading the file crashed", "corrupted"}, 1);
   ExpectRefused(kShortRecordArgs + "eval --model RUN --data OVER.h5", {"OVER.h5", "crashed"}, 1);
