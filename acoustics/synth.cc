@@ -214,9 +214,22 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
     return;
   }
 
-  // the discretized shell and its modes (from the cache when solved before)
+  // the discretized shell
   config.shell.Validate(config.tube);
   m.shell = std::make_unique<ShellModel>(config.tube, config.material, config.shell);
+  if (synth.model == VibrationModel::kFd) {
+    // the FD rung steps the grid itself and closes its impacts against it: no modes to solve
+    if (config.randomize.structure()) {
+      throw ConfigError(
+          fmt::format("randomize.structure_variants = {} needs acoustics.model = modal (the "
+                      "variants are Ritz projections of its modes), not fd",
+                      config.randomize.structure_variants));
+    }
+    m.fd = std::make_unique<ShellFd>(*m.shell, audio.sample_rate_hz, synth.fd_oversampling);
+    m.sensor_rows = m.shell->SensorRows(config.mics);
+    return;
+  }
+  // its modes (from the cache when solved before)
   // modes to the configured band; by default what the grid resolves (20 kHz) below Nyquist
   const double mode_band = synth.ModeBandHz(config.audio.sample_rate_hz);
   if (mode_band >= nyquist) {
@@ -240,10 +253,6 @@ StrikeSynthesizer::StrikeSynthesizer(const AcousticModelConfig& config)
                       config.randomize.structure_variants, NameOf(synth.model)));
     }
     m.BuildPool(modes, margin);
-  }
-  if (synth.model == VibrationModel::kFd) {
-    m.fd = std::make_unique<ShellFd>(*m.shell, audio.sample_rate_hz, synth.fd_oversampling);
-    m.sensor_rows = m.shell->SensorRows(config.mics);
   }
 }
 
@@ -379,7 +388,7 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
   const int64_t num_frames = m.c.audio.num_samples();
   RenderedStrike out;
   const bool varied_structure = VariesStructure(variation);
-  if (varied_structure && (!m.bank || m.fd)) {
+  if (varied_structure && m.c.synth.model != VibrationModel::kModal) {
     throw ConfigError(
         "randomize: material, structure and placement ranges need acoustics.model = "
         "modal (the numerical modes vary exactly or by projection; the fd and "
@@ -406,7 +415,7 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
   }
   Eigen::MatrixXd strain;
   const auto t0 = std::chrono::steady_clock::now();
-  if (!m.bank) {
+  if (m.closed_form) {
     out.impulse_ns = impact.impulse_ns;
     out.duration_s = impact.duration_s;
     out.peak_force_n = impact.peak_force_n;

@@ -41,7 +41,7 @@ constexpr double kLabelTolerance = 1e-9;
 
 struct GoldenCase {
   const char* name;
-  std::string args;  // config options before the subcommand
+  std::string args;  // config options before the subcommand; {src} stands for the source tree
   int count;
   int first_index{0};  // (ts3: the first guided taps miss the canopy)
 };
@@ -50,8 +50,17 @@ void PrintTo(const GoldenCase& c, std::ostream* os) {
   *os << c.name;
 }
 
+// (the golden keeps {src}, so that it holds in any checkout)
 std::string Config(const char* file) {
-  return "--config '" + std::string(SONICBOOM_SOURCE_DIR) + "/configs/" + file + "' ";
+  return std::string("--config '{src}/configs/") + file + "' ";
+}
+
+// the options with {src} replaced by this checkout's source tree
+std::string Resolved(std::string args) {
+  const std::string token = "{src}";
+  for (size_t at = args.find(token); at != std::string::npos; at = args.find(token, at))
+    args.replace(at, token.size(), SONICBOOM_SOURCE_DIR);
+  return args;
 }
 
 std::vector<GoldenCase> Cases() {
@@ -165,7 +174,7 @@ TEST_P(GoldenRenderTest, MatchesItsCommittedFingerprint) {
   const GoldenCase& c = GetParam();
   TempDir dir;
   const std::string out = dir / "g.h5";
-  const auto run = RunCli("-q --threads 2 " + c.args + "generate --count " +
+  const auto run = RunCli("-q --threads 2 " + Resolved(c.args) + "generate --count " +
                               std::to_string(c.count) + " --first-index " +
                               std::to_string(c.first_index) + " --out '" + out + "'",
                           dir.path().string());

@@ -29,7 +29,8 @@ inline double ContactBandHz(double band_factor, double first_closure_s) {
 }
 
 /// The vibration model. modal: the discretized shell's numerical modes (shell.h), the production
-/// rung; fd: the finite-difference solver of the same shell, the reference; modal-closed-form:
+/// rung; fd: the finite-difference solver of the same shell, the cross-check (it closes its own
+/// impacts and needs no modes, fd_render.h); modal-closed-form:
 /// ideal simply-supported tube, Flügge modes (the first rung, no seam).
 enum class VibrationModel { kModal, kFd, kModalClosedForm };
 inline constexpr EnumName<VibrationModel> kVibrationModelNames[] = {
@@ -106,8 +107,8 @@ struct RenderedStrike {
 };
 
 /// Immutable acoustic model of one tube + sensor set-up, shared across threads; Render is const
-/// and depends only on its inputs and the sample seed. Building a modal or fd model solves (or
-/// reads from the cache) the shell's modes once.
+/// and depends only on its inputs and the sample seed. Building a modal model solves (or reads
+/// from the cache) the shell's modes once; an fd model sets up its grid's operator.
 class StrikeSynthesizer {
  public:
   explicit StrikeSynthesizer(const AcousticModelConfig& config);
