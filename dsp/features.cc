@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "internal/fftw_util.h"
 #include "sonicboom/core/errors.h"
@@ -405,6 +407,47 @@ void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::Matrix
 
 // ---------------------------------------------------------------------------------------------
 // Onset
+
+StrikeCheck CheckStrike(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
+                        double threshold, double min_peak_to_floor_db, double min_after_s) {
+  StrikeCheck check;
+  const int64_t total = audio.cols();
+  const int64_t frame = std::max<int64_t>(1, std::llround(frame_s * sample_rate_hz));
+  if (total < 3 * frame) {
+    check.reason = fmt::format("the record is {} samples long, under three {:.1f} ms frames",
+                               total, 1e3 * frame_s);
+    return check;
+  }
+  // each channel about its mean (C x T)
+  const Eigen::MatrixXf centred = audio.colwise() - audio.rowwise().mean();
+  // all-channel energy per frame, and its median (the floor) and peak
+  std::vector<double> energies;
+  for (int64_t start = 0; start < total; start += frame) {
+    const int64_t len = std::min(frame, total - start);  // the last frame may be short
+    energies.push_back(centred.middleCols(start, len).cast<double>().squaredNorm());
+  }
+  std::vector<double> sorted = energies;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
+  const double floor = sorted[sorted.size() / 2];
+  const double peak = *std::max_element(energies.begin(), energies.end());
+  check.peak_to_floor_db = peak > 0.0 ? 10.0 * std::log10(peak / std::max(floor, 1e-300)) : 0.0;
+  check.onset_sample = DetectOnset(centred, sample_rate_hz, frame_s, threshold);
+  const double after_s = static_cast<double>(total - check.onset_sample) / sample_rate_hz;
+  if (!(peak > 0.0) || check.peak_to_floor_db < min_peak_to_floor_db) {
+    check.reason = fmt::format(
+        "no strike found: the loudest {:.1f} ms frame stands {:.1f} dB above the record's median "
+        "frame, a strike at least {:.0f} dB (noise or a constant level alone?)",
+        1e3 * frame_s, check.peak_to_floor_db, min_peak_to_floor_db);
+  } else if (after_s < min_after_s) {
+    check.reason = fmt::format(
+        "no strike found: its onset lies {:.1f} ms before the record's end, under the {:.0f} ms "
+        "a strike needs (cut off?)",
+        1e3 * after_s, 1e3 * min_after_s);
+  }
+  check.found = check.reason.empty();
+  return check;
+}
 
 int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
                     double threshold) {

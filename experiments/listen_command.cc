@@ -9,6 +9,7 @@
 #include <memory>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
 #include "internal/report.h"
@@ -16,6 +17,7 @@
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/hardware/stream.h"
@@ -117,6 +119,14 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
     }
     for (const hardware::TriggeredRecord& r : records) {
       if (o.max_events > 0 && events >= o.max_events) break;
+      // a trigger on something that is no strike (noise, a level step) gets no line
+      const dsp::StrikeCheck check = dsp::CheckStrike(
+          r.audio, rate, config.features.onset_frame_s, config.features.onset_threshold);
+      if (!check.found) {
+        spdlog::info("listen: trigger at {:.3f} s skipped: {}", r.onset_frame / rate,
+                     check.reason);
+        continue;
+      }
       const auto start = Clock::now();
       const learning::Prediction p = localizer.Predict(featurizer.Compute(r.audio, no_log)).front();
       const auto done = Clock::now();

@@ -37,10 +37,25 @@ std::span<const EnumName<LocalizeMethod>> EnumNames(LocalizeMethod) {
 
 }  // namespace
 
+namespace {
+
+// A record with no strike in it (noise or a constant level alone, or one cut off at the end) is
+// refused, not answered with a location
+void RequireStrike(const Eigen::MatrixXf& audio, const SonicBoomConfig& config,
+                   const std::string& wav) {
+  const dsp::StrikeCheck check =
+      dsp::CheckStrike(audio, config.audio.sample_rate_hz, config.features.onset_frame_s,
+                       config.features.onset_threshold);
+  if (!check.found) throw NumericalError(fmt::format("{}: {}", wav, check.reason));
+}
+
+}  // namespace
+
 CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav) {
   const SonicBoomConfig config = Resolve(g);
   const auto start = std::chrono::steady_clock::now();
   const hardware::Capture cap = hardware::LoadCapture(wav, "", CaptureChecksFor(config));
+  RequireStrike(cap.audio, config, wav);
   const acoustics::ArrivalLocator locator(TdoaGeometryOf(config), config.arrival,
                                           config.audio.sample_rate_hz);
   const int64_t onset =
@@ -92,6 +107,7 @@ CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
   for (int64_t r = 0; r < repeat; ++r) {
     const auto start = std::chrono::steady_clock::now();
     const hardware::Capture cap = hardware::LoadCapture(wav, proprio_csv, CaptureChecksFor(config));
+    if (r == 0) RequireStrike(cap.audio, config, wav);
     const auto read = std::chrono::steady_clock::now();
     const learning::FeatureSet features = featurizer.Compute(cap.audio, cap.proprio);
     const auto featured = std::chrono::steady_clock::now();

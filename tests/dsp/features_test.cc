@@ -373,6 +373,40 @@ Eigen::MatrixXf StrikeRecord(int64_t total, int64_t onset) {
   return audio;
 }
 
+// A record holds a strike when its loudest frame stands 20 dB over the median one, each channel
+// about its mean, with room after the onset: a burst in noise does, atop a DC offset too; noise
+// alone, a constant level and a burst cut off at the end do not.
+TEST(CheckStrikeTest, BurstsPassNoiseLevelsAndCutOffBurstsFail) {
+  const int64_t n = 26460;
+  Eigen::MatrixXf noise(6, n);
+  uint32_t state = 7;
+  for (int64_t t = 0; t < n; ++t) {
+    for (int c = 0; c < 6; ++c) {
+      state = state * 1664525u + 1013904223u;
+      noise(c, t) = 0.01f * (static_cast<float>(state >> 8) / 16777216.0f - 0.5f);
+    }
+  }
+  const auto with_burst = [&](int64_t at, float offset) {
+    Eigen::MatrixXf x = noise.array() + offset;
+    for (int64_t t = at; t < std::min(n, at + 200); ++t)
+      x.col(t).array() += 0.3f * std::exp(-(t - at) / 50.0f) * std::sin(0.5f * (t - at));
+    return x;
+  };
+  const StrikeCheck strike = CheckStrike(with_burst(11025, 0.0f), kFs, 0.0029, 0.1);
+  EXPECT_TRUE(strike.found) << strike.reason;
+  EXPECT_GT(strike.peak_to_floor_db, 30.0);
+  EXPECT_NEAR(static_cast<double>(strike.onset_sample), 11025.0, 128.0);
+  EXPECT_TRUE(CheckStrike(with_burst(11025, 0.4f), kFs, 0.0029, 0.1).found);
+  const StrikeCheck quiet = CheckStrike(noise, kFs, 0.0029, 0.1);
+  EXPECT_FALSE(quiet.found);
+  EXPECT_LT(quiet.peak_to_floor_db, 3.0);
+  EXPECT_NE(quiet.reason.find("no strike found"), std::string::npos);
+  EXPECT_FALSE(CheckStrike(Eigen::MatrixXf::Constant(6, n, 0.2f), kFs, 0.0029, 0.1).found);
+  const StrikeCheck cut = CheckStrike(with_burst(n - 90, 0.0f), kFs, 0.0029, 0.1);
+  EXPECT_FALSE(cut.found);
+  EXPECT_NE(cut.reason.find("before the record's end"), std::string::npos) << cut.reason;
+}
+
 TEST(FeatureExtractorTest, WindowCentredOnOnsetWithZeroPadding) {
   FeatureConfig config;
   const FeatureExtractor extractor(config, kFs, 6);

@@ -192,7 +192,7 @@ TEST_F(HostileInputTest, WavRecordsAreRefusedNamingFileFrameAndChannel) {
   with("rate.wav", good, 6, 48000);
   std::ofstream(Path("text.wav")) << "not a sound file\n";
   const std::string localize = kShortRecordArgs + "localize --model RUN --wav ";
-  for (const std::string& gating : {"", "--set features.gating=false "}) {
+  for (const char* gating : {"", "--set features.gating=false "}) {
     ExpectRefused(gating + localize + "nan.wav", {"nan.wav: frame 5000", "channel 2 is nan"}, 1);
     ExpectRefused(gating + localize + "inf.wav", {"inf.wav: frame 6000", "channel 1 is inf"}, 1);
   }
@@ -206,6 +206,24 @@ TEST_F(HostileInputTest, WavRecordsAreRefusedNamingFileFrameAndChannel) {
   ExpectRefused(kShortRecordArgs + "features --in nan.wav --out F.h5", {"nan.wav: frame 5000"}, 1);
   ExpectRefused(kShortRecordArgs + "localize --method arrival --wav zero.wav",
                 {"zero.wav: channel 0 is silent"}, 1);
+  // records with no strike in them: noise alone, a constant level, a burst in the last 2 ms
+  std::vector<float> noise = good;
+  for (int t = 11025; t < 11100; ++t) {
+    for (int c = 0; c < 6; ++c) noise[static_cast<size_t>(t) * 6 + c] -= 0.5f;
+  }
+  with("noise.wav", noise);
+  with("dc.wav", std::vector<float>(good.size(), 0.2f));
+  std::vector<float> late = noise;
+  for (int t = 26380; t < 26460; ++t) {
+    for (int c = 0; c < 6; ++c) late[static_cast<size_t>(t) * 6 + c] += 0.5f;
+  }
+  with("late.wav", late);
+  for (const std::string& method : {std::string("--model RUN"), std::string("--method arrival")}) {
+    const std::string run = kShortRecordArgs + "localize " + method + " --wav ";
+    ExpectRefused(run + "noise.wav", {"noise.wav: no strike found", "dB above"}, 1);
+    ExpectRefused(run + "dc.wav", {"dc.wav: no strike found"}, 1);
+    ExpectRefused(run + "late.wav", {"late.wav: no strike found", "before the record's end"}, 1);
+  }
 }
 
 TEST_F(HostileInputTest, RobotLogsAreRefusedNamingLineAndColumn) {

@@ -187,4 +187,19 @@ class GccPhat {
 int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
                     double threshold);
 
+/// Whether a record holds a strike at all: with each channel's mean removed (a DC offset is no
+/// strike), the loudest frame_s frame of the all-channel energy stands at least
+/// min_peak_to_floor_db above the median frame (the floor), and the onset leaves at least
+/// min_after_s of record after it. Noise alone, DC alone, or a strike cut off at the record's
+/// end fail, with `reason` saying which.
+struct StrikeCheck {
+  bool found{false};
+  double peak_to_floor_db{0.0};  // loudest frame over the median frame, dB of energy
+  int64_t onset_sample{0};       // DetectOnset on the mean-removed record
+  std::string reason;            // empty when found
+};
+StrikeCheck CheckStrike(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
+                        double threshold, double min_peak_to_floor_db = 20.0,
+                        double min_after_s = 0.02);
+
 }  // namespace sonicboom::dsp
