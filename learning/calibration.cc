@@ -1,6 +1,7 @@
 // A finished run's calibration refitted on records other than its validation split: e.g. strikes
 // of structures beyond the training pool, or labelled captures of the user's own robot.
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -53,10 +54,11 @@ Recalibration Recalibrate(const std::string& run_dir, const std::vector<Predicti
                                   predictions.size(), truth.size()));
   }
   const int64_t records = UsableRecords(predictions, truth);
-  if (records == 0) {
+  if (records < kMinRecalibrationRecords) {
     throw SchemaError(fmt::format(
-        "{}: no labelled record with a predictive distribution to calibrate on ({})", path,
-        source));
+        "{}: {} labelled records with a predictive distribution in {}; a refit of the two "
+        "scales needs at least {}",
+        path, records, source, kMinRecalibrationRecords));
   }
   nlohmann::json j = internal::ReadJsonFile(path);
   if (!j.is_object()) throw SchemaError(fmt::format("{}: not a JSON object", path));
@@ -68,8 +70,15 @@ Recalibration Recalibrate(const std::string& run_dir, const std::vector<Predicti
     j["uncertainty"] = nlohmann::json::object();
   }
   r.relative = FitUncertaintyCalibration(predictions, truth);
-  r.after = {r.before.z_std_scale * r.relative.z_std_scale,
-             r.before.kappa_scale * r.relative.kappa_scale};
+  // the product kept within the scales' bounds
+  const auto bounded = [](double scale) {
+    return std::clamp(scale, UncertaintyCalibration::kMinScale, UncertaintyCalibration::kMaxScale);
+  };
+  r.after = {bounded(r.before.z_std_scale * r.relative.z_std_scale),
+             bounded(r.before.kappa_scale * r.relative.kappa_scale)};
+  // what the refit applied on top of the stored scales, once bounded
+  r.relative = {r.after.z_std_scale / r.before.z_std_scale,
+                r.after.kappa_scale / r.before.kappa_scale};
   StoreScales(&j["uncertainty"], r.after, source, records);
   internal::WriteFileAtomically(path, j.dump(2) + "\n");
   return r;

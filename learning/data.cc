@@ -424,9 +424,11 @@ ModelFile ModelFileFromJson(const json& j, const std::string& origin) {
 
 UncertaintyCalibration CalibrationFromJson(const json& u, const std::string& origin) {
   auto scale = [&](const char* key) {
+    constexpr double lo = UncertaintyCalibration::kMinScale, hi = UncertaintyCalibration::kMaxScale;
     if (!u.is_object() || !u.contains(key) || !u[key].is_number() ||
-        !std::isfinite(u[key].get<double>()) || !(u[key].get<double>() > 0.0)) {
-      throw SchemaError(fmt::format("{}: 'uncertainty.{}' must be a positive number", origin, key));
+        !(u[key].get<double>() >= lo && u[key].get<double>() <= hi)) {
+      throw SchemaError(fmt::format("{}: 'uncertainty.{}' must be a number in [{:g}, {:g}]",
+                                    origin, key, lo, hi));
     }
     return u[key].get<double>();
   };

@@ -262,7 +262,8 @@ UncertaintyCalibration FitUncertaintyCalibration(const std::vector<Prediction>& 
       truth.theta_rad.size() != truth.z_m.size()) {
     throw SchemaError("FitUncertaintyCalibration: predictions and labels differ in number");
   }
-  constexpr double kMinScale = 1e-4, kMaxScale = 1e4;
+  constexpr double kMinScale = UncertaintyCalibration::kMinScale;
+  constexpr double kMaxScale = UncertaintyCalibration::kMaxScale;
   // Standardized height errors and (kappa, angle error) pairs of the usable records.
   double z_squares = 0.0;
   std::vector<double> kappas, cosines;

@@ -325,7 +325,7 @@ TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   TempDir dir;
   const std::string tiny =
       kShort + testing::kTinyModelArgs + "--set train.epochs=1 --set train.ensemble_members=2 ";
-  auto run = RunCli(tiny + "generate --count 20 --out D.h5 -q", dir.path().string());
+  auto run = RunCli(tiny + "generate --count 30 --out D.h5 -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
@@ -337,7 +337,7 @@ TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   // eval, inspect and localize read the directory as one model
   run = RunCli("eval --model RUN --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
-  EXPECT_EQ(json::parse(run.out)["n"], 20);
+  EXPECT_EQ(json::parse(run.out)["n"], 30);
   // and each member is a run of its own
   run = RunCli("eval --model RUN/member1 --data D.h5 --json -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;

@@ -550,11 +550,11 @@ TEST_F(TrainingTest, UncertaintyIsFiniteAndCalibratedOnValidation) {
   EXPECT_TRUE(lines.back()["val"]["theta_coverage_90"].is_number());
   EXPECT_LT(lines.back()["train_nll"].get<double>(), lines.front()["train_nll"].get<double>());
 
-  // A broken calibration (stds 100 times too small, kappas 10^4 times too large) fails the
-  // bounds above: the Localizer applies what model.json says.
+  // A broken calibration (stds 100 times too small, kappas at the largest scale a file may
+  // hold, 1e4) fails the bounds above: the Localizer applies what model.json says.
   nlohmann::json broken = j;
   broken["uncertainty"]["z_std_scale"] = z_scale / 100.0;
-  broken["uncertainty"]["kappa_scale"] = kappa_scale * 1e4;
+  broken["uncertainty"]["kappa_scale"] = UncertaintyCalibration::kMaxScale;
   WriteModelJson(run, broken);
   const Metrics bad = ComputeMetrics(Localizer(run).Predict(val), val, kRadius);
   EXPECT_LT(bad.z_coverage_90, 0.6);

@@ -345,7 +345,7 @@ TEST(UncertaintyCalibrationTest, RecalibrateMultipliesTheStoredScalesOfAnEnsembl
 TEST(UncertaintyCalibrationTest, RecalibrateRefusesWhatItCannotFitAndStartsFromScalesOne) {
   testing::TempDir dir;
   const std::string file = dir / "ensemble.json";
-  const Synthetic s = MakeSynthetic(10, 37);
+  const Synthetic s = MakeSynthetic(40, 37);
   const std::string run = dir.path().string();
   WriteTextAtomic(file, R"({"members": ["member0"],
                            "uncertainty": {"z_std_scale": 1.0, "kappa_scale": 1.0}})");
@@ -367,6 +367,43 @@ TEST(UncertaintyCalibrationTest, RecalibrateRefusesWhatItCannotFitAndStartsFromS
   EXPECT_EQ(r.before.z_std_scale, 1.0);
   EXPECT_EQ(r.after.z_std_scale, r.relative.z_std_scale);
   EXPECT_EQ(EnsembleCalibration(run).kappa_scale, r.relative.kappa_scale);
+}
+
+TEST(UncertaintyCalibrationTest, RecalibrateNeedsThirtyRecordsAndKeepsItsScalesBounded) {
+  testing::TempDir dir;
+  const std::string file = dir / "ensemble.json";
+  const std::string run = dir.path().string();
+  WriteTextAtomic(file, R"({"members": ["member0"]})");
+  // one strike (it was accepted) and 29 are refused, naming the minimum
+  const Synthetic few = MakeSynthetic(29, 41);
+  try {
+    Recalibrate(run, few.predictions, few.truth, "x.h5");
+    ADD_FAILURE() << "29 records accepted";
+  } catch (const SchemaError& e) {
+    EXPECT_NE(std::string(e.what()).find("needs at least 30"), std::string::npos) << e.what();
+  }
+  // refits on strikes whose angle the predictions do not know push kappa down, one factor per
+  // refit: the stored scale stops at the bound (it reached 1e-32)
+  Synthetic s = MakeSynthetic(60, 43);
+  for (double& theta : s.truth.theta_rad) theta = std::remainder(theta + 2.0, 2.0 * kPi);
+  double kappa = 1.0;
+  for (int refit = 0; refit < 12; ++refit) {
+    const std::vector<Prediction> calibrated =
+        Scaled(s.predictions, EnsembleCalibration(run).z_std_scale, kappa);
+    kappa = Recalibrate(run, calibrated, s.truth, "x.h5").after.kappa_scale;
+    EXPECT_GE(kappa, UncertaintyCalibration::kMinScale);
+  }
+  EXPECT_EQ(kappa, UncertaintyCalibration::kMinScale);
+  // a stored scale out of bounds (a hand-edited 1e308) is refused by every reader
+  WriteTextAtomic(file, R"({"members": ["member0"],
+                           "uncertainty": {"z_std_scale": 1.0, "kappa_scale": 1e308}})");
+  try {
+    EnsembleCalibration(run);
+    ADD_FAILURE() << "kappa_scale 1e308 accepted";
+  } catch (const SchemaError& e) {
+    EXPECT_NE(std::string(e.what()).find("uncertainty.kappa_scale"), std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -151,6 +151,8 @@ struct Prediction {
 /// training and stored in model.json: z_std_m is multiplied by z_std_scale and theta_kappa by
 /// kappa_scale.
 struct UncertaintyCalibration {
+  // every scale a fit returns, a run stores or a file may hold lies within these
+  static constexpr double kMinScale = 1e-4, kMaxScale = 1e4;
   double z_std_scale{1.0};
   double kappa_scale{1.0};
 };
@@ -280,7 +282,8 @@ UncertaintyCalibration EnsembleCalibration(const std::string& run_dir);
 /// A finished run's calibration refitted on other labelled records (`sonicboom calibrate`).
 struct Recalibration {
   UncertaintyCalibration before;    // stored in the run until now
-  UncertaintyCalibration relative;  // fitted on the records, on top of `before`
+  UncertaintyCalibration relative;  // fitted on the records, on top of `before` (as applied:
+                                    // after / before once `after` is bounded)
   UncertaintyCalibration after;     // stored now: before x relative, scale by scale
 };
 /// Fits the scales minimizing the mean NLL of `truth` under `predictions` (the run's own
@@ -288,8 +291,11 @@ struct Recalibration {
 /// the run's stored scales (model.json, or ensemble.json for an ensemble; written atomically)
 /// and records `source` and the record count beside them (a file without scales, written
 /// before calibration existed, counts as scales 1). Later `train --resume` of the run refits on
-/// its validation split again. SchemaError naming the file when no labelled record carries a
-/// predictive distribution, or predictions and labels differ in number.
+/// its validation split again. The stored scales stay within UncertaintyCalibration's bounds
+/// (repeated refits on few strikes drove kappa to 1e-32). SchemaError naming the file when fewer
+/// than kMinRecalibrationRecords labelled records carry a predictive distribution, or
+/// predictions and labels differ in number.
+inline constexpr int64_t kMinRecalibrationRecords = 30;
 Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
                           const FeatureSet& truth, const std::string& source);
 
