@@ -80,7 +80,16 @@ class WallImpact {
     for (Eigen::Index i = 0; i < spec.striker.omega_rad_s.size(); ++i) {
       if (spec.striker.omega_rad_s[i] * h_ < 1.0) modes_.push_back(i);
     }
-    q_ = q_prev_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(modes_.size()));
+    q_ = q_prev_ = q_free_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(modes_.size()));
+    // each stepped mode's response to the step's force, and their sum at the contact
+    q_gain_.resize(q_.size());
+    for (size_t k = 0; k < modes_.size(); ++k) {
+      const Eigen::Index i = modes_[k];
+      const double c = spec.striker.zeta[i] * spec.striker.omega_rad_s[i] * h_;
+      const double phi = spec.striker.phi[i];
+      q_gain_[static_cast<Eigen::Index>(k)] = h_ * h_ * phi / (1 + c);
+      modes_compliance_ += phi * q_gain_[static_cast<Eigen::Index>(k)];
+    }
     CheckResolved(model, sample_rate_hz);
     start_step_ = static_cast<int64_t>(std::ceil(spec.time_s / h_));
     result_.first_sample = static_cast<int64_t>(std::floor(spec.time_s * sample_rate_hz));
@@ -99,30 +108,26 @@ class WallImpact {
     // each body's position at n + 1 without the force, and its compliance to it
     const double tube_free = 2 * tube_ - tube_prev_;
     const double striker_free = 2 * striker_ - striker_prev_;
-    double modes_free = 0.0, modes_compliance = 0.0;
-    Eigen::VectorXd q_free(q_.size()), q_gain(q_.size());
+    double modes_free = 0.0;
     for (size_t k = 0; k < modes_.size(); ++k) {
       const Eigen::Index i = modes_[k];
       const double w = spec_.striker.omega_rad_s[i], c = spec_.striker.zeta[i] * w * h_;
-      const double phi = spec_.striker.phi[i];
       const auto j = static_cast<Eigen::Index>(k);
-      q_free[j] = (2 * q_[j] - (1 - c) * q_prev_[j] - h2 * w * w * q_[j]) / (1 + c);
-      q_gain[j] = h2 * phi / (1 + c);
-      modes_free += phi * q_free[j];
-      modes_compliance += phi * q_gain[j];
+      q_free_[j] = (2 * q_[j] - (1 - c) * q_prev_[j] - h2 * w * w * q_[j]) / (1 + c);
+      modes_free += spec_.striker.phi[i] * q_free_[j];
     }
     const double wall_free = Dot(nodes_, *u_next) - wall_ref_;
     const double d0 = tube_free + wall_free - striker_free - modes_free;
     const double g = h2 * tube_inv_mass_ + wall_compliance_ + h2 * striker_inv_mass_ +
-                     modes_compliance;
+                     modes_compliance_;
     const double force = SolveForce(d0, g);
     // advance every body with it
     tube_prev_ = tube_;
     tube_ = tube_free - h2 * tube_inv_mass_ * force;
     striker_prev_ = striker_;
     striker_ = striker_free + h2 * striker_inv_mass_ * force;
-    q_prev_ = q_;
-    q_ = q_free + force * q_gain;
+    q_prev_.swap(q_);
+    q_ = q_free_ + force * q_gain_;
     for (const auto& [d, w] : nodes_) (*u_next)[d] -= gain[d] * w * force;
     const double delta_next = d0 - g * force;
     Record(next_step - 1, force, delta_next);
@@ -231,6 +236,9 @@ class WallImpact {
   int64_t start_step_{0};
   double tube_{0.0}, tube_prev_{0.0}, striker_{0.0}, striker_prev_{0.0};
   Eigen::VectorXd q_, q_prev_;  // (modes) striker modal coordinates
+  Eigen::VectorXd q_free_;      // (modes) scratch: the coordinates a step gives without force
+  Eigen::VectorXd q_gain_;      // (modes) h^2 phi / (1 + zeta omega h): a step's response to F
+  double modes_compliance_{0.0};  // sum phi q_gain: the striker modes' give within a step, m/N
   double wall_ref_{0.0}, delta_{0.0}, delta_prev_{0.0};  // compressions at n and n - 1, m
   bool touching_{false}, done_{false};
   double first_touch_s_{0.0}, release_s_{0.0};
@@ -265,13 +273,13 @@ class Decimator {
     if (n < half_ || (n - half_) % over_ != 0) return;
     const int64_t k = (n - half_) / over_;
     if (k >= out->cols()) return;
-    // y[k] = sum_j taps[j] s[n - 2 half + j]
-    Eigen::VectorXd y = Eigen::VectorXd::Zero(ring_.rows());
+    // y[k] = sum_j taps[j] s[n - 2 half + j], summed in place (no allocation per sample)
+    auto y = out->col(k);
+    y.setZero();
     for (Eigen::Index j = 0; j < width; ++j) {
       const int64_t m = n - 2 * half_ + j;
       if (m >= 0) y += taps_[j] * ring_.col(m % width);
     }
-    out->col(k) = y;
   }
 
  private:
