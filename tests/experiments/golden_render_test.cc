@@ -97,6 +97,21 @@ std::vector<std::vector<float>> Signs(int64_t n) {
   return signs;
 }
 
+// One channel's energy (sum x^2) and its projections onto the sign sequences
+struct ChannelPrint {
+  double energy{0.0};
+  std::vector<double> projections;  // (kProjections)
+};
+ChannelPrint PrintOf(const std::vector<double>& x, const std::vector<std::vector<float>>& signs) {
+  ChannelPrint p;
+  p.projections.assign(kProjections, 0.0);
+  for (size_t t = 0; t < x.size(); ++t) {
+    p.energy += x[t] * x[t];
+    for (int k = 0; k < kProjections; ++k) p.projections[k] += x[t] * signs[k][t];
+  }
+  return p;
+}
+
 // {label, channels: [{rms, projections}]} of every strike of a dataset
 json Fingerprint(const std::string& path) {
   DatasetReader reader(path);
@@ -106,16 +121,12 @@ json Fingerprint(const std::string& path) {
     json channels = json::array();
     const auto signs = Signs(s.audio.cols());
     for (int c = 0; c < s.audio.rows(); ++c) {
-      double energy = 0.0;
-      std::vector<double> projections(kProjections, 0.0);
-      for (int64_t t = 0; t < s.audio.cols(); ++t) {
-        const double x = s.audio(c, t);
-        energy += x * x;
-        for (int k = 0; k < kProjections; ++k) projections[k] += x * signs[k][t];
-      }
-      channels.push_back({{"rms", std::sqrt(energy / s.audio.cols())},
-                          {"norm", std::sqrt(energy)},
-                          {"projections", projections}});
+      std::vector<double> x(static_cast<size_t>(s.audio.cols()));
+      for (int64_t t = 0; t < s.audio.cols(); ++t) x[static_cast<size_t>(t)] = s.audio(c, t);
+      const ChannelPrint p = PrintOf(x, signs);
+      channels.push_back({{"rms", std::sqrt(p.energy / s.audio.cols())},
+                          {"norm", std::sqrt(p.energy)},
+                          {"projections", p.projections}});
     }
     strikes.push_back({{"index", s.index},
                        {"valid", s.valid},
@@ -218,17 +229,10 @@ TEST(GoldenFingerprintTest, SeesPolarityGainAndDelayButNotRoundOff) {
   for (int64_t t = 0; t < n; ++t)
     x[t] = std::exp(-t / 600.0) * std::sin(0.07 * t) + 0.3 * std::exp(-t / 200.0) * std::sin(0.9 * t);
   const auto signs = Signs(n);
-  const auto project = [&](const std::vector<double>& y) {
-    std::vector<double> p(kProjections, 0.0);
-    for (int64_t t = 0; t < n; ++t)
-      for (int k = 0; k < kProjections; ++k) p[k] += y[t] * signs[k][t];
-    return p;
-  };
-  double norm = 0.0;
-  for (double v : x) norm += v * v;
-  norm = std::sqrt(norm);
+  const double norm = std::sqrt(PrintOf(x, signs).energy);
+  // the fingerprint's own computation (PrintOf), as the golden test applies it
   const auto moved = [&](const std::vector<double>& y) {
-    const auto a = project(x), b = project(y);
+    const auto a = PrintOf(x, signs).projections, b = PrintOf(y, signs).projections;
     double worst = 0.0;
     for (int k = 0; k < kProjections; ++k) worst = std::max(worst, std::abs(a[k] - b[k]));
     return worst / norm;
