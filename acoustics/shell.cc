@@ -8,8 +8,8 @@
 #include <utility>
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 
+#include "sonicboom/core/config_io.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -439,31 +439,25 @@ RayleighFit FitRayleigh(const MaterialConfig& material, const ShellConfig& shell
 }
 
 // The mode cache's key of a structure on an nz x nth grid.
-std::string CacheKey(const TubeConfig& tube, const MaterialConfig& material,
-                     const ShellConfig& shell, int nz, int nth) {
-  // Every field of these structs that sets K or M is in the key (the grid targets through nz
-  // and nth); left out on purpose: the contact region and the damping keys (they change no
-  // mode). A struct that grows fails here, so that its new field is put into the key, or these
-  // sizes updated, on purpose (x86-64 sizes).
-  static_assert(sizeof(TubeConfig) == 48 && sizeof(MaterialConfig) == 32 &&
-                    sizeof(ShellConfig) == 240,
-                "a config struct changed: update ShellModel's cache key and these sizes");
-  std::string key = fmt::format(
-      "shell-v1 R={:.17g} h={:.17g} L={:.17g} E={:.17g} nu={:.17g} rho={:.17g} nz={} nth={} "
-      "ends={} ideal={} seams={} bolts={} kb={:.17g} holes={}/{} dh={:.17g} kf={:.17g} kt={:.17g}",
-      tube.outer_radius_m, tube.wall_thickness_m, tube.length_m, material.youngs_modulus_pa,
-      material.poisson_ratio, material.density_kg_m3, nz, nth, NameOf(shell.ends), shell.ideal,
-      fmt::join(shell.seam_theta_deg, ","), fmt::join(shell.bolt_z_m, ","),
-      shell.bolt_stiffness_n_m, fmt::join(shell.hole_z_m, ","),
-      fmt::join(shell.hole_theta_deg, ","), shell.hole_diameter_m,
-      shell.flange_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2);
-  // keys of structures made before per-bolt scales and ties existed stay as they were
-  if (!shell.bolt_stiffness_scale.empty()) {
-    key += fmt::format(" kbs={:.17g}", fmt::join(shell.bolt_stiffness_scale, ","));
-  }
-  if (shell.bolt_model != BoltModel::kPoint)
-    key += fmt::format(" tie={:.17g}", shell.bolt_tie_length_m);
-  return key;
+std::string CacheKey(TubeConfig tube, MaterialConfig material, ShellConfig shell, int nz,
+                     int nth) {
+  // The key is the serialized sections, so that a field added to any of them enters it without
+  // anyone remembering to: only the fields known to set no mode are reset to their defaults
+  // first (the tube's mount offset and contact region, the loss factor and the damping keys).
+  const TubeConfig tube_defaults;
+  tube.center_from_flange_m = tube_defaults.center_from_flange_m;
+  tube.contact_z_min_m = tube_defaults.contact_z_min_m;
+  tube.contact_z_max_m = tube_defaults.contact_z_max_m;
+  material.loss_factor = MaterialConfig{}.loss_factor;
+  const ShellConfig shell_defaults;
+  shell.damping = shell_defaults.damping;
+  shell.loss_exponent = shell_defaults.loss_exponent;
+  shell.loss_reference_hz = shell_defaults.loss_reference_hz;
+  shell.loss_low_hz = shell_defaults.loss_low_hz;
+  shell.loss_high_hz = shell_defaults.loss_high_hz;
+  shell.loss_factor_high = shell_defaults.loss_factor_high;
+  return fmt::format("shell-v2 nz={} nth={}\ntube:\n{}material:\n{}shell:\n{}", nz, nth,
+                     ToYaml(tube), ToYaml(material), ToYaml(shell));
 }
 
 }  // namespace

@@ -210,6 +210,41 @@ TEST(ShellModesTest, CacheReturnsTheSameModesBitForBit) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(ShellModelTest, CacheKeyFollowsEveryFieldThatSetsAModeAndNoOther) {
+  // the key is the serialized sections: each field that changes K or M changes it, the
+  // damping keys and the contact region do not (the modes stay the same entry)
+  const TubeConfig tube;
+  const MaterialConfig material;
+  ShellConfig coarse;
+  coarse.grid_spacing_m = 0.02;
+  coarse.axial_spacing_m = 0.02;
+  const std::string base = ShellModel(tube, material, coarse).key();
+  const auto key_with = [&](auto edit) {
+    TubeConfig t = tube;
+    MaterialConfig m = material;
+    ShellConfig s = coarse;
+    edit(t, m, s);
+    return ShellModel(t, m, s).key();
+  };
+  using T = TubeConfig;
+  using M = MaterialConfig;
+  using S = ShellConfig;
+  EXPECT_NE(key_with([](T& t, M&, S&) { t.wall_thickness_m *= 1.01; }), base);
+  EXPECT_NE(key_with([](T&, M& m, S&) { m.youngs_modulus_pa *= 1.0 + 1e-12; }), base);
+  EXPECT_NE(key_with([](T&, M& m, S&) { m.density_kg_m3 += 1.0; }), base);
+  EXPECT_NE(key_with([](T&, M&, S& s) { s.bolt_stiffness_scale = {1.0, 2.0, 1.0}; }), base);
+  EXPECT_NE(key_with([](T&, M&, S& s) { s.bolt_model = BoltModel::kTie; }), base);
+  EXPECT_NE(key_with([](T&, M&, S& s) { s.hole_diameter_m = 0.005; }), base);
+  EXPECT_NE(key_with([](T&, M&, S& s) { s.tool_mount_stiffness_n_m2 = 2e6; }), base);
+  EXPECT_EQ(key_with([](T&, M& m, S&) { m.loss_factor = 0.05; }), base);
+  EXPECT_EQ(key_with([](T& t, M&, S&) { t.contact_z_max_m = 0.09; }), base);
+  EXPECT_EQ(key_with([](T&, M&, S& s) {
+              s.loss_exponent = 0.5;
+              s.loss_low_hz = 800.0;
+            }),
+            base);
+}
+
 TEST(ShellModelTest, BadSettingsAreConfigErrors) {
   const TubeConfig tube;
   MaterialConfig material;

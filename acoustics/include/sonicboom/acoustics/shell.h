@@ -133,7 +133,8 @@ class ShellModel {
   /// Tube-frame z of node row i, m.
   double NodeZ(int i) const { return -0.5 * tube_.length_m + i * dz_m_; }
 
-  /// A key of every parameter K, M and the damping depend on (for the mode cache).
+  /// The mode cache's key: the serialized tube, material and shell sections less the fields
+  /// that set no mode (damping, contact region, mount offset), and the grid size.
   const std::string& key() const { return key_; }
 
   const TubeConfig& tube() const { return tube_; }
