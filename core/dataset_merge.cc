@@ -89,10 +89,12 @@ namespace {
 
 // The virtual audio column of a merge: each shard's audio placed at its samples' merged rows,
 // which must be every stride-th row from some start (shards of one generated set interleave so;
-// files of one range each follow one another). Source paths relative to the output's directory.
+// files of one range each follow one another). Source paths relative to the output's directory;
+// `identities` gets a line "path\tidentity" per source, so that a reader knows a shard again.
 std::vector<h5::VirtualSource> AudioSources(
     const std::vector<DatasetFile>& shards,
-    const std::vector<std::tuple<uint64_t, size_t, int64_t>>& order, const std::string& out_path) {
+    const std::vector<std::tuple<uint64_t, size_t, int64_t>>& order, const std::string& out_path,
+    std::string* identities) {
   namespace fs = std::filesystem;
   std::vector<std::vector<hsize_t>> merged_rows(shards.size());
   for (size_t n = 0; n < order.size(); ++n) merged_rows[std::get<1>(order[n])].push_back(n);
@@ -101,6 +103,11 @@ std::vector<h5::VirtualSource> AudioSources(
   for (size_t k = 0; k < shards.size(); ++k) {
     const std::vector<hsize_t>& rows = merged_rows[k];
     if (rows.empty()) continue;
+    if (!h5::VirtualSourceFiles(shards[k].columns().audio.get(), shards[k].path(), kAudioPath)
+             .empty()) {
+      throw SchemaError("merge --virtual: " + shards[k].path() +
+                        " is itself a virtual merge; merge its shards, or merge it by copy");
+    }
     const hsize_t stride = rows.size() > 1 ? rows[1] - rows[0] : 1;
     for (size_t r = 1; r < rows.size(); ++r) {
       if (rows[r] - rows[r - 1] != stride) {
@@ -112,6 +119,7 @@ std::vector<h5::VirtualSource> AudioSources(
     const fs::path source = fs::absolute(shards[k].path()).lexically_relative(out_dir);
     sources.push_back(
         {source.string(), std::string("/") + kAudioPath, rows.size(), rows[0], stride});
+    *identities += source.string() + "\t" + shards[k].ShardIdentity() + "\n";
   }
   return sources;
 }
@@ -213,13 +221,16 @@ void MergeDatasets(const std::vector<std::string>& shard_paths, const std::strin
     // the audio stays in the shards: a virtual column over them replaces the stored one, and
     // every other column is copied
     const hid_t root = out.file_handle.get();
-    const std::vector<h5::VirtualSource> sources = AudioSources(shards, order, out_path);
+    std::string identities;
+    const std::vector<h5::VirtualSource> sources =
+        AudioSources(shards, order, out_path, &identities);
     out.columns.audio.Reset();
     h5::CheckStatus(H5Ldelete(root, kAudioPath, H5P_DEFAULT), out.partial, kAudioPath, "replace");
     out.columns.audio = h5::CreateVirtual(
         root, kAudioPath, out_info.audio_int16 ? H5T_STD_I16LE : H5T_IEEE_F32LE, order.size(),
         {static_cast<hsize_t>(out_info.channels), static_cast<hsize_t>(out_info.audio_frames)},
         sources, out.partial);
+    h5::WriteStringAttr(out.columns.audio.get(), kShardIdentitiesAttr, identities, out.partial);
     h5::WriteDoubleAttr(out.columns.audio.get(), "scale",
                         h5::ReadDoubleAttr(first.columns().audio.get(), "scale", first.path()),
                         out.partial);

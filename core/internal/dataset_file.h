@@ -13,6 +13,7 @@
 
 #include "internal/dataset_schema.h"
 #include "internal/watchdog.h"
+#include "sonicboom/core/cache_file.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::internal::dataset {
@@ -20,7 +21,11 @@ namespace sonicboom::internal::dataset {
 // A complete (or, when allowed, incomplete) dataset file opened for reading.
 class DatasetFile {
  public:
-  DatasetFile(const std::string& path, bool allow_incomplete)
+  // kVirtualSource: the file is a shard a virtual merge reads in place; it may not itself be
+  // a virtual merge (a chain, or a merge naming itself, would never end)
+  enum class Role { kDataset, kVirtualSource };
+
+  DatasetFile(const std::string& path, bool allow_incomplete, Role role = Role::kDataset)
       : guard_(path + ": reading the file"), path_(path) {
     // opening reads only metadata: seconds at most, unless libhdf5 loops on a corrupted file
     const ReadDeadline deadline(path + ": reading the file");
@@ -116,18 +121,7 @@ class DatasetFile {
       }
     }
 
-    // A virtual audio column (merge --virtual) reads its shards where they were: every one there.
-    for (const std::string& source :
-         h5::VirtualSourceFiles(columns_.audio.get(), path, kAudioPath)) {
-      namespace fs = std::filesystem;
-      const fs::path resolved = fs::path(source).is_absolute()
-                                    ? fs::path(source)
-                                    : fs::absolute(path).parent_path() / source;
-      if (!fs::exists(resolved)) {
-        throw SchemaError(path + ": /audio is a virtual dataset over " + resolved.string() +
-                          ", which is missing (a merge --virtual reads its shards in place)");
-      }
-    }
+    CheckVirtualSources(role);
 
     // Shapes: audio (N, C, T) int16 or float32 with `scale`, proprio (N, K, 10).
     const std::vector<hsize_t> audio_dims = h5::Dims(columns_.audio.get(), path, kAudioPath);
@@ -176,6 +170,29 @@ class DatasetFile {
 
   const std::string& path() const { return path_; }
   const DatasetInfo& info() const { return info_; }
+
+  // What a virtual merge records of a shard it reads in place, to know it again: seed, shard,
+  // range, shapes and a digest of the config and of every row's sample index and seed. A shard
+  // rendered again from the same seed and range has the same identity (generation is
+  // deterministic); another seed, range, config or file has another.
+  std::string ShardIdentity() const {
+    const auto n = static_cast<size_t>(info_.num_samples);
+    std::vector<uint64_t> indices(n), seeds(n);
+    if (n > 0) {
+      h5::ReadRows(columns_.sample_index.get(), H5T_NATIVE_UINT64, indices.data(), 0, n, path_,
+                   kSampleIndexPath);
+      h5::ReadRows(columns_.seed.get(), H5T_NATIVE_UINT64, seeds.data(), 0, n, path_, kSeedPath);
+    }
+    uint64_t digest = internal::Fnv1a(info_.config_yaml.data(), info_.config_yaml.size());
+    digest = internal::Fnv1a(indices.data(), sizeof(uint64_t) * n, digest);
+    digest = internal::Fnv1a(seeds.data(), sizeof(uint64_t) * n, digest);
+    std::ostringstream text;
+    text << "seed " << info_.global_seed << ", shard " << info_.shard << " of " << info_.num_shards
+         << ", range " << info_.first_index << "+" << info_.index_count << ", " << n << " x "
+         << info_.channels << " x " << info_.audio_frames << (info_.audio_int16 ? " int16" : " float32")
+         << ", digest " << std::hex << digest;
+    return text.str();
+  }
   int64_t size() const { return info_.num_samples; }
 
   // Index fields, labels and proprio of sample i.
@@ -444,6 +461,57 @@ class DatasetFile {
         throw SchemaError(path_ + ": sample index " + std::to_string(sorted[k].first) +
                           " appears twice (rows " + std::to_string(sorted[k - 1].second) + " and " +
                           std::to_string(sorted[k].second) + ")");
+      }
+    }
+  }
+
+  // A virtual audio column (merge --virtual) reads its shards where they were: every one there,
+  // a plain dataset, and the same shard the merge recorded (libhdf5 would read a missing or
+  // replaced source as silence, or another seed's audio under this file's labels).
+  void CheckVirtualSources(Role role) const {
+    namespace fs = std::filesystem;
+    const std::vector<std::string> sources =
+        h5::VirtualSourceFiles(columns_.audio.get(), path_, kAudioPath);
+    if (sources.empty()) return;
+    if (role == Role::kVirtualSource) {
+      throw SchemaError(path_ + ": a shard read by a virtual merge is itself a virtual merge");
+    }
+    if (!h5::HasAttr(columns_.audio.get(), kShardIdentitiesAttr, path_)) {
+      throw SchemaError(path_ + ": /audio is a virtual dataset without the identities of its " +
+                        "shards (made by an older merge --virtual): merge the shards again");
+    }
+    // one line per shard: its path as stored, a tab, its identity
+    std::istringstream recorded(
+        h5::ReadStringAttr(columns_.audio.get(), kShardIdentitiesAttr, path_));
+    std::vector<std::pair<std::string, std::string>> identities;
+    for (std::string line; std::getline(recorded, line);) {
+      const size_t tab = line.find('\t');
+      if (tab != std::string::npos) identities.emplace_back(line.substr(0, tab), line.substr(tab + 1));
+    }
+    for (const std::string& source : sources) {
+      const fs::path resolved = fs::path(source).is_absolute()
+                                    ? fs::path(source)
+                                    : fs::absolute(path_).parent_path() / source;
+      if (!fs::exists(resolved)) {
+        throw SchemaError(path_ + ": /audio is a virtual dataset over " + resolved.string() +
+                          ", which is missing (a merge --virtual reads its shards in place)");
+      }
+      const auto entry = std::find_if(identities.begin(), identities.end(),
+                                      [&](const auto& id) { return id.first == source; });
+      if (entry == identities.end()) {
+        throw SchemaError(path_ + ": /audio reads " + source + ", whose identity it does not record");
+      }
+      std::string now;
+      try {
+        now = DatasetFile(resolved.string(), false, Role::kVirtualSource).ShardIdentity();
+      } catch (const Error& e) {
+        throw SchemaError(path_ + ": its shard " + resolved.string() +
+                          " (merge --virtual reads it in place) cannot be read: " + e.what());
+      }
+      if (now != entry->second) {
+        throw SchemaError(path_ + ": its shard " + resolved.string() +
+                          " changed since the merge (merge --virtual reads it in place): it was " +
+                          entry->second + ", it is " + now + "; merge the shards again");
       }
     }
   }

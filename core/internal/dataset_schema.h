@@ -16,6 +16,8 @@ namespace h5 = internal::h5;
 
 // Dataset paths below the root.
 constexpr const char* kAudioPath = "audio";
+// attribute of a virtual /audio (merge --virtual): "source path\tshard identity" per line
+constexpr const char* kShardIdentitiesAttr = "shard_identities";
 constexpr const char* kProprioPath = "proprio";
 constexpr const char* kSampleIndexPath = "index/sample_index";
 constexpr const char* kSeedPath = "index/seed";

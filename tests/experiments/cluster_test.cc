@@ -157,6 +157,32 @@ TEST(ClusterTest, VirtualMergeReadsTheShardsInPlace) {
   ExpectSameSamples((moved / "whole.h5").string(), (moved / "virtual.h5").string());
   fs::rename(dir.path() / "shards-away", dir.path() / "shards");
   fs::remove_all(moved);
+  // a shard rendered again from the same seed and range is the same shard
+  fs::remove(dir / "shards/s1.h5");
+  GenerateDataset(config, dir / "shards/s1.h5", 9, 0, 1, 3, 1, false);
+  ExpectSameSamples(dir / "whole.h5", dir / "virtual.h5");
+  // a shard of another seed under the same name: refused, never read under these labels
+  SonicBoomConfig other = config;
+  other.seed = config.seed + 1;
+  fs::remove(dir / "shards/s1.h5");
+  GenerateDataset(other, dir / "shards/s1.h5", 9, 0, 1, 3, 1, false);
+  EXPECT_THAT(ThrownMessage<SchemaError>([&] { DatasetReader reader(dir / "virtual.h5"); }),
+              HasSubstr("s1.h5 changed since the merge"));
+  // garbage under its name: refused naming the shard (libhdf5 would read silence)
+  std::ofstream(dir / "shards/s1.h5", std::ios::trunc) << "not a dataset";
+  EXPECT_THAT(ThrownMessage<SchemaError>([&] { DatasetReader reader(dir / "virtual.h5"); }),
+              HasSubstr("s1.h5 (merge --virtual reads it in place) cannot be read"));
+  // a virtual merge over a virtual merge: refused when made
+  EXPECT_THAT(ThrownMessage<SchemaError>([&] {
+                MergeDatasets({dir / "virtual.h5"}, dir / "chain.h5", /*virtual_audio=*/true);
+              }),
+              HasSubstr("s1.h5"));
+  fs::remove(dir / "shards/s1.h5");
+  GenerateDataset(config, dir / "shards/s1.h5", 9, 0, 1, 3, 1, false);
+  EXPECT_THAT(ThrownMessage<SchemaError>([&] {
+                MergeDatasets({dir / "virtual.h5"}, dir / "chain.h5", /*virtual_audio=*/true);
+              }),
+              HasSubstr("is itself a virtual merge"));
   // a shard gone: refused by name, never read as silence
   fs::remove(dir / "shards/s1.h5");
   EXPECT_THAT(ThrownMessage<SchemaError>([&] { DatasetReader reader(dir / "virtual.h5"); }),
