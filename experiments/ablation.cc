@@ -114,6 +114,8 @@ std::string Join(const std::vector<std::string>& v) {
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
   if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
   if (!fs::exists(o.test)) throw IoError(fmt::format("{}: no such dataset", o.test));
+  RefuseWritingOverInputs(g, {o.out},
+                          {{o.data, "--data"}, {o.test, "--test"}, {o.configs_dir, "--configs"}});
   const std::vector<Variant> variants = ListVariants(o.configs_dir, o.only);
   // resolve every variant first: a bad file fails before any training
   std::vector<SonicBoomConfig> configs;

@@ -48,8 +48,8 @@ std::string PredictionsCsv(const learning::FeatureSet& set,
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
                       const std::string& data, const std::string& predictions_csv, bool force) {
   if (!predictions_csv.empty()) {
-    RefuseOverwritingInput(predictions_csv, data, "--data");
-    CheckOutput(predictions_csv, force);
+    CheckOutput(g, {predictions_csv, "--predictions", force},
+                {{data, "--data"}, {model_dir, "--model"}});
   }
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
   learning::Localizer localizer(model_dir);

@@ -23,6 +23,7 @@ using nlohmann::json;
 CommandResult RunExport(const GlobalOptions& g, const std::string& in, const std::string& out,
                         hardware::AngleConvention angle) {
   if (!fs::exists(in)) throw IoError(fmt::format("{}: no such dataset (--in)", in));
+  RefuseWritingOverInputs(g, {out}, {{in, "--in"}});
   const int64_t n = hardware::ExportTrials(in, out, angle);
   const json j = {{"out", out}, {"trials", n}};
   return {j.dump(), fmt::format("wrote {} trials of {} to {}\n", n, in, out)};

@@ -38,10 +38,8 @@ std::string MelLayout(const dsp::FeatureConfig& f) {
 
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv, bool force) {
-  RefuseOverwritingInput(out, in, "--in");
-  RefuseOverwritingInput(out, proprio_csv, "--proprio");
+  CheckOutput(g, {out, "--out", force}, {{in, "--in"}, {proprio_csv, "--proprio"}});
   const SonicBoomConfig config = Resolve(g);
-  CheckOutput(out, force);
   std::vector<NamedArray> arrays;
   int64_t n = 1;
   learning::FeatureSet set;

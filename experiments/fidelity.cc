@@ -654,6 +654,7 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
   const SonicBoomConfig config = ResolveConfig(g.sources);
   const double fs = config.audio.sample_rate_hz;
   CheckFidelityOptions(o, fs);
+  if (!o.out.empty()) RefuseWritingOverInputs(g, {o.out}, {{o.plot_script, "--plot"}});
   const double onset_s = 0.001;
   LadderStrikes ladder;
   ladder.one_second = static_cast<int64_t>(std::llround(fs));

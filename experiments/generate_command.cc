@@ -76,7 +76,7 @@ CommandResult RunGenerate(const GlobalOptions& g, const std::string& out_pattern
   const ShardAssignment shard = ParseShard(shard_option, num_shards);
   const std::string out = ShardOutputPath(out_pattern, shard);
   RequireParentDir(out);
-  for (const std::string& file : g.sources.files) RefuseOverwritingInput(out, file, "--config");
+  RefuseWritingOverInputs(g, {out, "--out", force}, {});
   const int64_t n = count == kUnset ? config.dataset.count : count;
   const int64_t first = first_index == kUnset ? config.dataset.first_index : first_index;
 

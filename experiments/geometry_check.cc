@@ -100,6 +100,7 @@ double Percentile(std::vector<double> v, double q) {
 CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std::string& out_md,
                                const std::string& scenes_dir) {
   if (count < 1) throw ConfigError(fmt::format("--count {} must be >= 1", count));
+  if (!out_md.empty()) RefuseWritingOverInputs(g, {out_md}, {{scenes_dir, "--scenes"}});
   SonicBoomConfig config = ResolveConfig(g.sources);
   if (config.scene.mode != sim::SceneMode::kStrike &&
       config.scene.mode != sim::SceneMode::kGuided) {

@@ -63,14 +63,10 @@ hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const Import
 CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
   const hardware::Layout layout = o.layout;
   if (!fs::is_directory(o.in)) throw IoError(fmt::format("{}: no such directory (--in)", o.in));
-  if (fs::exists(o.out) && !o.force) {
-    throw IoError(
-        fmt::format("{}: exists; --force replaces it once the new one is complete", o.out));
-  }
-  const fs::path parent = fs::path(o.out).parent_path();
-  if (!parent.empty() && !fs::is_directory(parent)) {
-    throw IoError(fmt::format("{}: directory {} does not exist", o.out, parent.string()));
-  }
+  const std::vector<ReadPath> reads = {{o.in, "--in"}, {o.object, "--object"}};
+  CheckOutput(g, {o.out, "--out", o.force}, reads);
+  // the capture's noise recording is kept beside the dataset
+  RefuseWritingOverInputs(g, {o.out + ".noise.wav", "the noise recording beside --out"}, reads);
 
   // a capture directory's capture.yaml is the first layer over the defaults
   ConfigSources sources = g.sources;

@@ -40,9 +40,13 @@ class SessionWriter {
  public:
   SessionWriter(const std::string& dir, const SonicBoomConfig& config) : dir_(dir) {
     if (dir_.empty()) return;
-    if (fs::exists(fs::path(dir_) / "labels.csv")) {
-      throw IoError(
-          fmt::format("{}: already holds a session (labels.csv); save into a new directory", dir_));
+    // a session goes into a new or empty directory: nothing of the user's is written over
+    std::error_code ec;
+    if (fs::exists(dir_) && !(fs::is_directory(dir_) && fs::is_empty(dir_, ec) && !ec)) {
+      throw IoError(fmt::format("{}: {}; save into a new or empty directory", dir_,
+                                fs::exists(fs::path(dir_) / "labels.csv")
+                                    ? "already holds a session (labels.csv)"
+                                    : fs::is_directory(dir_) ? "is not empty" : "is a file"));
     }
     MakeDirectories(dir_);
     WriteTextAtomic((fs::path(dir_) / "capture.yaml").string(), ConfigToYaml(config));
@@ -75,6 +79,9 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
   if (o.model.empty()) throw ConfigError("listen needs --model RUN");
   if (o.max_events < 0)
     throw ConfigError(fmt::format("--max-events {} must be >= 0", o.max_events));
+  if (!o.save.empty()) {
+    RefuseWritingOverInputs(g, {o.save, "--save"}, {{o.model, "--model"}, {o.wav, "--wav"}});
+  }
   const SonicBoomConfig config = ResolveWithRun(g, o.model);
   const double rate = config.audio.sample_rate_hz;
   const int channels = config.mics.count();

@@ -19,8 +19,9 @@ using nlohmann::json;
 
 CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
                        const std::vector<std::string>& shards, bool virtual_audio, bool force) {
-  for (const std::string& shard : shards) RefuseOverwritingInput(out, shard, "shard");
-  CheckOutput(out, force);
+  std::vector<ReadPath> reads;
+  for (const std::string& shard : shards) reads.push_back({shard, "shard"});
+  CheckOutput(g, {out, "--out", force}, reads);
   MergeDatasets(shards, out, virtual_audio);
   DatasetReader reader(out);
   WriteTextAtomic(out + ".config.yaml", reader.info().config_yaml);

@@ -209,6 +209,7 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
     throw ConfigError(
         fmt::format("--max-frequency must be in (100, 40000] Hz, got {}", o.max_frequency_hz));
   if (!o.out.empty()) {
+    RefuseWritingOverInputs(g, {o.out}, {});
     const std::filesystem::path parent = std::filesystem::absolute(o.out).parent_path();
     if (!std::filesystem::is_directory(parent))
       throw IoError(fmt::format("--out {}: directory {} does not exist", o.out, parent.string()));

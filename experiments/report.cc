@@ -2,7 +2,9 @@
 // base layer, outputs beside their config, and the JSON forms of labels, metrics and predictions.
 #include "internal/report.h"
 
+#include <algorithm>
 #include <chrono>
+#include <iterator>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -39,34 +41,70 @@ void RequireParentDir(const std::string& path) {
   }
 }
 
-void CheckOutput(const std::string& out, bool force) {
-  RequireParentDir(out);
-  if (fs::exists(out) && !force) {
-    throw IoError(fmt::format("{}: exists; --force replaces it once the new one is complete", out));
+namespace {
+
+// an absolute path with every existing part resolved (links, "..", other spellings)
+fs::path Resolved(const std::string& path) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(path), ec);
+  return ec ? fs::absolute(path).lexically_normal() : p;
+}
+
+// `inner` is `outer` or lies below it
+bool Within(const fs::path& inner, const fs::path& outer) {
+  auto [o, i] = std::mismatch(outer.begin(), outer.end(), inner.begin(), inner.end());
+  return o == outer.end() || (std::next(o) == outer.end() && o->empty());
+}
+
+// the same existing file under another name (a hard link), or the same resolved path
+bool SameFile(const std::string& a, const fs::path& resolved_a, const std::string& b,
+              const fs::path& resolved_b) {
+  std::error_code ec;
+  if (fs::exists(a) && fs::exists(b) && fs::equivalent(a, b, ec)) return true;
+  return resolved_a == resolved_b;
+}
+
+void RefuseWritingOver(const Output& out, const ReadPath& in) {
+  if (in.path.empty()) return;
+  const fs::path input = Resolved(in.path);
+  const std::string input_sidecar = in.path + ".config.yaml";
+  for (const std::string& target : {out.path, out.path + ".config.yaml"}) {
+    const fs::path t = Resolved(target);
+    const std::string what = target == out.path ? out.option : "the output's config sidecar";
+    if (SameFile(target, t, in.path, input)) {
+      throw IoError(fmt::format("{}: {} is an input ({} {}); writing it would destroy it", target,
+                                what, in.option, in.path));
+    }
+    if (SameFile(target, t, input_sidecar, Resolved(input_sidecar))) {
+      throw IoError(fmt::format("{}: {} is an input's config sidecar ({} {}); writing it would "
+                                "destroy it",
+                                target, what, in.option, in.path));
+    }
+    if (Within(t, input)) {
+      throw IoError(fmt::format("{}: {} lies inside an input ({} {}), which this command reads",
+                                target, what, in.option, in.path));
+    }
+  }
+  if (Within(input, Resolved(out.path))) {
+    throw IoError(fmt::format("{}: {} holds an input ({} {}); replacing it would destroy it",
+                              out.path, out.option, in.option, in.path));
   }
 }
 
-void RefuseOverwritingInput(const std::string& out, const std::string& in,
-                            const std::string& in_option) {
-  if (in.empty()) return;
-  // the output and its config sidecar, against the input as it is (or would be) on disk
-  for (const std::string& target : {out, out + ".config.yaml"}) {
-    // existing files by identity (links, other spellings); otherwise by normalized path; a path
-    // that cannot be resolved is not claimed to be the input
-    std::error_code ec_in, ec_target;
-    bool same = false;
-    if (fs::exists(in) && fs::exists(target)) {
-      same = fs::equivalent(in, target, ec_in);
-    } else {
-      const fs::path a = fs::weakly_canonical(in, ec_in),
-                     b = fs::weakly_canonical(target, ec_target);
-      same = !ec_in && !ec_target && a == b;
-    }
-    if (same) {
-      throw IoError(fmt::format("{}: {} is an input ({} {}); writing it would destroy it", target,
-                                target == out ? "--out" : "the output's config sidecar", in_option,
-                                in));
-    }
+}  // namespace
+
+void RefuseWritingOverInputs(const GlobalOptions& g, const Output& out,
+                             std::vector<ReadPath> reads) {
+  for (const std::string& file : g.sources.files) reads.push_back({file, "--config"});
+  for (const ReadPath& in : reads) RefuseWritingOver(out, in);
+}
+
+void CheckOutput(const GlobalOptions& g, const Output& out, std::vector<ReadPath> reads) {
+  RequireParentDir(out.path);
+  RefuseWritingOverInputs(g, out, std::move(reads));
+  if (fs::exists(out.path) && !out.force) {
+    throw IoError(
+        fmt::format("{}: exists; --force replaces it once the new one is complete", out.path));
   }
 }
 

@@ -90,8 +90,7 @@ void Render(const solid::ReferenceTube& tube, double sample_rate_hz, int64_t fra
 }  // namespace
 
 CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
-  RefuseOverwritingInput(o.out, o.in, "--in");
-  CheckOutput(o.out, o.force);
+  CheckOutput(g, {o.out, "--out", o.force}, {{o.in, "--in"}});
   if (o.count < 0) throw ConfigError(fmt::format("--count must be >= 0, got {}", o.count));
   const SonicBoomConfig config = ResolveWithDataset(g, o.in);
   DatasetReader reader(o.in);

@@ -28,12 +28,8 @@ CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64
     throw ConfigError(fmt::format("--out {}: a synthesized strike is a .wav file", out_wav));
   }
   const std::string stem = (fs::path(out_wav).parent_path() / fs::path(out_wav).stem()).string();
-  CheckOutput(out_wav, force);
-  CheckOutput(stem + ".json", force);
-  for (const std::string& file : g.sources.files) {
-    RefuseOverwritingInput(out_wav, file, "--config");
-    RefuseOverwritingInput(stem + ".json", file, "--config");
-  }
+  CheckOutput(g, {out_wav, "--out", force}, {});
+  CheckOutput(g, {stem + ".json", "the label beside --out", force}, {});
   if (index < 0) throw ConfigError(fmt::format("--index must be >= 0, got {}", index));
   StrikePipeline pipeline(config);
   const StrikeSample s = pipeline.Simulate(static_cast<uint64_t>(index));

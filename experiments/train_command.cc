@@ -50,7 +50,9 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   if (writes && o.resume && !fs::exists(work) && !fs::exists(o.out)) {
     throw IoError(fmt::format("{}: nothing to resume (neither it nor {} exists)", o.out, work));
   }
-  if (writes && !o.resume) CheckOutput(o.out, o.force);
+  const std::vector<ReadPath> reads = {{o.data, "--data"}, {o.init_from, "--init-from"}};
+  if (writes && !o.resume) CheckOutput(g, {o.out, "--out", o.force}, reads);
+  if (writes && o.resume) RefuseWritingOverInputs(g, {o.out}, reads);
   // the whole dataset is read before anything is written: a damaged file refused, or one that
   // ends the process inside libhdf5 (docs/robustness.md), leaves no OUT.partial behind
   std::vector<uint64_t> indices;

@@ -27,6 +27,8 @@
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
 
+#include "internal/report.h"
+
 namespace sonicboom::experiments {
 namespace {
 
@@ -74,6 +76,7 @@ std::vector<double> Pulse(double fs, double t_c) {
 }  // namespace
 
 CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::string& out_md) {
+  if (!out_md.empty()) RefuseWritingOverInputs(g, {out_md}, {});
   const SonicBoomConfig config = ResolveConfig(g.sources);
   const acoustics::RandomizeConfig& r = config.randomize;
   if (!r.structure()) {

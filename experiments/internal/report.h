@@ -26,15 +26,30 @@ void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config)
 /// IoError unless the parent directory of an output exists.
 void RequireParentDir(const std::string& path);
 
-/// An output a command is about to write (a file, or a run directory): its parent directory must
-/// exist, and an existing one is replaced only with `force` (the new one takes its place once
-/// complete). IoError naming the path otherwise.
-void CheckOutput(const std::string& out, bool force);
+/// A path a command reads (a file or a run or capture directory) and the option that named it.
+struct ReadPath {
+  std::string path;
+  std::string option;  // e.g. "--data", for messages
+};
 
-/// IoError when `out` (or its OUT.config.yaml sidecar) is the input file `in` given by
-/// `in_option`: a command never writes over what it reads. An empty `in` passes.
-void RefuseOverwritingInput(const std::string& out, const std::string& in,
-                            const std::string& in_option);
+/// A path a command is about to write (a file, or a directory it replaces).
+struct Output {
+  std::string path;
+  std::string option{"--out"};
+  bool force{false};  // an existing output is replaced once the new one is complete
+};
+
+/// The one rule for every command's outputs: the output (and its OUT.config.yaml sidecar) may not
+/// be an input, an input's config sidecar, or lie inside an input directory, and may not hold an
+/// input (a directory the command would replace), with or without --force; `reads` are the
+/// command's inputs, the --config files of `g` added. Its parent directory must exist, and an
+/// existing output is replaced only with force. IoError naming both paths otherwise.
+void CheckOutput(const GlobalOptions& g, const Output& out, std::vector<ReadPath> reads);
+
+/// CheckOutput's rule about inputs alone, for commands with their own rule for an existing
+/// output (generate resumes its own .partial; import and export write new directories).
+void RefuseWritingOverInputs(const GlobalOptions& g, const Output& out,
+                             std::vector<ReadPath> reads);
 
 /// What a recorded strike must be for this config (hardware::LoadCapture): one channel per mic,
 /// the audio rate, and at least as long as the shorter of the record and the analysis window.

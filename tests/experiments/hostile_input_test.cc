@@ -91,6 +91,7 @@ class HostileInputTest : public ::testing::Test {
     must(kShortRecordArgs + "-q generate --count 24 --out D.h5");
     must(kShortRecordArgs + kTinyModelArgs + "--set train.epochs=1 -q train --data D.h5 --out RUN");
     must(kShortRecordArgs + "-q synth --out X.wav");
+    must("-q export --layout trial --in D.h5 --out TR");
     for (int s = 0; s < 2; ++s) {
       must(kShortRecordArgs + "-q generate --count 8 --shard " + std::to_string(s) +
            " --num-shards 2 --out S" + std::to_string(s) + ".h5");
@@ -326,6 +327,22 @@ TEST_F(HostileInputTest, OutputsNeverOverwriteInputsOrFinishedWork) {
   ExpectRefused("merge --out S0.h5 S0.h5 S1.h5", {"is an input"}, 1);
   std::ofstream(Path("C.yaml")) << "seed: 3\n";
   ExpectRefused("--config C.yaml generate --count 2 --out C.yaml", {"is an input"}, 1);
+  // --force replaces an old output, never an input, an input's sidecar or anything inside a
+  // directory the command reads, nor a directory that holds an input
+  ExpectRefused("import --layout trial --in TR --out TR/trial0/mic2.wav --force",
+                {"lies inside an input (--in TR)"}, 1);
+  ExpectRefused("eval --model RUN --data D.h5 --predictions RUN/model.json --force",
+                {"lies inside an input (--model RUN)"}, 1);
+  ExpectRefused("eval --model RUN --data D.h5 --predictions D.h5.config.yaml --force",
+                {"is an input's config sidecar (--data D.h5)"}, 1);
+  ExpectRefused(kShortRecordArgs + kTinyModelArgs +
+                    "train --data D.h5 --init-from RUN --out RUN/again --force",
+                {"lies inside an input (--init-from RUN)"}, 1);
+  ExpectRefused(kShortRecordArgs + kTinyModelArgs + "train --data TR/../D.h5 --out . --force",
+                {"holds an input (--data TR/../D.h5)"}, 1);
+  ExpectRefused("export --layout trial --in D.h5 --out .", {"holds an input (--in D.h5)"}, 1);
+  ExpectRefused("listen --model RUN --wav X.wav --save RUN", {"is an input (--model RUN)"}, 1);
+  ExpectRefused("listen --model RUN --wav X.wav --save TR", {"TR: is not empty"}, 1);
   // finished outputs need --force
   ExpectRefused(kShortRecordArgs + "synth --out X.wav", {"X.wav: exists; --force"}, 1);
   ExpectRefused(kShortRecordArgs + "synth --out RUN/model.pt", {".wav"}, 1);
