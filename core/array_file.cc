@@ -62,7 +62,7 @@ void WriteArrayFile(const std::string& path, const std::string& schema,
       throw IoError(path + ": root attribute `" + name + "` is reserved");
     }
   }
-  h5::PrepareAtomicWrite(path);
+  const OutputLock lock = h5::PrepareAtomicWrite(path);
   const std::string partial = h5::PartialPath(path);
   h5::Handle file = h5::CreateFile(partial);
 

@@ -293,6 +293,7 @@ std::unique_ptr<DatasetWriter> ResumeDatasetWriter(
     const std::function<bool(int64_t row, uint64_t index)>& expected, int64_t* kept) {
   namespace fs = std::filesystem;
   *kept = 0;
+  const OutputLock lock(path);  // before the partial is moved aside: it may be another writer's
   const std::string partial = h5::PartialPath(path), resume = path + ".resume";
   std::error_code ec;
   // an interrupted copy left both: the .resume file is the whole source, the partial a copy

@@ -122,7 +122,7 @@ DatasetWriter::DatasetWriter(const std::string& path, const DatasetInfo& info, b
   s.partial = h5::PartialPath(path);
   s.info = info;
   if (s.info.software_version.empty()) s.info.software_version = SONICBOOM_VERSION;
-  h5::PrepareAtomicWrite(path);
+  s.lock.emplace(h5::PrepareAtomicWrite(path));
   s.file_handle = h5::CreateFile(s.partial);
   s.string_type = h5::VlenStringType();
   const hid_t root = s.file_handle.get();

@@ -1,9 +1,18 @@
 #include "sonicboom/core/files.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -66,5 +75,87 @@ std::string UtcTimestamp() {
   std::strftime(buf, sizeof(buf), "%Y%m%d-%H%M%S", &tm);
   return buf;
 }
+
+// A lock file this process holds, and how many OutputLocks share it.
+struct OutputLock::Held {
+  std::string lock_path;
+  int fd{-1};
+  pid_t owner{-1};  // a forked child inherits the table, not the lock
+  ~Held() {
+    // unlinked while still locked: a process that opened it meanwhile finds it gone and retries
+    ::unlink(lock_path.c_str());
+    ::close(fd);
+  }
+};
+
+namespace {
+
+std::mutex held_mutex;
+std::map<std::string, std::weak_ptr<OutputLock::Held>>& HeldLocks() {
+  static std::map<std::string, std::weak_ptr<OutputLock::Held>> held;
+  return held;
+}
+
+// the pid a holder wrote into its lock file, or "?"
+std::string HolderPid(int fd) {
+  char buffer[32] = {};
+  const ssize_t n = ::pread(fd, buffer, sizeof(buffer) - 1, 0);
+  return n > 0 ? std::string(buffer, static_cast<size_t>(n)) : std::string("?");
+}
+
+}  // namespace
+
+OutputLock::OutputLock(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path resolved = fs::weakly_canonical(fs::absolute(path), ec);
+  if (ec) resolved = fs::absolute(path).lexically_normal();
+  const std::string lock_path = resolved.string() + ".lock";
+  const std::lock_guard<std::mutex> guard(held_mutex);
+  std::weak_ptr<Held>& entry = HeldLocks()[lock_path];
+  if ((held_ = entry.lock()) && held_->owner == ::getpid()) return;  // this process holds it
+  held_.reset();
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0) {
+      throw IoError(fmt::format("{}: cannot create the lock file {}: {}", path, lock_path,
+                                std::strerror(errno)));
+    }
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      const std::string pid = HolderPid(fd);
+      ::close(fd);
+      throw IoError(fmt::format(
+          "{}: another process (pid {}) is writing it; wait for it to finish, or write "
+          "another output",
+          path, pid));
+    }
+    // the file locked must still be the one at the path (a releasing holder unlinks it)
+    struct stat locked {}, named {};
+    if (::fstat(fd, &locked) != 0 || ::stat(lock_path.c_str(), &named) != 0 ||
+        locked.st_ino != named.st_ino || locked.st_dev != named.st_dev) {
+      ::close(fd);
+      continue;
+    }
+    const std::string pid = std::to_string(::getpid());
+    if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, pid.data(), pid.size(), 0) < 0) {
+      // the pid is only for messages; the lock holds without it
+    }
+    held_ = std::make_shared<Held>();
+    held_->lock_path = lock_path;
+    held_->fd = fd;
+    held_->owner = ::getpid();
+    entry = held_;
+    return;
+  }
+  throw IoError(fmt::format("{}: cannot take the lock file {} (it keeps being replaced)", path,
+                            lock_path));
+}
+
+OutputLock::~OutputLock() {
+  const std::lock_guard<std::mutex> guard(held_mutex);
+  held_.reset();
+}
+OutputLock::OutputLock(OutputLock&&) noexcept = default;
+OutputLock& OutputLock::operator=(OutputLock&&) noexcept = default;
 
 }  // namespace sonicboom

@@ -215,16 +215,18 @@ std::string PartialPath(const std::string& path) {
   return path + ".partial";
 }
 
-void PrepareAtomicWrite(const std::string& path) {
+OutputLock PrepareAtomicWrite(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::path parent = fs::path(path).parent_path();
   if (!parent.empty() && !fs::is_directory(parent, ec)) {
     throw IoError(path + ": parent directory " + parent.string() + " does not exist");
   }
+  OutputLock lock(path);  // before the stale partial goes: it may be another writer's
   const std::string partial = PartialPath(path);
   fs::remove(partial, ec);
   if (ec) throw IoError(partial + ": cannot remove stale file: " + ec.message());
+  return lock;
 }
 
 void CommitAtomicWrite(const std::string& path) {

@@ -67,6 +67,9 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
     return {j.dump(), fmt::format("rank {} of {}: trained in data parallel; rank 0 writes {}\n",
                                   parallel.rank, parallel.world_size, o.out)};
   }
+  // one trainer of a run at a time: a second refuses instead of deleting the first's OUT.partial
+  // (taken once the data is read: a file that crashes libhdf5 leaves no lock file behind)
+  const OutputLock lock(o.out);
   std::error_code ec;
   if (o.resume && !fs::exists(work)) {
     // more epochs for a finished run: in a copy, which replaces it once done

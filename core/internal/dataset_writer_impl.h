@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -12,6 +13,7 @@
 namespace sonicboom {
 
 struct DatasetWriter::Impl {
+  std::optional<OutputLock> lock;  // first: released last, after the file is in place
   std::string path;
   std::string partial;
   DatasetInfo info;

@@ -11,6 +11,8 @@
 #include <string_view>
 #include <vector>
 
+#include "sonicboom/core/files.h"
+
 namespace sonicboom::internal::h5 {
 
 /// Turns off HDF5's printing of its error stack (once per process); every failure is reported
@@ -54,9 +56,10 @@ void CheckStatus(herr_t status, std::string_view file, std::string_view object,
 
 /// The name a file is written under until it is complete: "<path>.partial".
 std::string PartialPath(const std::string& path);
-/// Before writing `path`: IoError when its parent directory does not exist; removes a stale
-/// "<path>.partial". An existing complete file at `path` is left alone.
-void PrepareAtomicWrite(const std::string& path);
+/// Before writing `path`: IoError when its parent directory does not exist or another process
+/// is writing it; removes a stale "<path>.partial". An existing complete file at `path` is left
+/// alone. The returned lock is held until the file is committed.
+OutputLock PrepareAtomicWrite(const std::string& path);
 /// Renames "<path>.partial" over `path`. Throws IoError.
 void CommitAtomicWrite(const std::string& path);
 /// True when the root of `file` has the attribute `complete` equal to 1.

@@ -16,6 +16,7 @@
 #include "experiments/dataset_expect.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/experiments/pipeline.h"
 
 namespace sonicboom::experiments {
@@ -133,6 +134,39 @@ TEST(ClusterTest, AnInterruptedShardResumesFromItsPartialFile) {
   }
   EXPECT_EQ(GenerateDataset(config, dir / "e.h5", 10, 0, 0, 1, 2, false).resumed, 0);
   ExpectSameSamples(dir / "whole.h5", dir / "e.h5");
+}
+
+// Two writers of one output: the second refuses (a lock) and leaves the first's work alone
+// (it used to delete the first's .partial and start over).
+TEST(ClusterTest, ASecondWriterOfAnOutputRefusesAndLeavesTheFirstsWork) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  std::ofstream(dir / "G.h5.partial") << "the first writer's samples";
+  const OutputLock first(dir / "G.h5");  // this test process is the first writer
+  const std::string pid = "pid " + std::to_string(::getpid());
+  for (const char* command :
+       {"generate --count 2 --out G.h5", "generate --count 2 --out G.h5 --force"}) {
+    const auto run = RunCli(sonicboom::testing::kShortRecordArgs + command, cwd);
+    EXPECT_EQ(run.exit_code, 1) << command << "\n" << run.err;
+    EXPECT_THAT(run.err, HasSubstr("G.h5: another process (" + pid + ") is writing it"))
+        << command;
+  }
+  std::ifstream partial(dir / "G.h5.partial");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(partial), {}), "the first writer's samples");
+  EXPECT_FALSE(fs::exists(dir / "G.h5"));
+  // a run being trained: a second trainer refuses and leaves its R.partial
+  ASSERT_EQ(RunCli(sonicboom::testing::kShortRecordArgs + "-q generate --count 8 --out D.h5", cwd)
+                .exit_code,
+            0);
+  fs::create_directories(dir / "R.partial");
+  std::ofstream(dir.path() / "R.partial" / "checkpoint.pt") << "the first trainer's checkpoint";
+  const OutputLock trainer(dir / "R");
+  const auto run = RunCli(sonicboom::testing::kShortRecordArgs + sonicboom::testing::kTinyModelArgs +
+                              "--set train.epochs=1 train --data D.h5 --out R",
+                          cwd);
+  EXPECT_EQ(run.exit_code, 1) << run.err;
+  EXPECT_THAT(run.err, HasSubstr("R: another process (" + pid + ") is writing it"));
+  EXPECT_TRUE(fs::exists(dir.path() / "R.partial" / "checkpoint.pt"));
 }
 
 TEST(ClusterTest, VirtualMergeReadsTheShardsInPlace) {

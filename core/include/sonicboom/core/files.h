@@ -1,6 +1,7 @@
 #pragma once
 /// Small file helpers shared by every writer: atomic text files and checked reads.
 
+#include <memory>
 #include <string>
 
 namespace sonicboom {
@@ -16,6 +17,24 @@ void MakeDirectories(const std::string& path);
 /// aside (to "<path>.replaced"), `finished` renamed to `path`, then the old one removed; a
 /// reader never meets a half-written directory under `path`. Throws IoError naming the paths.
 void ReplaceDirectory(const std::string& finished, const std::string& path);
+/// The one writer of an output: an exclusive lock on "<path>.lock" (flock), held while the object
+/// lives and shared by every OutputLock of the same path in this process. A second process that
+/// asks for it gets IoError naming the path and the holder's pid, so that two commands writing
+/// one output never delete or interleave each other's work. The lock file is removed on release;
+/// one left by a killed process holds no lock and is taken over.
+class OutputLock {
+ public:
+  explicit OutputLock(const std::string& path);
+  ~OutputLock();
+  OutputLock(OutputLock&&) noexcept;
+  OutputLock& operator=(OutputLock&&) noexcept;
+
+  struct Held;
+
+ private:
+  std::shared_ptr<Held> held_;
+};
+
 /// Current UTC time as YYYYmmdd-HHMMSS.
 std::string UtcTimestamp();
 

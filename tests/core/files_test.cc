@@ -1,0 +1,77 @@
+// One writer per output: OutputLock against a second process and within one process.
+#include "sonicboom/core/files.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "sonicboom/core/errors.h"
+
+namespace sonicboom {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+// Exit status of a forked child that tries to take the lock on `path`: 0 taken, 1 refused
+// naming the path and this (the holder's) pid, 2 refused otherwise.
+int ChildTakes(const std::string& path) {
+  const pid_t holder = ::getpid();
+  const pid_t child = ::fork();
+  if (child == 0) {
+    int code = 0;
+    try {
+      const OutputLock lock(path);
+    } catch (const IoError& e) {
+      const std::string what = e.what();
+      code = what.find(path) != std::string::npos &&
+                     what.find("pid " + std::to_string(holder)) != std::string::npos
+                 ? 1
+                 : 2;
+    }
+    ::_exit(code);
+  }
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(OutputLockTest, OneProcessWritesAnOutput) {
+  const fs::path dir = fs::temp_directory_path() / ("sb_lock_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string out = (dir / "D.h5").string();
+  {
+    const OutputLock lock(out);
+    EXPECT_TRUE(fs::exists(out + ".lock"));
+    // held here: another process is refused, naming the output and the holder
+    EXPECT_EQ(ChildTakes(out), 1);
+    // within this process the lock is shared (the dataset writer takes it after resume did)
+    { const OutputLock again(out); }
+    EXPECT_EQ(ChildTakes(out), 1);
+    // another output is free
+    EXPECT_EQ(ChildTakes((dir / "E.h5").string()), 0);
+  }
+  // released: the lock file is gone and another process takes it
+  EXPECT_FALSE(fs::exists(out + ".lock"));
+  EXPECT_EQ(ChildTakes(out), 0);
+  // a lock file a killed process left behind holds nothing
+  std::ofstream(out + ".lock") << "12345";
+  EXPECT_EQ(ChildTakes(out), 0);
+  // a directory that cannot hold the lock file: refused naming it
+  try {
+    const OutputLock lock((dir / "missing" / "F.h5").string());
+    ADD_FAILURE() << "no error";
+  } catch (const IoError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("F.h5.lock"));
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace sonicboom
