@@ -18,6 +18,7 @@
 #include <fmt/format.h>
 
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 
 namespace sonicboom {
 
@@ -132,6 +133,7 @@ void ConfigLayers::AddFile(const std::string& path) {
   if (std::filesystem::is_directory(path)) {
     throw IoError(fmt::format("{}: is a directory, not a config file", path));
   }
+  RequireReadableFile(path);
   std::ifstream in(path);
   if (!in) throw IoError(fmt::format("{}: cannot read config file", path));
   std::stringstream text;

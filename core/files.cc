@@ -25,10 +25,21 @@ void WriteTextAtomic(const std::string& path, const std::string& text) {
   const std::string partial = path + ".partial";
   {
     std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-    if (!out) throw IoError(fmt::format("{}: cannot write (does its directory exist?)", path));
+    if (!out) {
+      throw IoError(fmt::format("{}: cannot write {}: {}", path, partial, std::strerror(errno)));
+    }
     out << text;
     out.flush();
-    if (!out) throw IoError(fmt::format("{}: write failed", path));
+    const int err = errno;
+    out.close();
+    if (!out) {
+      // a full disk: nothing half-written left behind, nothing under the final name
+      std::error_code ec;
+      std::filesystem::remove(partial, ec);
+      throw IoError(fmt::format("{}: write failed: {}", path,
+                                err == ENOSPC ? "no space left on device (the disk is full)"
+                                              : std::strerror(err)));
+    }
   }
   std::error_code ec;
   std::filesystem::rename(partial, path, ec);
@@ -36,12 +47,33 @@ void WriteTextAtomic(const std::string& path, const std::string& text) {
 }
 
 std::string ReadText(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw IoError(fmt::format("{}: no such file", path));
+  RequireReadableFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(fmt::format("{}: cannot read", path));
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
+}
+
+void RequireReadableFile(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    const int err = errno;
+    if (err == ENOENT) throw IoError(fmt::format("{}: no such file", path));
+    throw IoError(fmt::format("{}: cannot be read: {}", path, std::strerror(err)));
+  }
+  if (S_ISDIR(st.st_mode)) throw IoError(fmt::format("{}: is a directory", path));
+  if (!S_ISREG(st.st_mode)) {
+    const char* kind = S_ISFIFO(st.st_mode)  ? "a FIFO"
+                       : S_ISCHR(st.st_mode) ? "a character device"
+                       : S_ISBLK(st.st_mode) ? "a block device"
+                       : S_ISSOCK(st.st_mode) ? "a socket"
+                                              : "not a regular file";
+    throw IoError(fmt::format("{}: is {}, not a regular file; refused before reading", path, kind));
+  }
+  if (::access(path.c_str(), R_OK) != 0) {
+    throw IoError(fmt::format("{}: cannot be read: {}", path, std::strerror(errno)));
+  }
 }
 
 void MakeDirectories(const std::string& path) {

@@ -115,6 +115,14 @@ hsize_t Elements(const std::vector<hsize_t>& dims, hsize_t rows) {
 
 }  // namespace
 
+namespace {
+// No library shutdown at exit: a file whose close failed (a full disk) stays open inside
+// libhdf5, and its shutdown would try again and crash after the error was reported. The
+// process's files are closed by the kernel; what was written is what a .partial holds.
+// Must run before any other call into the library, hence a static initializer.
+[[maybe_unused]] const bool kNoShutdownAtExit = H5dont_atexit() >= 0;
+}  // namespace
+
 void SilenceErrorPrinting() {
   // The library is thread-safe, so the automatic printing setting is per thread.
   thread_local bool silenced = false;
@@ -197,6 +205,10 @@ void ThrowIo(std::string_view file, std::string_view object, std::string_view ac
     message += object;
   }
   const std::string detail = InnermostHdf5Message();
+  // a full disk is said in words (libhdf5's message is a page of buffer addresses)
+  if (detail.find("errno = 28,") != std::string::npos) {
+    throw IoError(message + ": no space left on device (the disk is full)");
+  }
   if (!detail.empty()) message += " (HDF5: " + detail + ")";
   throw IoError(message);
 }
@@ -251,9 +263,7 @@ Handle CreateFile(const std::string& path) {
 
 Handle OpenFileReadOnly(const std::string& path) {
   SilenceErrorPrinting();
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw IoError(path + ": no such file");
-  if (std::filesystem::is_directory(path, ec)) throw IoError(path + ": is a directory");
+  RequireReadableFile(path);
   if (H5Fis_hdf5(path.c_str()) <= 0) {
     H5Eclear2(H5E_DEFAULT);
     throw IoError(path + ": not an HDF5 file");

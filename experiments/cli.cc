@@ -78,6 +78,11 @@ int RunCli(int argc, char** argv) {
   } catch (const Error& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // the file system refused a path the user gave (permissions, a name too long, a link loop)
+    const std::string path = e.path1().empty() ? std::string("a path") : e.path1().string();
+    std::fprintf(stderr, "error: %s: %s\n", path.c_str(), e.code().message().c_str());
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "internal error: %s\n", e.what());
     return 3;

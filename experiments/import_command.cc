@@ -79,6 +79,16 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
                       rig.string()));
     }
     sources.files.insert(sources.files.begin(), rig.string());
+    // the capture's own file names nothing outside it: a path it gives is refused here (the
+    // import sets features.gating_noise_wav itself from the capture's noise.wav)
+    ConfigSources rig_only;
+    rig_only.files = {rig.string()};
+    if (!ResolveConfig(rig_only).features.gating_noise_wav.empty()) {
+      throw IoError(fmt::format(
+          "{}: features.gating_noise_wav names a file; a capture's no-contact clip is its "
+          "noise.wav, found by the import",
+          rig.string()));
+    }
   }
   SonicBoomConfig config = ResolveConfig(sources);
   if (layout == hardware::Layout::kCapture && fs::exists(fs::path(o.in) / "noise.wav")) {

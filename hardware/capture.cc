@@ -1,6 +1,8 @@
 #include "sonicboom/hardware/capture.h"
 
+#include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -11,6 +13,7 @@
 
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 
 namespace sonicboom::hardware {
 namespace {
@@ -56,14 +59,24 @@ void CheckPlausibleRow(const std::string& path, int line_no, const std::array<do
 }  // namespace
 
 Eigen::MatrixXf ReadProprioCsv(const std::string& path) {
+  RequireReadableFile(path);
   std::ifstream in(path);
   if (!in) throw IoError(fmt::format("{}: cannot open robot log", path));
   std::string line;
   if (!std::getline(in, line)) throw IoError(fmt::format("{}: empty robot log", path));
   if (!line.empty() && line.back() == '\r') line.pop_back();
   if (line != kProprioHeader) {
-    throw IoError(
-        fmt::format("{}:1: expected header '{}', found '{}'", path, kProprioHeader, line));
+    // a header-like line is shown; anything else (another kind of file) is not echoed
+    const bool header_like =
+        line.size() <= 200 && std::all_of(line.begin(), line.end(), [](char c) {
+          return std::islower(static_cast<unsigned char>(c)) ||
+                 std::isdigit(static_cast<unsigned char>(c)) || c == '_' || c == ',';
+        });
+    throw IoError(fmt::format("{}:1: expected header '{}', found {}", path, kProprioHeader,
+                              header_like ? "'" + line + "'"
+                                          : fmt::format("a line of {} characters that is not a "
+                                                        "CSV header (not a robot log?)",
+                                                        line.size())));
   }
   // rows of 11 numbers; the time column is checked, then dropped
   std::vector<std::array<float, 10>> rows;

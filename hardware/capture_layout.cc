@@ -39,11 +39,34 @@ double Number(const std::string& cell, const std::string& where, const std::stri
   throw IoError(fmt::format("{}: {} '{}' is not a number", where, column, cell));
 }
 
-// One labels.csv row as a capture: its WAV, label, contact names and optional robot log.
+}  // namespace
+
+fs::path InsideCapture(const fs::path& dir, const std::string& name, const std::string& where,
+                       const char* column) {
+  const fs::path relative(name);
+  const bool climbs = std::any_of(relative.begin(), relative.end(),
+                                  [](const fs::path& part) { return part == ".."; });
+  std::error_code ec;
+  const fs::path root = fs::weakly_canonical(fs::absolute(dir), ec);
+  const fs::path resolved = fs::weakly_canonical(fs::absolute(dir / relative), ec);
+  const auto [r, p] = std::mismatch(root.begin(), root.end(), resolved.begin(), resolved.end());
+  if (name.empty() || relative.is_absolute() || climbs || ec || r != root.end()) {
+    throw IoError(fmt::format(
+        "{}: {} '{}' is not a file inside the capture directory {} (names are relative to it, "
+        "without '..', and links may not lead out of it)",
+        where, column, name, dir.string()));
+  }
+  return dir / relative;
+}
+
+namespace {
+
+// One labels.csv row as a capture: its WAV, label, contact names and optional robot log, every
+// path confined to the capture directory (a capture may come from anyone).
 StrikeSample LoadCapture(const fs::path& dir, const std::map<std::string, std::string>& row,
                          const std::string& where, const ImportSettings& s) {
   StrikeSample sample;
-  sample.audio = CheckedRecord((dir / row.at("file")).string(), s);
+  sample.audio = CheckedRecord(InsideCapture(dir, row.at("file"), where, "file").string(), s);
   SetLabel(Number(row.at("z_m"), where, "z_m"), Number(row.at("theta_rad"), where, "theta_rad"), s,
            where, &sample);
   if (row.count("object")) sample.contacts[0].object = row.at("object");
@@ -53,7 +76,7 @@ StrikeSample LoadCapture(const fs::path& dir, const std::map<std::string, std::s
     sample.proprio = HeldProprio(s.proprio_rows);
     return sample;
   }
-  const std::string log_path = (dir / log->second).string();
+  const std::string log_path = InsideCapture(dir, log->second, where, "robot_log").string();
   const Eigen::MatrixXf proprio = ReadProprioCsv(log_path);
   if (proprio.rows() < s.proprio_rows) {
     throw IoError(fmt::format("{}: {} rows, the model needs {} (strike.proprio_rows)", log_path,

@@ -132,6 +132,7 @@ double Element(const unsigned char* p, char kind, int size, bool big_endian) {
 }  // namespace
 
 NpyArray ReadNpy(const std::string& path) {
+  RequireReadableFile(path);  // a FIFO would block, a device (/dev/zero) never end
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(fmt::format("{}: cannot open .npy file", path));
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

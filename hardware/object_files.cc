@@ -51,6 +51,7 @@ struct Builder {
 };
 
 std::string ReadAll(const std::string& path) {
+  RequireReadableFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(fmt::format("{}: cannot open object file", path));
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};

@@ -12,6 +12,7 @@
 
 #include "internal/data.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::learning {
@@ -80,7 +81,7 @@ Recalibration Recalibrate(const std::string& run_dir, const std::vector<Predicti
   r.relative = {r.after.z_std_scale / r.before.z_std_scale,
                 r.after.kappa_scale / r.before.kappa_scale};
   StoreScales(&j["uncertainty"], r.after, source, records);
-  internal::WriteFileAtomically(path, j.dump(2) + "\n");
+  WriteTextAtomic(path, j.dump(2) + "\n");
   return r;
 }
 

@@ -19,6 +19,7 @@
 #include "internal/data.h"
 #include "internal/json_archive.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
 
 namespace sonicboom::learning::internal {
@@ -249,31 +250,25 @@ std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, in
   return predictions;
 }
 
-void WriteFileAtomically(const std::string& path, const std::string& text) {
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-    out << text;
-    out.flush();
-    if (!out) throw IoError(fmt::format("{}: cannot write", partial));
-  }
-  std::error_code ec;
-  fs::rename(partial, path, ec);
-  if (ec) throw IoError(fmt::format("{}: cannot rename to {}: {}", partial, path, ec.message()));
+void SaveModuleAtomically(torch::nn::Module& module, const std::string& path) {
+  torch::serialize::OutputArchive archive;
+  module.save(archive);
+  WriteArchiveAtomically(archive, path);
 }
 
-void SaveModuleAtomically(torch::nn::Module& module, const std::string& path) {
-  const std::string partial = path + ".partial";
+void WriteArchiveAtomically(torch::serialize::OutputArchive& archive, const std::string& path) {
+  // serialized in memory first, then written by the checked writer: torch's file writer throws
+  // from its destructor when the disk fills, which ends the process
+  std::string bytes;
   try {
-    torch::serialize::OutputArchive archive;
-    module.save(archive);
-    archive.save_to(partial);
+    archive.save_to([&bytes](const void* data, size_t size) {
+      bytes.append(static_cast<const char*>(data), size);
+      return size;
+    });
   } catch (const c10::Error& e) {
-    throw IoError(fmt::format("{}: cannot write: {}", partial, e.what_without_backtrace()));
+    throw IoError(fmt::format("{}: cannot serialize: {}", path, e.what_without_backtrace()));
   }
-  std::error_code ec;
-  fs::rename(partial, path, ec);
-  if (ec) throw IoError(fmt::format("{}: cannot rename to {}: {}", partial, path, ec.message()));
+  WriteTextAtomic(path, bytes);
 }
 
 void LoadModuleChecked(torch::nn::Module& module, torch::serialize::InputArchive& archive,

@@ -11,6 +11,7 @@
 
 #include "internal/data.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/learning/learning.h"
 
@@ -27,7 +28,7 @@ void WriteEnsembleFile(const std::string& run_dir, const nlohmann::json& names,
                             {"uncertainty",
                              {{"z_std_scale", calibration.z_std_scale},
                               {"kappa_scale", calibration.kappa_scale}}}};
-  internal::WriteFileAtomically((fs::path(run_dir) / "ensemble.json").string(), j.dump(2) + "\n");
+  WriteTextAtomic((fs::path(run_dir) / "ensemble.json").string(), j.dump(2) + "\n");
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 #include "internal/network.h"
 #include "internal/train_step.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/learning/learning.h"
 
@@ -106,21 +107,13 @@ void SetLearningRate(torch::optim::Adam* optimizer, double lr) {
 // Saves weights, optimizer state and the completed epoch count in one archive.
 void SaveCheckpoint(internal::NetworkImpl& network, torch::optim::Adam& optimizer,
                     int64_t epochs_done, const std::string& path) {
-  const std::string partial = path + ".partial";
-  try {
-    torch::serialize::OutputArchive root, model, optim;
-    network.save(model);
-    optimizer.save(optim);
-    root.write("model", model);
-    root.write("optimizer", optim);
-    root.write("epochs_done", torch::tensor(epochs_done, torch::kInt64));
-    root.save_to(partial);
-  } catch (const c10::Error& e) {
-    throw IoError(fmt::format("{}: cannot write: {}", partial, e.what_without_backtrace()));
-  }
-  std::error_code ec;
-  fs::rename(partial, path, ec);
-  if (ec) throw IoError(fmt::format("{}: cannot rename: {}", partial, ec.message()));
+  torch::serialize::OutputArchive root, model, optim;
+  network.save(model);
+  optimizer.save(optim);
+  root.write("model", model);
+  root.write("optimizer", optim);
+  root.write("epochs_done", torch::tensor(epochs_done, torch::kInt64));
+  internal::WriteArchiveAtomically(root, path);
 }
 
 // Loads a checkpoint; returns the number of completed epochs.
@@ -226,7 +219,7 @@ void TrimMetrics(const std::string& path, int64_t epochs_done) {
     }
   }
   in.close();
-  internal::WriteFileAtomically(path, kept);
+  WriteTextAtomic(path, kept);
 }
 
 void AppendLine(const std::string& path, const std::string& line) {
@@ -401,10 +394,10 @@ void RecordEpoch(const RunFiles& files, internal::NetworkImpl& network,
     best->loss = val_loss;
     best->epoch = epoch + 1;
     internal::SaveModuleAtomically(network, files.best_pt);
-    internal::WriteFileAtomically(
+    WriteTextAtomic(
         files.best_json, json{{"epoch", best->epoch}, {"val_loss", best->loss}}.dump() + "\n");
   }
-  internal::WriteFileAtomically(files.checkpoint_json,
+  WriteTextAtomic(files.checkpoint_json,
                                 json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
   SaveCheckpoint(network, optimizer, epoch + 1, files.checkpoint_pt);
 }
@@ -441,7 +434,7 @@ Metrics FinishRun(const RunFiles& files, internal::NetworkImpl& network, const F
   }
   internal::SaveModuleAtomically(network, files.model_pt);
   const json model_json = internal::ModelFileToJson(model_file, train_config, val_metrics, epochs);
-  internal::WriteFileAtomically(files.model_json, model_json.dump(2) + "\n");
+  WriteTextAtomic(files.model_json, model_json.dump(2) + "\n");
   return val_metrics;
 }
 

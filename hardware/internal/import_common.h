@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,11 @@ struct ImportEntry {
 /// (labels.csv rows, in order). Throw IoError for a missing directory or malformed labels.csv.
 std::vector<ImportEntry> ListTrials(const std::string& dir);
 std::vector<ImportEntry> ListCaptures(const std::string& dir);
+
+/// `dir / name` when it is a file inside `dir`: IoError naming `where` and `column` for an empty,
+/// absolute or '..' name, or one whose links lead out of `dir` (a capture may come from anyone).
+std::filesystem::path InsideCapture(const std::filesystem::path& dir, const std::string& name,
+                                    const std::string& where, const char* column);
 
 /// A multichannel WAV checked against the rig (rate, channels, length, finite, not clipped) and
 /// padded (last frame repeated) or trimmed to the record length: (channels x record_frames).

@@ -70,8 +70,9 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
 /// Leaves the network in eval mode.
 std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames);
 
-/// Writes `text` to `path` through "<path>.partial" and a rename; IoError names the file.
-void WriteFileAtomically(const std::string& path, const std::string& text);
+/// Writes a torch archive to `path` through core's checked atomic writer (IoError, no partial
+/// left, when the disk is full).
+void WriteArchiveAtomically(torch::serialize::OutputArchive& archive, const std::string& path);
 /// Saves a module (parameters and buffers) to `path` through "<path>.partial" and a rename.
 void SaveModuleAtomically(torch::nn::Module& module, const std::string& path);
 /// Loads parameters and buffers of `module` from `archive`, then checks every tensor kept the

@@ -1,6 +1,9 @@
 // The bad-input matrix: every case runs the CLI on a damaged or hostile input and asserts a
 // non-zero exit, a message naming the file, key or value, and that no existing file changed.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
+#include <sys/stat.h>
 
 #include <cmath>
 #include <cstdint>
@@ -356,6 +359,104 @@ TEST_F(HostileInputTest, OutputsNeverOverwriteInputsOrFinishedWork) {
   ExpectRefused("merge --out M.h5 S0.h5", {"1 of 2 shards given; missing shard 1"}, 1);
   ExpectRefused("merge --out M.h5 S0.h5 T1.h5", {"T1.h5 was generated over indices [0, 6)"}, 1);
   ExpectRefused("merge --out M.h5 S0.h5 S0.h5 S1.h5", {"are both shard 0"}, 1);
+}
+
+// Untrusted captures name nothing outside themselves, and no message echoes a file that is not
+// the one being parsed: absolute, '..' and linked-out paths in labels.csv are refused by row.
+TEST_F(HostileInputTest, CaptureDirectoriesAreConfinedToThemselves) {
+  TempDir outside;
+  const fs::path cap = outside.path() / "CAP";
+  fs::create_directories(cap);
+  fs::copy_file(Path("RUN/config.yaml"), cap / "capture.yaml");
+  fs::copy_file(Path("X.wav"), cap / "a.wav");
+  fs::copy_file(Path("X.wav"), outside.path() / "secret.wav");
+  fs::create_symlink("../secret.wav", cap / "b.wav");
+  const std::string import = "import --layout capture --min-duration-s 0.5 --out I.h5 --in " +
+                             cap.string();
+  auto labels = [&](const std::string& rows) {
+    std::ofstream(cap / "labels.csv") << "file,z_m,theta_rad,robot_log\n" << rows;
+  };
+  labels((outside.path() / "secret.wav").string() + ",0,0,\n");
+  ExpectRefused(import, {"labels.csv:2: file '", "is not a file inside the capture"}, 1);
+  labels("../secret.wav,0,0,\nb.wav,0,0,\n");
+  ExpectRefused(import, {"labels.csv:2: file '../secret.wav' is not a file inside",
+                         "labels.csv:3: file 'b.wav' is not a file inside"},
+                1);
+  // a robot log outside: refused by row, and nothing of that file is printed
+  labels("a.wav,0,0,/etc/passwd\n");
+  CliRun run = RunCli(import, dir_->path().string());
+  EXPECT_EQ(run.exit_code, 1) << run.err;
+  EXPECT_THAT(run.err, ::testing::HasSubstr("robot_log '/etc/passwd' is not a file inside"));
+  EXPECT_EQ(run.err.find("root:"), std::string::npos) << run.err;
+  // a robot log inside that is another kind of file: its line is not echoed either
+  fs::copy_file("/etc/passwd", cap / "log.csv");
+  labels("a.wav,0,0,log.csv\n");
+  run = RunCli(import, dir_->path().string());
+  EXPECT_EQ(run.exit_code, 1) << run.err;
+  EXPECT_THAT(run.err, ::testing::HasSubstr("that is not a CSV header"));
+  EXPECT_EQ(run.err.find("root:"), std::string::npos) << run.err;
+  // capture.yaml names no file: the noise clip is the capture's noise.wav
+  labels("a.wav,0,0,\n");
+  {
+    std::ifstream in(cap / "capture.yaml");
+    std::string text((std::istreambuf_iterator<char>(in)), {});
+    const size_t at = text.find("gating_noise_wav:");
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, text.find('\n', at) - at,
+                 "gating_noise_wav: " + (outside.path() / "secret.wav").string());
+    std::ofstream(cap / "capture.yaml") << text;
+  }
+  ExpectRefused(import, {"capture.yaml: features.gating_noise_wav names a file"}, 1);
+}
+
+// Special files are refused by type before any read (a FIFO blocked the read forever, /dev/zero
+// as .npy grew to 9 GB), and file-system refusals (a name too long, a link loop, no permission)
+// are errors naming the path, not internal errors.
+TEST_F(HostileInputTest, SpecialFilesAndFileSystemRefusalsAreErrorsNamingThePath) {
+  TempDir special;
+  const fs::path fifo = special.path() / "fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  fs::create_symlink(fifo, special.path() / "fifo.h5");
+  fs::create_symlink(fifo, special.path() / "fifo.yaml");
+  fs::create_symlink(fifo, special.path() / "fifo.csv");
+  const std::string f = fifo.string();
+  ExpectRefused("inspect " + f, {"fifo: is a FIFO, not a regular file"}, 1);
+  ExpectRefused("inspect " + f + ".h5", {"fifo.h5: is a FIFO"}, 1);
+  ExpectRefused("eval --model RUN --data " + f + ".h5", {"fifo.h5: is a FIFO"}, 1);
+  ExpectRefused("--config " + f + ".yaml config", {"fifo.yaml: is a FIFO"}, 1);
+  ExpectRefused(kShortRecordArgs + "features --in X.wav --out F.h5 --proprio " + f + ".csv",
+                {"fifo.csv: is a FIFO"}, 1);
+  // a trial whose x_t.npy is a FIFO, then /dev/zero
+  const fs::path trials = special.path() / "trials";
+  fs::create_directories(trials);
+  fs::copy(Path("TR/trial0"), trials / "trial0");
+  fs::remove(trials / "trial0/x_t.npy");
+  fs::create_symlink(fifo, trials / "trial0/x_t.npy");
+  const std::string import =
+      "import --layout trial --min-duration-s 0.5 --out I.h5 --in " + trials.string();
+  ExpectRefused(import, {"x_t.npy: is a FIFO"}, 1);
+  fs::remove(trials / "trial0/x_t.npy");
+  fs::create_symlink("/dev/zero", trials / "trial0/x_t.npy");
+  ExpectRefused(import, {"x_t.npy: is a character device"}, 1);
+  // a name too long and a link loop: exit 1 naming the path (they were internal errors, exit 3)
+  const std::string long_name = std::string(300, 'n') + ".h5";
+  ExpectRefused(kShortRecordArgs + "generate --count 2 --out " + long_name, {"File name too long"},
+                1);
+  ExpectRefused("inspect " + long_name, {long_name}, 1);
+  fs::create_symlink(special.path() / "loop_b", special.path() / "loop_a");
+  fs::create_symlink(special.path() / "loop_a", special.path() / "loop_b");
+  const std::string loop = (special.path() / "loop_a").string();
+  ExpectRefused("inspect " + loop, {"loop_a", "Too many levels of symbolic links"}, 1);
+  ExpectRefused(kShortRecordArgs + kTinyModelArgs + "train --data D.h5 --out " + loop,
+                {"loop_a"}, 1);
+  ExpectRefused("eval --model " + loop + " --data D.h5", {"loop_a"}, 1);
+  // no permission (only without root: root reads every file)
+  if (::geteuid() != 0) {
+    fs::copy_file(Path("D.h5"), special.path() / "locked.h5");
+    fs::permissions(special.path() / "locked.h5", fs::perms::none);
+    ExpectRefused("inspect " + (special.path() / "locked.h5").string(),
+                  {"locked.h5: cannot be read: Permission denied"}, 1);
+  }
 }
 
 }  // namespace

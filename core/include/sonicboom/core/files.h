@@ -11,6 +11,11 @@ namespace sonicboom {
 void WriteTextAtomic(const std::string& path, const std::string& text);
 /// Reads a whole text file. Throws IoError naming the path when missing or unreadable.
 std::string ReadText(const std::string& path);
+/// IoError unless `path` (links followed) is a regular file this process may read: names the
+/// path and why (missing, a directory, a FIFO, device or socket, permission denied, a link loop,
+/// a name too long). Every reader of a user's file calls it before opening, so that a FIFO
+/// never blocks a read and a device never feeds one endlessly.
+void RequireReadableFile(const std::string& path);
 /// Creates a directory (and parents). Throws IoError naming it on failure.
 void MakeDirectories(const std::string& path);
 /// Puts a finished directory `finished` in the place of `path`: an existing `path` is renamed
