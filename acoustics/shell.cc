@@ -516,7 +516,23 @@ int64_t ShellModel::WIndex(int i, int j) const {
   return d >= 0 ? d : -1;
 }
 
+bool ShellModel::AcceptsForce(double z_m, double theta_rad) const {
+  double absent = 0.0;
+  PointWeights(z_m, theta_rad, &absent);
+  return absent <= 0.5;
+}
+
 Eigen::VectorXd ShellModel::RadialForceWeights(double z_m, double theta_rad) const {
+  double absent = 0.0;
+  const Eigen::VectorXd out = PointWeights(z_m, theta_rad, &absent);
+  if (absent > 0.5) {
+    throw ConfigError(fmt::format("contact at z = {} m, theta = {} rad lies in a hole of the shell",
+                                  z_m, theta_rad));
+  }
+  return out / (1.0 - absent);
+}
+
+Eigen::VectorXd ShellModel::PointWeights(double z_m, double theta_rad, double* absent) const {
   const double x = (z_m + 0.5 * tube_.length_m) / dz_m_;
   if (!(x >= -1e-9 && x <= nz_ + 1e-9)) {
     throw ConfigError(
@@ -528,20 +544,16 @@ Eigen::VectorXd ShellModel::RadialForceWeights(double z_m, double theta_rad) con
   const int j0 = static_cast<int>(std::floor(y)) % nth_;
   const double fx = std::clamp(x - i0, 0.0, 1.0), fy = y - std::floor(y);
   Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
-  double absent = 0.0;
+  *absent = 0.0;
   for (int di = 0; di < 2; ++di) {
     for (int dj = 0; dj < 2; ++dj) {
       const double wgt = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
       const int64_t d = w_index_[static_cast<size_t>(i0 + di) * nth_ + (j0 + dj) % nth_];
       if (d >= 0) out[d] += wgt;
-      if (d == kAbsent) absent += wgt;
+      if (d == kAbsent) *absent += wgt;
     }
   }
-  if (absent > 0.5) {
-    throw ConfigError(fmt::format("contact at z = {} m, theta = {} rad lies in a hole of the shell",
-                                  z_m, theta_rad));
-  }
-  return out / (1.0 - absent);
+  return out;
 }
 
 int ShellModel::VisitSensorTerms(double z_m, double theta_rad, double diameter_m,

@@ -396,9 +396,11 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
   }
   // the structure this sample is played on: the configured one or a variant of the pool
   const ShellModalBank* bank = m.bank.get();
+  const ShellModel* shell = m.shell.get();
   if (variation != nullptr && variation->structure_variant >= 0) {
     SONICBOOM_DEMAND(variation->structure_variant < static_cast<int64_t>(m.pool.size()));
     bank = m.pool[static_cast<size_t>(variation->structure_variant)].bank.get();
+    shell = m.pool[static_cast<size_t>(variation->structure_variant)].shell.get();
   }
   const ContactEvent contact =
       variation != nullptr ? VariedContact(given_contact, *variation) : given_contact;
@@ -465,14 +467,12 @@ RenderedStrike StrikeSynthesizer::Render(const ContactEvent& given_contact,
       if (e.kind == ContactEpisode::Kind::kBrush) {
         if (m.c.noise.foliage_force_rms_n <= 0) continue;
         const double z = std::clamp(e.z_m, -0.49 * m.c.tube.length_m, 0.49 * m.c.tube.length_m);
-        try {
-          forces.push_back(
-              {z, e.theta_rad, static_cast<int64_t>(std::floor(e.time_s * fs)),
-               RustleForce(e.duration_s, fs, m.c.noise.foliage_force_rms_n,
-                           m.c.noise.foliage_low_hz, m.c.noise.foliage_high_hz, &rng)});
-        } catch (const ConfigError&) {
-          // the brushed point lies in a hole: its rustle reaches the wall around it elsewhere
-        }
+        // a brushed point in a hole has no wall to act on: its rustle is not played (the
+        // check is made here, before the force reaches the bank or the FD grid, which refuse it)
+        if (shell != nullptr && !shell->AcceptsForce(z, e.theta_rad)) continue;
+        forces.push_back({z, e.theta_rad, static_cast<int64_t>(std::floor(e.time_s * fs)),
+                          RustleForce(e.duration_s, fs, m.c.noise.foliage_force_rms_n,
+                                      m.c.noise.foliage_low_hz, m.c.noise.foliage_high_hz, &rng)});
         continue;
       }
       if (e.kind == ContactEpisode::Kind::kPress && e.duration_s > 0) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "../common/test_util.h"
+#include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/errors.h"
@@ -169,6 +170,33 @@ TEST(StrikeRenderTest, EpisodesPlayBouncesPressesAndBrushes) {
             4 * alone.audio.middleCols(b0, len).squaredNorm());
   // the first contact's figures are the same with or without the other episodes
   EXPECT_EQ(all.impulse_ns, alone.impulse_ns);
+}
+
+// A brush that lands in a cable hole has no wall to act on: its rustle is skipped and the rest
+// of the record is played (it threw from the bank, outside the catch meant for it, and ended
+// the whole generation run).
+TEST(StrikeRenderTest, ABrushInAHoleIsSkippedNotFatal) {
+  AcousticModelConfig c = Coarse();
+  c.shell.hole_diameter_m = 0.02;  // wider than the coarse grid's cells: nodes are removed
+  c.noise.foliage_force_rms_n = 0.05;
+  const StrikeSynthesizer synth(c);
+  const ContactEvent first = Dowel(0.0, 0.5, 0.2);
+  std::vector<ContactEpisode> eps(1);
+  eps[0].kind = ContactEpisode::Kind::kBrush;
+  eps[0].time_s = 0.5;
+  eps[0].duration_s = 0.1;
+  eps[0].z_m = c.shell.hole_z_m[0];
+  eps[0].theta_rad = c.shell.hole_theta_deg[0] * kPi / 180.0;
+  const ShellModel shell(c.tube, c.material, c.shell);
+  ASSERT_FALSE(shell.AcceptsForce(eps[0].z_m, eps[0].theta_rad));
+  EXPECT_THROW(shell.RadialForceWeights(eps[0].z_m, eps[0].theta_rad), ConfigError);
+  const RenderedStrike in_hole = synth.Render(first, eps, {}, 0.0, 2);
+  EXPECT_EQ(in_hole.forces_played, 1);
+  EXPECT_TRUE(in_hole.audio.allFinite());
+  // beside the hole the same brush is played
+  eps[0].theta_rad += 0.5;
+  ASSERT_TRUE(shell.AcceptsForce(eps[0].z_m, eps[0].theta_rad));
+  EXPECT_EQ(synth.Render(first, eps, {}, 0.0, 2).forces_played, 2);
 }
 
 TEST(StrikeRenderTest, ExtremesStayFiniteAndFlagClipping) {

@@ -113,6 +113,9 @@ class ShellModel {
   /// frame (bilinear over the four surrounding w nodes); its transpose interpolates w there.
   /// Throws ConfigError when the point lies in a hole or off the tube.
   Eigen::VectorXd RadialForceWeights(double z_m, double theta_rad) const;
+  /// Whether a point force at (z, theta) has wall to act on (RadialForceWeights would not throw
+  /// for a hole); ConfigError off the tube.
+  bool AcceptsForce(double z_m, double theta_rad) const;
   /// (dofs) output of a piezo disc centred at (z, theta) of diameter d: outer-surface in-plane
   /// strain (eps_x + eps_th + h/2 (kappa_x + kappa_th)) averaged over the nodes under the disc
   /// (the nearest node where none lies under it). Unit: strain per m of the DOFs.
@@ -157,6 +160,9 @@ class ShellModel {
   double alpha_{0.0}, beta_{0.0};
   bool loss_law_{true};  // shell.damping is law
   std::string key_;
+  // (dofs) bilinear weights of the four w nodes around (z, theta), before normalization;
+  // `absent` gets the share of nodes that do not exist (in a hole)
+  Eigen::VectorXd PointWeights(double z_m, double theta_rad, double* absent) const;
 };
 
 }  // namespace sonicboom::acoustics
