@@ -277,9 +277,7 @@ std::string ContactXml(const PandaMjcfOptions& options) {
   // roll)
   if (options.object_contacts_only) {
     std::vector<std::string> arm_geoms = {"tube"};
-    if (options.arm_object_pairs) {
-      for (size_t k = 0; k < kCollisionCapsules.size(); ++k) arm_geoms.push_back(CapsuleName(k));
-    }
+    for (size_t k = 0; k < kCollisionCapsules.size(); ++k) arm_geoms.push_back(CapsuleName(k));
     for (size_t i = 0; i < options.objects.size(); ++i) {
       const MjcfObject& object = options.objects[i];
       for (size_t k = 0; k < object.segments.size(); ++k) {

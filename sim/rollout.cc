@@ -75,6 +75,7 @@ void RolloutConfig::Serialize(Archive* a) {
   a->Visit("penetration_limit_m", &penetration_limit_m, Bounds::Open(0.0, 0.1));
   a->Visit("settle_s", &settle_s, Bounds::Closed(0.0, 10.0));
   a->Visit("press_step_multiple", &press_step_multiple, Bounds::Closed(0.0, 8.0));
+  a->Visit("stepping", &stepping);
 }
 
 double RolloutConfig::ResolvedTimestep() const {
@@ -225,10 +226,15 @@ StrikeRollout::StrikeRollout(const TubeConfig& tube, const AudioConfig& audio,
         (g1 == var->tube_geom || g2 == var->tube_geom ? var->tube_pairs : var->arm_pairs)
             .push_back({g1, g2});
       }
-      options.arm_object_pairs = false;
-      var->tube_only = internal::CompileMjcf(PandaMjcf(tube_, options), "the tube-only Panda MJCF");
-      SONICBOOM_DEMAND(var->tube_only->npair == static_cast<int>(var->tube_pairs.size()) &&
-                       var->tube_only->ngeom == m->ngeom && var->tube_only->nv == m->nv);
+      // the tube-only model: a copy of the full one whose arm pairs detect nothing (a contact
+      // needs dist < margin), so that it is the same model in every other respect
+      var->tube_only.reset(mj_copyModel(nullptr, m));
+      SONICBOOM_DEMAND(var->tube_only != nullptr);
+      for (int p = 0; p < m->npair; ++p) {
+        if (m->pair_geom1[p] != var->tube_geom && m->pair_geom2[p] != var->tube_geom) {
+          var->tube_only->pair_margin[p] = -mjMAXVAL;
+        }
+      }
       var->press_multiple = static_cast<int>(config_.ResolvedPressStepMultiple());
       var->press.reset(mj_copyModel(nullptr, m));
       var->press_tube_only.reset(mj_copyModel(nullptr, var->tube_only.get()));

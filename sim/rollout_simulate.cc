@@ -136,6 +136,8 @@ StrikeRollout::Simulation::Simulation(const StrikeRollout& r, const Variant& v, 
   free_multiple =
       std::clamp(static_cast<int>(std::floor(internal::kFreeStepOmegaDt / (omega_max * dt_s))), 1,
                  internal::kMaxFreeStepMultiple);
+  // the exact and plain schedulers step one timestep at a time
+  if (rollout.config_.stepping != StepScheduler::kFast) free_multiple = 1;
   free_model = var.contact_free[static_cast<size_t>(free_multiple - 1)].get();
   press_multiple = std::min(var.press_multiple, free_multiple);
 
@@ -201,6 +203,7 @@ Eigen::Isometry3d StrikeRollout::Simulation::TubePose() const {
 // has moved at most reach * |q - gap_qpos|_1 since the pair gaps were bounded (at gap_qpos);
 // re-bound them from the last step's geom poses (at last_qpos) once a budget is spent
 internal::StepChoice StrikeRollout::Simulation::Choose(double t_s, int64_t step) {
+  if (rollout.config_.stepping == StepScheduler::kPlain) return {m, 1};
   auto budget_left = [&](double gap) {
     double travel_rad = 0.0;
     for (int i = 0; i < kPandaJoints; ++i)

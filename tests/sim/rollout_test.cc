@@ -195,6 +195,70 @@ TEST(RolloutTest, SteadyPressStepsKeepContactsAndImpulses) {
   }
 }
 
+// The step scheduler's shortcuts against plain stepping (the full model, collision detection at
+// every step of one timestep) on the default scene's first 30 seeds: the exact shortcuts
+// (collision skipping, the tube-only model) change nothing, bit for bit; the multi-steps (free
+// flight at k timesteps, a steady press at 2) keep the first contact's kind and segment and move
+// its labels and impulse by less than the bounds below (later episodes of a press may differ:
+// the friction flicker re-contacts under the 2-step press).
+TEST(RolloutTest, StepSchedulersAgreeWithPlainStepping) {
+  RolloutConfig plain_config, exact_config;
+  plain_config.stepping = StepScheduler::kPlain;
+  exact_config.stepping = StepScheduler::kExact;
+  const StrikeRollout plain(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{},
+                            plain_config);
+  const StrikeRollout exact(TubeConfig{}, AudioConfig{}, StrikeConfig{}, SceneConfig{},
+                            exact_config);
+  const double dt = RolloutConfig{}.ResolvedTimestep();
+  double worst_time = 0, worst_z = 0, worst_theta = 0, worst_speed = 0, worst_impulse = 0;
+  int64_t fast_steps = 0, plain_steps = 0, contacts = 0, more_episodes = 0;
+  for (uint64_t i = 0; i < kSeeds; ++i) {
+    const RolloutResult p = plain.Run(i, SampleSeed(21, i));
+    ExpectSameRecords(exact.Run(i, SampleSeed(21, i)), p);
+    const RolloutResult& f = DefaultResults()[i];
+    fast_steps += f.steps;
+    plain_steps += p.steps;
+    ASSERT_EQ(f.valid, p.valid) << i;
+    ASSERT_EQ(f.contacts.empty(), p.contacts.empty()) << i;
+    // the press's friction flicker may re-contact under the 2-step press: later episodes differ
+    more_episodes += f.contacts.size() != p.contacts.size() ? 1 : 0;
+    for (size_t k = 0; k < std::min<size_t>(1, p.contacts.size()); ++k) {
+      const ContactRecord &x = f.contacts[k], &y = p.contacts[k];
+      EXPECT_EQ(x.kind, y.kind) << i << " " << k;
+      EXPECT_EQ(x.segment, y.segment) << i << " " << k;
+      worst_time = std::max(worst_time, std::abs(x.time_s - y.time_s));
+      worst_z = std::max(worst_z, std::abs(x.z_m - y.z_m));
+      worst_theta = std::max(worst_theta, AngleDistance(x.theta_rad, y.theta_rad));
+      worst_speed = std::max(worst_speed, std::abs(x.normal_speed_m_s - y.normal_speed_m_s) /
+                                              std::max(1e-9, std::abs(y.normal_speed_m_s)));
+      // a press split in two by a re-contact carries its impulse in two episodes
+      if (f.contacts.size() == p.contacts.size()) {
+        worst_impulse = std::max(worst_impulse, std::abs(x.impulse_Ns - y.impulse_Ns) /
+                                                    std::max(1e-9, std::abs(y.impulse_Ns)));
+      }
+      ++contacts;
+    }
+  }
+  std::printf(
+      "fast vs plain over %d seeds, %lld first contacts: time %.3g s (%.2f steps), z %.3g m, "
+      "theta %.3g rad, speed %.3g, impulse %.3g (relative); %lld seeds with another episode "
+      "count; steps %lld vs %lld\n",
+      kSeeds, static_cast<long long>(contacts), worst_time, worst_time / dt, worst_z, worst_theta,
+      worst_speed, worst_impulse, static_cast<long long>(more_episodes),
+      static_cast<long long>(fast_steps), static_cast<long long>(plain_steps));
+  EXPECT_GT(contacts, kSeeds / 2);
+  // the bounds: the same first step, z within 1 um, theta within 1e-4 rad, approach speed within
+  // 0.5 %, impulse within 1 % (same episode count), at most 3 seeds of 30 with another count
+  EXPECT_EQ(worst_time, 0.0);
+  EXPECT_LT(worst_z, 1e-6);
+  EXPECT_LT(worst_theta, 1e-4);
+  EXPECT_LT(worst_speed, 0.005);
+  EXPECT_LT(worst_impulse, 0.01);
+  EXPECT_LE(more_episodes, 3);
+  // what the shortcuts buy: under half the steps
+  EXPECT_LT(fast_steps, plain_steps / 2);
+}
+
 TEST(RolloutTest, TinyPenetrationLimitInvalidatesWithoutCrashing) {
   RolloutConfig config;
   config.penetration_limit_m = 1e-9;

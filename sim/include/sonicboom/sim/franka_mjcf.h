@@ -39,9 +39,6 @@ struct PandaMjcfOptions {
   // pairs carry the object's contact parameters, as its priority gives them in the default
   // (dynamic) detection.
   bool object_contacts_only{false};
-  // With object_contacts_only: also pair every object geom with the arm capsules (false: tube
-  // pairs only, for a twin model stepped while the arm provably cannot touch the object)
-  bool arm_object_pairs{true};
 };
 
 /// Sum of the seven link masses written into the model (Gaz et al. 2019), kg; excludes the tube.

@@ -48,6 +48,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,18 @@
 #include "sonicboom/sim/strike.h"
 
 namespace sonicboom::sim {
+
+/// How a rollout steps MuJoCo. fast: every shortcut (collision detection skipped where no pair
+/// can touch, the tube-only model where no arm pair can, free flight at k timesteps a step, a
+/// steady press at press_step_multiple); exact: only the shortcuts that change no result
+/// (collision skipping, the tube-only model), every step one timestep; plain: the full model,
+/// collision detection at every step of one timestep (the reference the others are tested on).
+enum class StepScheduler { kFast, kExact, kPlain };
+inline constexpr EnumName<StepScheduler> kStepSchedulerNames[] = {
+    {StepScheduler::kFast, "fast"}, {StepScheduler::kExact, "exact"}, {StepScheduler::kPlain, "plain"}};
+inline std::span<const EnumName<StepScheduler>> EnumNames(StepScheduler) {
+  return kStepSchedulerNames;
+}
 
 /// Settings of the dynamic rollout (keys under "rollout").
 struct RolloutConfig {
@@ -76,6 +89,7 @@ struct RolloutConfig {
   // once; 1 = every step at timestep_s; 0 = derived: the largest of 1 and 2 that the contact
   // allows. Needs contact_timeconst_s >= 2 x multiple x timestep (MuJoCo's 2-step limit)
   int64_t press_step_multiple{0};
+  StepScheduler stepping{StepScheduler::kFast};
 
   int64_t ResolvedPressStepMultiple() const;
 
