@@ -639,7 +639,7 @@ void WriteFigure(const FidelityOptions& o, const json& j) {
   WriteTextAtomic(json_path, j.dump(2) + "\n");
   if (o.plot_script.empty()) return;
   const std::string cmd =
-      fmt::format("/usr/bin/python3 '{}' '{}' '{}'", o.plot_script, json_path, png_path);
+      fmt::format("/usr/bin/python3 '{}' fidelity '{}' '{}'", o.plot_script, json_path, png_path);
   if (std::system(cmd.c_str()) != 0) {
     throw Error(
         fmt::format("fidelity: the plot script {} failed on {} (the table and the JSON "

@@ -4,8 +4,10 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <sstream>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -26,7 +28,65 @@ namespace sonicboom::experiments {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
+namespace {
+
+// The figure's data: every valid strike's label, and one strike's channels ((C x T) full scale).
+json DatasetFigureJson(const std::string& path, int64_t strike_row) {
+  const DatasetReader reader(path);
+  if (strike_row < 0 || strike_row >= reader.size()) {
+    throw ConfigError(fmt::format("--strike {}: {} holds rows 0 to {}", strike_row, path,
+                                  reader.size() - 1));
+  }
+  json z = json::array(), theta = json::array();
+  for (int64_t i = 0; i < reader.size(); ++i) {
+    const StrikeSample meta = reader.ReadMeta(i);
+    if (!meta.valid) continue;
+    z.push_back(meta.label.z_m);
+    theta.push_back(meta.label.theta_rad);
+  }
+  const StrikeSample strike = reader.Read(strike_row);
+  json channels = json::array();
+  for (int c = 0; c < strike.audio.rows(); ++c) {
+    channels.push_back(std::vector<float>(strike.audio.row(c).begin(), strike.audio.row(c).end()));
+  }
+  return {{"kind", "inspect"},
+          {"path", path},
+          {"coverage", {{"z_m", z}, {"theta_rad", theta}}},
+          {"strike",
+           {{"row", strike_row},
+            {"index", strike.index},
+            {"valid", strike.valid},
+            {"z_m", strike.label.z_m},
+            {"theta_rad", strike.label.theta_rad},
+            {"sample_rate_hz", reader.info().sample_rate_hz},
+            {"channels", channels}}}};
+}
+
+// PNG.json, then the plot script draws PNG from it
+void DrawDatasetFigure(const GlobalOptions& g, const std::string& path, const InspectOptions& o) {
+  if (fs::path(o.png).extension() != ".png") {
+    throw ConfigError(fmt::format("--png {}: the figure is a .png file", o.png));
+  }
+  if (!fs::is_regular_file(o.plot_script)) {
+    throw IoError(fmt::format("--plot {}: no such script", o.plot_script));
+  }
+  const std::string data = o.png + ".json";
+  CheckOutput(g, {o.png, "--png", true}, {{path, "inspect's path"}});
+  CheckOutput(g, {data, "the figure's data beside --png", true}, {{path, "inspect's path"}});
+  WriteTextAtomic(data, DatasetFigureJson(path, o.strike_row).dump() + "\n");
+  const std::string cmd = fmt::format("/usr/bin/python3 '{}' inspect '{}' '{}'", o.plot_script,
+                                      data, o.png);
+  if (std::system(cmd.c_str()) != 0) {
+    throw IoError(fmt::format("--png {}: {} failed on {} (needs /usr/bin/python3 with "
+                              "python3-matplotlib)",
+                              o.png, o.plot_script, data));
+  }
+}
+
+}  // namespace
+
+CommandResult RunInspect(const GlobalOptions& g, const std::string& path,
+                         const InspectOptions& o) {
   if (!fs::exists(path)) throw IoError(fmt::format("{}: no such file or directory", path));
   json j;
   if (fs::is_directory(path)) {
@@ -155,17 +215,34 @@ CommandResult RunInspect(const GlobalOptions& g, const std::string& path) {
       schema.clear();
     }
     j = json::parse(schema == kDatasetSchema ? SummarizeDatasetJson(path) : SummarizeH5Json(path));
+    if (!o.png.empty()) {
+      if (schema != kDatasetSchema) {
+        throw ConfigError(fmt::format("--png draws a dataset; {} is not one", path));
+      }
+      DrawDatasetFigure(g, path, o);
+      j["png"] = o.png;
+    }
+  }
+  if (!o.png.empty() && !j.contains("png")) {
+    throw ConfigError(fmt::format("--png draws a dataset; {} is not one", path));
   }
   return {j.dump(), j.dump(2) + "\n"};
 }
 
 void RegisterInspect(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto path = std::make_shared<std::string>();
+  auto o = std::make_shared<InspectOptions>();
   auto* inspect =
       app.add_subcommand("inspect", "summarize a file or run directory SonicBoom wrote");
   inspect->add_option("path", *path, "dataset, features file, WAV, run directory or config")
       ->required();
-  inspect->callback([&g, run, path] { *run = [&g, path] { return RunInspect(g, *path); }; });
+  inspect->add_option("--png", o->png,
+                      "a dataset's figure: (z, theta) coverage and one strike's channels with "
+                      "spectrograms (data beside it as PNG.json)");
+  inspect->add_option("--strike", o->strike_row, "row of the strike drawn by --png (default 0)");
+  inspect->add_option("--plot", o->plot_script, "the plotting script (/usr/bin/python3)");
+  inspect->callback(
+      [&g, run, path, o] { *run = [&g, path, o] { return RunInspect(g, *path, *o); }; });
 }
 
 }  // namespace sonicboom::experiments

@@ -123,11 +123,41 @@ TEST(CliTest, ModesAndFkJson) {
   EXPECT_EQ(fk["tube_quat_wxyz"].size(), 4u);
 }
 
+// inspect --png: a dataset's coverage and one strike's channels, drawn from PNG.json by the
+// plotting script; anything but a dataset, or a row it lacks, is refused
+TEST(CliTest, InspectDrawsADatasetFigure) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  const std::string plot = " --plot " + std::string(SONICBOOM_SOURCE_DIR) + "/scripts/plot.py";
+  ASSERT_EQ(RunCli(kShort + "-q generate --count 4 --out D.h5", cwd).exit_code, 0);
+  auto run = RunCli("--json inspect D.h5 --png I.png --strike 2" + plot, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json::parse(run.out)["png"], "I.png");
+  std::ifstream png(dir.path() / "I.png", std::ios::binary);
+  std::string magic(8, '\0');
+  png.read(magic.data(), 8);
+  EXPECT_EQ(magic, "\x89PNG\r\n\x1a\n");
+  EXPECT_GT(fs::file_size(dir.path() / "I.png"), 20000u);
+  std::ifstream data(dir.path() / "I.png.json");
+  const json figure = json::parse(data);
+  EXPECT_EQ(figure["coverage"]["z_m"].size(), 4u);
+  EXPECT_EQ(figure["strike"]["row"], 2);
+  ASSERT_EQ(figure["strike"]["channels"].size(), 6u);
+  EXPECT_EQ(figure["strike"]["channels"][0].size(), 26460u);  // 0.6 s at 44.1 kHz
+  run = RunCli("inspect D.h5 --png I.png --strike 4" + plot, cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("--strike 4: D.h5 holds rows 0 to 3"), std::string::npos) << run.err;
+  run = RunCli("inspect D.h5.config.yaml --png C.png" + plot, cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("--png draws a dataset"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir.path() / "C.png"));
+}
+
 TEST(CliTest, FidelityQuickWritesItsTable) {
   // every rung renders against the reference solid, the yardstick is exact against itself, the
   // shell renders the solid's polarity, and the table, its JSON and its figure land where asked
   TempDir dir;
-  const std::string plot = std::string(SONICBOOM_SOURCE_DIR) + "/scripts/plot_fidelity.py";
+  const std::string plot = std::string(SONICBOOM_SOURCE_DIR) + "/scripts/plot.py";
   const auto run =
       RunCli("fidelity --quick --strikes 1 --window-s 0.006 --out F.md --json -q --signals S "
              "--plot " + plot,

@@ -52,7 +52,7 @@ struct FidelityOptions {
   double reference_band_hz{15000.0};
   double reference_element_m{0.0135};
   // draws OUT's Pareto figure from OUT's JSON (/usr/bin/python3, matplotlib); "" = no figure
-  std::string plot_script{"scripts/plot_fidelity.py"};
+  std::string plot_script{"scripts/plot.py"};
   // "" = none; else every rung's compared signals, DIR/NN.npy (strikes x mics x samples, strain,
   // low-passed to the yardstick's band) with DIR/index.json naming each rung
   std::string signals_dir;
@@ -179,7 +179,17 @@ CommandResult RunGeometryCheck(const GlobalOptions& g, int64_t count, const std:
 CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o);
 CommandResult RunExport(const GlobalOptions& g, const std::string& in, const std::string& out,
                         hardware::AngleConvention angle_convention);
-CommandResult RunInspect(const GlobalOptions& g, const std::string& path);
+/// `inspect`: a summary of a file or run directory. With `png` (a dataset only) also a figure:
+/// the (z, theta) coverage of its valid strikes and the six channels of the strike in row
+/// `strike_row` with their spectrograms, drawn by `plot_script` (/usr/bin/python3, matplotlib)
+/// from PNG.json, which is written beside it.
+struct InspectOptions {
+  std::string png;
+  int64_t strike_row{0};
+  std::string plot_script{"scripts/plot.py"};
+};
+CommandResult RunInspect(const GlobalOptions& g, const std::string& path,
+                         const InspectOptions& o = {});
 /// `config`: the resolved config as YAML; with `markdown_sections` (comma-separated top-level
 /// sections) a Markdown table of their keys and values instead.
 CommandResult RunConfig(const GlobalOptions& g, const std::string& markdown_sections);

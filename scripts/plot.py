@@ -1,0 +1,114 @@
+"""Every figure of SonicBoom, drawn from the JSON the command that measured it wrote.
+
+usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
+  fidelity  the fidelity ladder's Pareto figure (`sonicboom fidelity`, FIDELITY.json)
+  inspect   a dataset's (z, theta) coverage and one strike's six channels with their
+            spectrograms (`sonicboom inspect D.h5 --png OUT.png`, OUT.png.json)
+"""
+import json
+import sys
+
+import matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+FIDELITY_COLOURS = {"solid": "tab:green", "modal": "tab:blue", "fd": "tab:red",
+                    "closed-form": "tab:purple"}
+
+
+def pareto(points):
+    """Indices of the points no other point beats in both time and error."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front, best = [], float("inf")
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def fidelity(data, src, png):
+    """Time per strike against four errors, one panel each, with the Pareto front."""
+    rows = data["rungs"][1:]  # the first row is the yardstick itself
+    panels = [("delay_error_us", "inter-channel delay error (µs, mean over pairs)", 20.0),
+              ("delay_error_median_us", "inter-channel delay error (µs, median over pairs)", 20.0),
+              ("frequency_median_pct",
+               f"frequency error to {data['frequency_max_hz'] / 1000:.0f} kHz (%, median)", 1.0),
+              ("band_energy_error_db", "octave-band energy error (dB)", None)]
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 7))
+    for ax, (key, label, target) in zip(axes, panels):
+        pts = [(r["ms_per_strike"], max(r[key], 1e-3)) for r in rows]
+        for r, (x, y) in zip(rows, pts):
+            ax.scatter(x, y, color=FIDELITY_COLOURS.get(r["kind"], "k"), s=30, zorder=3)
+        for i, (x, y) in enumerate(pts, start=1):
+            ax.annotate(str(i), (x, y), fontsize=7, xytext=(3, 2), textcoords="offset points")
+        front = pareto(pts)
+        ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=0.8,
+                label="Pareto front")
+        if target is not None:
+            ax.axhline(target, color="grey", lw=0.8, ls=":", label=f"target {target:g}")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("ms per strike (1 s of 6 channels, one core)")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+    for kind, colour in FIDELITY_COLOURS.items():
+        axes[0].scatter([], [], color=colour, label=kind)
+    axes[0].legend(fontsize=7)
+    fig.suptitle("Fidelity ladder against the reference solid (" + src + "); numbers: the rows "
+                 "of the table below the yardstick", fontsize=9)
+    key = [f"{i}: {r['rung']} ({r['grid']})" for i, r in enumerate(rows, start=1)]
+    columns = 3
+    per = -(-len(key) // columns)
+    for c in range(columns):
+        fig.text(0.02 + c / columns, 0.02, "\n".join(key[c * per:(c + 1) * per]), fontsize=7,
+                 va="bottom", family="monospace")
+    fig.tight_layout(rect=(0, 0.06 + 0.022 * per, 1, 0.95))
+    fig.savefig(png, dpi=110)
+
+
+def inspect(data, src, png):
+    """Coverage of (z, theta) over the valid strikes, then one strike: waveform and spectrogram
+    of each channel (time in ms from the record start, frequency in kHz)."""
+    import math
+    strike = data["strike"]
+    channels = strike["channels"]  # (C, T) full scale
+    fs = strike["sample_rate_hz"]
+    fig = plt.figure(figsize=(13, 3 + 1.6 * len(channels)))
+    grid = fig.add_gridspec(1 + len(channels), 2, height_ratios=[2.2] + [1] * len(channels))
+    ax = fig.add_subplot(grid[0, :])
+    cov = data["coverage"]
+    ax.scatter([math.degrees(t) for t in cov["theta_rad"]], [100 * z for z in cov["z_m"]], s=6,
+               alpha=0.5, label=f"{len(cov['z_m'])} valid strikes")
+    ax.scatter([math.degrees(strike["theta_rad"])], [100 * strike["z_m"]], s=60, marker="x",
+               color="tab:red", label=f"row {strike['row']} (drawn below)")
+    ax.set_xlim(-180, 180)
+    ax.set_xlabel("theta (deg)")
+    ax.set_ylabel("z (cm)")
+    ax.legend(fontsize=8, loc="upper right")
+    ax.set_title("(z, theta) of the valid strikes", fontsize=9)
+    for c, x in enumerate(channels):
+        t_ms = [1000.0 * k / fs for k in range(len(x))]
+        wave = fig.add_subplot(grid[1 + c, 0])
+        wave.plot(t_ms, x, lw=0.4)
+        wave.set_ylabel(f"mic {c}", fontsize=8)
+        spec = fig.add_subplot(grid[1 + c, 1])
+        # Fs in samples per ms: the time axis reads in ms, the frequency axis in kHz
+        spec.specgram(x, NFFT=512, Fs=fs / 1000.0, noverlap=384, cmap="magma")
+        spec.set_ylabel("kHz", fontsize=8)
+        if c + 1 == len(channels):
+            wave.set_xlabel("ms from the record start")
+            spec.set_xlabel("ms from the record start")
+    fig.suptitle(f"{data['path']}: strike index {strike['index']} at z = {100 * strike['z_m']:.1f} cm, "
+                 f"theta = {math.degrees(strike['theta_rad']):.0f} deg", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png, dpi=100)
+
+
+KINDS = {"fidelity": fidelity, "inspect": inspect}
+
+if __name__ == "__main__":
+    if len(sys.argv) != 4 or sys.argv[1] not in KINDS:
+        sys.exit(__doc__)
+    kind, src, out = sys.argv[1:]
+    KINDS[kind](json.load(open(src)), src, out)
