@@ -1,5 +1,6 @@
 #include "sonicboom/core/config_io.h"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cctype>
@@ -141,16 +142,47 @@ void ConfigLayers::AddFile(const std::string& path) {
   AddText(text.str(), path);
 }
 
+namespace {
+
+// Counts documents and keeps nothing: the parser's events are dropped.
+class DocumentCounter : public YAML::EventHandler {
+ public:
+  void OnDocumentStart(const YAML::Mark&) override {}
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
+// Whether the text holds a second YAML document. At most two are parsed: yaml-cpp's LoadAll
+// loops forever on some damaged input (a 28-byte file with NUL bytes, found by fuzzing).
+bool HasSecondDocument(const std::string& yaml_text) {
+  std::stringstream in(yaml_text);
+  YAML::Parser parser(in);
+  DocumentCounter counter;
+  int documents = 0;
+  while (documents < 2 && parser.HandleNextDocument(counter)) ++documents;
+  return documents >= 2;
+}
+
+}  // namespace
+
 void ConfigLayers::AddText(const std::string& yaml_text, const std::string& origin) {
   YAML::Node node;
   try {
-    const std::vector<YAML::Node> documents = YAML::LoadAll(yaml_text);
-    if (documents.size() > 1) {
+    if (HasSecondDocument(yaml_text)) {
       throw ConfigError(fmt::format(
-          "{}: holds {} YAML documents ('---' separated); a config is one document", origin,
-          documents.size()));
+          "{}: holds more than one YAML document; a config is one document ('---' starts another)",
+          origin));
     }
-    if (!documents.empty()) node = documents.front();
+    node = YAML::Load(yaml_text);
   } catch (const YAML::Exception& e) {
     throw ConfigError(fmt::format("{}: invalid YAML at line {}, column {}: {}", origin,
                                   e.mark.line + 1, e.mark.column + 1, e.msg));

@@ -46,7 +46,7 @@ int RunCli(int argc, char** argv) {
         RegisterVariants,  RegisterFeatures, RegisterTrain,     RegisterEval,
         RegisterCalibrate, RegisterBaseline, RegisterAblate,    RegisterLocalize,
         RegisterImport,    RegisterExport,   RegisterListen,    RegisterGeometryCheck,
-        RegisterFk,        RegisterInspect,  RegisterConfig}) {
+        RegisterMap,       RegisterFk,       RegisterInspect,   RegisterConfig}) {
     register_subcommand(app, g, &run);
   }
 

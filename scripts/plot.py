@@ -4,6 +4,8 @@ usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
   fidelity  the fidelity ladder's Pareto figure (`sonicboom fidelity`, FIDELITY.json)
   inspect   a dataset's (z, theta) coverage and one strike's six channels with their
             spectrograms (`sonicboom inspect D.h5 --png OUT.png`, OUT.png.json)
+  map       a haptic map: predicted and true contact points in 3-D, each pair joined
+            (`sonicboom map`, DIR/map.json)
 """
 import json
 import sys
@@ -105,7 +107,31 @@ def inspect(data, src, png):
     fig.savefig(png, dpi=100)
 
 
-KINDS = {"fidelity": fidelity, "inspect": inspect}
+def haptic_map(data, src, png):
+    """Predicted (red) and true (black) contact points in the base frame, each pair joined, cm."""
+    pred = [p["predicted_m"] for p in data["points"]]
+    true = [p["true_m"] for p in data["points"]]
+    fig = plt.figure(figsize=(9, 8))
+    ax = fig.add_subplot(projection="3d")
+    for p, t in zip(pred, true):
+        ax.plot([100 * p[0], 100 * t[0]], [100 * p[1], 100 * t[1]], [100 * p[2], 100 * t[2]],
+                color="grey", lw=0.5)
+    ax.scatter([100 * t[0] for t in true], [100 * t[1] for t in true],
+               [100 * t[2] for t in true], s=8, color="k", label="true contact points")
+    ax.scatter([100 * p[0] for p in pred], [100 * p[1] for p in pred],
+               [100 * p[2] for p in pred], s=8, color="tab:red", label="predicted")
+    ax.set_xlabel("x (cm)")
+    ax.set_ylabel("y (cm)")
+    ax.set_zlabel("z (cm)")
+    ax.legend(fontsize=8)
+    ax.set_title(f"{data['data']} by {data['model']}: {data['taps']} taps, MED "
+                 f"{data['med_cm']:.2f} cm, RMS Chamfer {data['chamfer_cm']:.2f} cm "
+                 f"(reverse {data['reverse_chamfer_cm']:.2f})", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png, dpi=100)
+
+
+KINDS = {"fidelity": fidelity, "inspect": inspect, "map": haptic_map}
 
 if __name__ == "__main__":
     if len(sys.argv) != 4 or sys.argv[1] not in KINDS:

@@ -76,6 +76,7 @@ void RegisterListen(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterGeometryCheck(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterFk(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterInspect(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterMap(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterConfig(CLI::App& app, GlobalOptions& g, Runner* run);
 
 }  // namespace sonicboom::experiments

@@ -1,0 +1,167 @@
+// `map`: haptic mapping (paper §V-C). Each valid tap of a dataset (simulated guided taps, or
+// captures brought in with `import`) is localized by a trained model; its (z, theta) is placed
+// in the base frame with the tube pose the arm logged at the contact, and the points form a cloud
+// of what the tube touched, scored against the true contact points placed the same way.
+#include "sonicboom/experiments/haptic_map.h"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "sonicboom/core/dataset.h"
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/experiments/commands.h"
+#include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/learning/learning.h"
+
+#include "internal/report.h"
+#include "internal/subcommands.h"
+
+namespace sonicboom::experiments {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+double RmsChamfer(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to) {
+  if (from.cols() == 0 || to.cols() == 0) return std::numeric_limits<double>::quiet_NaN();
+  double sum_sq = 0.0;
+  for (Eigen::Index i = 0; i < from.cols(); ++i) {
+    sum_sq += (to.colwise() - from.col(i)).colwise().squaredNorm().minCoeff();
+  }
+  return std::sqrt(sum_sq / static_cast<double>(from.cols()));
+}
+
+Eigen::Vector3d TubeSurfacePoint(const Eigen::Isometry3d& tube_pose, double z_m, double theta_rad,
+                                 double radius_m) {
+  return tube_pose *
+         Eigen::Vector3d(radius_m * std::cos(theta_rad), radius_m * std::sin(theta_rad), z_m);
+}
+
+MapScores ScoreMap(const Eigen::Matrix3Xd& predicted_m, const Eigen::Matrix3Xd& true_m) {
+  SONICBOOM_DEMAND(predicted_m.cols() == true_m.cols());
+  MapScores s;
+  s.taps = predicted_m.cols();
+  s.med_cm = s.taps > 0 ? 100.0 * (predicted_m - true_m).colwise().norm().mean()
+                        : std::numeric_limits<double>::quiet_NaN();
+  s.chamfer_cm = 100.0 * RmsChamfer(predicted_m, true_m);
+  s.reverse_chamfer_cm = 100.0 * RmsChamfer(true_m, predicted_m);
+  return s;
+}
+
+namespace {
+
+struct MapOptions {
+  std::string model, data, out, plot_script{"scripts/plot.py"};
+  bool force{false};
+};
+
+// The tube's logged pose at time t_s of a record: its proprio row at or before t (the last row
+// where the window ends earlier), (K x 10) rows of position, quaternion w x y z, velocity.
+Eigen::Isometry3d LoggedTubePose(const Eigen::MatrixXf& proprio, double rate_hz, double t_s) {
+  const auto last = static_cast<Eigen::Index>(proprio.rows() - 1);
+  const auto k = std::clamp<Eigen::Index>(static_cast<Eigen::Index>(std::floor(t_s * rate_hz)), 0,
+                                          last);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = proprio.row(k).head<3>().transpose().cast<double>();
+  pose.linear() = Eigen::Quaterniond(proprio(k, 3), proprio(k, 4), proprio(k, 5), proprio(k, 6))
+                      .normalized()
+                      .toRotationMatrix();
+  return pose;
+}
+
+CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
+  CheckOutput(g, {o.out, "--out", o.force}, {{o.model, "--model"}, {o.data, "--data"}});
+  if (!o.plot_script.empty() && !fs::is_regular_file(o.plot_script)) {
+    throw IoError(fmt::format("--plot {}: no such script (--plot \"\" draws no figure)",
+                              o.plot_script));
+  }
+  const SonicBoomConfig config = ResolveWithRun(g, o.model);
+  learning::Localizer localizer(o.model);
+  std::vector<uint64_t> indices;
+  const learning::FeatureSet set =
+      ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet, &indices);
+  const std::vector<learning::Prediction> predictions = localizer.Predict(set);
+
+  // each localized tap's logged pose and true contact point, by sample index
+  const DatasetReader reader(o.data);
+  if (reader.info().proprio_rows < 1) {
+    throw SchemaError(fmt::format(
+        "{}: no proprioception rows: a map places each tap with the arm's logged tube pose",
+        o.data));
+  }
+  std::map<uint64_t, int64_t> row_of;
+  for (int64_t r = 0; r < reader.size(); ++r) row_of[reader.ReadMeta(r).index] = r;
+  const double radius_m = localizer.surface_radius_m();
+  const auto n = static_cast<Eigen::Index>(indices.size());
+  Eigen::Matrix3Xd predicted(3, n), truth(3, n);  // base frame, m
+  json taps = json::array();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const StrikeSample meta = reader.ReadMeta(row_of.at(indices[static_cast<size_t>(i)]));
+    const Eigen::Isometry3d pose =
+        LoggedTubePose(meta.proprio, reader.info().proprio_rate_hz, meta.label.time_s);
+    predicted.col(i) = TubeSurfacePoint(pose, predictions[static_cast<size_t>(i)].z_m,
+                                        predictions[static_cast<size_t>(i)].theta_rad, radius_m);
+    truth.col(i) = pose * meta.label.point_m;
+    taps.push_back({{"index", meta.index},
+                    {"predicted_m", {predicted(0, i), predicted(1, i), predicted(2, i)}},
+                    {"true_m", {truth(0, i), truth(1, i), truth(2, i)}}});
+  }
+  const MapScores s = ScoreMap(predicted, truth);
+
+  // the map, its scores and its figure
+  MakeDirectories(o.out);
+  const json result = {{"kind", "map"},
+                       {"model", o.model},
+                       {"data", o.data},
+                       {"taps", s.taps},
+                       {"med_cm", s.med_cm},
+                       {"chamfer_cm", s.chamfer_cm},
+                       {"reverse_chamfer_cm", s.reverse_chamfer_cm},
+                       {"points", taps}};
+  const std::string json_path = (fs::path(o.out) / "map.json").string();
+  WriteTextAtomic(json_path, result.dump(1) + "\n");
+  if (!o.plot_script.empty()) {
+    const std::string png = (fs::path(o.out) / "map.png").string();
+    const std::string cmd =
+        fmt::format("/usr/bin/python3 '{}' map '{}' '{}'", o.plot_script, json_path, png);
+    if (std::system(cmd.c_str()) != 0) {
+      throw IoError(fmt::format("{}: {} failed on {} (needs /usr/bin/python3 with "
+                                "python3-matplotlib)",
+                                png, o.plot_script, json_path));
+    }
+  }
+  json summary = result;
+  summary.erase("points");
+  return {summary.dump(),
+          fmt::format("{} taps mapped into {}: MED {:.2f} cm, RMS Chamfer {:.2f} cm (predicted "
+                      "to true), {:.2f} cm (true to predicted)\n",
+                      s.taps, o.out, s.med_cm, s.chamfer_cm, s.reverse_chamfer_cm)};
+}
+
+}  // namespace
+
+void RegisterMap(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto o = std::make_shared<MapOptions>();
+  auto* cmd = app.add_subcommand(
+      "map", "haptic mapping: localized taps placed with the arm's logged pose, scored");
+  cmd->add_option("--model", o->model, "run directory")->required();
+  cmd->add_option("--data", o->data, "taps (.h5: generated guided taps, or imported captures)")
+      ->required();
+  cmd->add_option("--out", o->out, "output directory (map.json, map.png)")->required();
+  cmd->add_option("--plot", o->plot_script, "plotting script (\"\" draws no figure)");
+  cmd->add_flag("--force", o->force, "replace an existing output directory's files");
+  cmd->callback([&g, run, o] { *run = [&g, o] { return RunMap(g, *o); }; });
+}
+
+}  // namespace sonicboom::experiments
