@@ -638,14 +638,8 @@ void WriteFigure(const FidelityOptions& o, const json& j) {
   const std::string png_path = (out.parent_path() / (out.stem().string() + "_pareto.png")).string();
   WriteTextAtomic(json_path, j.dump(2) + "\n");
   if (o.plot_script.empty()) return;
-  const std::string cmd =
-      fmt::format("/usr/bin/python3 '{}' fidelity '{}' '{}'", o.plot_script, json_path, png_path);
-  if (std::system(cmd.c_str()) != 0) {
-    throw Error(
-        fmt::format("fidelity: the plot script {} failed on {} (the table and the JSON "
-                    "are written; --plot \"\" skips the figure)",
-                    o.plot_script, json_path));
-  }
+  DrawFigure(o.plot_script, "fidelity", json_path, png_path,
+             "the table and the JSON are written; --plot \"\" skips the figure");
 }
 
 }  // namespace

@@ -4,7 +4,6 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <sstream>
 #include <vector>
@@ -74,13 +73,8 @@ void DrawDatasetFigure(const GlobalOptions& g, const std::string& path, const In
   CheckOutput(g, {o.png, "--png", true}, {{path, "inspect's path"}});
   CheckOutput(g, {data, "the figure's data beside --png", true}, {{path, "inspect's path"}});
   WriteTextAtomic(data, DatasetFigureJson(path, o.strike_row).dump() + "\n");
-  const std::string cmd = fmt::format("/usr/bin/python3 '{}' inspect '{}' '{}'", o.plot_script,
-                                      data, o.png);
-  if (std::system(cmd.c_str()) != 0) {
-    throw IoError(fmt::format("--png {}: {} failed on {} (needs /usr/bin/python3 with "
-                              "python3-matplotlib)",
-                              o.png, o.plot_script, data));
-  }
+  DrawFigure(o.plot_script, "inspect", data, o.png,
+             "needs /usr/bin/python3 with python3-matplotlib");
 }
 
 }  // namespace

@@ -8,11 +8,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -100,14 +100,18 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
         "{}: no proprioception rows: a map places each tap with the arm's logged tube pose",
         o.data));
   }
-  std::map<uint64_t, int64_t> row_of;
-  for (int64_t r = 0; r < reader.size(); ++r) row_of[reader.ReadMeta(r).index] = r;
+  // every row's metadata, read once, by sample index
+  std::map<uint64_t, StrikeSample> meta_of;
+  for (int64_t r = 0; r < reader.size(); ++r) {
+    StrikeSample meta = reader.ReadMeta(r);
+    meta_of.emplace(meta.index, std::move(meta));
+  }
   const double radius_m = localizer.surface_radius_m();
   const auto n = static_cast<Eigen::Index>(indices.size());
   Eigen::Matrix3Xd predicted(3, n), truth(3, n);  // base frame, m
   json taps = json::array();
   for (Eigen::Index i = 0; i < n; ++i) {
-    const StrikeSample meta = reader.ReadMeta(row_of.at(indices[static_cast<size_t>(i)]));
+    const StrikeSample& meta = meta_of.at(indices[static_cast<size_t>(i)]);
     const Eigen::Isometry3d pose =
         LoggedTubePose(meta.proprio, reader.info().proprio_rate_hz, meta.label.time_s);
     predicted.col(i) = TubeSurfacePoint(pose, predictions[static_cast<size_t>(i)].z_m,
@@ -132,14 +136,8 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
   const std::string json_path = (fs::path(o.out) / "map.json").string();
   WriteTextAtomic(json_path, result.dump(1) + "\n");
   if (!o.plot_script.empty()) {
-    const std::string png = (fs::path(o.out) / "map.png").string();
-    const std::string cmd =
-        fmt::format("/usr/bin/python3 '{}' map '{}' '{}'", o.plot_script, json_path, png);
-    if (std::system(cmd.c_str()) != 0) {
-      throw IoError(fmt::format("{}: {} failed on {} (needs /usr/bin/python3 with "
-                                "python3-matplotlib)",
-                                png, o.plot_script, json_path));
-    }
+    DrawFigure(o.plot_script, "map", json_path, (fs::path(o.out) / "map.png").string(),
+               "needs /usr/bin/python3 with python3-matplotlib; --plot \"\" skips the figure");
   }
   json summary = result;
   summary.erase("points");

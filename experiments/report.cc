@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <iterator>
 #include <filesystem>
 
@@ -97,6 +98,16 @@ void RefuseWritingOverInputs(const GlobalOptions& g, const Output& out,
                              std::vector<ReadPath> reads) {
   for (const std::string& file : g.sources.files) reads.push_back({file, "--config"});
   for (const ReadPath& in : reads) RefuseWritingOver(out, in);
+}
+
+void DrawFigure(const std::string& script, const std::string& kind, const std::string& data,
+                const std::string& png, const std::string& advice) {
+  const std::string cmd =
+      fmt::format("/usr/bin/python3 '{}' {} '{}' '{}'", script, kind, data, png);
+  if (std::system(cmd.c_str()) != 0) {
+    throw IoError(fmt::format("{}: the plot script {} failed on {} ({})", png, script, data,
+                              advice));
+  }
 }
 
 void CheckOutput(const GlobalOptions& g, const Output& out, std::vector<ReadPath> reads) {

@@ -46,6 +46,12 @@ struct Output {
 /// existing output is replaced only with force. IoError naming both paths otherwise.
 void CheckOutput(const GlobalOptions& g, const Output& out, std::vector<ReadPath> reads);
 
+/// Draws `png` from `data` (JSON) with `script` (scripts/plot.py) of `kind` under
+/// /usr/bin/python3; IoError naming both files when it fails (`advice`: what the caller's user
+/// can do about it).
+void DrawFigure(const std::string& script, const std::string& kind, const std::string& data,
+                const std::string& png, const std::string& advice);
+
 /// CheckOutput's rule about inputs alone, for commands with their own rule for an existing
 /// output (generate resumes its own .partial; import and export write new directories).
 void RefuseWritingOverInputs(const GlobalOptions& g, const Output& out,
