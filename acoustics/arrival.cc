@@ -7,12 +7,12 @@
 
 #include <fmt/format.h>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 void Require(bool ok, const char* field, double value, const char* rule) {
   if (!ok) throw ConfigError(fmt::format("arrival.{} = {} {}", field, value, rule));

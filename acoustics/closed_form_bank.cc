@@ -6,11 +6,11 @@
 #include <numbers>
 
 #include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/core/constants.h"
 
 namespace sonicboom::acoustics {
 
 namespace {
-constexpr double kPi = std::numbers::pi;
 }  // namespace
 
 ClosedFormBank::ClosedFormBank(const TubeConfig& tube, const MaterialConfig& material,

@@ -11,12 +11,12 @@
 
 #include <fmt/format.h>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 // rigid-target Hertz: t_c = kHertzDuration delta_max / v (docs/physics.md, "Hertz impact")
 constexpr double kHertzDuration = 2.9432;
 // a first closure shorter than this fraction of substeps_per_duration substeps (or longer than

@@ -7,12 +7,12 @@
 
 #include <fmt/format.h>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 // Flügge stiffness (Donnell + k corrections) in Leissa's nondimensional form; mass = identity
 Eigen::Matrix3d FluggeStiffness(double lambda, double n, double nu, double k) {

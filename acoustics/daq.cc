@@ -8,13 +8,13 @@
 #include <fmt/format.h>
 
 #include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 // entry c of a per-channel list, or the scalar when the list is empty
 double PerChannel(const std::vector<double>& list, double scalar, int c) {

@@ -9,12 +9,12 @@
 
 #include <fmt/format.h>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 // an FD impact's shortest closure spans at least this many steps
 constexpr double kStepsPerClosure = 8.0;
 using Terms = std::vector<std::pair<int64_t, double>>;  // (DOF, coefficient)

@@ -10,12 +10,12 @@
 #include <fmt/format.h>
 
 #include "sonicboom/core/config_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 // grid lookups: a point that does not exist (off the grid, on a seam, in a hole) makes a strain
 // that needs it unavailable; a fixed point (a supported end) contributes zero
 constexpr int64_t kAbsent = -1;

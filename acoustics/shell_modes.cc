@@ -27,12 +27,12 @@
 #include <spdlog/spdlog.h>
 
 #include "sonicboom/core/cache_file.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr int64_t kMaxModes = 20000;
 // modes a slice of the spectrum is planned to hold, and the most it may hold before it is split
 constexpr int64_t kSliceModes = 60;

@@ -18,13 +18,13 @@
 #include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/shell_ritz.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 // the default grid (2.5 mm) has >= 6 points per bending wavelength up to about here
 constexpr double kDefaultModeBandHz = 20000.0;
 

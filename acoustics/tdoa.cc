@@ -1,5 +1,6 @@
 #include "sonicboom/acoustics/tdoa.h"
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/dsp/band_weights.h"
 
 #include <fmt/format.h>
@@ -19,7 +20,6 @@
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // angle mapped into [base, base + 2 pi)

@@ -29,6 +29,7 @@
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
@@ -43,7 +44,6 @@ namespace {
 
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
-constexpr double kPi = std::numbers::pi;
 // an arrival this far off the yardstick's has caught another wave packet, us
 constexpr double kHopUs = 50.0;
 

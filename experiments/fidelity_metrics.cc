@@ -7,12 +7,12 @@
 #include <numbers>
 #include <vector>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/solid/solid_response.h"
 
 namespace sonicboom::experiments {
 
-constexpr double kPi = std::numbers::pi;
 
 double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref) {
   SONICBOOM_DEMAND(y.rows() == ref.rows() && y.cols() == ref.cols());

@@ -23,6 +23,7 @@
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/shell_ritz.h"
 #include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
@@ -34,7 +35,6 @@ namespace {
 
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
-constexpr double kPi = std::numbers::pi;
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();

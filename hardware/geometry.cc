@@ -1,6 +1,7 @@
 // Contact labels from geometry: Embree point queries from samples of the tube surface to an
 // object mesh (triangles) or point cloud (one user primitive per point), pose by pose along a
 // logged trajectory.
+#include "sonicboom/core/constants.h"
 #include "sonicboom/hardware/geometry.h"
 
 #include <embree3/rtcore.h>
@@ -15,7 +16,6 @@
 namespace sonicboom::hardware {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 using Vec = Eigen::Vector3f;
 
 // The point of triangle abc closest to p (by the Voronoi region of p: a vertex, an edge or the

@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/hardware/import.h"
 
 #include <algorithm>
@@ -20,7 +21,6 @@ namespace fs = std::filesystem;
 namespace sonicboom::hardware {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kJ7OffsetRad = 50.0 * kPi / 180.0;  // θ_tube = −θ_j7 − 50°
 // An int16 converter's positive full scale as libsndfile reads it (32767 / 32768).
 constexpr float kFullScale = 32767.0f / 32768.0f;

@@ -9,6 +9,7 @@
 
 #include "internal/import_common.h"
 #include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/hardware/geometry.h"
@@ -20,7 +21,6 @@ namespace fs = std::filesystem;
 namespace sonicboom::hardware {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // A (rows x cols) array with at least `min_rows` rows and one of the allowed column counts.
 NpyArray ReadTable(const fs::path& file, int64_t min_rows, std::initializer_list<int64_t> cols) {

@@ -20,13 +20,15 @@ namespace sonicboom::learning {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-// One trained network and its model.json.
-struct Member {
+// One trained network and its model.json (named, not anonymous: Localizer::Impl holds them).
+struct LocalizerMember {
   internal::ModelFile file;
   internal::Network network{nullptr};
 };
+
+namespace {
+
+using Member = LocalizerMember;
 
 Member LoadMember(const std::string& run_dir) {
   if (!fs::is_directory(run_dir)) {
@@ -127,7 +129,7 @@ std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& feature
 }  // namespace
 
 struct Localizer::Impl {
-  std::vector<Member> members;               // one, or an ensemble's
+  std::vector<LocalizerMember> members;        // one, or an ensemble's
   UncertaintyCalibration mixture_calibration;  // an ensemble's, of the combined distribution
 };
 

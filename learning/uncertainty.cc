@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "internal/uncertainty.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/learning/learning.h"
 
@@ -16,7 +17,6 @@ namespace sonicboom::learning {
 namespace internal {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 // exp(-x) I_nu(x) for nu = 0 or 1 and x >= 0.
 double BesselScaled(int nu, double x) {

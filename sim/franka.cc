@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/sim/franka.h"
 
 #include <algorithm>
@@ -10,7 +11,6 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 // Craig (modified) DH rows: a_{i-1} (m), d_i (m), alpha_{i-1} (rad); joints 1-7, then flange
 constexpr std::array<DhRow, kPandaJoints + 1> kPandaDh = {{

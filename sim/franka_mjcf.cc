@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/sim/franka_mjcf.h"
 
 #include <fmt/format.h>
@@ -14,7 +15,6 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kGravityMS2 = 9.81;
 
 // Published joint torque limits, N m

@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/sim/rollout.h"
 
 #include <fmt/format.h>
@@ -27,7 +28,6 @@ using internal::ModelPtr;
 using internal::RequireId;
 using internal::SegmentDistance;
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
 // object surface this far beyond the intended contact point at the kinematic contact pose, m
 constexpr double kObjectGapM = 0.001;

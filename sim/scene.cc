@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/sim/scene.h"
 
 #include <fmt/format.h>
@@ -13,7 +14,6 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
 // fundamental roots (docs/physics.md, "Beam modes"): cantilever cos cosh = -1, clamped-clamped 1
 constexpr double kCantileverBetaL = 1.875104068711961;

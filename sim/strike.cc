@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/sim/strike.h"
 
 #include <cmath>
@@ -12,7 +13,6 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
 
 }  // namespace

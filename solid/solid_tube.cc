@@ -8,13 +8,14 @@
 
 #include <fmt/format.h>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/solid/gll.h"
 
 namespace sonicboom::solid {
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kTwoPi = 2.0 * kPi;
 
 // theta in [start, start + 2 pi)
 double WrapFrom(double theta_rad, double start_rad) {

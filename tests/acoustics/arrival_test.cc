@@ -8,12 +8,13 @@
 
 #include "../common/test_util.h"
 #include "sonicboom/acoustics/arrival.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 constexpr double kFs = 44100.0;
 
 TdoaGeometry Geometry() {

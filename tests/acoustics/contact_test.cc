@@ -16,6 +16,7 @@
 
 #include "sonicboom/acoustics/contact.h"
 #include "sonicboom/core/config_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -25,7 +26,7 @@ using testing::ThrownMessage;
 
 using ::testing::HasSubstr;
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 constexpr double kFs = 44100.0;
 // wood tip on PVC: K = 4/3 E* sqrt(R_e), E* 2.79 GPa, R_e 6 mm (docs/physics.md, "Hertz impact")
 const double kWoodOnPvc = 4.0 / 3.0 * 2.79e9 * std::sqrt(0.006);

@@ -18,12 +18,13 @@
 #include "sonicboom/acoustics/shell_bank.h"
 #include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 
 // the default seamed, drilled, mounted tube, Rayleigh-damped (what FD realizes), on a grid
 ShellModel Tube(double spacing_m, double loss_factor = MaterialConfig{}.loss_factor) {

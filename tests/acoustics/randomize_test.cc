@@ -13,12 +13,13 @@
 #include "sonicboom/acoustics/daq.h"
 #include "sonicboom/acoustics/randomize.h"
 #include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 using testing::ThrownMessage;
 
 bool Names(const std::string& message, const std::string& key) {

@@ -22,6 +22,7 @@
 #include "sonicboom/acoustics/shell_modes.h"
 #include "sonicboom/acoustics/shell_synth.h"
 #include "sonicboom/core/config_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -29,7 +30,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 
 ShellConfig Ideal(TubeEnds ends, double arc_m, double axial_m) {
   ShellConfig s;

@@ -12,12 +12,13 @@
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 
 // one mode cache for the whole suite (the coarse tube's modes are solved once)
 const testing::TempDir& Cache() {

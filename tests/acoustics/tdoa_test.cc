@@ -9,12 +9,13 @@
 #include <numbers>
 #include <unsupported/Eigen/FFT>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 constexpr double kFs = 44100.0;
 constexpr int64_t kOnset = 2000;
 

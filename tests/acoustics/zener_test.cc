@@ -12,11 +12,12 @@
 #include <vector>
 
 #include "sonicboom/acoustics/contact.h"
+#include "sonicboom/core/constants.h"
 
 namespace sonicboom::acoustics {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 constexpr double kFs = 44100.0;
 
 // the PVC wall as a plate (docs/conventions.md defaults)

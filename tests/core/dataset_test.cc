@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/dataset.h"
 
 #include <gtest/gtest.h>
@@ -780,7 +781,7 @@ TEST(SummaryTest, CountsContactsByKindAndObjectAndFirstContactCoverage) {
   const std::string path = dir.File("strikes.h5");
   const DatasetInfo info = MakeInfo(true);
   using Kind = ContactEpisode::Kind;
-  constexpr double kPi = 3.14159265358979323846;
+  using sonicboom::kPi;
   std::vector<StrikeSample> samples;
   for (uint64_t i = 0; i < 6; ++i) samples.push_back(MakeSample(i, info, i != 1, "penetration"));
   // Valid 0: first contact in z bin 0, theta 0.5 rad = 28.6 deg in bin (0, 60].

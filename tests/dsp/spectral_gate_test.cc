@@ -1,3 +1,4 @@
+#include "sonicboom/core/constants.h"
 #include "sonicboom/dsp/spectral_gate.h"
 
 #include <gmock/gmock.h>
@@ -34,7 +35,7 @@ using testing::ThrownMessage;
 using ::testing::HasSubstr;
 
 constexpr double kFs = 44100.0;
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 
 // Goldens from scripts/make_goldens.py (features.json manifest + raw float32 LE, C order).
 nlohmann::json Manifest() {

@@ -7,11 +7,12 @@
 #include <numbers>
 
 #include "internal/fidelity_metrics.h"
+#include "sonicboom/core/constants.h"
 
 namespace sonicboom::experiments {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 constexpr double kFs = 44100.0;
 
 // (6 x 400) a decaying 2 kHz burst starting at sample 50 + delay[c] on channel c

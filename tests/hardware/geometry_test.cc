@@ -11,6 +11,7 @@
 #include <random>
 
 #include "common/test_util.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/tube.h"
 #include "sonicboom/hardware/geometry.h"
@@ -21,7 +22,7 @@ namespace {
 using sonicboom::testing::TempDir;
 using sonicboom::testing::ThrownMessage;
 using ::testing::HasSubstr;
-constexpr double kPi = 3.14159265358979323846;
+using sonicboom::kPi;
 constexpr double kR = 0.05355;
 
 // A tetrahedron in every format.

@@ -9,6 +9,7 @@
 
 #include "common/test_util.h"
 #include "sonicboom/core/audio_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/hardware/capture.h"
@@ -23,7 +24,7 @@ using sonicboom::testing::TempDir;
 using sonicboom::testing::ThrownMessage;
 using ::testing::HasSubstr;
 
-constexpr double kPi = 3.14159265358979323846;
+using sonicboom::kPi;
 constexpr int64_t kFrames = 88200;
 
 // A ringing strike: decaying tones from 0.5 s on each channel plus a little noise, peak < 0.5.

@@ -1,4 +1,5 @@
 // The baselines: kNN recovery, weighting and circular means, the constant predictor, error paths.
+#include "sonicboom/core/constants.h"
 #include "sonicboom/learning/baselines.h"
 
 #include <gtest/gtest.h>
@@ -12,7 +13,7 @@
 namespace sonicboom::learning {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 
 // A small random feature set (2 channels, 4 mels, 40 frames, 3 GCC pairs of 21 lags) with
 // positive power mels and labels spread over the region.

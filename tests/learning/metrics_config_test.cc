@@ -13,6 +13,7 @@
 
 #include "internal/json_archive.h"
 #include "sonicboom/core/config_io.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/learning/learning.h"
 
@@ -21,7 +22,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 
 // Truth labels only.
 FeatureSet Truth(const std::vector<double>& z_m, const std::vector<double>& theta_rad) {

@@ -15,6 +15,7 @@
 
 #include "common/test_util.h"
 #include "internal/uncertainty.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
@@ -23,7 +24,7 @@
 namespace sonicboom::learning {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 
 // P(|x| <= h) for a von Mises variable of concentration kappa around 0, from the Fourier series
 // of the density (h + 2 sum_n I_n(kappa) / I0(kappa) sin(n h) / n) / pi: an independent check

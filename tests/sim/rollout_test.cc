@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "rollout_expect.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/sim/rollout.h"
@@ -17,7 +18,7 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using sonicboom::kPi;
 constexpr int kSeeds = 30;
 
 // one default rollout model and its 30 seeded rollouts, shared by the tests of this file

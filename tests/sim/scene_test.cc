@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "rollout_expect.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/sim/rollout.h"
@@ -23,7 +24,7 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using sonicboom::kPi;
 constexpr double kDeg = kPi / 180.0;
 
 ObjectConfig Rod(double diameter_m, double length_m) {

@@ -13,6 +13,7 @@
 #include <numbers>
 
 #include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/solid/gll.h"
 #include "sonicboom/solid/reference_render.h"
@@ -25,7 +26,7 @@
 namespace sonicboom::solid {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using sonicboom::kPi;
 constexpr double kDeg = kPi / 180.0;
 
 TEST(GllTest, IntegratesPolynomialsToDegreeTwoNMinusOneAndDifferentiatesExactly) {
