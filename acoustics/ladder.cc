@@ -11,6 +11,7 @@
 #include "sonicboom/acoustics/fd_render.h"
 #include "sonicboom/acoustics/shell_fd.h"
 #include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -89,8 +90,7 @@ Eigen::MatrixXd VibrationRung::Render(std::span<const ForceInput> forces, int64_
 }
 
 Eigen::MatrixXd VibrationRung::RenderImpacts(std::span<const FdImpact> impacts,
-                                             const ContactConfig& contact,
-                                             int64_t samples) const {
+                                             const ContactConfig& contact, int64_t samples) const {
   const Impl& m = *impl_;
   if (!m.fd) throw Error("VibrationRung::RenderImpacts: only an FD rung closes its own contact");
   return FdRender(*m.model, *m.fd, {}, impacts, contact, m.sensor_rows, samples, -300.0).strain;
@@ -108,7 +108,12 @@ double VibrationRung::PlayedBand(double derived_band_hz) const {
 Eigen::VectorXd VibrationRung::FrequenciesHz() const {
   if (impl_->fd) return {};
   if (impl_->closed_form) return impl_->closed_form->FrequenciesHz(impl_->full_band_hz);
-  return impl_->modes.omega_rad_s / (2.0 * std::numbers::pi);
+  return impl_->bank->frequencies_hz();
+}
+
+Eigen::VectorXd VibrationRung::GridFrequenciesHz() const {
+  if (impl_->fd || impl_->closed_form) return {};
+  return impl_->modes.omega_rad_s / (2.0 * kPi);
 }
 
 int64_t VibrationRung::dofs() const {

@@ -57,6 +57,7 @@ void ShellConfig::Serialize(Archive* a) {
   a->Visit("loss_low_hz", &loss_low_hz, Bounds::Open(0.0, 1e6));
   a->Visit("loss_high_hz", &loss_high_hz, Bounds::Open(0.0, 1e6));
   a->Visit("loss_factor_high", &loss_factor_high, Bounds::Closed(0.0, 2.0));
+  a->Visit("dispersion", &dispersion);
 }
 
 void ShellConfig::Validate(const TubeConfig& tube) const {
@@ -106,9 +107,9 @@ struct GridLayout {
   const ShellConfig& shell;
   double R{0.0}, dz{0.0}, dth{0.0}, ds{0.0};  // mid radius, m; spacings, m, rad, m of arc
   int nz{0}, nth{0};
-  bool real{false};       // seams, bolts, holes and mounts (not the ideal tube)
-  bool supported{false};  // simply supported ends
-  std::vector<int> seams{};          // the v column js of each cut
+  bool real{false};                    // seams, bolts, holes and mounts (not the ideal tube)
+  bool supported{false};               // simply supported ends
+  std::vector<int> seams{};            // the v column js of each cut
   std::vector<bool> seam_v{}, edge{};  // (nth) v on a cut; w/u column beside a cut
 
   int Wrap(int j) const { return ((j % nth) + nth) % nth; }
@@ -361,8 +362,7 @@ void AddSprings(const GridLayout& g, StrainRows* rows) {
   // one bolt at z: three springs of stiffness k across the cut at row (ib, iu)
   auto bolt_springs = [&](int js, double z, double k) {
     const int ib = std::clamp(static_cast<int>(std::lround((z + 0.5 * length) / g.dz)), 0, nz);
-    const int iu =
-        std::clamp(static_cast<int>(std::floor((z + 0.5 * length) / g.dz)), 0, nz - 1);
+    const int iu = std::clamp(static_cast<int>(std::floor((z + 0.5 * length) / g.dz)), 0, nz - 1);
     spring(Field::kW, ib, js, Field::kW, ib, js + 1, k);
     spring(Field::kU, iu, js, Field::kU, iu, js + 1, k);
     spring(Field::kV, ib, js - 1, Field::kV, ib, js + 1, k);
@@ -378,7 +378,8 @@ void AddSprings(const GridLayout& g, StrainRows* rows) {
         continue;
       }
       // a tie: the same total stiffness over the rows within the tie length (at least one)
-      const int tie_rows = std::max(1, static_cast<int>(std::lround(shell.bolt_tie_length_m / g.dz)));
+      const int tie_rows =
+          std::max(1, static_cast<int>(std::lround(shell.bolt_tie_length_m / g.dz)));
       for (int r = 0; r < tie_rows; ++r) {
         bolt_springs(js, z + (r - 0.5 * (tie_rows - 1)) * g.dz, k / tie_rows);
       }
@@ -439,8 +440,7 @@ RayleighFit FitRayleigh(const MaterialConfig& material, const ShellConfig& shell
 }
 
 // The mode cache's key of a structure on an nz x nth grid.
-std::string CacheKey(TubeConfig tube, MaterialConfig material, ShellConfig shell, int nz,
-                     int nth) {
+std::string CacheKey(TubeConfig tube, MaterialConfig material, ShellConfig shell, int nz, int nth) {
   // The key is the serialized sections, so that a field added to any of them enters it without
   // anyone remembering to: only the fields known to set no mode are reset to their defaults
   // first (the tube's mount offset and contact region, the loss factor and the damping keys).
@@ -456,6 +456,7 @@ std::string CacheKey(TubeConfig tube, MaterialConfig material, ShellConfig shell
   shell.loss_low_hz = shell_defaults.loss_low_hz;
   shell.loss_high_hz = shell_defaults.loss_high_hz;
   shell.loss_factor_high = shell_defaults.loss_factor_high;
+  shell.dispersion = shell_defaults.dispersion;  // applied to the solved modes, not in them
   return fmt::format("shell-v2 nz={} nth={}\ntube:\n{}material:\n{}shell:\n{}", nz, nth,
                      ToYaml(tube), ToYaml(material), ToYaml(shell));
 }
@@ -514,6 +515,11 @@ int64_t ShellModel::WIndex(int i, int j) const {
   if (i < 0 || i > nz_ || j < 0 || j >= nth_) return -1;
   const int64_t d = w_index_[static_cast<size_t>(i) * nth_ + j];
   return d >= 0 ? d : -1;
+}
+
+bool ShellModel::ArcLinked(int i, int j) const {
+  if (WIndex(i, j) < 0 || WIndex(i, (j + 1) % nth_) < 0) return false;
+  return v_index_[static_cast<size_t>(i) * nth_ + j] != kAbsent;
 }
 
 bool ShellModel::AcceptsForce(double z_m, double theta_rad) const {

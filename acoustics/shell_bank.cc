@@ -1,5 +1,7 @@
 #include "sonicboom/acoustics/shell_bank.h"
 
+#include "sonicboom/acoustics/dispersion.h"
+
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
@@ -255,11 +257,19 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ShellModes& modes,
     : ShellModalBank(model, ModeRows::Of(modes, RowsRead(model, mics, placement_margin_m)), mics,
                      sample_rate_hz, decay_floor_db, residual, placement_margin_m) {}
 
-ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
+ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& solved,
                                const MicArrayConfig& mics, double sample_rate_hz,
                                double decay_floor_db, bool residual, double placement_margin_m)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
+  // the modes as rendered: as solved, or carried to the thick wall's dispersion (the residual
+  // keeps the solved frequencies: it restores the solved structure's left-out modes)
+  Eigen::VectorXd solved_omega = solved.omega_rad_s;
+  ModeRows thick;
+  if (model.shell().dispersion == Dispersion::kThickPlate) {
+    thick = ThickPlateCorrected(model, solved, &solved_omega);
+  }
+  const ModeRows& modes = model.shell().dispersion == Dispersion::kThickPlate ? thick : solved;
   m.mics = mics;
   SONICBOOM_DEMAND(modes.shapes.rows() == static_cast<Eigen::Index>(modes.dofs.size()) &&
                    modes.shapes.cols() == modes.omega_rad_s.size());
@@ -334,7 +344,7 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& modes,
     throw ConfigError(fmt::format("mics: {} microphones; the modal bank renders at most {}",
                                   mics.count(), kMaxMics));
   }
-  m.sensor_static = gain * m.omega.cwiseAbs2().cwiseInverse().asDiagonal();
+  m.sensor_static = gain * solved_omega.head(n).cwiseAbs2().cwiseInverse().asDiagonal();
   // every DOF a disc moved by up to the margin (and grown by twice it) can read
   if (placement_margin_m > 0.0) {
     m.placement_row.assign(static_cast<size_t>(model.dofs()), -1);
@@ -391,6 +401,10 @@ int64_t ShellModalBank::modes() const {
 
 double ShellModalBank::max_frequency_hz() const {
   return impl_->n_modes > 0 ? impl_->frequency_hz[impl_->n_modes - 1] : 0.0;
+}
+
+const Eigen::VectorXd& ShellModalBank::frequencies_hz() const {
+  return impl_->frequency_hz;
 }
 
 int64_t ShellModalBank::ModesBelow(double band_hz) const {

@@ -12,6 +12,7 @@
 #include <functional>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <span>
 #include <string>
 #include <utility>
@@ -34,8 +35,8 @@
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/experiments/pipeline.h"
-#include "sonicboom/sim/scene.h"
 #include "sonicboom/hardware/npy.h"
+#include "sonicboom/sim/scene.h"
 #include "sonicboom/solid/reference_tube.h"
 #include "sonicboom/solid/solid_response.h"
 
@@ -76,6 +77,8 @@ ContactEvent StrikeEvent(const TestStrike& s, double time_s) {
 struct Grid {
   std::string name;
   double arc_m, axial_m;
+  // the modal rung's dispersion on it (shell.dispersion); empty = the configured one
+  std::optional<acoustics::Dispersion> dispersion{};
 };
 
 // what the ladder asks of a rung, whichever model renders it
@@ -89,6 +92,10 @@ class LadderRung {
                                  double derived_band_hz) const = 0;
   /// (modes) the frequencies of the modes a render plays, ascending, Hz (empty: not modal).
   virtual Eigen::VectorXd PlayedFrequenciesHz(double derived_band_hz) const = 0;
+  /// (modes) the same as its discretization solved them (before a dispersion correction), Hz.
+  virtual Eigen::VectorXd GridFrequenciesHz(double derived_band_hz) const {
+    return PlayedFrequenciesHz(derived_band_hz);
+  }
   virtual int64_t dofs() const = 0;
   /// FD: time steps per audio sample (its cost per sample is constant); 0 for a modal rung.
   virtual int64_t oversampling() const { return 0; }
@@ -110,6 +117,12 @@ class ShellRung final : public LadderRung {
   Eigen::VectorXd PlayedFrequenciesHz(double derived_band_hz) const override {
     if (rung_->fd()) return {};
     return rung_->FrequenciesHz().head(rung_->ModesPlayed(derived_band_hz));
+  }
+  Eigen::VectorXd GridFrequenciesHz(double derived_band_hz) const override {
+    if (rung_->fd()) return {};
+    const Eigen::VectorXd solved = rung_->GridFrequenciesHz();
+    if (solved.size() == 0) return PlayedFrequenciesHz(derived_band_hz);  // the closed form
+    return solved.head(std::min<Eigen::Index>(solved.size(), rung_->ModesPlayed(derived_band_hz)));
   }
   int64_t dofs() const override { return rung_->dofs(); }
   int64_t oversampling() const override { return rung_->oversampling(); }
@@ -174,6 +187,7 @@ struct RungResult {
   int64_t hops{0}, channels{0};
   double band_error_db{0}, modes{0}, dofs{0}, oversampling{0};
   FrequencyError frequency;
+  FrequencyError grid_frequency;  // the grid's as solved (what an FD rung on it integrates)
   bool frequency_of_grid{false};  // an FD rung: its grid's modal frequencies
 };
 
@@ -207,9 +221,8 @@ double SecondsPerStrike(const LadderRung& rung, size_t strike, const LadderStrik
   double best = 1e30;
   for (int rep = 0; rep < 3; ++rep) {
     const auto t0 = Clock::now();
-    const Eigen::MatrixXd full =
-        rung.Render(strikes.forces[strike], strikes.impacts[strike], strikes.one_second,
-                    strikes.derived_band_hz[strike]);
+    const Eigen::MatrixXd full = rung.Render(strikes.forces[strike], strikes.impacts[strike],
+                                             strikes.one_second, strikes.derived_band_hz[strike]);
     best = std::min(best, Seconds(t0));
     if (full.hasNaN()) throw NumericalError("fidelity: NaN in a modal render");
   }
@@ -262,6 +275,8 @@ RungResult MeasureRung(const RungEntry& entry, const LadderRung& rung, const Lad
   const Eigen::VectorXd played = rung.PlayedFrequenciesHz(widest);
   if (is_yardstick) yardstick->frequencies_hz = played;
   r.frequency = RankedFrequencyError(played, yardstick->frequencies_hz, frequency_max_hz);
+  r.grid_frequency = RankedFrequencyError(rung.GridFrequenciesHz(widest), yardstick->frequencies_hz,
+                                          frequency_max_hz);
   return r;
 }
 
@@ -326,16 +341,16 @@ void LadderRows(const std::vector<RungEntry>& rungs, const std::vector<RungResul
     auto err = [&](double v, const char* spec) {
       return i == 0 ? std::string("—") : fmt::format(fmt::runtime(spec), v);
     };
-    *md += fmt::format(
-        "| {} | {} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} | {} | {} |\n", rung.name,
-        rung.grid, r.dofs, size, r.ms_per_strike, 1e3 / r.ms_per_strike, freq,
-        i == 0 ? "—"
-               : fmt::format("{:.1f} / {:.1f} ({}/{})", r.arrival_us, r.arrival_median_us,
-                             r.hops, r.channels),
-        i == 0 ? "—"
-               : fmt::format("{:.1f} / {:.1f} / {:.0f}", r.delay_us, r.delay_median_us,
-                             r.delay_max_us),
-        err(r.rel_error, "{:.3f}"), err(r.band_error_db, "{:.2f}"));
+    *md += fmt::format("| {} | {} | {:.0f} | {} | {:.3g} | {:.3g} | {} | {} | {} | {} | {} |\n",
+                       rung.name, rung.grid, r.dofs, size, r.ms_per_strike, 1e3 / r.ms_per_strike,
+                       freq,
+                       i == 0 ? "—"
+                              : fmt::format("{:.1f} / {:.1f} ({}/{})", r.arrival_us,
+                                            r.arrival_median_us, r.hops, r.channels),
+                       i == 0 ? "—"
+                              : fmt::format("{:.1f} / {:.1f} / {:.0f}", r.delay_us,
+                                            r.delay_median_us, r.delay_max_us),
+                       err(r.rel_error, "{:.3f}"), err(r.band_error_db, "{:.2f}"));
     rows_json->push_back({{"rung", rung.name},
                           {"kind", rung.kind},
                           {"grid", rung.grid},
@@ -410,6 +425,12 @@ std::string Recommendations(const std::vector<RungEntry>& rungs,
   if (second >= 0)
     md += fmt::format("- A second theory (held-out test strikes, cross-checks): {}.\n",
                       describe(second));
+  md +=
+      "\nA rung's keys: its grid is shell.grid_spacing_m x shell.axial_spacing_m (arc x axial); "
+      "'thick-plate' is shell.dispersion: thick-plate (docs/shell.md, \"Dispersion\"); 'all "
+      "modes' is acoustics.max_frequency_hz: 20000 (the solved band), 'N kHz' acoustics."
+      "max_frequency_hz: N000, 'derived band' 0 (from the contact); 'N modes' "
+      "acoustics.mode_count; 'no residual' acoustics.residual: false; FD is acoustics.model: fd.\n";
   return md;
 }
 
@@ -485,9 +506,11 @@ std::unique_ptr<acoustics::VibrationRung> BuildShellRung(const SonicBoomConfig& 
                                                          const Grid& grid) {
   spec.arc_m = grid.arc_m;
   spec.axial_m = grid.axial_m;
-  return std::make_unique<acoustics::VibrationRung>(
-      config.tube, s.rayleigh_material, s.rayleigh_shell, config.mics, s.fs, spec, s.full_band_hz,
-      config.acoustics.decay_floor_db, s.cache);
+  acoustics::ShellConfig shell = s.rayleigh_shell;
+  if (grid.dispersion) shell.dispersion = *grid.dispersion;
+  return std::make_unique<acoustics::VibrationRung>(config.tube, s.rayleigh_material, shell,
+                                                    config.mics, s.fs, spec, s.full_band_hz,
+                                                    config.acoustics.decay_floor_db, s.cache);
 }
 
 // The reference solid of the configured structure on elements of element_m, modes to band_hz
@@ -538,8 +561,15 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
     };
   };
   auto grid_name = [](const Grid& g) {
-    return fmt::format("shell, {:.1f} x {:.1f} mm", 1e3 * g.arc_m, 1e3 * g.axial_m);
+    return fmt::format("shell, {:.1f} x {:.1f} mm{}", 1e3 * g.arc_m, 1e3 * g.axial_m,
+                       g.dispersion ? ", " + std::string(NameOf(*g.dispersion)) : "");
   };
+  // the same grids with the other dispersion than the configured one
+  const auto other = s.rayleigh_shell.dispersion == acoustics::Dispersion::kThin
+                         ? acoustics::Dispersion::kThickPlate
+                         : acoustics::Dispersion::kThin;
+  Grid configured_other = s.configured, fine_other = s.fine;
+  configured_other.dispersion = fine_other.dispersion = other;
   const auto fd = acoustics::VibrationModel::kFd, modal = acoustics::VibrationModel::kModal;
   auto modal_spec = [&](double band, int64_t count, bool residual) {
     acoustics::RungSpec spec;
@@ -583,6 +613,13 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
        shell(modal_spec(0, 100, true), s.configured)},
       {"modal, all modes", "modal", grid_name(s.fine),
        shell(modal_spec(s.full_band_hz, 0, true), s.fine)},
+      {"modal, derived band", "modal", grid_name(configured_other),
+       shell(modal_spec(0, 0, true), configured_other)},
+      {"modal, derived band", "modal", grid_name(s.fine), shell(modal_spec(0, 0, true), s.fine)},
+      {"modal, derived band", "modal", grid_name(fine_other),
+       shell(modal_spec(0, 0, true), fine_other)},
+      {"modal, all modes", "modal", grid_name(fine_other),
+       shell(modal_spec(s.full_band_hz, 0, true), fine_other)},
       {"modal, derived band", "modal", grid_name(s.coarse),
        shell(modal_spec(0, 0, true), s.coarse)},
       {"modal, derived band", "modal", grid_name(s.coarser),
@@ -610,8 +647,7 @@ json WriteSignals(const std::string& dir, size_t index, const RungEntry& rung,
       for (Eigen::Index t = 0; t < samples; ++t) data.push_back(y(m, t));
   }
   const std::string file = fmt::format("{:02d}.npy", index);
-  hardware::WriteNpy(dir + "/" + file,
-                     {static_cast<int64_t>(signals.size()), mics, samples}, data);
+  hardware::WriteNpy(dir + "/" + file, {static_cast<int64_t>(signals.size()), mics, samples}, data);
   return {{"file", file}, {"rung", rung.name}, {"kind", rung.kind}, {"grid", rung.grid}};
 }
 
@@ -622,9 +658,9 @@ void FrequenciesOfGrids(const std::vector<RungEntry>& rungs, std::vector<RungRes
     int64_t most = -1;
     for (size_t j = 0; j < rungs.size(); ++j) {
       if (rungs[j].kind == "modal" && rungs[j].grid == rungs[i].grid &&
-          (*results)[j].frequency.modes > most) {
-        most = (*results)[j].frequency.modes;
-        (*results)[i].frequency = (*results)[j].frequency;
+          (*results)[j].grid_frequency.modes > most) {
+        most = (*results)[j].grid_frequency.modes;
+        (*results)[i].frequency = (*results)[j].grid_frequency;
         (*results)[i].frequency_of_grid = true;
       }
     }
@@ -668,9 +704,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
         fs, settings.full_band_hz);
     ladder.derived_band_hz.push_back(solved.derived_band_hz);
     ladder.forces.push_back({std::move(solved.force)});
-    ladder.impacts.push_back(
-        acoustics::RigidStrikeImpact(StrikeEvent(kStrikes[s], onset_s), config.tube,
-                                     config.material));
+    ladder.impacts.push_back(acoustics::RigidStrikeImpact(StrikeEvent(kStrikes[s], onset_s),
+                                                          config.tube, config.material));
   }
 
   Yardstick yardstick;
@@ -723,7 +758,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
       "pairs and the strikes / median / worst pair), relative L2 error, octave-band energy error "
       "(250 Hz–16 kHz, mean |dB|).\n\n{}\n"
       "| rung | discretization | DOFs | modes / oversampling | ms per strike | strikes/s | "
-      "frequency error (%) | arrival error mean / median (µs) (channels > 50 µs off) | delay error mean / median / max (µs) | relative error | "
+      "frequency error (%) | arrival error mean / median (µs) (channels > 50 µs off) | delay error "
+      "mean / median / max (µs) | relative error | "
       "band-energy error (dB) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
       o.quick ? " --quick" : "", fs, o.strikes, o.window_s * 1e3, frequency_max_hz / 1e3,
       o.window_s * 1e3, yardstick.band_hz / 1e3, solves_md);

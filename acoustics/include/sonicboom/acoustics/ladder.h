@@ -65,9 +65,12 @@ class VibrationRung {
   /// The wall a contact sees at (z, theta) through the modes up to band_hz (modal rungs only;
   /// Error for an FD or closed-form rung).
   DrivingPoint WallAt(double z_m, double theta_rad, double band_hz) const;
-  /// (modes) the modal rung's elastic mode frequencies, ascending, Hz (empty
-  /// for an FD rung: its grid's are those of a modal rung on the same grid).
+  /// (modes) the modal rung's elastic mode frequencies as it plays them, ascending, Hz
+  /// (shell.dispersion applied; empty for an FD rung).
   Eigen::VectorXd FrequenciesHz() const;
+  /// (modes) the grid's frequencies as solved, ascending, Hz: an FD rung's are those of a modal
+  /// rung on the same grid (empty for an FD rung and the closed form).
+  Eigen::VectorXd GridFrequenciesHz() const;
   int64_t dofs() const;
   int64_t oversampling() const;  // FD steps per audio sample (0 for a modal rung)
   bool fd() const;

@@ -45,6 +45,18 @@ inline std::span<const EnumName<DampingModel>> EnumNames(DampingModel) {
   return kDampingModelNames;
 }
 
+// thin: the modal rung keeps the frequencies of the discretized thin shell as solved.
+// thick-plate: each mode's frequency is carried from the grid's thin-plate dispersion to a thick
+// wall's (Mindlin: transverse shear and rotary inertia) at the mode's own axial and
+// circumferential wavenumbers, estimated from its shape (acoustics/dispersion.h). The FD rung
+// integrates K itself and is never corrected.
+enum class Dispersion { kThin, kThickPlate };
+inline constexpr EnumName<Dispersion> kDispersionNames[] = {
+    {Dispersion::kThin, "thin"}, {Dispersion::kThickPlate, "thick-plate"}};
+inline std::span<const EnumName<Dispersion>> EnumNames(Dispersion) {
+  return kDispersionNames;
+}
+
 /// Keys under "shell": the discretized tube structure.
 struct ShellConfig {
   double grid_spacing_m{0.0025};  // target arc spacing of the grid
@@ -76,6 +88,7 @@ struct ShellConfig {
   double loss_low_hz{1000.0};
   double loss_high_hz{5000.0};
   double loss_factor_high{0.0};
+  Dispersion dispersion{Dispersion::kThin};  // the modal rung's frequencies (see Dispersion)
 
   void Serialize(Archive* a);
   /// Cross-field checks against the tube; throws ConfigError naming the key.
@@ -94,6 +107,7 @@ class ShellModel {
   int circumferential_points() const { return nth_; }
   double dz_m() const { return dz_m_; }
   double dtheta_rad() const { return dth_rad_; }
+  double radius_m() const { return radius_m_; }  // mid-surface
   /// (dofs x dofs) stiffness, N/m, symmetric, lower and upper stored.
   const Eigen::SparseMatrix<double>& stiffness() const { return stiffness_; }
   /// (dofs x dofs) M^-1/2 K M^-1/2, 1/s^2: its eigenvalues are omega^2 (modes, FD stability).
@@ -133,6 +147,9 @@ class ShellModel {
   double StrainEnergy(const Eigen::VectorXd& q_m) const;
   /// The w DOF index of node (i, theta index j), -1 when absent or fixed.
   int64_t WIndex(int i, int j) const;
+  /// Whether w nodes (i, j) and (i, j + 1 mod circumferential_points) are joined by wall (false
+  /// across a seam's kerf or a hole).
+  bool ArcLinked(int i, int j) const;
   /// Tube-frame z of node row i, m.
   double NodeZ(int i) const { return -0.5 * tube_.length_m + i * dz_m_; }
 

@@ -66,6 +66,8 @@ class ShellModalBank {
 
   int64_t modes() const;
   double max_frequency_hz() const;
+  /// (modes) the frequencies the bank plays, ascending, Hz (shell.dispersion applied).
+  const Eigen::VectorXd& frequencies_hz() const;
   /// Number of bank modes with frequency <= band_hz.
   int64_t ModesBelow(double band_hz) const;
   /// The wall seen at (z, theta) by a contact: modes up to band_hz (rigid part: held).
