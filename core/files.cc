@@ -1,5 +1,7 @@
 #include "sonicboom/core/files.h"
 
+#include <algorithm>
+
 #include <fcntl.h>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -36,9 +38,9 @@ void WriteTextAtomic(const std::string& path, const std::string& text) {
       // a full disk: nothing half-written left behind, nothing under the final name
       std::error_code ec;
       std::filesystem::remove(partial, ec);
-      throw IoError(fmt::format("{}: write failed: {}", path,
-                                err == ENOSPC ? "no space left on device (the disk is full)"
-                                              : std::strerror(err)));
+      throw IoError(fmt::format(
+          "{}: write failed: {}", path,
+          err == ENOSPC ? "no space left on device (the disk is full)" : std::strerror(err)));
     }
   }
   std::error_code ec;
@@ -64,9 +66,9 @@ void RequireReadableFile(const std::string& path) {
   }
   if (S_ISDIR(st.st_mode)) throw IoError(fmt::format("{}: is a directory", path));
   if (!S_ISREG(st.st_mode)) {
-    const char* kind = S_ISFIFO(st.st_mode)  ? "a FIFO"
-                       : S_ISCHR(st.st_mode) ? "a character device"
-                       : S_ISBLK(st.st_mode) ? "a block device"
+    const char* kind = S_ISFIFO(st.st_mode)   ? "a FIFO"
+                       : S_ISCHR(st.st_mode)  ? "a character device"
+                       : S_ISBLK(st.st_mode)  ? "a block device"
                        : S_ISSOCK(st.st_mode) ? "a socket"
                                               : "not a regular file";
     throw IoError(fmt::format("{}: is {}, not a regular file; refused before reading", path, kind));
@@ -137,12 +139,22 @@ std::string HolderPid(int fd) {
 
 }  // namespace
 
-OutputLock::OutputLock(const std::string& path) {
-  namespace fs = std::filesystem;
+std::filesystem::path ResolvedPath(const std::filesystem::path& path) {
   std::error_code ec;
-  fs::path resolved = fs::weakly_canonical(fs::absolute(path), ec);
-  if (ec) resolved = fs::absolute(path).lexically_normal();
-  const std::string lock_path = resolved.string() + ".lock";
+  const std::filesystem::path absolute = std::filesystem::absolute(path, ec);
+  if (ec) return path.lexically_normal();
+  std::filesystem::path resolved = std::filesystem::weakly_canonical(absolute, ec);
+  return ec ? absolute.lexically_normal() : resolved;
+}
+
+bool IsWithin(const std::filesystem::path& inner, const std::filesystem::path& outer) {
+  const auto [o, i] = std::mismatch(outer.begin(), outer.end(), inner.begin(), inner.end());
+  // "a/b/" spells its trailing separator as one empty part
+  return o == outer.end() || (std::next(o) == outer.end() && o->empty());
+}
+
+OutputLock::OutputLock(const std::string& path) {
+  const std::string lock_path = ResolvedPath(path).string() + ".lock";
   const std::lock_guard<std::mutex> guard(held_mutex);
   std::weak_ptr<Held>& entry = HeldLocks()[lock_path];
   if ((held_ = entry.lock()) && held_->owner == ::getpid()) return;  // this process holds it
@@ -156,13 +168,14 @@ OutputLock::OutputLock(const std::string& path) {
     if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
       const std::string pid = HolderPid(fd);
       ::close(fd);
-      throw IoError(fmt::format(
-          "{}: another process (pid {}) is writing it; wait for it to finish, or write "
-          "another output",
-          path, pid));
+      throw IoError(
+          fmt::format("{}: another process (pid {}) is writing it; wait for it to finish, or write "
+                      "another output",
+                      path, pid));
     }
     // the file locked must still be the one at the path (a releasing holder unlinks it)
-    struct stat locked {}, named {};
+    struct stat locked {
+    }, named{};
     if (::fstat(fd, &locked) != 0 || ::stat(lock_path.c_str(), &named) != 0 ||
         locked.st_ino != named.st_ino || locked.st_dev != named.st_dev) {
       ::close(fd);
@@ -179,8 +192,8 @@ OutputLock::OutputLock(const std::string& path) {
     entry = held_;
     return;
   }
-  throw IoError(fmt::format("{}: cannot take the lock file {} (it keeps being replaced)", path,
-                            lock_path));
+  throw IoError(
+      fmt::format("{}: cannot take the lock file {} (it keeps being replaced)", path, lock_path));
 }
 
 OutputLock::~OutputLock() {

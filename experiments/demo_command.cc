@@ -76,11 +76,14 @@ CommandResult RunDemo(const GlobalOptions& g, const std::string& out_dir_arg) {
   const std::string test_path = (fs::path(run_dir) / "test.h5").string();
   spdlog::info("step 1/3: simulating {} training and {} held-out strikes", config.demo.train_count,
                config.demo.test_count);
-  const GenerateResult gen_train =
-      GenerateDataset(config, train_path, config.demo.train_count, 0, 0, 1, g.threads, !g.quiet);
-  const GenerateResult gen_test =
-      GenerateDataset(config, test_path, config.demo.test_count, config.demo.train_count, 0, 1,
-                      g.threads, !g.quiet);
+  const GenerateResult gen_train = GenerateDataset(
+      config, train_path,
+      {.count = config.demo.train_count, .threads = g.threads, .show_progress = !g.quiet});
+  const GenerateResult gen_test = GenerateDataset(config, test_path,
+                                                  {.count = config.demo.test_count,
+                                                   .first_index = config.demo.train_count,
+                                                   .threads = g.threads,
+                                                   .show_progress = !g.quiet});
 
   // training
   spdlog::info("step 2/3: training ({} epochs)", config.train.epochs);

@@ -92,7 +92,13 @@ CommandResult RunGenerate(const GlobalOptions& g, const std::string& out_pattern
     spdlog::info("{}: already complete (shard {} of {}); skipped", out, shard.shard,
                  shard.num_shards);
   } else {
-    r = GenerateDataset(config, out, n, first, shard.shard, shard.num_shards, g.threads, !g.quiet);
+    r = GenerateDataset(config, out,
+                        {.count = n,
+                         .first_index = first,
+                         .shard = shard.shard,
+                         .num_shards = shard.num_shards,
+                         .threads = g.threads,
+                         .show_progress = !g.quiet});
   }
   // the config sidecar once the data is in place
   WriteConfigBeside(out, config);

@@ -164,8 +164,11 @@ DatasetInfo GeneratedDatasetInfo(const SonicBoomConfig& config, int64_t first_in
 }
 
 GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string& out_path,
-                               int64_t count, int64_t first_index, int64_t shard,
-                               int64_t num_shards, int threads, bool show_progress) {
+                               const GenerateRequest& request) {
+  const int64_t count = request.count, first_index = request.first_index;
+  const int64_t shard = request.shard, num_shards = request.num_shards;
+  const int threads = request.threads;
+  const bool show_progress = request.show_progress;
   if (num_shards < 1)
     throw ConfigError(fmt::format("--num-shards must be >= 1, got {}", num_shards));
   if (shard < 0 || shard >= num_shards) {
@@ -557,9 +560,9 @@ learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning:
                     data, all.size(), config.train.val_fraction));
   }
   spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
-  return learning::TrainEnsemble(all.SelectRows(train_rows), all.SelectRows(val_rows),
-                                 config.model, config.train, config.tube.outer_radius_m,
-                                 config.seed, run_dir, resume, !quiet, fine_tune, parallel);
+  return learning::TrainEnsemble(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,
+                                 config.train, config.tube.outer_radius_m, config.seed, run_dir,
+                                 resume, !quiet, fine_tune, parallel);
 }
 
 }  // namespace sonicboom::experiments

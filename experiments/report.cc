@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
-#include <iterator>
 #include <filesystem>
+#include <iterator>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -44,19 +44,6 @@ void RequireParentDir(const std::string& path) {
 
 namespace {
 
-// an absolute path with every existing part resolved (links, "..", other spellings)
-fs::path Resolved(const std::string& path) {
-  std::error_code ec;
-  fs::path p = fs::weakly_canonical(fs::absolute(path), ec);
-  return ec ? fs::absolute(path).lexically_normal() : p;
-}
-
-// `inner` is `outer` or lies below it
-bool Within(const fs::path& inner, const fs::path& outer) {
-  auto [o, i] = std::mismatch(outer.begin(), outer.end(), inner.begin(), inner.end());
-  return o == outer.end() || (std::next(o) == outer.end() && o->empty());
-}
-
 // the same existing file under another name (a hard link), or the same resolved path
 bool SameFile(const std::string& a, const fs::path& resolved_a, const std::string& b,
               const fs::path& resolved_b) {
@@ -67,26 +54,27 @@ bool SameFile(const std::string& a, const fs::path& resolved_a, const std::strin
 
 void RefuseWritingOver(const Output& out, const ReadPath& in) {
   if (in.path.empty()) return;
-  const fs::path input = Resolved(in.path);
+  const fs::path input = ResolvedPath(in.path);
   const std::string input_sidecar = in.path + ".config.yaml";
   for (const std::string& target : {out.path, out.path + ".config.yaml"}) {
-    const fs::path t = Resolved(target);
+    const fs::path t = ResolvedPath(target);
     const std::string what = target == out.path ? out.option : "the output's config sidecar";
     if (SameFile(target, t, in.path, input)) {
       throw IoError(fmt::format("{}: {} is an input ({} {}); writing it would destroy it", target,
                                 what, in.option, in.path));
     }
-    if (SameFile(target, t, input_sidecar, Resolved(input_sidecar))) {
-      throw IoError(fmt::format("{}: {} is an input's config sidecar ({} {}); writing it would "
-                                "destroy it",
-                                target, what, in.option, in.path));
+    if (SameFile(target, t, input_sidecar, ResolvedPath(input_sidecar))) {
+      throw IoError(
+          fmt::format("{}: {} is an input's config sidecar ({} {}); writing it would "
+                      "destroy it",
+                      target, what, in.option, in.path));
     }
-    if (Within(t, input)) {
+    if (IsWithin(t, input)) {
       throw IoError(fmt::format("{}: {} lies inside an input ({} {}), which this command reads",
                                 target, what, in.option, in.path));
     }
   }
-  if (Within(input, Resolved(out.path))) {
+  if (IsWithin(input, ResolvedPath(out.path))) {
     throw IoError(fmt::format("{}: {} holds an input ({} {}); replacing it would destroy it",
                               out.path, out.option, in.option, in.path));
   }
@@ -105,8 +93,8 @@ void DrawFigure(const std::string& script, const std::string& kind, const std::s
   const std::string cmd =
       fmt::format("/usr/bin/python3 '{}' {} '{}' '{}'", script, kind, data, png);
   if (std::system(cmd.c_str()) != 0) {
-    throw IoError(fmt::format("{}: the plot script {} failed on {} ({})", png, script, data,
-                              advice));
+    throw IoError(
+        fmt::format("{}: the plot script {} failed on {} ({})", png, script, data, advice));
   }
 }
 

@@ -10,6 +10,7 @@
 
 #include "internal/import_common.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/hardware/capture.h"
 
 namespace fs = std::filesystem;
@@ -46,11 +47,8 @@ fs::path InsideCapture(const fs::path& dir, const std::string& name, const std::
   const fs::path relative(name);
   const bool climbs = std::any_of(relative.begin(), relative.end(),
                                   [](const fs::path& part) { return part == ".."; });
-  std::error_code ec;
-  const fs::path root = fs::weakly_canonical(fs::absolute(dir), ec);
-  const fs::path resolved = fs::weakly_canonical(fs::absolute(dir / relative), ec);
-  const auto [r, p] = std::mismatch(root.begin(), root.end(), resolved.begin(), resolved.end());
-  if (name.empty() || relative.is_absolute() || climbs || ec || r != root.end()) {
+  if (name.empty() || relative.is_absolute() || climbs ||
+      !IsWithin(ResolvedPath(dir / relative), ResolvedPath(dir))) {
     throw IoError(fmt::format(
         "{}: {} '{}' is not a file inside the capture directory {} (names are relative to it, "
         "without '..', and links may not lead out of it)",

@@ -73,5 +73,26 @@ TEST(OutputLockTest, OneProcessWritesAnOutput) {
   fs::remove_all(dir);
 }
 
+// One spelling per file: a link, "..", "." and a trailing separator resolve to the same path,
+// and containment is by whole components ("/a/bc" is not inside "/a/b").
+TEST(ResolvedPathTest, SpellingsOfOneFileCompareEqualAndContainmentIsByComponent) {
+  const fs::path root =
+      fs::temp_directory_path() / ("resolved_path_test_" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  fs::create_directories(root / "b" / "c");
+  fs::create_directories(root / "bc");
+  fs::create_directory_symlink(root / "b", root / "link");
+  EXPECT_EQ(ResolvedPath(root / "link" / "c"), ResolvedPath(root / "b" / "c"));
+  EXPECT_EQ(ResolvedPath(root / "bc" / ".." / "b" / "." / "c"), ResolvedPath(root / "b" / "c"));
+  // a path that does not exist yet keeps its missing tail
+  EXPECT_EQ(ResolvedPath(root / "link" / "new.h5"), ResolvedPath(root / "b") / "new.h5");
+  EXPECT_TRUE(IsWithin(ResolvedPath(root / "link" / "c"), ResolvedPath(root / "b")));
+  EXPECT_TRUE(IsWithin(ResolvedPath(root / "b"), ResolvedPath(root / "b")));
+  EXPECT_TRUE(IsWithin(ResolvedPath(root / "b" / "c"), fs::path(root.string() + "/b/")));
+  EXPECT_FALSE(IsWithin(ResolvedPath(root / "bc"), ResolvedPath(root / "b")));
+  EXPECT_FALSE(IsWithin(ResolvedPath(root / "b"), ResolvedPath(root / "b" / "c")));
+  fs::remove_all(root);
+}
+
 }  // namespace
 }  // namespace sonicboom

@@ -106,7 +106,7 @@ TEST(ClusterTest, LauncherShardsNeedTheirOwnFiles) {
 TEST(ClusterTest, AnInterruptedShardResumesFromItsPartialFile) {
   TempDir dir;
   const SonicBoomConfig config = ShortConfig();
-  GenerateDataset(config, dir / "whole.h5", 10, 0, 0, 1, 2, false);
+  GenerateDataset(config, dir / "whole.h5", {.count = 10, .threads = 2});
   {
     // the first 4 strikes of the same dataset, flushed, never finished
     const StrikePipeline pipeline(config);
@@ -116,7 +116,7 @@ TEST(ClusterTest, AnInterruptedShardResumesFromItsPartialFile) {
     killed.Append(pipeline.Simulate(4));  // not flushed: not trusted
   }
   ASSERT_TRUE(fs::exists(dir / "d.h5.partial"));
-  const GenerateResult r = GenerateDataset(config, dir / "d.h5", 10, 0, 0, 1, 2, false);
+  const GenerateResult r = GenerateDataset(config, dir / "d.h5", {.count = 10, .threads = 2});
   EXPECT_EQ(r.resumed, 4);
   EXPECT_EQ(r.written, 10);
   EXPECT_FALSE(fs::exists(dir / "d.h5.partial"));
@@ -132,7 +132,7 @@ TEST(ClusterTest, AnInterruptedShardResumesFromItsPartialFile) {
     for (uint64_t i = 0; i < 3; ++i) killed.Append(pipeline.Simulate(i));
     killed.Flush();
   }
-  EXPECT_EQ(GenerateDataset(config, dir / "e.h5", 10, 0, 0, 1, 2, false).resumed, 0);
+  EXPECT_EQ(GenerateDataset(config, dir / "e.h5", {.count = 10, .threads = 2}).resumed, 0);
   ExpectSameSamples(dir / "whole.h5", dir / "e.h5");
 }
 
@@ -148,8 +148,7 @@ TEST(ClusterTest, ASecondWriterOfAnOutputRefusesAndLeavesTheFirstsWork) {
        {"generate --count 2 --out G.h5", "generate --count 2 --out G.h5 --force"}) {
     const auto run = RunCli(sonicboom::testing::kShortRecordArgs + command, cwd);
     EXPECT_EQ(run.exit_code, 1) << command << "\n" << run.err;
-    EXPECT_THAT(run.err, HasSubstr("G.h5: another process (" + pid + ") is writing it"))
-        << command;
+    EXPECT_THAT(run.err, HasSubstr("G.h5: another process (" + pid + ") is writing it")) << command;
   }
   std::ifstream partial(dir / "G.h5.partial");
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(partial), {}), "the first writer's samples");
@@ -161,9 +160,10 @@ TEST(ClusterTest, ASecondWriterOfAnOutputRefusesAndLeavesTheFirstsWork) {
   fs::create_directories(dir / "R.partial");
   std::ofstream(dir.path() / "R.partial" / "checkpoint.pt") << "the first trainer's checkpoint";
   const OutputLock trainer(dir / "R");
-  const auto run = RunCli(sonicboom::testing::kShortRecordArgs + sonicboom::testing::kTinyModelArgs +
-                              "--set train.epochs=1 train --data D.h5 --out R",
-                          cwd);
+  const auto run =
+      RunCli(sonicboom::testing::kShortRecordArgs + sonicboom::testing::kTinyModelArgs +
+                 "--set train.epochs=1 train --data D.h5 --out R",
+             cwd);
   EXPECT_EQ(run.exit_code, 1) << run.err;
   EXPECT_THAT(run.err, HasSubstr("R: another process (" + pid + ") is writing it"));
   EXPECT_TRUE(fs::exists(dir.path() / "R.partial" / "checkpoint.pt"));
@@ -173,9 +173,10 @@ TEST(ClusterTest, VirtualMergeReadsTheShardsInPlace) {
   TempDir dir;
   const SonicBoomConfig config = ShortConfig();
   fs::create_directories(dir.path() / "shards");
-  GenerateDataset(config, dir / "whole.h5", 9, 0, 0, 1, 2, false);
+  GenerateDataset(config, dir / "whole.h5", {.count = 9, .threads = 2});
   for (int s = 0; s < 3; ++s) {
-    GenerateDataset(config, dir / ("shards/s" + std::to_string(s) + ".h5"), 9, 0, s, 3, 1, false);
+    GenerateDataset(config, dir / ("shards/s" + std::to_string(s) + ".h5"),
+                    {.count = 9, .shard = s, .num_shards = 3});
   }
   const std::vector<std::string> shards = {dir / "shards/s2.h5", dir / "shards/s0.h5",
                                            dir / "shards/s1.h5"};
@@ -193,13 +194,13 @@ TEST(ClusterTest, VirtualMergeReadsTheShardsInPlace) {
   fs::remove_all(moved);
   // a shard rendered again from the same seed and range is the same shard
   fs::remove(dir / "shards/s1.h5");
-  GenerateDataset(config, dir / "shards/s1.h5", 9, 0, 1, 3, 1, false);
+  GenerateDataset(config, dir / "shards/s1.h5", {.count = 9, .shard = 1, .num_shards = 3});
   ExpectSameSamples(dir / "whole.h5", dir / "virtual.h5");
   // a shard of another seed under the same name: refused, never read under these labels
   SonicBoomConfig other = config;
   other.seed = config.seed + 1;
   fs::remove(dir / "shards/s1.h5");
-  GenerateDataset(other, dir / "shards/s1.h5", 9, 0, 1, 3, 1, false);
+  GenerateDataset(other, dir / "shards/s1.h5", {.count = 9, .shard = 1, .num_shards = 3});
   EXPECT_THAT(ThrownMessage<SchemaError>([&] { DatasetReader reader(dir / "virtual.h5"); }),
               HasSubstr("s1.h5 changed since the merge"));
   // garbage under its name: refused naming the shard (libhdf5 would read silence)
@@ -212,7 +213,7 @@ TEST(ClusterTest, VirtualMergeReadsTheShardsInPlace) {
               }),
               HasSubstr("s1.h5"));
   fs::remove(dir / "shards/s1.h5");
-  GenerateDataset(config, dir / "shards/s1.h5", 9, 0, 1, 3, 1, false);
+  GenerateDataset(config, dir / "shards/s1.h5", {.count = 9, .shard = 1, .num_shards = 3});
   EXPECT_THAT(ThrownMessage<SchemaError>([&] {
                 MergeDatasets({dir / "virtual.h5"}, dir / "chain.h5", /*virtual_audio=*/true);
               }),

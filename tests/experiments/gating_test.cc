@@ -161,7 +161,7 @@ TEST(GatedFeaturesTest, DatasetAndRecordPathsGateAlike) {
   const SonicBoomConfig config =
       Config({"audio.record_duration_s=0.6", "audio.onset_time_s=0.25", "seed=11"});
   ASSERT_TRUE(config.features.gating);
-  GenerateDataset(config, dir / "d.h5", 3, 0, 0, 1, 1, false);
+  GenerateDataset(config, dir / "d.h5", {.count = 3});
   std::vector<uint64_t> indices;
   const learning::FeatureSet gated =
       ComputeDatasetFeatures(dir / "d.h5", config, 1, false, &indices);

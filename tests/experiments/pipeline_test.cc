@@ -13,17 +13,17 @@ namespace {
 TEST(PipelineTest, BitIdenticalForOneAndTwoThreads) {
   testing::TempDir dir;
   const SonicBoomConfig config = ShortConfig();
-  GenerateDataset(config, dir / "t1.h5", 12, 0, 0, 1, 1, false);
-  GenerateDataset(config, dir / "t2.h5", 12, 0, 0, 1, 2, false);
+  GenerateDataset(config, dir / "t1.h5", {.count = 12});
+  GenerateDataset(config, dir / "t2.h5", {.count = 12, .threads = 2});
   ExpectSameSamples(dir / "t1.h5", dir / "t2.h5");
 }
 
 TEST(PipelineTest, ShardsMergeToTheSingleFile) {
   testing::TempDir dir;
   const SonicBoomConfig config = ShortConfig();
-  GenerateDataset(config, dir / "all.h5", 9, 0, 0, 1, 2, false);
-  GenerateDataset(config, dir / "s0.h5", 9, 0, 0, 2, 1, false);
-  GenerateDataset(config, dir / "s1.h5", 9, 0, 1, 2, 2, false);
+  GenerateDataset(config, dir / "all.h5", {.count = 9, .threads = 2});
+  GenerateDataset(config, dir / "s0.h5", {.count = 9, .num_shards = 2});
+  GenerateDataset(config, dir / "s1.h5", {.count = 9, .shard = 1, .num_shards = 2, .threads = 2});
   MergeDatasets({dir / "s1.h5", dir / "s0.h5"}, dir / "merged.h5");
   ExpectSameSamples(dir / "all.h5", dir / "merged.h5");
 }

@@ -1,6 +1,7 @@
 #pragma once
 /// Small file helpers shared by every writer: atomic text files and checked reads.
 
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -16,6 +17,11 @@ std::string ReadText(const std::string& path);
 /// a name too long). Every reader of a user's file calls it before opening, so that a FIFO
 /// never blocks a read and a device never feeds one endlessly.
 void RequireReadableFile(const std::string& path);
+/// An absolute path with every existing part resolved (links, "..", other spellings), so that two
+/// spellings of one file compare equal; the lexically normal absolute path where resolution fails.
+std::filesystem::path ResolvedPath(const std::filesystem::path& path);
+/// Whether `inner` is `outer` or lies below it (compare resolved paths).
+bool IsWithin(const std::filesystem::path& inner, const std::filesystem::path& outer);
 /// Creates a directory (and parents). Throws IoError naming it on failure.
 void MakeDirectories(const std::string& path);
 /// Puts a finished directory `finished` in the place of `path`: an existing `path` is renamed

@@ -61,9 +61,18 @@ std::string DatasetConfigYaml(SonicBoomConfig config);
 DatasetInfo GeneratedDatasetInfo(const SonicBoomConfig& config, int64_t first_index, int64_t count,
                                  int64_t shard, int64_t num_shards);
 
+/// Which strikes a generation writes, and how.
+struct GenerateRequest {
+  int64_t count{0};        // strikes
+  int64_t first_index{0};  // sample index of the first (each draw derives from seed and index)
+  int64_t shard{0};        // this shard owns the indices i with i % num_shards == shard
+  int64_t num_shards{1};
+  int threads{1};
+  bool show_progress{false};
+};
+
 GenerateResult GenerateDataset(const SonicBoomConfig& config, const std::string& out_path,
-                               int64_t count, int64_t first_index, int64_t shard,
-                               int64_t num_shards, int threads, bool show_progress);
+                               const GenerateRequest& request);
 
 /// The reference noise clip the feature path gates against (features.gating), (mics x samples)
 /// at audio.sample_rate_hz. With features.gating_noise_wav set: that WAV (a no-contact recording,
