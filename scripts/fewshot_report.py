@@ -1,10 +1,7 @@
-"""Table, JSON and figure of scripts/fewshot_study.sh: OUT FREEZES RATES FAMILIES SHOTS."""
+"""Table and JSON of scripts/fewshot_study.sh: OUT FREEZES RATES FAMILIES SHOTS (its figure:
+scripts/plot.py fewshot OUT/results.json OUT/fewshot.png)."""
 import json
 import sys
-
-import matplotlib
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 
 out, freezes, rates, families, shots = sys.argv[1], *(a.split() for a in sys.argv[2:6])
 load = lambda name: json.load(open(f"{out}/eval_{name}.json"))  # noqa: E731
@@ -31,17 +28,3 @@ text = "\n".join(lines) + "\n"
 open(f"{out}/table.md", "w").write(text)
 json.dump(results, open(f"{out}/results.json", "w"), indent=2)
 print(text)
-
-fig, ax = plt.subplots(figsize=(6, 4))
-for fam, r in results["families"].items():
-    n = r["shots"]
-    line, = ax.plot([0] + n, [r["pretrained"]] + r["fine_tuned"], "o-", label=f"{fam}: fine-tuned")
-    ax.plot(n, r["scratch"], "s--", color=line.get_color(), label=f"{fam}: from scratch")
-ax.set_xscale("symlog", linthresh=10)
-ax.set_xlabel("target strikes used")
-ax.set_ylabel("MED on the held-out part (cm)")
-ax.set_title("Few-shot fine-tuning of the transfer model")
-ax.grid(True, alpha=0.3)
-ax.legend(fontsize=8)
-fig.tight_layout()
-fig.savefig(f"{out}/fewshot.png", dpi=120)

@@ -87,3 +87,4 @@ for f in $FAMILIES; do
 done
 
 /usr/bin/python3 "$ROOT/scripts/fewshot_report.py" "$OUT" "$FREEZES" "$RATES" "$FAMILIES" "$SHOTS"
+/usr/bin/python3 "$ROOT/scripts/plot.py" fewshot "$OUT/results.json" "$OUT/fewshot.png"

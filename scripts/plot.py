@@ -6,6 +6,8 @@ usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
             spectrograms (`sonicboom inspect D.h5 --png OUT.png`, OUT.png.json)
   map       a haptic map: predicted and true contact points in 3-D, each pair joined
             (`sonicboom map`, DIR/map.json)
+  fewshot   MED against the number of target strikes, fine-tuned and from scratch, per family
+            (scripts/fewshot_study.sh, OUT/results.json)
 """
 import json
 import sys
@@ -131,7 +133,26 @@ def haptic_map(data, src, png):
     fig.savefig(png, dpi=100)
 
 
-KINDS = {"fidelity": fidelity, "inspect": inspect, "map": haptic_map}
+def fewshot(data, src, png):
+    """Per family: the pretrained model fine-tuned on n target strikes (n = 0: zero-shot) and the
+    same network trained from scratch on them, MED on the family's held-out part, cm."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for fam, r in data["families"].items():
+        n = r["shots"]
+        line, = ax.plot([0] + n, [r["pretrained"]] + r["fine_tuned"], "o-",
+                        label=f"{fam}: fine-tuned")
+        ax.plot(n, r["scratch"], "s--", color=line.get_color(), label=f"{fam}: from scratch")
+    ax.set_xscale("symlog", linthresh=10)
+    ax.set_xlabel("target strikes used")
+    ax.set_ylabel("MED on the held-out part (cm)")
+    ax.set_title("Few-shot fine-tuning of the transfer model")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+
+
+KINDS = {"fidelity": fidelity, "inspect": inspect, "map": haptic_map, "fewshot": fewshot}
 
 if __name__ == "__main__":
     if len(sys.argv) != 4 or sys.argv[1] not in KINDS:
