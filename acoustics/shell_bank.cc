@@ -264,12 +264,11 @@ ShellModalBank::ShellModalBank(const ShellModel& model, const ModeRows& solved,
   Impl& m = *impl_;
   // the modes as rendered: as solved, or carried to the thick wall's dispersion (the residual
   // keeps the solved frequencies: it restores the solved structure's left-out modes)
+  const bool thick_wall = model.shell().dispersion == Dispersion::kThickPlate;
   Eigen::VectorXd solved_omega = solved.omega_rad_s;
-  ModeRows thick;
-  if (model.shell().dispersion == Dispersion::kThickPlate) {
-    thick = ThickPlateCorrected(model, solved, &solved_omega);
-  }
-  const ModeRows& modes = model.shell().dispersion == Dispersion::kThickPlate ? thick : solved;
+  const ModeRows thick =
+      thick_wall ? ThickPlateCorrected(model, solved, &solved_omega) : ModeRows{};
+  const ModeRows& modes = thick_wall ? thick : solved;
   m.mics = mics;
   SONICBOOM_DEMAND(modes.shapes.rows() == static_cast<Eigen::Index>(modes.dofs.size()) &&
                    modes.shapes.cols() == modes.omega_rad_s.size());
