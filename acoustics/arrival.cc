@@ -13,7 +13,6 @@
 namespace sonicboom::acoustics {
 namespace {
 
-
 void Require(bool ok, const char* field, double value, const char* rule) {
   if (!ok) throw ConfigError(fmt::format("arrival.{} = {} {}", field, value, rule));
 }
@@ -70,7 +69,8 @@ struct ArrivalLocator::Impl {
   int mics{0};
   Biquad hp{};
   std::vector<double> grid_z, grid_theta;  // (points) the search grid
-  Eigen::MatrixXd distance_m;              // (mics x points) surface path to each microphone
+  Eigen::MatrixXd centred_m;  // (mics x points) surface path to each microphone, less its mean
+  Eigen::VectorXd spread_m2;  // (points) squared norm of each column of centred_m
 };
 
 ArrivalLocator::ArrivalLocator(const TdoaGeometry& geometry, const ArrivalConfig& config,
@@ -95,12 +95,15 @@ ArrivalLocator::ArrivalLocator(const TdoaGeometry& geometry, const ArrivalConfig
     }
   }
   const Eigen::Index points = static_cast<Eigen::Index>(m.grid_z.size());
-  m.distance_m.resize(m.mics, points);
+  m.centred_m.resize(m.mics, points);
   for (int k = 0; k < m.mics; ++k) {
     const std::vector<double> d = SurfacePathLengths(
         geometry, m.grid_z, m.grid_theta, geometry.mic_z_m[k], geometry.mic_theta_rad[k]);
-    m.distance_m.row(k) = Eigen::Map<const Eigen::RowVectorXd>(d.data(), points);
+    m.centred_m.row(k) = Eigen::Map<const Eigen::RowVectorXd>(d.data(), points);
   }
+  // the fit below is on centred times and paths (t0 drops out): centre each point's paths once
+  m.centred_m.rowwise() -= m.centred_m.colwise().mean();
+  m.spread_m2 = m.centred_m.colwise().squaredNorm().transpose();
 }
 
 ArrivalLocator::~ArrivalLocator() = default;
@@ -167,23 +170,28 @@ ArrivalEstimate ArrivalLocator::Locate(const std::vector<double>& arrival_s) con
   const double t_mean = t.mean();
   const Eigen::VectorXd tc = t.array() - t_mean;
   const double s_lo = 1.0 / m.c.max_speed_m_s, s_hi = 1.0 / m.c.min_speed_m_s;
-  // per grid point: least-squares t = t0 + s d with the slowness s clamped, and its residual
+  // per grid point: least-squares t = t0 + s d with the slowness s clamped; its residual
+  // |tc - s dc|^2 expanded, so that a point costs one dot product of length mics
   ArrivalEstimate best;
   best.arrival_s = arrival_s;
+  const double tt = tc.squaredNorm();
   double best_ss = std::numeric_limits<double>::infinity();
   double best_s = s_lo;
-  for (Eigen::Index p = 0; p < m.distance_m.cols(); ++p) {
-    const Eigen::VectorXd dc = m.distance_m.col(p).array() - m.distance_m.col(p).mean();
-    const double dd = dc.squaredNorm();
-    const double s = std::clamp(dd > 0 ? dc.dot(tc) / dd : s_lo, s_lo, s_hi);
-    const double ss = (tc - s * dc).squaredNorm();
+  Eigen::Index best_p = 0;
+  for (Eigen::Index p = 0; p < m.centred_m.cols(); ++p) {
+    const double dt = m.centred_m.col(p).dot(tc), dd = m.spread_m2[p];
+    const double s = std::clamp(dd > 0 ? dt / dd : s_lo, s_lo, s_hi);
+    const double ss = tt - 2.0 * s * dt + s * s * dd;
     if (ss < best_ss) {
       best_ss = ss;
       best_s = s;
-      best.z_m = m.grid_z[static_cast<size_t>(p)];
-      best.theta_rad = m.grid_theta[static_cast<size_t>(p)];
+      best_p = p;
     }
   }
+  best.z_m = m.grid_z[static_cast<size_t>(best_p)];
+  best.theta_rad = m.grid_theta[static_cast<size_t>(best_p)];
+  // the winner's residual summed directly (the expansion above cancels at a near-exact fit)
+  best_ss = (tc - best_s * m.centred_m.col(best_p)).squaredNorm();
   best.speed_m_s = 1.0 / best_s;
   best.residual_s = std::sqrt(best_ss / m.mics);
   return best;

@@ -42,16 +42,6 @@ TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
   return e;
 }
 
-double Median(std::vector<double> values) {
-  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const size_t mid = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mid), values.end());
-  const double upper = values[mid];
-  if (values.size() % 2 == 1) return upper;
-  return 0.5 * (upper + *std::max_element(values.begin(),
-                                          values.begin() + static_cast<std::ptrdiff_t>(mid)));
-}
-
 Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double sample_rate_hz) {
   const std::vector<double> centres{250, 500, 1000, 2000, 4000, 8000, 16000};
   Eigen::VectorXd e = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(centres.size()));

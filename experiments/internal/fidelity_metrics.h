@@ -7,6 +7,8 @@
 #include <vector>
 #include <cstdint>
 
+#include "internal/statistics.h"
+
 namespace sonicboom::experiments {
 
 /// Relative L2 error over all channels, ||y - ref|| / ||ref||.
@@ -26,9 +28,6 @@ struct TimingError {
 };
 TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
                           double sample_rate_hz);
-
-/// Median of the values (NaN when empty).
-double Median(std::vector<double> values);
 
 /// (7) octave-band energies (centres 250 Hz to 16 kHz) summed over channels.
 Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double sample_rate_hz);

@@ -107,8 +107,9 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir, cons
 CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
                            const std::vector<std::string>& data);
 /// `localize --method arrival`: the training-free arrival locator on one WAV, configured by the
-/// global config (tube, microphones, arrival settings); no model.
-CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav);
+/// global config (tube, microphones, arrival settings); no model. The per-strike path (read,
+/// picks, search) is timed over `repeat` runs, the set-up (the grid's paths) apart.
+CommandResult RunLocalizeByArrival(const GlobalOptions& g, const std::string& wav, int64_t repeat);
 CommandResult RunLocalize(const GlobalOptions& g, const std::string& model_dir,
                           const std::string& wav, const std::string& proprio_csv, int64_t repeat);
 /// The baselines (docs/baselines.md): kNN on pooled log-mel, steered TDOA, the training-free
