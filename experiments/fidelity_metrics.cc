@@ -1,9 +1,9 @@
 #include "internal/fidelity_metrics.h"
 
 #include <algorithm>
-#include <limits>
 #include <cmath>
 #include <complex>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -13,21 +13,21 @@
 
 namespace sonicboom::experiments {
 
-
 double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref) {
   SONICBOOM_DEMAND(y.rows() == ref.rows() && y.cols() == ref.cols());
   return (y - ref).norm() / ref.norm();
 }
 
 TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
-                          double sample_rate_hz) {
+                          double sample_rate_hz, const WavefrontWindow& wavefront) {
   // first arrivals (s): 20 % of each channel's own peak, as the reference command reads them
   const Eigen::VectorXd a = solid::ThresholdArrivals(y, sample_rate_hz, 0.2);
   const Eigen::VectorXd b = solid::ThresholdArrivals(ref, sample_rate_hz, 0.2);
   const double us = 1e6;  // per second
   TimingError e;
   e.arrival_us = (a - b).cwiseAbs().mean() * us;
-  for (Eigen::Index i = 0; i < y.rows(); ++i) e.arrival_errors_us.push_back(std::abs(a[i] - b[i]) * us);
+  for (Eigen::Index i = 0; i < y.rows(); ++i)
+    e.arrival_errors_us.push_back(std::abs(a[i] - b[i]) * us);
   int pairs = 0;
   for (Eigen::Index i = 0; i < y.rows(); ++i) {
     for (Eigen::Index j = i + 1; j < y.rows(); ++j) {
@@ -39,7 +39,72 @@ TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
     }
   }
   if (pairs > 0) e.delay_us /= pairs;
+  // the same from aligned early wavefronts
+  const Eigen::VectorXd shift = AlignedShifts(y, ref, sample_rate_hz, wavefront);
+  for (Eigen::Index i = 0; i < y.rows(); ++i) {
+    e.shift_errors_us.push_back(std::abs(shift[i]) * us);
+    for (Eigen::Index j = i + 1; j < y.rows(); ++j)
+      e.aligned_delay_errors_us.push_back(std::abs(shift[j] - shift[i]) * us);
+  }
   return e;
+}
+
+namespace {
+
+// (2 * half + 1) lags: sum over t of a(t) b(t - k), k = -half..half, over samples [0, n)
+Eigen::VectorXd CrossCorrelation(const Eigen::RowVectorXd& a, const Eigen::RowVectorXd& b,
+                                 int64_t n, int64_t half) {
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(2 * half + 1);
+  for (int64_t k = -half; k <= half; ++k) {
+    const int64_t lo = std::max<int64_t>(0, k), hi = std::min<int64_t>(n, n + k);
+    for (int64_t t = lo; t < hi; ++t) c[k + half] += a[t] * b[t - k];
+  }
+  return c;
+}
+
+// c (2 * half + 1 integer lags from -half) at fractional lag x (samples): windowed-sinc
+// interpolation over the `taps` nearest lags on either side (Hann window)
+double InterpolateLag(const Eigen::VectorXd& c, int64_t half, double x, int64_t taps) {
+  double sum = 0.0;
+  const auto k0 = static_cast<int64_t>(std::floor(x));
+  for (int64_t k = k0 - taps + 1; k <= k0 + taps; ++k) {
+    if (k < -half || k > half) continue;
+    const double d = x - static_cast<double>(k);
+    const double sinc = d == 0.0 ? 1.0 : std::sin(kPi * d) / (kPi * d);
+    const double window = 0.5 + 0.5 * std::cos(kPi * d / static_cast<double>(taps + 1));
+    sum += c[k + half] * sinc * window;
+  }
+  return sum;
+}
+
+}  // namespace
+
+Eigen::VectorXd AlignedShifts(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
+                              double sample_rate_hz, const WavefrontWindow& wavefront) {
+  SONICBOOM_DEMAND(y.rows() == ref.rows() && wavefront.samples > 0 && wavefront.max_lag_s > 0);
+  const int64_t n = std::min<int64_t>({wavefront.samples, y.cols(), ref.cols()});
+  const double bound = wavefront.max_lag_s * sample_rate_hz;  // samples
+  const auto lags = static_cast<int64_t>(std::floor(bound));  // integer lags within it
+  constexpr int64_t kTaps = 16;                               // interpolation: lags on either side
+  constexpr int64_t kSteps = 64;                              // refinement: steps per sample
+  const int64_t half = lags + 1 + kTaps;  // the integer lags the interpolation reads
+  Eigen::VectorXd shift(y.rows());
+  for (Eigen::Index ch = 0; ch < y.rows(); ++ch) {
+    const Eigen::VectorXd c = CrossCorrelation(y.row(ch), ref.row(ch), n, half);
+    // the best integer lag within the bound, then the best fraction within a sample of it
+    int64_t best = -lags;
+    for (int64_t k = -lags; k <= lags; ++k)
+      if (c[k + half] > c[best + half]) best = k;
+    double best_x = static_cast<double>(best), best_c = c[best + half];
+    for (int64_t step = -kSteps; step <= kSteps; ++step) {
+      const double x =
+          std::clamp(static_cast<double>(best) + static_cast<double>(step) / kSteps, -bound, bound);
+      const double v = InterpolateLag(c, half, x, kTaps);
+      if (v > best_c) best_c = v, best_x = x;
+    }
+    shift[ch] = best_x / sample_rate_hz;
+  }
+  return shift;
 }
 
 Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double sample_rate_hz) {

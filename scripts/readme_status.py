@@ -44,8 +44,10 @@ def fidelity_lines(d, path):
         f"a strike's 1 s in {default['ms_per_strike']:.2f} ms against {yard['ms_per_strike']:.0f} ms "
         f"for the reference solid; against it, frequency error median "
         f"{default['frequency_median_pct']:.2f} % below {d['frequency_max_hz'] / 1000:.0f} kHz, "
-        f"inter-channel delay error {default['delay_error_us']:.0f} µs mean / "
-        f"{default['delay_error_median_us']:.0f} µs median; a whole default strike "
+        f"inter-channel delay error {default['wavefront_delay_error_us']:.1f} µs mean by aligned "
+        f"wavefronts ({default['delay_error_us']:.0f} µs mean / "
+        f"{default['delay_error_median_us']:.0f} µs median by a 20 % threshold); a whole default "
+        f"strike "
         f"{d['whole_strike_ms']:.1f} ms on one core ({len(d['rungs'])} rungs, docs/fidelity.md)."
     ]
 

@@ -4,8 +4,8 @@
 /// at the same instant. Private to experiments.
 
 #include <Eigen/Core>
-#include <vector>
 #include <cstdint>
+#include <vector>
 
 #include "internal/statistics.h"
 
@@ -19,15 +19,33 @@ double RelativeError(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref);
 /// |arrival error|, and mean and max over channel pairs of |inter-channel delay error|; and each
 /// channel's and pair's error, for medians over many strikes (a threshold that lands on another
 /// wave packet in one channel moves its arrival by hundreds of microseconds and dominates a mean).
+///
+/// The same by alignment of the early wavefront (AlignedShifts over `wavefront`): each channel's
+/// shift against the reference's same channel, and each pair's difference of shifts. A whole
+/// early waveform is compared, not one level crossing, so a later packet that the two models
+/// weigh differently does not move it.
+struct WavefrontWindow {
+  int64_t samples{0};     // compared from the start of the record
+  double max_lag_s{0.0};  // shifts searched within +-max_lag_s
+};
 struct TimingError {
   double arrival_us{0.0};
   double delay_us{0.0};
   double delay_max_us{0.0};
-  std::vector<double> arrival_errors_us;  // (channels) |arrival error|
-  std::vector<double> delay_errors_us;    // (pairs) |inter-channel delay error|
+  std::vector<double> arrival_errors_us;        // (channels) |arrival error|
+  std::vector<double> delay_errors_us;          // (pairs) |inter-channel delay error|
+  std::vector<double> shift_errors_us;          // (channels) |aligned shift|
+  std::vector<double> aligned_delay_errors_us;  // (pairs) |difference of aligned shifts|
 };
 TimingError TimingErrorUs(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
-                          double sample_rate_hz);
+                          double sample_rate_hz, const WavefrontWindow& wavefront);
+
+/// Each channel of y against the same channel of ref (both channels x samples, band-limited
+/// below Nyquist): the lag (s; positive, y later) within +-max_lag_s that maximizes their
+/// cross-correlation over the first `samples` samples (zero outside), between samples from the
+/// correlation interpolated by a windowed sinc. (channels)
+Eigen::VectorXd AlignedShifts(const Eigen::MatrixXd& y, const Eigen::MatrixXd& ref,
+                              double sample_rate_hz, const WavefrontWindow& wavefront);
 
 /// (7) octave-band energies (centres 250 Hz to 16 kHz) summed over channels.
 Eigen::VectorXd OctaveEnergies(const Eigen::MatrixXd& y, double sample_rate_hz);

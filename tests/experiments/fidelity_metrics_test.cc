@@ -14,6 +14,8 @@ namespace {
 
 using sonicboom::kPi;
 constexpr double kFs = 44100.0;
+// the bursts' first 300 samples, shifts within +-1 ms (44 samples)
+constexpr WavefrontWindow kWavefront{.samples = 300, .max_lag_s = 0.001};
 
 // (6 x 400) a decaying 2 kHz burst starting at sample 50 + delay[c] on channel c
 Eigen::MatrixXd Bursts(const Eigen::VectorXd& delay_samples) {
@@ -31,17 +33,38 @@ TEST(FidelityMetricsTest, TimingErrorsOfAKnownDelay) {
   const Eigen::VectorXd none = Eigen::VectorXd::Zero(6);
   Eigen::VectorXd late = none;
   late[2] = 3.0;  // channel 2 three samples late: 5 of the 15 pairs are off by 3 samples
-  const TimingError e = TimingErrorUs(Bursts(late), Bursts(none), kFs);
+  const TimingError e = TimingErrorUs(Bursts(late), Bursts(none), kFs, kWavefront);
   const double sample_us = 1e6 / kFs;
   EXPECT_NEAR(e.arrival_us, 3.0 / 6.0 * sample_us, 0.05 * sample_us);
   EXPECT_NEAR(e.delay_us, 3.0 * 5.0 / 15.0 * sample_us, 0.05 * sample_us);
   EXPECT_NEAR(e.delay_max_us, 3.0 * sample_us, 0.05 * sample_us);
   // the same delay on every channel moves the arrivals, not the inter-channel delays
   const TimingError common =
-      TimingErrorUs(Bursts(Eigen::VectorXd::Constant(6, 2.0)), Bursts(none), kFs);
+      TimingErrorUs(Bursts(Eigen::VectorXd::Constant(6, 2.0)), Bursts(none), kFs, kWavefront);
   EXPECT_NEAR(common.arrival_us, 2.0 * sample_us, 0.05 * sample_us);
   EXPECT_LT(common.delay_us, 0.01 * sample_us);
   EXPECT_DOUBLE_EQ(RelativeError(Bursts(none), Bursts(none)), 0.0);
+}
+
+TEST(FidelityMetricsTest, AlignedShiftsFindFractionalDelaysAndIgnoreTheLevel) {
+  // channel c delayed by 0.37 c samples and scaled: the shifts find the delays between samples
+  Eigen::VectorXd delay(6);
+  for (int c = 0; c < 6; ++c) delay[c] = 0.37 * c;
+  Eigen::MatrixXd y = Bursts(delay);
+  y.row(3) *= 0.2;  // a weaker channel (another model's share of the direct wave) times the same
+  const Eigen::VectorXd shift = AlignedShifts(y, Bursts(Eigen::VectorXd::Zero(6)), kFs, kWavefront);
+  for (int c = 0; c < 6; ++c) EXPECT_NEAR(shift[c] * kFs, delay[c], 0.05) << c;
+  // the pairs' errors are the differences of the shifts: channel 5 against channel 0
+  const TimingError e = TimingErrorUs(y, Bursts(Eigen::VectorXd::Zero(6)), kFs, kWavefront);
+  ASSERT_EQ(e.aligned_delay_errors_us.size(), 15u);
+  EXPECT_NEAR(e.aligned_delay_errors_us[4], 1.85 / kFs * 1e6, 0.05 / kFs * 1e6);
+  // a channel that leads has a negative shift; a shift never leaves the search bound
+  const Eigen::VectorXd lead = AlignedShifts(
+      Bursts(Eigen::VectorXd::Zero(6)), Bursts(Eigen::VectorXd::Constant(6, 4.5)), kFs, kWavefront);
+  EXPECT_NEAR(lead[0] * kFs, -4.5, 0.05);
+  const Eigen::VectorXd far = AlignedShifts(Bursts(Eigen::VectorXd::Constant(6, 90.0)),
+                                            Bursts(Eigen::VectorXd::Zero(6)), kFs, kWavefront);
+  EXPECT_LE(far.cwiseAbs().maxCoeff(), kWavefront.max_lag_s + 1e-12);
 }
 
 TEST(FidelityMetricsTest, MediansShowWhatOneHoppedChannelHides) {
@@ -50,7 +73,7 @@ TEST(FidelityMetricsTest, MediansShowWhatOneHoppedChannelHides) {
   const Eigen::VectorXd none = Eigen::VectorXd::Zero(6);
   Eigen::VectorXd hop = none;
   hop[4] = 20.0;
-  const TimingError e = TimingErrorUs(Bursts(hop), Bursts(none), kFs);
+  const TimingError e = TimingErrorUs(Bursts(hop), Bursts(none), kFs, kWavefront);
   const double sample_us = 1e6 / kFs;
   ASSERT_EQ(e.arrival_errors_us.size(), 6u);
   ASSERT_EQ(e.delay_errors_us.size(), 15u);
