@@ -17,9 +17,8 @@
 #   loose     both mounts 20x looser
 #   modulus   E 0.7x the nominal (training: 0.80-1.20x with temperature)
 #   mics      every disc moved 4-5 mm and 4-5 degrees (training: +-2 mm, +-2 degrees)
-#   fine      the converged grid (2.5 x 2.5 mm, modal rung; the default grid is 2.5 x 5 mm and
-#             differs from it by 38 % in signal, docs/fidelity.md; the FD rung there costs about
-#             2 hours of CPU per strike)
+#   fine      another discretization of the shell: the thin plate on 2.5 x 5 mm (the default is
+#             the thick-plate correction on 2.5 x 2.5 mm; the family keeps its historical name)
 #   chain     a sensor chain and seam unlike ours: a 100 Hz input high-pass on every channel,
 #             50 Hz mains hum at 3 mV with 9 harmonics, bolts as 20 mm distributed ties
 #   halfspace the contact of a half-space Hertz model (the wall does not yield): 0.07-0.41 ms

@@ -28,7 +28,7 @@ family_args() {
     loose) echo "--set shell.flange_mount_stiffness_n_m2=2.5e5 --set shell.tool_mount_stiffness_n_m2=5.0e4" ;;
     modulus) echo "--set material.youngs_modulus_pa=2.1e9 --set randomize.youngs_modulus_scale=[] --set randomize.temperature_c=[]" ;;
     mics) echo "--set mics.z_m=[-0.1345,-0.1255,-0.1340,0.1255,0.1345,0.1260] --set mics.theta_deg=[4.5,115.5,244.5,-4.0,124.5,235.5] --set randomize.mic_z_offset_m=[] --set randomize.mic_theta_offset_deg=[]" ;;
-    fine) echo "--set shell.axial_spacing_m=0.0025" ;;
+    fine) echo "--set shell.axial_spacing_m=0.005 --set shell.dispersion=thin" ;;
     chain) echo "--set shell.bolt_model=tie --set daq.input_resistance_ohm=99500 --set randomize.highpass_hz=[] --set randomize.hum_hz=[50,50] --set randomize.hum_rms_v=[3.0e-3,3.0e-3] --set randomize.hum_harmonics=9" ;;
     halfspace) echo "--set acoustics.contact.wall=rigid" ;;
   esac

@@ -32,6 +32,8 @@ ShellModel Tube(double spacing_m, double loss_factor = MaterialConfig{}.loss_fac
   s.grid_spacing_m = spacing_m;
   s.axial_spacing_m = spacing_m;
   s.damping = DampingModel::kRayleigh;
+  // the thin shell the FD rung integrates (the thick-plate correction is dispersion_test's)
+  s.dispersion = Dispersion::kThin;
   MaterialConfig material;
   material.loss_factor = loss_factor;
   return ShellModel(TubeConfig{}, material, s);

@@ -26,6 +26,8 @@ const testing::TempDir& Cache() {
 std::unique_ptr<VibrationRung> Rung(VibrationModel model, double band_hz = 0.0) {
   MaterialConfig material;
   ShellConfig shell;
+  // the thin shell the FD rung integrates (the thick-plate correction is dispersion_test's)
+  shell.dispersion = Dispersion::kThin;
   UseFdDamping(TubeConfig{}, &material, &shell);
   RungSpec spec;
   spec.model = model;

@@ -129,6 +129,7 @@ TEST(ShellModesTest, BandIsCompleteByInertia) {
   const MaterialConfig material;
   ShellConfig real;
   real.grid_spacing_m = 0.008;
+  real.axial_spacing_m = 0.005;  // the axial spacing these checks were set for
   const ShellModel model(tube, material, real);
   const ShellModes modes = SolveShellModes(model, 3000.0, 0, false);
   EXPECT_EQ(modes.omega_rad_s.size() + modes.rigid_body_modes, CountModesBelow(model, 3000.0));
@@ -142,6 +143,7 @@ TEST(ShellModelTest, SeamAndHolesSplitTheDegeneratePairs) {
   const MaterialConfig material;
   ShellConfig free_real;
   free_real.grid_spacing_m = 0.006;
+  free_real.axial_spacing_m = 0.005;  // the axial spacing these checks were set for
   free_real.flange_mount_stiffness_n_m2 = 0.0;
   free_real.tool_mount_stiffness_n_m2 = 0.0;
   const ShellModel model(tube, material, free_real);
@@ -162,6 +164,7 @@ TEST(ShellModesTest, CacheReturnsTheSameModesBitForBit) {
   const MaterialConfig material;
   ShellConfig s;
   s.grid_spacing_m = 0.012;
+  s.axial_spacing_m = 0.005;  // the axial spacing these checks were set for
   const ShellModel model(tube, material, s);
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / fmt::format("sb_modes_{}", ::getpid());
@@ -278,6 +281,7 @@ TEST(ShellModelTest, RayleighDampingHitsBothAnchors) {
   material.loss_factor = 0.02;
   ShellConfig s;
   s.grid_spacing_m = 0.02;
+  s.axial_spacing_m = 0.005;  // the axial spacing these checks were set for
   s.damping = DampingModel::kRayleigh;
   s.loss_factor_high = 0.04;
   const ShellModel model(tube, material, s);
@@ -291,6 +295,7 @@ TEST(ShellModelTest, LossLawHoldsAtEveryFrequency) {
   material.loss_factor = 0.02;
   ShellConfig s;
   s.grid_spacing_m = 0.02;
+  s.axial_spacing_m = 0.005;  // the axial spacing these checks were set for
   // the default: a constant loss factor, as configured, from 20 Hz to 20 kHz
   const ShellModel flat(tube, material, s);
   for (double f : {20.0, 220.0, 1000.0, 5000.0, 20000.0}) {
@@ -327,6 +332,7 @@ TEST(ShellFdTest, LosslessSchemeConservesItsEnergy) {
   material.loss_factor = 0.0;
   ShellConfig s;
   s.grid_spacing_m = 0.01;
+  s.axial_spacing_m = 0.005;  // the axial spacing these checks were set for
   const ShellModel model(tube, material, s);
   const ShellFd fd(model, 44100.0, 0);
   ShellFdState state = fd.Rest();
@@ -351,6 +357,7 @@ TEST(ShellFdTest, UnstableOversamplingIsRefusedNamingTheLimit) {
   const MaterialConfig material;
   ShellConfig s;
   s.grid_spacing_m = 0.01;
+  s.axial_spacing_m = 0.005;  // the axial spacing these checks were set for
   const ShellModel model(tube, material, s);
   const ShellFd automatic(model, 44100.0, 0);
   ASSERT_GT(automatic.oversampling(), 1);

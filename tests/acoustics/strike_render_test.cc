@@ -31,6 +31,8 @@ AcousticModelConfig Coarse(VibrationModel model = VibrationModel::kModal) {
   AcousticModelConfig c;
   c.shell.grid_spacing_m = 0.01;
   c.shell.axial_spacing_m = 0.01;
+  // the thin shell the FD rung integrates (the thick-plate correction is dispersion_test's)
+  c.shell.dispersion = Dispersion::kThin;
   c.shell.damping =
       DampingModel::kRayleigh;  // the damping the FD rung realizes too, so that rungs compare
   c.synth.model = model;
