@@ -174,8 +174,8 @@ OutputLock::OutputLock(const std::string& path) {
                       path, pid));
     }
     // the file locked must still be the one at the path (a releasing holder unlinks it)
-    struct stat locked {
-    }, named{};
+    struct stat locked {};
+    struct stat named {};
     if (::fstat(fd, &locked) != 0 || ::stat(lock_path.c_str(), &named) != 0 ||
         locked.st_ino != named.st_ino || locked.st_dev != named.st_dev) {
       ::close(fd);

@@ -16,6 +16,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -58,6 +59,17 @@ constexpr double kMaxWavefrontShiftS = 0.0003;
 constexpr double kLocalizationDelayUs = 20.0;
 constexpr double kLocalizationFrequencyPct = 1.0;
 constexpr double kLocalizationModeShare = 0.95;
+
+// s without `suffix` at its end (as given when it does not end so)
+std::string WithoutSuffix(std::string s, std::string_view suffix) {
+  if (s.size() > suffix.size() && s.ends_with(suffix)) s.resize(s.size() - suffix.size());
+  return s;
+}
+
+// how a grid's name marks its dispersion: nothing for the thin plate, ", thick-plate" otherwise
+std::string DispersionMark(acoustics::Dispersion d) {
+  return d == acoustics::Dispersion::kThin ? "" : ", " + std::string(NameOf(d));
+}
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
@@ -612,7 +624,7 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
   auto grid_name = [&s](const Grid& g) {
     const auto d = g.dispersion.value_or(s.rayleigh_shell.dispersion);
     return fmt::format("shell, {:.1f} x {:.1f} mm{}", 1e3 * g.arc_m, 1e3 * g.axial_m,
-                       d == acoustics::Dispersion::kThin ? "" : ", " + std::string(NameOf(d)));
+                       DispersionMark(d));
   };
   // the same grids with the other dispersion than the configured one
   const auto other = s.rayleigh_shell.dispersion == acoustics::Dispersion::kThin
@@ -622,7 +634,8 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
   configured_other.dispersion = fine_other.dispersion = longer_other.dispersion = other;
   // the FD rung integrates K as assembled, whatever shell.dispersion says: named as thin
   Grid fd_longer = s.longer, fd_coarse = s.coarse, fd_coarser = s.coarser;
-  fd_longer.dispersion = fd_coarse.dispersion = fd_coarser.dispersion = acoustics::Dispersion::kThin;
+  fd_longer.dispersion = fd_coarse.dispersion = fd_coarser.dispersion =
+      acoustics::Dispersion::kThin;
   const auto fd = acoustics::VibrationModel::kFd, modal = acoustics::VibrationModel::kModal;
   auto modal_spec = [&](double band, int64_t count, bool residual) {
     acoustics::RungSpec spec;
@@ -683,12 +696,8 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
   // a rung that coincides with another (--quick: coarse is coarser; a square configured grid is
   // the fine one) is measured once, under its first name
   const auto same = [](const RungEntry& a, const RungEntry& b) {
-    const auto plain = [](std::string n) {
-      const std::string mark = " (default)";
-      if (n.size() > mark.size() && n.ends_with(mark)) n.resize(n.size() - mark.size());
-      return n;
-    };
-    return a.grid == b.grid && plain(a.name) == plain(b.name);
+    return a.grid == b.grid &&
+           WithoutSuffix(a.name, " (default)") == WithoutSuffix(b.name, " (default)");
   };
   for (size_t i = 1; i < rungs.size(); ++i) {
     for (size_t j = 0; j < i; ++j) {
@@ -719,11 +728,8 @@ json WriteSignals(const std::string& dir, size_t index, const RungEntry& rung,
 // An FD rung's frequencies are its grid's: those of the modal rung with the most modes there.
 void FrequenciesOfGrids(const std::vector<RungEntry>& rungs, std::vector<RungResult>* results) {
   // a grid's name without its dispersion: every modal rung of it solves the same K
-  const auto grid_only = [](std::string g) {
-    const std::string mark = ", thick-plate";
-    if (g.ends_with(mark)) g.resize(g.size() - mark.size());
-    return g;
-  };
+  const std::string thick = DispersionMark(acoustics::Dispersion::kThickPlate);
+  const auto grid_only = [&thick](const std::string& g) { return WithoutSuffix(g, thick); };
   for (size_t i = 0; i < rungs.size(); ++i) {
     if (rungs[i].kind != "fd") continue;
     int64_t most = -1;
@@ -843,8 +849,8 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
       "| rung | discretization | DOFs | modes / oversampling | ms per strike | strikes/s | "
       "frequency error (%) | arrival error mean / median (µs) (channels > 50 µs off) | delay error "
       "mean / median / max (µs) | wavefront delay error mean / median / max (µs) (shift) | "
-      "relative "
-      "error | band-energy error (dB) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+      "relative error | band-energy error (dB) |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|\n",
       o.quick ? " --quick" : "", fs, o.strikes, o.window_s * 1e3, frequency_max_hz / 1e3,
       o.window_s * 1e3, yardstick.band_hz / 1e3, 1e3 * kWavefrontAfterOnsetS,
       1e3 * kMaxWavefrontShiftS, solves_md);
