@@ -19,8 +19,7 @@
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
-#include "sonicboom/solid/solid_modes.h"
-#include "sonicboom/solid/solid_response.h"
+#include "sonicboom/solid/convergence.h"
 #include "sonicboom/solid/solid_tube.h"
 #include "sonicboom/solid/theory.h"
 
@@ -34,84 +33,12 @@ namespace {
 using nlohmann::json;
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-struct ReferenceOptions {
-  TubeEnds ends = TubeEnds::kFree;
-  bool ideal = false;
-  double max_frequency_hz = 20000.0;
-  double element_m = 0.0135;
-  int64_t degree_wall = 4;
-  int64_t degree_thickness = 3;
-  int64_t levels = 3;
-  double ratio = 1.25;
+// the study's own options, beyond the meshes of ReferenceLevelOptions
+struct ReferenceOptions : ReferenceLevelOptions {
   std::string out;             // markdown report; "" = print only
+  std::string cache_dir;       // solved levels kept here; "" = the mode cache directory
   bool compare_shell = false;  // the shell model's arrivals against the finest mesh's
 };
-
-// probe strikes (z m, theta deg): inside the contact region, between and in front of discs
-constexpr std::pair<double, double> kProbes[] = {
-    {0.0, 60.0}, {0.05, 180.0}, {-0.07, 300.0}, {0.09, 20.0}};
-
-struct Level {
-  double h_m{0.0};
-  int64_t dofs{0};
-  double build_s{0.0}, solve_s{0.0};
-  std::vector<double> f_hz;            // elastic modes, ascending
-  std::vector<std::vector<double>> t;  // (probe) x (disc) first arrival, s
-};
-
-// the first arrival at each disc of the probe pulse through a model's modes: omega (modes),
-// disc_modal (discs x modes) each disc's read-out of each shape, probe_modal (probes x modes) each
-// probe's radial drive of each shape. (probe) x (disc), s. The one measurement every rung gets.
-std::vector<std::vector<double>> ProbeArrivals(const Eigen::VectorXd& omega_rad_s,
-                                               const Eigen::MatrixXd& disc_modal,
-                                               const Eigen::MatrixXd& probe_modal,
-                                               double loss_factor) {
-  solid::PulseResponseConfig pulse;
-  pulse.loss_factor = loss_factor;
-  std::vector<std::vector<double>> t;
-  for (Eigen::Index p = 0; p < probe_modal.rows(); ++p) {
-    const Eigen::MatrixXd y =
-        solid::PulseResponse(omega_rad_s, disc_modal, probe_modal.row(p).transpose(), pulse);
-    const Eigen::VectorXd a = solid::ThresholdArrivals(y, pulse.sample_rate_hz, 0.2);
-    t.emplace_back(a.data(), a.data() + a.size());
-  }
-  return t;
-}
-
-Level SolveLevel(const SonicBoomConfig& config, const solid::SolidStructure& structure,
-                 const solid::SolidMeshConfig& mesh, double max_frequency_hz) {
-  Level level;
-  const auto t0 = std::chrono::steady_clock::now();
-  const solid::SolidTubeModel model(config.tube, config.material, structure, mesh);
-  const int probes = static_cast<int>(std::size(kProbes)), discs = config.mics.count();
-  solid::SolidModeRequest request;
-  request.max_frequency_hz = max_frequency_hz;
-  request.with_shapes = false;
-  request.projection_rows.resize(discs + probes, model.dofs());
-  request.projection_rows.topRows(discs) = model.SensorRows(config.mics);
-  for (int p = 0; p < probes; ++p) {
-    request.projection_rows.row(discs + p) =
-        model.RadialForceWeights(kProbes[p].first, kProbes[p].second * kDeg).transpose();
-  }
-  const auto t1 = std::chrono::steady_clock::now();
-  const solid::SolidModes modes = solid::SolveSolidModes(model, request);
-  const auto t2 = std::chrono::steady_clock::now();
-  level.h_m = model.element_length_m();
-  level.dofs = model.dofs();
-  level.build_s = std::chrono::duration<double>(t1 - t0).count();
-  level.solve_s = std::chrono::duration<double>(t2 - t1).count();
-  for (Eigen::Index k = 0; k < modes.omega_rad_s.size(); ++k) {
-    level.f_hz.push_back(modes.omega_rad_s(k) / (2.0 * std::numbers::pi));
-  }
-  level.t = ProbeArrivals(modes.omega_rad_s, modes.projections.topRows(discs),
-                          modes.projections.bottomRows(probes), config.material.loss_factor);
-  spdlog::info(
-      "reference: h = {:.2f} mm, {} DOFs, {} modes to {} Hz; built in {:.1f} s, solved in "
-      "{:.1f} s",
-      1e3 * level.h_m, level.dofs, level.f_hz.size(), max_frequency_hz, level.build_s,
-      level.solve_s);
-  return level;
-}
 
 // the probes' disc arrivals of the same pulse through the shell model's modes (acoustics/shell.h)
 // on a grid of axial spacing axial_m: (probe) x (disc), s
@@ -126,11 +53,12 @@ std::vector<std::vector<double>> ShellArrivals(const SonicBoomConfig& config, Tu
   const acoustics::ShellModes modes = acoustics::CachedShellModes(model, max_frequency_hz, 0, true,
                                                                   acoustics::DefaultModeCacheDir());
   *modes_out = modes.omega_rad_s.size();
-  Eigen::MatrixXd drive(std::size(kProbes), model.dofs());  // (probes x dofs)
-  for (size_t p = 0; p < std::size(kProbes); ++p) {
-    drive.row(p) = model.RadialForceWeights(kProbes[p].first, kProbes[p].second * kDeg).transpose();
+  const std::vector<solid::ConvergenceProbe> probes = solid::DefaultConvergenceProbes();
+  Eigen::MatrixXd drive(probes.size(), model.dofs());  // (probes x dofs)
+  for (size_t p = 0; p < probes.size(); ++p) {
+    drive.row(p) = model.RadialForceWeights(probes[p].z_m, probes[p].theta_deg * kDeg).transpose();
   }
-  return ProbeArrivals(modes.omega_rad_s, model.SensorRows(config.mics) * modes.shapes,
+  return solid::ProbeArrivals(modes.omega_rad_s, model.SensorRows(config.mics) * modes.shapes,
                        drive * modes.shapes, config.material.loss_factor);
 }
 
@@ -176,28 +104,6 @@ solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
   return rc;
 }
 
-solid::SolidStructure ReferenceStructure(const acoustics::ShellConfig& shell, TubeEnds ends,
-                                         bool ideal) {
-  solid::SolidStructure s;
-  s.ends = ends;
-  if (ideal || shell.ideal) return s;
-  s.seam_theta_deg = shell.seam_theta_deg;
-  s.bolt_z_m = shell.bolt_z_m;
-  for (size_t b = 0; b < shell.bolt_z_m.size(); ++b) {
-    const double scale = shell.bolt_stiffness_scale.empty() ? 1.0 : shell.bolt_stiffness_scale[b];
-    s.bolt_stiffness_n_m.push_back(shell.bolt_stiffness_n_m * scale);
-  }
-  // a point bolt clamps a washer's width; a tie spreads over its length
-  s.bolt_patch_half_length_m =
-      shell.bolt_model == acoustics::BoltModel::kTie ? 0.5 * shell.bolt_tie_length_m : 0.004;
-  s.hole_z_m = shell.hole_z_m;
-  s.hole_theta_deg = shell.hole_theta_deg;
-  s.hole_diameter_m = shell.hole_diameter_m;
-  s.flange_mount_stiffness_n_m2 = shell.flange_mount_stiffness_n_m2;
-  s.tool_mount_stiffness_n_m2 = shell.tool_mount_stiffness_n_m2;
-  return s;
-}
-
 CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   const SonicBoomConfig config = Resolve(g);
   if (o.levels < 3 || o.levels > 6)
@@ -218,17 +124,32 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
       ReferenceMesh(o.element_m, o.degree_wall, o.degree_thickness, config.tube, "--element-m");
   const solid::SolidStructure structure = ReferenceStructure(config.shell, o.ends, o.ideal);
 
-  std::vector<Level> levels;
+  // each level solved (or read back from the cache, where an earlier run or apps/reference_levels
+  // left it), coarse to fine
+  std::vector<solid::ConvergenceLevel> levels;
+  solid::ConvergenceRequest request;
+  request.tube = config.tube;
+  request.material = config.material;
+  request.mics = config.mics;
+  request.structure = structure;
+  request.max_frequency_hz = o.max_frequency_hz;
+  request.cache_dir = o.cache_dir.empty() ? acoustics::DefaultModeCacheDir() : o.cache_dir;
   for (int64_t l = 0; l < o.levels; ++l) {
-    levels.push_back(
-        SolveLevel(config, structure, base.Refined(std::pow(o.ratio, l)), o.max_frequency_hz));
+    request.mesh = base.Refined(std::pow(o.ratio, l));
+    levels.push_back(solid::SolveConvergenceLevel(request));
+    const solid::ConvergenceLevel& level = levels.back();
+    spdlog::info("reference: h = {:.2f} mm, {} DOFs, {} modes to {} Hz; {} in {:.1f} s", 1e3 * level.h_m,
+                 level.dofs, level.f_hz.size(), o.max_frequency_hz,
+                 level.from_cache ? "read from the cache, solved" : "solved",
+                 level.build_s + level.solve_s);
   }
+  const size_t probes = request.probes.size();
   std::vector<double> h;
-  for (const Level& l : levels) h.push_back(l.h_m);
+  for (const solid::ConvergenceLevel& l : levels) h.push_back(l.h_m);
 
   // frequencies: modes matched by order, up to the fewest any level found below 0.97 f_max
   size_t common = levels.front().f_hz.size();
-  for (const Level& l : levels) {
+  for (const solid::ConvergenceLevel& l : levels) {
     common = std::min<size_t>(
         common,
         std::lower_bound(l.f_hz.begin(), l.f_hz.end(), 0.97 * o.max_frequency_hz) - l.f_hz.begin());
@@ -242,7 +163,7 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   json modes_json = json::array();
   for (size_t i = 0; i < common; ++i) {
     std::vector<double> f;
-    for (const Level& l : levels) f.push_back(l.f_hz[i]);
+    for (const solid::ConvergenceLevel& l : levels) f.push_back(l.f_hz[i]);
     const solid::Extrapolation e = solid::Richardson(h, f);
     const size_t b =
         std::upper_bound(band_edges.begin(), band_edges.end(), f.back()) - band_edges.begin() - 1;
@@ -257,14 +178,14 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   // arrivals and inter-disc delays per probe
   std::vector<double> arrival_err, delay_err;
   const int discs = config.mics.count();
-  for (size_t p = 0; p < std::size(kProbes); ++p) {
+  for (size_t p = 0; p < probes; ++p) {
     for (int a = 0; a < discs; ++a) {
       std::vector<double> t;
-      for (const Level& l : levels) t.push_back(l.t[p][a]);
+      for (const solid::ConvergenceLevel& l : levels) t.push_back(l.t_s[p][a]);
       arrival_err.push_back(solid::Richardson(h, t).error);
       for (int b = a + 1; b < discs; ++b) {
         std::vector<double> d;
-        for (const Level& l : levels) d.push_back(l.t[p][a] - l.t[p][b]);
+        for (const solid::ConvergenceLevel& l : levels) d.push_back(l.t_s[p][a] - l.t_s[p][b]);
         delay_err.push_back(solid::Richardson(h, d).error);
       }
     }
@@ -277,18 +198,20 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
       "(experiments/reference_command.cc).\n\n",
       NameOf(o.ends), o.max_frequency_hz, o.element_m, o.degree_wall, o.degree_thickness, o.levels,
       o.ratio, o.ideal ? " --ideal" : "", o.compare_shell ? " --compare-shell" : "");
-  md += "| mesh h (mm) | DOFs | modes to f_max | build (s) | modes and projections (s) |\n";
-  md += "|---|---|---|---|---|\n";
+  md += "| mesh h (mm) | DOFs | modes to f_max | build (s) | modes and projections (s) | solved |\n";
+  md += "|---|---|---|---|---|---|\n";
   json levels_json = json::array();
-  for (const Level& l : levels) {
-    md += fmt::format("| {:.2f} | {} | {} | {:.1f} | {:.1f} |\n", 1e3 * l.h_m, l.dofs,
-                      l.f_hz.size(), l.build_s, l.solve_s);
+  for (const solid::ConvergenceLevel& l : levels) {
+    md += fmt::format("| {:.2f} | {} | {} | {:.1f} | {:.1f} | {} |\n", 1e3 * l.h_m, l.dofs,
+                      l.f_hz.size(), l.build_s, l.solve_s,
+                      l.from_cache ? "earlier (read from --cache-dir)" : "now");
     levels_json.push_back({{"h_m", l.h_m},
                            {"dofs", l.dofs},
                            {"build_s", l.build_s},
                            {"solve_s", l.solve_s},
                            {"frequencies_hz", l.f_hz},
-                           {"arrivals_s", l.t}});
+                           {"arrivals_s", l.t_s},
+                           {"from_cache", l.from_cache}});
   }
   md += fmt::format(
       "\nRichardson error estimate of the finest mesh, {} modes matched by order:\n\n"
@@ -322,14 +245,14 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
       "median {:.2f} us, 90th percentile {:.2f} us, max {:.2f} us ({} of {} jump by over 50 us "
       "between meshes); inter-disc delays median {:.2f} us, 90th percentile {:.2f} us, max {:.2f} "
       "us ({} of {} jump).\n",
-      std::size(kProbes), config.material.loss_factor, discs, 1e6 * Median(arrival_err),
+      probes, config.material.loss_factor, discs, 1e6 * Median(arrival_err),
       1e6 * Quantile(arrival_err, 0.9), 1e6 * arrival_max, jumps(arrival_err), arrival_err.size(),
       1e6 * Median(delay_err), 1e6 * Quantile(delay_err, 0.9), 1e6 * delay_max, jumps(delay_err),
       delay_err.size());
   // rungs against the finest mesh: arrival and inter-disc delay errors over the probes
   auto errors = [&](const std::vector<std::vector<double>>& t, std::vector<double>* arrival,
                     std::vector<double>* delay) {
-    const auto& ref = levels.back().t;
+    const auto& ref = levels.back().t_s;
     for (size_t p = 0; p < ref.size(); ++p) {
       for (int a = 0; a < discs; ++a) {
         arrival->push_back(std::abs(t[p][a] - ref[p][a]));
@@ -358,7 +281,7 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   };
   for (size_t l = 0; l + 1 < levels.size(); ++l) {
     add_rung(fmt::format("reference, h = {:.1f} mm", 1e3 * levels[l].h_m),
-             static_cast<int64_t>(levels[l].f_hz.size()), levels[l].t);
+             static_cast<int64_t>(levels[l].f_hz.size()), levels[l].t_s);
   }
   if (o.compare_shell) {
     for (const double axial : {config.shell.AxialSpacing(), config.shell.grid_spacing_m}) {
@@ -393,6 +316,8 @@ void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run) {
   cmd->add_option("--levels", o->levels, "meshes, each --ratio finer than the last");
   cmd->add_option("--ratio", o->ratio, "refinement ratio between levels");
   cmd->add_option("--out", o->out, "markdown report (\"\" = print only)");
+  cmd->add_option("--cache-dir", o->cache_dir,
+                  "solved levels kept and reused here (default: the mode cache directory)");
   cmd->add_flag(
       "--compare-shell", o->compare_shell,
       "also the shell model's arrivals (default and 2.5 mm grids) against the finest mesh");

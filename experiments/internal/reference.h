@@ -10,6 +10,8 @@
 #include "sonicboom/solid/reference_tube.h"
 #include "sonicboom/solid/solid_tube.h"
 
+#include "internal/reference_structure.h"
+
 namespace sonicboom::experiments {
 
 /// The reference mesh of a command's options (elements of element_m, the GLL degrees), checked
@@ -23,10 +25,5 @@ solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
 solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
                                            const solid::SolidMeshConfig& mesh, double band_hz,
                                            bool ideal, const std::string& cache_dir);
-
-/// The physics of the configured structure (the shell section's seams, bolts, holes, mounts),
-/// none of its discretization; `ideal` (or shell.ideal) leaves a uniform tube.
-solid::SolidStructure ReferenceStructure(const acoustics::ShellConfig& shell, TubeEnds ends,
-                                         bool ideal);
 
 }  // namespace sonicboom::experiments

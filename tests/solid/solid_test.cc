@@ -15,6 +15,7 @@
 #include "sonicboom/acoustics/cylinder_modes.h"
 #include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/solid/convergence.h"
 #include "sonicboom/solid/gll.h"
 #include "sonicboom/solid/reference_render.h"
 #include "sonicboom/solid/reference_tube.h"
@@ -393,6 +394,45 @@ TEST(ReferenceTubeTest, CacheRoundTripsAndRecomputesADamagedFile) {
   const ReferenceTube again(CoarseReference(dir.string()));
   EXPECT_FALSE(again.from_cache());
   EXPECT_EQ(again.omega_rad_s(), solved.omega_rad_s());
+  std::filesystem::remove_all(dir);
+}
+
+// a convergence level kept in the cache is read back bit for bit; the arrivals' own inputs (the
+// loss factor) are in its key; a probe near one ring reaches that ring's nearest disc first
+TEST(ConvergenceLevelTest, CacheReadsTheLevelBackAndArrivalsAreCausal) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / fmt::format("sb-convergence-{}", ::getpid());
+  std::filesystem::remove_all(dir);
+  ConvergenceRequest r;
+  r.structure = Ideal(TubeEnds::kFree);
+  r.mesh = Coarse();
+  r.max_frequency_hz = 3000.0;
+  r.probes = {{0.09, 20.0}};
+  r.cache_dir = dir.string();
+  const ConvergenceLevel solved = SolveConvergenceLevel(r);
+  EXPECT_FALSE(solved.from_cache);
+  ASSERT_FALSE(solved.f_hz.empty());
+  ASSERT_EQ(solved.t_s.size(), 1u);
+  ASSERT_EQ(solved.t_s[0].size(), 6u);
+  const ConvergenceLevel cached = SolveConvergenceLevel(r);
+  EXPECT_TRUE(cached.from_cache);
+  EXPECT_EQ(cached.f_hz, solved.f_hz);
+  EXPECT_EQ(cached.t_s, solved.t_s);
+  EXPECT_EQ(cached.dofs, solved.dofs);
+  EXPECT_EQ(cached.h_m, solved.h_m);
+  EXPECT_EQ(cached.solve_s, solved.solve_s);
+  // discs 3-5 sit at z = +0.13 m (3 at 0 deg, nearest the probe at 20 deg), 0-2 at -0.13 m
+  const std::vector<double>& t = solved.t_s[0];
+  for (int far = 0; far < 3; ++far) EXPECT_LT(t[3], t[far]) << "disc " << far;
+  EXPECT_LT(t[3], t[4]);
+  EXPECT_LT(t[3], t[5]);
+  r.material.loss_factor *= 2.0;
+  EXPECT_NE(ConvergenceLevelKey(r), ConvergenceLevelKey([&] {
+              ConvergenceRequest same = r;
+              same.material.loss_factor /= 2.0;
+              return same;
+            }()));
+  EXPECT_FALSE(SolveConvergenceLevel(r).from_cache);
   std::filesystem::remove_all(dir);
 }
 
