@@ -1,5 +1,7 @@
 #include "sonicboom/experiments/pipeline.h"
 #include "internal/records.h"
+#include "internal/reference.h"
+#include "internal/report.h"
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
@@ -23,6 +25,7 @@
 #include "sonicboom/dsp/features.h"
 #include "sonicboom/sim/strike.h"
 #include "sonicboom/sim/strike_source.h"
+#include "sonicboom/solid/reference_tube.h"
 
 namespace sonicboom::experiments {
 
@@ -30,7 +33,62 @@ struct StrikePipeline::Impl {
   SonicBoomConfig config;
   std::unique_ptr<sim::StrikeSource> strikes;  // the engine the scene asks for
   std::unique_ptr<acoustics::StrikeSynthesizer> synth;
+  // the reference solid, when randomize.reference_fraction renders some strikes with it
+  std::unique_ptr<solid::ReferenceTube> reference;
 };
+
+namespace {
+
+// the reference solid of randomize.reference_*, solved once or read from the mode cache
+std::unique_ptr<solid::ReferenceTube> ReferenceRenderer(const SonicBoomConfig& config) {
+  const acoustics::RandomizeConfig& r = config.randomize;
+  if (!(r.reference_max_frequency_hz < 0.5 * config.audio.sample_rate_hz)) {
+    throw ConfigError(fmt::format(
+        "randomize.reference_max_frequency_hz = {} Hz must lie below the Nyquist frequency {} Hz "
+        "of audio.sample_rate_hz",
+        r.reference_max_frequency_hz, 0.5 * config.audio.sample_rate_hz));
+  }
+  const solid::SolidMeshConfig defaults;
+  const solid::SolidMeshConfig mesh =
+      ReferenceMesh(r.reference_element_m, defaults.degree_wall, defaults.degree_thickness,
+                    config.tube, "randomize.reference_element_m");
+  const auto t0 = std::chrono::steady_clock::now();
+  auto tube = std::make_unique<solid::ReferenceTube>(ReferenceTubeOf(
+      config, mesh, r.reference_max_frequency_hz, false, config.acoustics.ModeCacheDir()));
+  spdlog::info("randomize.reference_fraction = {}: the reference solid, {} modes to {} Hz, {} ({:.1f} s)",
+               r.reference_fraction, tube->omega_rad_s().size(), r.reference_max_frequency_hz,
+               tube->from_cache() ? "from the mode cache" : "solved",
+               MillisecondsSince(t0) / 1e3);
+  return tube;
+}
+
+// the sample rendered again by the reference solid when its draw (stream kTheory) falls below
+// randomize.reference_fraction; its draws and a flag (1 = rendered) join its variation either way
+void PlayWithReference(const solid::ReferenceTube& tube, const SonicBoomConfig& c, int64_t frames,
+                       StrikeSample* sample) {
+  std::vector<double> drawn(ReferenceVariationNames().size(), 0.0);
+  double rendered = 0.0;
+  if (sample->valid &&
+      Rng(sample->seed, Stream::kTheory).Uniform() < c.randomize.reference_fraction) {
+    try {
+      drawn = RenderReferenceSample(tube, c.audio.sample_rate_hz, frames, sample);
+      rendered = 1.0;
+      // the first contact is the one the reference played
+      if (!sample->contacts.empty()) {
+        sample->contacts.front().duration_s = sample->label.duration_s;
+        sample->contacts.front().impulse_Ns = sample->label.impulse_Ns;
+      }
+    } catch (const NumericalError& e) {
+      sample->valid = false;
+      sample->invalid_reason = fmt::format("reference solid: {}", e.what());
+      sample->audio = Eigen::MatrixXf::Zero(c.mics.count(), frames);
+    }
+  }
+  sample->variation.insert(sample->variation.end(), drawn.begin(), drawn.end());
+  sample->variation.push_back(rendered);
+}
+
+}  // namespace
 
 acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config) {
   acoustics::AcousticModelConfig a;
@@ -52,6 +110,7 @@ StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_
   impl_->strikes =
       sim::MakeStrikeSource(config.tube, config.audio, config.strike, config.scene, config.rollout);
   impl_->synth = std::make_unique<acoustics::StrikeSynthesizer>(AcousticModel(config));
+  if (config.randomize.reference_fraction > 0.0) impl_->reference = ReferenceRenderer(config);
 }
 
 StrikePipeline::~StrikePipeline() = default;
@@ -127,6 +186,10 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
     sample.audio = Eigen::MatrixXf::Zero(c.mics.count(), frames);
   }
 
+  // another theory: the fraction randomize.reference_fraction picks is rendered again by the
+  // reference solid; its draws and a flag (1 = reference) join the sample's variation
+  if (impl_->reference) PlayWithReference(*impl_->reference, c, frames, &sample);
+
   // a label must lie on the tube surface inside the contact region; never clamp it silently
   if (sample.valid) {
     const double r = std::hypot(sample.label.point_m.x(), sample.label.point_m.y());
@@ -160,6 +223,11 @@ DatasetInfo GeneratedDatasetInfo(const SonicBoomConfig& config, int64_t first_in
   info.first_index = first_index;
   info.index_count = count;
   info.variation_names = acoustics::VariationNames(config.randomize, config.mics.count());
+  if (config.randomize.reference_fraction > 0.0) {
+    const std::vector<std::string>& ref = ReferenceVariationNames();
+    info.variation_names.insert(info.variation_names.end(), ref.begin(), ref.end());
+    info.variation_names.push_back(kReferenceRenderedName);
+  }
   return info;
 }
 

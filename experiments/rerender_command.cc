@@ -43,50 +43,6 @@ struct RerenderOptions {
   bool ideal = false;  // a uniform tube: no seams, holes, bolts or mounts (a diagnostic)
 };
 
-// the draws of one strike's own physics, in kVariationNames' order
-const std::vector<std::string> kVariationNames{
-    "ref_striker_modulus_pa", "ref_tip_radius_m", "ref_loss_factor", "ref_loss_exponent",
-    "ref_full_scale_strain",  "ref_high_pass_hz", "ref_low_pass_hz", "ref_noise_dbfs"};
-
-// one sample's audio by the reference: the label's contact struck by a striker drawn here
-void Render(const solid::ReferenceTube& tube, double sample_rate_hz, int64_t frames,
-            StrikeSample* sample) {
-  Rng rng(sample->seed, Stream::kReference);
-  solid::ReferenceStrike strike;
-  strike.z_m = sample->label.z_m;
-  strike.theta_rad = sample->label.theta_rad;
-  strike.speed_m_s = sample->label.normal_speed_m_s > 0.0 ? sample->label.normal_speed_m_s : 0.3;
-  strike.onset_s = sample->label.time_s;
-  const double mass = sample->contacts.empty() ? 0.0 : sample->contacts.front().effective_mass_kg;
-  strike.striker_mass_kg = mass > 0.0 ? mass : 0.01;
-  // its own ranges: wood across and along the grain, hard plastics; tips 3-15 mm
-  strike.striker_youngs_modulus_pa = 1e9 * std::pow(15.0, rng.Uniform());
-  strike.striker_radius_m = 0.003 * std::pow(5.0, rng.Uniform());
-  solid::ReferenceRenderConfig render;
-  render.sample_rate_hz = sample_rate_hz;
-  render.samples = frames;
-  render.loss_factor = 0.01 * std::pow(4.0, rng.Uniform());
-  render.loss_exponent = rng.Uniform(-0.3, 0.3);
-  const solid::ReferenceRender r = solid::RenderReferenceStrike(tube, strike, render);
-  const solid::ReferenceChainDraw chain =
-      solid::DrawReferenceChain(&rng, static_cast<int>(r.strain.rows()));
-  Rng noise(sample->seed, Stream::kNoise);
-  sample->audio =
-      solid::ApplyReferenceChain(r.strain, chain, sample_rate_hz, &noise, &sample->clipped);
-  sample->label.impulse_Ns = r.impulse_ns;
-  sample->label.duration_s = r.duration_s;
-  double hp = 0.0;
-  for (double f : chain.high_pass_hz) hp += f / chain.high_pass_hz.size();
-  sample->variation = {strike.striker_youngs_modulus_pa,
-                       strike.striker_radius_m,
-                       render.loss_factor,
-                       render.loss_exponent,
-                       chain.full_scale_strain,
-                       hp,
-                       chain.low_pass_hz,
-                       chain.noise_dbfs};
-}
-
 }  // namespace
 
 CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
@@ -118,7 +74,7 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
       "\n# audio rendered again by the reference solid (sonicboom rerender --max-frequency {} "
       "--element-m {}{}) from {}\n",
       o.max_frequency_hz, o.element_m, o.ideal ? " --ideal" : "", o.in);
-  info.variation_names = kVariationNames;
+  info.variation_names = ReferenceVariationNames();
   info.num_samples = 0;
   DatasetWriter writer(o.out, info);
   const auto t1 = std::chrono::steady_clock::now();
@@ -132,10 +88,10 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
     tbb::parallel_for(int64_t{0}, count, [&](int64_t i) {
       StrikeSample& s = block[i];
       if (s.valid) {
-        Render(tube, info.sample_rate_hz, info.audio_frames, &s);
+        s.variation = RenderReferenceSample(tube, info.sample_rate_hz, info.audio_frames, &s);
       } else {
         s.audio = Eigen::MatrixXf::Zero(info.channels, info.audio_frames);
-        s.variation.assign(kVariationNames.size(), 0.0);
+        s.variation.assign(ReferenceVariationNames().size(), 0.0);
       }
       encoded[i] = writer.Encode(s);
     });

@@ -3,8 +3,10 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 #include "sonicboom/acoustics/shell.h"
 
+#include "sonicboom/core/sample.h"
 #include "sonicboom/core/tube.h"
 #include "sonicboom/experiments/config.h"
 #include "sonicboom/solid/reference_tube.h"
@@ -25,5 +27,21 @@ solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
 solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
                                            const solid::SolidMeshConfig& mesh, double band_hz,
                                            bool ideal, const std::string& cache_dir);
+
+/// The /variation column that says which model rendered a sample of a dataset generated with
+/// randomize.reference_fraction > 0: 1 the reference solid, 0 the configured vibration model.
+inline constexpr const char* kReferenceRenderedName = "ref_rendered";
+
+/// The names of the draws RenderReferenceSample returns, in its order (a dataset's /variation
+/// columns for them).
+const std::vector<std::string>& ReferenceVariationNames();
+
+/// `sample`'s audio rendered by the reference solid: the label's contact (place, normal speed,
+/// the first contact's effective mass, onset) struck with a striker, damping and sensor chain
+/// drawn from the sample's seed (stream kReference; noise kNoise), so the result does not depend
+/// on the thread. Replaces the audio, `clipped` and the label's impulse and duration; returns the
+/// draws (ReferenceVariationNames). frames: the record length.
+std::vector<double> RenderReferenceSample(const solid::ReferenceTube& tube, double sample_rate_hz,
+                                          int64_t frames, StrikeSample* sample);
 
 }  // namespace sonicboom::experiments

@@ -83,6 +83,51 @@ TEST(ReferenceCliTest, RefusesItsInputAsOutputAndABandAboveNyquist) {
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "R.h5"));
 }
 
+// randomize.reference_fraction: the strikes its draw picks are the reference solid's, bit for bit
+// what `rerender` makes of the same strikes, the others the shell's; a flag column says which;
+// a reference band above Nyquist is refused naming the key, before anything is written
+TEST(ReferenceCliTest, GenerateRendersTheDrawnFractionWithTheReference) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  const std::string mixed =
+      "--set randomize.reference_fraction=0.5 --set randomize.reference_max_frequency_hz=3000 "
+      "--set randomize.reference_element_m=0.04 ";
+  auto run = RunCli(testing::kShortRecordArgs + "generate --count 12 --out D.h5 -q", cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli(testing::kShortRecordArgs + mixed + "generate --count 12 --out M.h5 -q", cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli("rerender --in D.h5 --out R.h5" + kCoarse, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const DatasetReader shell(cwd + "/D.h5"), mix(cwd + "/M.h5"), ref(cwd + "/R.h5");
+  const std::vector<std::string>& names = mix.info().variation_names;
+  ASSERT_EQ(names.size(), 9u);
+  EXPECT_EQ(names.back(), "ref_rendered");
+  EXPECT_EQ(names.front(), "ref_striker_modulus_pa");
+  int rendered = 0, valid = 0;
+  for (int64_t i = 0; i < mix.size(); ++i) {
+    const StrikeSample m = mix.Read(i), s = shell.Read(i), r = ref.Read(i);
+    EXPECT_EQ(m.label.z_m, s.label.z_m);
+    if (!m.valid) continue;
+    ++valid;
+    if (m.variation.back() == 1.0) {
+      ++rendered;
+      EXPECT_EQ(m.audio, r.audio) << "sample " << i;
+      EXPECT_EQ(m.variation[2], r.variation[2]) << "sample " << i;  // its loss factor draw
+    } else {
+      EXPECT_EQ(m.variation.back(), 0.0);
+      EXPECT_EQ(m.audio, s.audio) << "sample " << i;
+    }
+  }
+  EXPECT_GT(rendered, 0);
+  EXPECT_LT(rendered, valid);
+  run = RunCli(testing::kShortRecordArgs + "--set randomize.reference_fraction=0.2 --set "
+               "randomize.reference_max_frequency_hz=30000 generate --count 2 --out N.h5 -q",
+               cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("randomize.reference_max_frequency_hz"), std::string::npos) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "N.h5"));
+}
+
 // the convergence report on coarse meshes, with the shell model's arrivals beside the reference's:
 // every rung is reported, and the shell, a model of the same tube, times the discs' arrivals
 // within a tenth of a millisecond of the solid's (a unit or sign error would not)

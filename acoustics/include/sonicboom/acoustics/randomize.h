@@ -67,6 +67,13 @@ struct RandomizeConfig {
   std::vector<double> flange_mount_scale;    // x shell.flange_mount_stiffness_n_m2, log-uniform
   std::vector<double> tool_mount_scale;      // x shell.tool_mount_stiffness_n_m2, log-uniform
   std::vector<double> poisson_ratio;         // material.poisson_ratio, uniform
+  // another theory in the training set: this fraction of the strikes (drawn per sample) is
+  // rendered by the reference solid (docs/reference_model.md) with its own striker, damping and
+  // sensor chain instead of this model; its modes up to reference_max_frequency_hz on elements of
+  // reference_element_m, solved once and kept in the mode cache
+  double reference_fraction{0.0};
+  double reference_max_frequency_hz{15000.0};
+  double reference_element_m{0.0135};
 
   void Serialize(Archive* a);
   /// Ranges have 0 or 2 entries with min <= max, inside physical limits; throws ConfigError
@@ -77,7 +84,7 @@ struct RandomizeConfig {
   /// Refuses a loss law whose damping ratio reaches 1 (overdamped) in [20 Hz, 20 kHz] for
   /// material.loss_factor = base_loss_factor; names the keys.
   void CheckLossLaw(double base_loss_factor) const;
-  /// Whether any range is set.
+  /// Whether any range is set (reference_fraction is not a range: it picks a renderer).
   bool any() const;
   /// Whether a structure pool is asked for (structure_variants > 0).
   bool structure() const { return structure_variants > 0; }

@@ -31,7 +31,8 @@ enum class Stream : uint64_t {
   kTrain = 6,
   kScene = 7,  // object drawn per strike, scene shapes
   kRandomize = 8,  // randomized structure and sensor chain
-  kReference = 9   // the reference solid's own striker, damping and sensor chain (rerender)
+  kReference = 9,  // the reference solid's own striker, damping and sensor chain (rerender)
+  kTheory = 10     // which model renders a sample (randomize.reference_fraction)
 };
 
 /// xoshiro256** generator with its own uniform and normal draws (no implementation-defined
