@@ -11,6 +11,11 @@
 # Output: OUTDIR/table.md, OUTDIR/results.json (one eval JSON per scenario and baseline).
 # BASELINES="knn tdoa constant" (the default) picks the baselines; kNN uses k = 1 and all GCC lags,
 # the setting docs/baselines.md chose on a validation set. STAGE=generate stops after the data.
+# VAL=N also generates N validation strikes per scenario (indices from 200000, disjoint from the
+# test sets) and evaluates the model on them (OUTDIR/val_<ts>.json); STAGE=val stops there, before
+# any test set is touched (scripts/scenario_selection.sh chooses settings that way). DATA=DIR keeps
+# the datasets in DIR (shared by several runs); MODEL_SET="--set k=v ..." layers keys over
+# MODEL_CONFIG for training.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 OUT=${1:-runs/med_study}
@@ -20,37 +25,53 @@ THREADS=${4:-2}
 MODEL_CONFIG=${5:-$ROOT/configs/study.yaml}
 BIN=${SONICBOOM_BIN:-$ROOT/build/bin/sonicboom}
 PY=/usr/bin/python3
-mkdir -p "$OUT"
+DATA=${DATA:-$OUT}
+VAL=${VAL:-0}
+read -r -a MODEL_SET <<< "${MODEL_SET:-}"
+mkdir -p "$OUT" "$DATA"
 
 # datasets: training strikes, then held-out strikes with disjoint indices for every scenario
 gen() {  # name config count first_index
-  if [ ! -f "$OUT/$1.h5" ]; then
+  if [ ! -f "$DATA/$1.h5" ]; then
     "$BIN" generate --config "$2" --count "$3" --first-index "$4" --threads "$THREADS" \
-      --out "$OUT/$1.h5" -q --json > "$OUT/$1.generate.json"
+      --out "$DATA/$1.h5" -q --json > "$DATA/$1.generate.json"
   fi
 }
 gen train "$ROOT/configs/ts1.yaml" "$TRAIN" 0
 for ts in ts1 ts2 ts3 ts4; do gen "test_$ts" "$ROOT/configs/$ts.yaml" "$TEST" 100000; done
+if [ "$VAL" -gt 0 ]; then
+  for ts in ts1 ts2 ts3 ts4; do gen "val_$ts" "$ROOT/configs/$ts.yaml" "$VAL" 200000; done
+fi
 [ "${STAGE:-all}" = generate ] && exit 0
 
 # training on the ts1 distribution
 if [ ! -f "$OUT/model/model.json" ]; then
   start=$(date +%s)
   "$BIN" --config "$ROOT/configs/ts1.yaml" --config "$MODEL_CONFIG" --threads "$THREADS" -q \
-    train --data "$OUT/train.h5" --out "$OUT/model" \
+    "${MODEL_SET[@]}" train --data "$DATA/train.h5" --out "$OUT/model" \
     $( [ -e "$OUT/model.partial" ] && echo --resume ) --json > "$OUT/train.json"
   echo $(( $(date +%s) - start )) > "$OUT/train_wall_s"
 fi
 
+# validation sets first (a choice made on them never sees a test set)
+if [ "$VAL" -gt 0 ]; then
+  for ts in ts1 ts2 ts3 ts4; do
+    [ -f "$OUT/val_$ts.json" ] ||
+      "$BIN" --threads "$THREADS" -q eval --model "$OUT/model" --data "$DATA/val_$ts.h5" --json \
+        > "$OUT/val_$ts.json"
+  done
+fi
+[ "${STAGE:-all}" = val ] && exit 0
+
 # evaluation of the model and the baselines on every scenario
 for ts in ts1 ts2 ts3 ts4; do
-  "$BIN" --threads "$THREADS" -q eval --model "$OUT/model" --data "$OUT/test_$ts.h5" --json \
+  "$BIN" --threads "$THREADS" -q eval --model "$OUT/model" --data "$DATA/test_$ts.h5" --json \
     > "$OUT/eval_$ts.json"
   for method in ${BASELINES:-knn tdoa constant}; do
     [ -f "$OUT/baseline_${method}_$ts.json" ] && continue
     "$BIN" --config "$ROOT/configs/ts1.yaml" --config "$MODEL_CONFIG" --threads "$THREADS" -q \
       baseline --method "$method" $([ "$method" = knn ] && echo "--k 1 --gcc-lags 441") \
-      --train "$OUT/train.h5" --data "$OUT/test_$ts.h5" --json \
+      --train "$DATA/train.h5" --data "$DATA/test_$ts.h5" --json \
       > "$OUT/baseline_${method}_$ts.json.partial"
     mv "$OUT/baseline_${method}_$ts.json.partial" "$OUT/baseline_${method}_$ts.json"
   done
