@@ -108,7 +108,8 @@ void RandomizeConfig::Serialize(Archive* a) {
   a->Visit("tool_mount_scale", &tool_mount_scale, {0.0, 1e4, true, false});
   a->Visit("poisson_ratio", &poisson_ratio, {0.0, 0.5, true, true});
   a->Visit("reference_fraction", &reference_fraction, Bounds::Closed(0.0, 1.0));
-  a->Visit("reference_max_frequency_hz", &reference_max_frequency_hz, {100.0, 40000.0, true, false});
+  a->Visit("reference_max_frequency_hz", &reference_max_frequency_hz,
+           {100.0, 40000.0, true, false});
   a->Visit("reference_element_m", &reference_element_m, {0.0, 0.1, true, false});
 }
 

@@ -55,10 +55,10 @@ std::unique_ptr<solid::ReferenceTube> ReferenceRenderer(const SonicBoomConfig& c
   const auto t0 = std::chrono::steady_clock::now();
   auto tube = std::make_unique<solid::ReferenceTube>(ReferenceTubeOf(
       config, mesh, r.reference_max_frequency_hz, false, config.acoustics.ModeCacheDir()));
-  spdlog::info("randomize.reference_fraction = {}: the reference solid, {} modes to {} Hz, {} ({:.1f} s)",
-               r.reference_fraction, tube->omega_rad_s().size(), r.reference_max_frequency_hz,
-               tube->from_cache() ? "from the mode cache" : "solved",
-               MillisecondsSince(t0) / 1e3);
+  spdlog::info(
+      "randomize.reference_fraction = {}: the reference solid, {} modes to {} Hz, {} ({:.1f} s)",
+      r.reference_fraction, tube->omega_rad_s().size(), r.reference_max_frequency_hz,
+      tube->from_cache() ? "from the mode cache" : "solved", MillisecondsSince(t0) / 1e3);
   return tube;
 }
 

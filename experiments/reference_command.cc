@@ -59,7 +59,7 @@ std::vector<std::vector<double>> ShellArrivals(const SonicBoomConfig& config, Tu
     drive.row(p) = model.RadialForceWeights(probes[p].z_m, probes[p].theta_deg * kDeg).transpose();
   }
   return solid::ProbeArrivals(modes.omega_rad_s, model.SensorRows(config.mics) * modes.shapes,
-                       drive * modes.shapes, config.material.loss_factor);
+                              drive * modes.shapes, config.material.loss_factor);
 }
 
 // the q-quantile (0 to 1) of v, by rank
@@ -138,8 +138,8 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
     request.mesh = base.Refined(std::pow(o.ratio, l));
     levels.push_back(solid::SolveConvergenceLevel(request));
     const solid::ConvergenceLevel& level = levels.back();
-    spdlog::info("reference: h = {:.2f} mm, {} DOFs, {} modes to {} Hz; {} in {:.1f} s", 1e3 * level.h_m,
-                 level.dofs, level.f_hz.size(), o.max_frequency_hz,
+    spdlog::info("reference: h = {:.2f} mm, {} DOFs, {} modes to {} Hz; {} in {:.1f} s",
+                 1e3 * level.h_m, level.dofs, level.f_hz.size(), o.max_frequency_hz,
                  level.from_cache ? "read from the cache, solved" : "solved",
                  level.build_s + level.solve_s);
   }
@@ -198,7 +198,8 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
       "(experiments/reference_command.cc).\n\n",
       NameOf(o.ends), o.max_frequency_hz, o.element_m, o.degree_wall, o.degree_thickness, o.levels,
       o.ratio, o.ideal ? " --ideal" : "", o.compare_shell ? " --compare-shell" : "");
-  md += "| mesh h (mm) | DOFs | modes to f_max | build (s) | modes and projections (s) | solved |\n";
+  md +=
+      "| mesh h (mm) | DOFs | modes to f_max | build (s) | modes and projections (s) | solved |\n";
   md += "|---|---|---|---|---|---|\n";
   json levels_json = json::array();
   for (const solid::ConvergenceLevel& l : levels) {
@@ -215,8 +216,8 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   }
   md += fmt::format(
       "\nRichardson error estimate of the finest mesh, {} modes matched by order:\n\n"
-      "| band | modes | median error (%) | 90th percentile (%) | max error (%) | modes over 0.3 % | "
-      "median order | non-monotone |\n"
+      "| band | modes | median error (%) | 90th percentile (%) | max error (%) "
+      "| modes over 0.3 % | median order | non-monotone |\n"
       "|---|---|---|---|---|---|---|---|\n",
       common);
   json bands_json = json::array();

@@ -58,13 +58,12 @@ void WriteLevel(const ConvergenceRequest& r, const ConvergenceLevel& level) {
   const double times[3] = {level.h_m, level.build_s, level.solve_s};
   std::vector<double> t;
   for (const auto& row : level.t_s) t.insert(t.end(), row.begin(), row.end());
-  internal::WriteCacheFile(
-      r.cache_dir, LevelPath(r), kMagic, ConvergenceLevelKey(r),
-      {static_cast<int64_t>(level.f_hz.size()), static_cast<int64_t>(r.probes.size()),
-       r.mics.count(), level.dofs},
-      {{times, sizeof(times)},
-       {level.f_hz.data(), sizeof(double) * level.f_hz.size()},
-       {t.data(), sizeof(double) * t.size()}});
+  internal::WriteCacheFile(r.cache_dir, LevelPath(r), kMagic, ConvergenceLevelKey(r),
+                           {static_cast<int64_t>(level.f_hz.size()),
+                            static_cast<int64_t>(r.probes.size()), r.mics.count(), level.dofs},
+                           {{times, sizeof(times)},
+                            {level.f_hz.data(), sizeof(double) * level.f_hz.size()},
+                            {t.data(), sizeof(double) * t.size()}});
 }
 
 }  // namespace
@@ -118,8 +117,7 @@ ConvergenceLevel SolveConvergenceLevel(const ConvergenceRequest& r) {
   request.projection_rows.topRows(discs) = model.SensorRows(r.mics);
   for (int64_t p = 0; p < probes; ++p) {
     request.projection_rows.row(discs + p) =
-        model.RadialForceWeights(r.probes[p].z_m, r.probes[p].theta_deg * kPi / 180.0)
-            .transpose();
+        model.RadialForceWeights(r.probes[p].z_m, r.probes[p].theta_deg * kPi / 180.0).transpose();
   }
   const auto t1 = std::chrono::steady_clock::now();
   const SolidModes modes = SolveSolidModes(model, request);

@@ -40,10 +40,11 @@ int Run(const Options& o) {
     request.mesh = base.Refined(std::pow(o.ratio, l));
     const solid::ConvergenceLevel level = solid::SolveConvergenceLevel(request);
     // one line per level on stdout, as soon as it is kept
-    std::printf("level %lld: h = %.2f mm, %lld DOFs, %zu modes to %.0f Hz, built %.1f s, solved %.1f s%s\n",
-                static_cast<long long>(l), 1e3 * level.h_m, static_cast<long long>(level.dofs),
-                level.f_hz.size(), o.max_frequency_hz, level.build_s, level.solve_s,
-                level.from_cache ? " (cached)" : "");
+    std::printf(
+        "level %lld: h = %.2f mm, %lld DOFs, %zu modes to %.0f Hz, built %.1f s, solved %.1f s%s\n",
+        static_cast<long long>(l), 1e3 * level.h_m, static_cast<long long>(level.dofs),
+        level.f_hz.size(), o.max_frequency_hz, level.build_s, level.solve_s,
+        level.from_cache ? " (cached)" : "");
     std::fflush(stdout);
   }
   return 0;
@@ -62,7 +63,8 @@ int main(int argc, char** argv) {
   app.add_option("--degree-thickness", o.degree_thickness, "GLL degree through the wall");
   app.add_option("--levels", o.levels, "meshes, each --ratio finer than the last")
       ->check(CLI::Range(1, 6));
-  app.add_option("--ratio", o.ratio, "refinement ratio between levels")->check(CLI::Range(1.0, 2.0));
+  app.add_option("--ratio", o.ratio, "refinement ratio between levels")
+      ->check(CLI::Range(1.0, 2.0));
   app.add_option("--only-level", o.only_level,
                  "solve this level (0 = coarsest) alone, e.g. one process per level")
       ->check(CLI::Range(0, 5));

@@ -120,8 +120,9 @@ TEST(ReferenceCliTest, GenerateRendersTheDrawnFractionWithTheReference) {
   }
   EXPECT_GT(rendered, 0);
   EXPECT_LT(rendered, valid);
-  run = RunCli(testing::kShortRecordArgs + "--set randomize.reference_fraction=0.2 --set "
-               "randomize.reference_max_frequency_hz=30000 generate --count 2 --out N.h5 -q",
+  run = RunCli(testing::kShortRecordArgs +
+                   "--set randomize.reference_fraction=0.2 --set "
+                   "randomize.reference_max_frequency_hz=30000 generate --count 2 --out N.h5 -q",
                cwd);
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("randomize.reference_max_frequency_hz"), std::string::npos) << run.err;

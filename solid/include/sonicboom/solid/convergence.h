@@ -40,9 +40,9 @@ struct ConvergenceRequest {
 struct ConvergenceLevel {
   double h_m{0.0};  // the mesh's element length
   int64_t dofs{0};
-  double build_s{0.0}, solve_s{0.0};       // as solved (a cached level keeps its first timing)
-  std::vector<double> f_hz;                // elastic modes, ascending, Hz
-  std::vector<std::vector<double>> t_s;    // (probe) x (disc) first arrival, s
+  double build_s{0.0}, solve_s{0.0};     // as solved (a cached level keeps its first timing)
+  std::vector<double> f_hz;              // elastic modes, ascending, Hz
+  std::vector<std::vector<double>> t_s;  // (probe) x (disc) first arrival, s
   bool from_cache{false};
 };
 
