@@ -3,6 +3,7 @@
 // and bad requests are refused naming the option.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
@@ -127,6 +128,23 @@ TEST(ReferenceCliTest, GenerateRendersTheDrawnFractionWithTheReference) {
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("randomize.reference_max_frequency_hz"), std::string::npos) << run.err;
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "N.h5"));
+}
+
+// apps/reference_levels solves, without the CLI, exactly the levels `sonicboom reference` keys:
+// the report reads every one of them back instead of solving (ConvergenceLevelTest checks that
+// another input is not read back)
+TEST(ReferenceCliTest, LevelsSolvedApartAreReadBackByTheReport) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  const std::string mesh = " --ideal --element-m 0.04 --max-frequency 1000 --levels 3 --ratio 1.2";
+  const std::string tool =
+      "'" + std::string(SONICBOOM_REFERENCE_LEVELS) + "'" + mesh + " --cache-dir L";
+  ASSERT_EQ(std::system(("cd '" + cwd + "' && " + tool + " > /dev/null").c_str()), 0) << tool;
+  const auto run = RunCli("reference" + mesh + " --cache-dir L --json -q", cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const auto j = nlohmann::json::parse(run.out);
+  ASSERT_EQ(j["levels"].size(), 3u);
+  for (const auto& level : j["levels"]) EXPECT_TRUE(level["from_cache"].get<bool>());
 }
 
 // the convergence report on coarse meshes, with the shell model's arrivals beside the reference's:
