@@ -213,5 +213,23 @@ TEST(BeyondPresetTest, WidensEachPresetRangeOneAndAHalfTimes) {
   EXPECT_NE(run.out.find("0.0894"), std::string::npos) << run.out;
 }
 
+// configs/two_theories.yaml (the recommended pretraining set) resolves over ts4 and the preset,
+// changes nothing of the preset but the share of strikes the reference solid renders
+TEST(BeyondPresetTest, TwoTheoriesLayerSetsTheReferenceFractionAlone) {
+  TempDir dir;
+  const std::string base =
+      "--config '" + ConfigPath("ts4.yaml") + "' --config '" + ConfigPath("randomized.yaml") + "' ";
+  const auto plain = RunCli(base + "config", dir.path().string());
+  const auto layered = RunCli(base + "--config '" + ConfigPath("two_theories.yaml") + "' config",
+                              dir.path().string());
+  ASSERT_EQ(layered.exit_code, 0) << layered.err;
+  const YAML::Node a = YAML::Load(plain.out);
+  YAML::Node b = YAML::Load(layered.out);
+  EXPECT_EQ(a["randomize"]["reference_fraction"].as<double>(), 0.0);
+  EXPECT_EQ(b["randomize"]["reference_fraction"].as<double>(), 0.3);
+  b["randomize"]["reference_fraction"] = 0.0;
+  EXPECT_EQ(YAML::Dump(a), YAML::Dump(b));
+}
+
 }  // namespace
 }  // namespace sonicboom
