@@ -42,12 +42,8 @@ namespace {
 // the reference solid of randomize.reference_*, solved once or read from the mode cache
 std::unique_ptr<solid::ReferenceTube> ReferenceRenderer(const SonicBoomConfig& config) {
   const acoustics::RandomizeConfig& r = config.randomize;
-  if (!(r.reference_max_frequency_hz < 0.5 * config.audio.sample_rate_hz)) {
-    throw ConfigError(fmt::format(
-        "randomize.reference_max_frequency_hz = {} Hz must lie below the Nyquist frequency {} Hz "
-        "of audio.sample_rate_hz",
-        r.reference_max_frequency_hz, 0.5 * config.audio.sample_rate_hz));
-  }
+  CheckReferenceBand(r.reference_max_frequency_hz, config.audio.sample_rate_hz,
+                     "randomize.reference_max_frequency_hz", "audio.sample_rate_hz");
   const solid::SolidMeshConfig defaults;
   const solid::SolidMeshConfig mesh =
       ReferenceMesh(r.reference_element_m, defaults.degree_wall, defaults.degree_thickness,

@@ -74,22 +74,6 @@ double Median(const std::vector<double>& v) {
 
 }  // namespace
 
-solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
-                                     int64_t degree_thickness, const TubeConfig& tube,
-                                     const std::string& option) {
-  solid::SolidMeshConfig mesh;
-  mesh.element_arc_m = element_m;
-  mesh.element_axial_m = element_m;
-  mesh.degree_wall = degree_wall;
-  mesh.degree_thickness = degree_thickness;
-  try {
-    mesh.Validate(tube);
-  } catch (const ConfigError& e) {
-    throw ConfigError(fmt::format("{} {}: {}", option, element_m, e.what()));
-  }
-  return mesh;
-}
-
 solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
                                            const solid::SolidMeshConfig& mesh, double band_hz,
                                            bool ideal, const std::string& cache_dir) {
@@ -106,36 +90,19 @@ solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
 
 CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   const SonicBoomConfig config = Resolve(g);
-  if (o.levels < 3 || o.levels > 6)
-    throw ConfigError(
-        fmt::format("--levels must be in [3, 6] (Richardson needs three), got {}", o.levels));
-  if (!(o.ratio > 1.0 && o.ratio <= 2.0))
-    throw ConfigError(fmt::format("--ratio must be in (1, 2], got {}", o.ratio));
-  if (!(o.max_frequency_hz > 100.0 && o.max_frequency_hz <= 40000.0))
-    throw ConfigError(
-        fmt::format("--max-frequency must be in (100, 40000] Hz, got {}", o.max_frequency_hz));
   if (!o.out.empty()) {
     RefuseWritingOverInputs(g, {o.out}, {});
     const std::filesystem::path parent = std::filesystem::absolute(o.out).parent_path();
     if (!std::filesystem::is_directory(parent))
       throw IoError(fmt::format("--out {}: directory {} does not exist", o.out, parent.string()));
   }
-  const solid::SolidMeshConfig base =
-      ReferenceMesh(o.element_m, o.degree_wall, o.degree_thickness, config.tube, "--element-m");
-  const solid::SolidStructure structure = ReferenceStructure(config.shell, o.ends, o.ideal);
-
   // each level solved (or read back from the cache, where an earlier run or apps/reference_levels
   // left it), coarse to fine
+  const std::vector<solid::ConvergenceRequest> requests =
+      ReferenceLevelRequests(o, config.tube, config.material, config.mics, config.shell,
+                             o.cache_dir.empty() ? acoustics::DefaultModeCacheDir() : o.cache_dir);
   std::vector<solid::ConvergenceLevel> levels;
-  solid::ConvergenceRequest request;
-  request.tube = config.tube;
-  request.material = config.material;
-  request.mics = config.mics;
-  request.structure = structure;
-  request.max_frequency_hz = o.max_frequency_hz;
-  request.cache_dir = o.cache_dir.empty() ? acoustics::DefaultModeCacheDir() : o.cache_dir;
-  for (int64_t l = 0; l < o.levels; ++l) {
-    request.mesh = base.Refined(std::pow(o.ratio, l));
+  for (const solid::ConvergenceRequest& request : requests) {
     levels.push_back(solid::SolveConvergenceLevel(request));
     const solid::ConvergenceLevel& level = levels.back();
     spdlog::info("reference: h = {:.2f} mm, {} DOFs, {} modes to {} Hz; {} in {:.1f} s",
@@ -143,7 +110,7 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
                  level.from_cache ? "read from the cache, solved" : "solved",
                  level.build_s + level.solve_s);
   }
-  const size_t probes = request.probes.size();
+  const size_t probes = requests.front().probes.size();
   std::vector<double> h;
   for (const solid::ConvergenceLevel& l : levels) h.push_back(l.h_m);
 

@@ -3,12 +3,24 @@
 // of a dataset and `generate` to the fraction randomize.reference_fraction picks.
 #include <cmath>
 
+#include <fmt/format.h>
+
 #include "internal/reference.h"
+#include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/solid/reference_chain.h"
 #include "sonicboom/solid/reference_render.h"
 
 namespace sonicboom::experiments {
+
+void CheckReferenceBand(double band_hz, double sample_rate_hz, const std::string& name,
+                        const std::string& rate_of) {
+  if (!(band_hz > 100.0 && band_hz < 0.5 * sample_rate_hz)) {
+    throw ConfigError(
+        fmt::format("{} = {} Hz must lie in (100, {}) Hz: below the Nyquist frequency of {}", name,
+                    band_hz, 0.5 * sample_rate_hz, rate_of));
+  }
+}
 
 const std::vector<std::string>& ReferenceVariationNames() {
   static const std::vector<std::string> names{

@@ -51,11 +51,7 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
   const SonicBoomConfig config = ResolveWithDataset(g, o.in);
   DatasetReader reader(o.in);
   DatasetInfo info = reader.info();
-  if (!(o.max_frequency_hz > 100.0 && o.max_frequency_hz < 0.5 * info.sample_rate_hz)) {
-    throw ConfigError(fmt::format(
-        "--max-frequency {} Hz must lie in (100, {}) Hz: below the Nyquist frequency of {}",
-        o.max_frequency_hz, 0.5 * info.sample_rate_hz, o.in));
-  }
+  CheckReferenceBand(o.max_frequency_hz, info.sample_rate_hz, "--max-frequency", o.in);
   const int64_t n = o.count > 0 ? std::min(o.count, reader.size()) : reader.size();
 
   // the reference tube: solved once (or read from the mode cache)

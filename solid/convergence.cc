@@ -20,19 +20,19 @@ namespace {
 constexpr int kConvergenceVersion = 1;
 constexpr char kMagic[8] = {'S', 'B', 'C', 'O', 'N', 'V', '0', '1'};
 
-std::string LevelPath(const ConvergenceRequest& r) {
-  const std::string key = ConvergenceLevelKey(r);
-  return (std::filesystem::path(r.cache_dir) /
+// where a level of `key` is kept in cache_dir
+std::string LevelPath(const std::string& cache_dir, const std::string& key) {
+  return (std::filesystem::path(cache_dir) /
           fmt::format("level-{:016x}.bin", internal::Fnv1a(key.data(), key.size())))
       .string();
 }
 
 // the level's file: header {modes, probes, sensors, dofs}, {h, build, solve}, f, arrivals
-bool ReadLevel(const ConvergenceRequest& r, ConvergenceLevel* level) {
+bool ReadLevel(const ConvergenceRequest& r, const std::string& key, ConvergenceLevel* level) {
   internal::CacheFileReader in;
   int64_t header[4] = {0, 0, 0, 0};
-  if (!in.Open(LevelPath(r), kMagic, ConvergenceLevelKey(r), header, 4)) return false;
-  const int64_t probes = static_cast<int64_t>(r.probes.size()), sensors = r.mics.count();
+  if (!in.Open(LevelPath(r.solid.cache_dir, key), kMagic, key, header, 4)) return false;
+  const int64_t probes = static_cast<int64_t>(r.probes.size()), sensors = r.solid.mics.count();
   if (header[0] < 0 || header[0] > (1 << 20) || header[1] != probes || header[2] != sensors)
     return false;
   double times[3] = {0.0, 0.0, 0.0};
@@ -54,16 +54,18 @@ bool ReadLevel(const ConvergenceRequest& r, ConvergenceLevel* level) {
   return true;
 }
 
-void WriteLevel(const ConvergenceRequest& r, const ConvergenceLevel& level) {
+void WriteLevel(const ConvergenceRequest& r, const std::string& key,
+                const ConvergenceLevel& level) {
   const double times[3] = {level.h_m, level.build_s, level.solve_s};
   std::vector<double> t;
   for (const auto& row : level.t_s) t.insert(t.end(), row.begin(), row.end());
-  internal::WriteCacheFile(r.cache_dir, LevelPath(r), kMagic, ConvergenceLevelKey(r),
-                           {static_cast<int64_t>(level.f_hz.size()),
-                            static_cast<int64_t>(r.probes.size()), r.mics.count(), level.dofs},
-                           {{times, sizeof(times)},
-                            {level.f_hz.data(), sizeof(double) * level.f_hz.size()},
-                            {t.data(), sizeof(double) * t.size()}});
+  internal::WriteCacheFile(
+      r.solid.cache_dir, LevelPath(r.solid.cache_dir, key), kMagic, key,
+      {static_cast<int64_t>(level.f_hz.size()), static_cast<int64_t>(r.probes.size()),
+       r.solid.mics.count(), level.dofs},
+      {{times, sizeof(times)},
+       {level.f_hz.data(), sizeof(double) * level.f_hz.size()},
+       {t.data(), sizeof(double) * t.size()}});
 }
 
 }  // namespace
@@ -73,18 +75,12 @@ std::vector<ConvergenceProbe> DefaultConvergenceProbes() {
 }
 
 std::string ConvergenceLevelKey(const ConvergenceRequest& r) {
-  ReferenceTubeConfig modes;
-  modes.tube = r.tube;
-  modes.material = r.material;
-  modes.structure = r.structure;
-  modes.mesh = r.mesh;
-  modes.mics = r.mics;
-  modes.max_frequency_hz = r.max_frequency_hz;
   std::vector<std::string> probes;
   for (const ConvergenceProbe& p : r.probes)
     probes.push_back(fmt::format("{:.17g}@{:.17g}", p.z_m, p.theta_deg));
   return fmt::format("convergence v{} {} loss {:.17g} probes {}", kConvergenceVersion,
-                     ReferenceCacheKey(modes), r.material.loss_factor, fmt::join(probes, ","));
+                     ReferenceCacheKey(r.solid), r.solid.material.loss_factor,
+                     fmt::join(probes, ","));
 }
 
 std::vector<std::vector<double>> ProbeArrivals(const Eigen::VectorXd& omega_rad_s,
@@ -104,17 +100,19 @@ std::vector<std::vector<double>> ProbeArrivals(const Eigen::VectorXd& omega_rad_
 }
 
 ConvergenceLevel SolveConvergenceLevel(const ConvergenceRequest& r) {
+  const ReferenceTubeConfig& c = r.solid;
+  const std::string key = c.cache_dir.empty() ? "" : ConvergenceLevelKey(r);
   ConvergenceLevel level;
-  if (!r.cache_dir.empty() && ReadLevel(r, &level)) return level;
+  if (!c.cache_dir.empty() && ReadLevel(r, key, &level)) return level;
   // the model, its sensor rows and each probe's radial drive as projections of every shape
   const auto t0 = std::chrono::steady_clock::now();
-  const SolidTubeModel model(r.tube, r.material, r.structure, r.mesh);
-  const int64_t probes = static_cast<int64_t>(r.probes.size()), discs = r.mics.count();
+  const SolidTubeModel model(c.tube, c.material, c.structure, c.mesh);
+  const int64_t probes = static_cast<int64_t>(r.probes.size()), discs = c.mics.count();
   SolidModeRequest request;
-  request.max_frequency_hz = r.max_frequency_hz;
+  request.max_frequency_hz = c.max_frequency_hz;
   request.with_shapes = false;
   request.projection_rows.resize(discs + probes, model.dofs());
-  request.projection_rows.topRows(discs) = model.SensorRows(r.mics);
+  request.projection_rows.topRows(discs) = model.SensorRows(c.mics);
   for (int64_t p = 0; p < probes; ++p) {
     request.projection_rows.row(discs + p) =
         model.RadialForceWeights(r.probes[p].z_m, r.probes[p].theta_deg * kPi / 180.0).transpose();
@@ -130,8 +128,8 @@ ConvergenceLevel SolveConvergenceLevel(const ConvergenceRequest& r) {
     level.f_hz.push_back(modes.omega_rad_s(k) / (2.0 * kPi));
   }
   level.t_s = ProbeArrivals(modes.omega_rad_s, modes.projections.topRows(discs),
-                            modes.projections.bottomRows(probes), r.material.loss_factor);
-  if (!r.cache_dir.empty()) WriteLevel(r, level);
+                            modes.projections.bottomRows(probes), c.material.loss_factor);
+  if (!c.cache_dir.empty()) WriteLevel(r, key, level);
   return level;
 }
 

@@ -12,15 +12,9 @@
 #include "sonicboom/solid/reference_tube.h"
 #include "sonicboom/solid/solid_tube.h"
 
-#include "internal/reference_structure.h"
+#include "internal/reference_levels.h"
 
 namespace sonicboom::experiments {
-
-/// The reference mesh of a command's options (elements of element_m, the GLL degrees), checked
-/// against the tube; a ConfigError names `option` and its value with the limit it broke.
-solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
-                                     int64_t degree_thickness, const TubeConfig& tube,
-                                     const std::string& option);
 
 /// The reference solid of `config`'s tube, material, mics and structure (ReferenceStructure, or
 /// a uniform tube when `ideal`) on `mesh`, its modes to band_hz, cached in cache_dir.
@@ -31,6 +25,11 @@ solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
 /// The /variation column that says which model rendered a sample of a dataset generated with
 /// randomize.reference_fraction > 0: 1 the reference solid, 0 the configured vibration model.
 inline constexpr const char* kReferenceRenderedName = "ref_rendered";
+
+/// Refuses (ConfigError) a reference band `band_hz` not in (100 Hz, the Nyquist frequency of
+/// sample_rate_hz), naming the option or key `name` and where the rate comes from (`rate_of`).
+void CheckReferenceBand(double band_hz, double sample_rate_hz, const std::string& name,
+                        const std::string& rate_of);
 
 /// The names of the draws RenderReferenceSample returns, in its order (a dataset's /variation
 /// columns for them).

@@ -404,11 +404,11 @@ TEST(ConvergenceLevelTest, CacheReadsTheLevelBackAndArrivalsAreCausal) {
       std::filesystem::temp_directory_path() / fmt::format("sb-convergence-{}", ::getpid());
   std::filesystem::remove_all(dir);
   ConvergenceRequest r;
-  r.structure = Ideal(TubeEnds::kFree);
-  r.mesh = Coarse();
-  r.max_frequency_hz = 3000.0;
+  r.solid.structure = Ideal(TubeEnds::kFree);
+  r.solid.mesh = Coarse();
+  r.solid.max_frequency_hz = 3000.0;
   r.probes = {{0.09, 20.0}};
-  r.cache_dir = dir.string();
+  r.solid.cache_dir = dir.string();
   const ConvergenceLevel solved = SolveConvergenceLevel(r);
   EXPECT_FALSE(solved.from_cache);
   ASSERT_FALSE(solved.f_hz.empty());
@@ -426,10 +426,10 @@ TEST(ConvergenceLevelTest, CacheReadsTheLevelBackAndArrivalsAreCausal) {
   for (int far = 0; far < 3; ++far) EXPECT_LT(t[3], t[far]) << "disc " << far;
   EXPECT_LT(t[3], t[4]);
   EXPECT_LT(t[3], t[5]);
-  r.material.loss_factor *= 2.0;
+  r.solid.material.loss_factor *= 2.0;
   EXPECT_NE(ConvergenceLevelKey(r), ConvergenceLevelKey([&] {
               ConvergenceRequest same = r;
-              same.material.loss_factor /= 2.0;
+              same.solid.material.loss_factor /= 2.0;
               return same;
             }()));
   EXPECT_FALSE(SolveConvergenceLevel(r).from_cache);

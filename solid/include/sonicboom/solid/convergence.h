@@ -12,7 +12,7 @@
 #include <Eigen/Core>
 
 #include "sonicboom/core/tube.h"
-#include "sonicboom/solid/solid_tube.h"
+#include "sonicboom/solid/reference_tube.h"
 
 namespace sonicboom::solid {
 
@@ -27,14 +27,11 @@ struct ConvergenceProbe {
 std::vector<ConvergenceProbe> DefaultConvergenceProbes();
 
 struct ConvergenceRequest {
-  TubeConfig tube;
-  MaterialConfig material;  // loss_factor damps the probe pulse's response
-  MicArrayConfig mics;
-  SolidStructure structure;
-  SolidMeshConfig mesh;
+  // the tube, material (its loss_factor damps the probe pulse's response), discs, structure and
+  // mesh, every elastic mode up to its max_frequency_hz; its cache_dir keeps the level ("" =
+  // solve, keep nothing)
+  ReferenceTubeConfig solid;
   std::vector<ConvergenceProbe> probes = DefaultConvergenceProbes();
-  double max_frequency_hz{20000.0};  // every elastic mode up to here
-  std::string cache_dir;             // "" = solve, keep nothing
 };
 
 struct ConvergenceLevel {
