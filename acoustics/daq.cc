@@ -183,7 +183,7 @@ Eigen::ArrayXd HumSignal(int64_t n, double fs, double f0_hz, double rms_v,
 
 bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> joint_speed_rad_s,
                        double joint_speed_rate_hz, uint64_t sample_seed, Eigen::MatrixXf* audio,
-                       const Variation* variation) const {
+                       const ChainDraw& chain) const {
   const Impl& m = *impl_;
   SONICBOOM_DEMAND(strain.rows() == m.channels);
   const int64_t num_frames = strain.cols();
@@ -239,13 +239,12 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
   }
 
   // this sample's sensor chain: hum, record level and converter full scale
-  const Variation* var = variation;
   Eigen::ArrayXd hum;
-  if (var != nullptr && var->hum_rms_v > 0.0) {
-    hum = HumSignal(num_frames, m.fs, var->hum_hz, var->hum_rms_v, var->hum_phase_rad);
+  if (chain.hum_rms_v > 0.0) {
+    hum = HumSignal(num_frames, m.fs, chain.hum_hz, chain.hum_rms_v, chain.hum_phase_rad);
   }
-  const double level = var != nullptr ? std::pow(10.0, var->record_level_db / 20.0) : 1.0;
-  const double full_scale_v = m.daq.full_scale_v * (var != nullptr ? var->full_scale_scale : 1.0);
+  const double level = std::pow(10.0, chain.record_level_db / 20.0);
+  const double full_scale_v = m.daq.full_scale_v * chain.full_scale_scale;
 
   const double adc_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.adc_bits) - 1) - 1);
   const double out_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.output_bits) - 1) - 1);
@@ -256,25 +255,25 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
     // piezo volts with the channel's gain (a fixed offset, or a mismatch drawn per strike)
     const size_t ci = static_cast<size_t>(i);
     double gain_db = 0.0;
-    if (var != nullptr && !var->channel_gain_db.empty()) {
-      gain_db = var->channel_gain_db[ci];
+    if (!chain.channel_gain_db.empty()) {
+      gain_db = chain.channel_gain_db[ci];
     } else {
       gain_db = m.daq.channel_gain_db.empty() ? rng.Normal() * m.daq.gain_mismatch_db
                                               : m.daq.channel_gain_db[ci];
     }
-    const double bonding = var != nullptr ? var->sensitivity_scale[ci] : 1.0;
+    const double bonding = chain.sensitivity_scale.empty() ? 1.0 : chain.sensitivity_scale[ci];
     v = strain.row(i).transpose().array() *
             (m.daq.sensitivity_v_per_strain * bonding * std::pow(10.0, gain_db / 20.0)) +
         channel_gain[ci] * motor;
     // high-pass of disc capacitance into the preamp input (bilinear); the ambient floor and the
     // preamp noise are white, so they join after it as one draw (the 10 Hz corner removes a
     // negligible part of white noise)
-    const double noise_v = var != nullptr && var->noise_floor_v >= 0.0
-                               ? var->noise_floor_v
+    const double noise_v = chain.noise_floor_v >= 0.0
+                               ? chain.noise_floor_v
                                : std::hypot(m.noise.ambient_rms_v, m.preamp_noise_v[i]);
     double b0 = m.b0[i], a1 = m.a1[i];
-    if (var != nullptr && !var->highpass_hz.empty()) {
-      const double kk = std::tan(kPi * var->highpass_hz[ci] / m.fs);
+    if (!chain.highpass_hz.empty()) {
+      const double kk = std::tan(kPi * chain.highpass_hz[ci] / m.fs);
       b0 = 1.0 / (1.0 + kk);
       a1 = (kk - 1.0) / (kk + 1.0);
     }
@@ -287,7 +286,7 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
       v[k] = y + noise_v * noise_rng.NoiseSample();
     }
     // mains hum picked up by the channel's cable, then the record level of the whole channel
-    if (hum.size() > 0) v += var->hum_channel_scale[ci] * hum;
+    if (hum.size() > 0) v += chain.hum_channel_scale[ci] * hum;
     if (level != 1.0) v *= level;
     if (rec != nullptr) {
       v.head(rec_span) +=

@@ -22,7 +22,7 @@ struct Field {
   const char* name;
   const std::vector<double>* range;
   Law law;
-  std::vector<double> Variation::*channels;
+  std::vector<double> ChainDraw::*channels;  // a per-channel list of the chain, or null
   std::function<void(Variation*, double value)> assign;
 };
 
@@ -31,38 +31,38 @@ std::vector<Field> Fields(const RandomizeConfig& c) {
   using V = Variation;
   return {
       {"youngs_modulus_scale", &c.youngs_modulus_scale, Law::kUniform, nullptr,
-       [](V* v, double x) { v->youngs_modulus_scale *= x; }},
+       [](V* v, double x) { v->structure.youngs_modulus_scale *= x; }},
       {"density_scale", &c.density_scale, Law::kUniform, nullptr,
-       [](V* v, double x) { v->density_scale = x; }},
+       [](V* v, double x) { v->structure.density_scale = x; }},
       {"temperature_c", &c.temperature_c, Law::kUniform, nullptr,
        [&c](V* v, double x) {
-         v->temperature_c = x;
-         v->youngs_modulus_scale *= 1.0 + c.modulus_per_c * (x - c.reference_temperature_c);
+         v->structure.temperature_c = x;
+         v->structure.youngs_modulus_scale *= 1.0 + c.modulus_per_c * (x - c.reference_temperature_c);
        }},
       {"loss_factor_scale", &c.loss_factor_scale, Law::kLogUniform, nullptr,
-       [](V* v, double x) { v->loss_factor *= x; }},
+       [](V* v, double x) { v->structure.loss_factor *= x; }},
       {"loss_exponent", &c.loss_exponent, Law::kUniform, nullptr,
-       [](V* v, double x) { v->loss_exponent = x; }},
+       [](V* v, double x) { v->structure.loss_exponent = x; }},
       {"striker_mass_scale", &c.striker_mass_scale, Law::kLogUniform, nullptr,
-       [](V* v, double x) { v->striker_mass_scale = x; }},
+       [](V* v, double x) { v->striker.mass_scale = x; }},
       {"striker_radius_m", &c.striker_radius_m, Law::kLogUniform, nullptr,
-       [](V* v, double x) { v->striker_radius_m = x; }},
+       [](V* v, double x) { v->striker.radius_m = x; }},
       {"striker_youngs_modulus_pa", &c.striker_youngs_modulus_pa, Law::kLogUniform, nullptr,
-       [](V* v, double x) { v->striker_youngs_modulus_pa = x; }},
+       [](V* v, double x) { v->striker.youngs_modulus_pa = x; }},
       {"speed_scale", &c.speed_scale, Law::kUniform, nullptr,
-       [](V* v, double x) { v->speed_scale = x; }},
-      {"sensitivity_scale", &c.sensitivity_scale, Law::kLogUniform, &V::sensitivity_scale, {}},
-      {"channel_gain_db", &c.channel_gain_db, Law::kUniform, &V::channel_gain_db, {}},
-      {"highpass_hz", &c.highpass_hz, Law::kLogUniform, &V::highpass_hz, {}},
+       [](V* v, double x) { v->striker.speed_scale = x; }},
+      {"sensitivity_scale", &c.sensitivity_scale, Law::kLogUniform, &ChainDraw::sensitivity_scale, {}},
+      {"channel_gain_db", &c.channel_gain_db, Law::kUniform, &ChainDraw::channel_gain_db, {}},
+      {"highpass_hz", &c.highpass_hz, Law::kLogUniform, &ChainDraw::highpass_hz, {}},
       {"noise_floor_v", &c.noise_floor_v, Law::kLogUniform, nullptr,
-       [](V* v, double x) { v->noise_floor_v = x; }},
-      {"hum_hz", &c.hum_hz, Law::kUniform, nullptr, [](V* v, double x) { v->hum_hz = x; }},
+       [](V* v, double x) { v->chain.noise_floor_v = x; }},
+      {"hum_hz", &c.hum_hz, Law::kUniform, nullptr, [](V* v, double x) { v->chain.hum_hz = x; }},
       {"hum_rms_v", &c.hum_rms_v, Law::kLogUniform, nullptr,
-       [](V* v, double x) { v->hum_rms_v = x; }},
+       [](V* v, double x) { v->chain.hum_rms_v = x; }},
       {"record_level_db", &c.record_level_db, Law::kUniform, nullptr,
-       [](V* v, double x) { v->record_level_db = x; }},
+       [](V* v, double x) { v->chain.record_level_db = x; }},
       {"full_scale_scale", &c.full_scale_scale, Law::kUniform, nullptr,
-       [](V* v, double x) { v->full_scale_scale = x; }},
+       [](V* v, double x) { v->chain.full_scale_scale = x; }},
   };
 }
 
@@ -292,12 +292,21 @@ StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig&
   return out;
 }
 
-double Variation::frequency_scale() const {
+double StructureDraw::frequency_scale() const {
   return std::sqrt(youngs_modulus_scale / density_scale);
 }
 
-double Variation::DampingRatio(double frequency_hz) const {
+double StructureDraw::DampingRatio(double frequency_hz) const {
   return 0.5 * loss_factor * std::pow(frequency_hz / loss_reference_hz, loss_exponent);
+}
+
+bool StructureDraw::placed() const {
+  return !mic_z_offset_m.empty() || !mic_theta_offset_deg.empty() || !disc_diameter_m.empty();
+}
+
+bool StructureDraw::Nominal() const {
+  return frequency_scale() == 1.0 && density_scale == 1.0 && !(loss_factor > 0.0) &&
+         structure_variant < 0 && !placed();
 }
 
 std::vector<std::string> VariationNames(const RandomizeConfig& config, int channels) {
@@ -321,21 +330,21 @@ std::vector<std::string> VariationNames(const RandomizeConfig& config, int chann
 Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, int channels,
                         uint64_t sample_seed) {
   Variation v;
-  v.temperature_c = config.reference_temperature_c;
-  v.loss_reference_hz = config.loss_reference_hz;
+  v.structure.temperature_c = config.reference_temperature_c;
+  v.structure.loss_reference_hz = config.loss_reference_hz;
   const bool loss_law = !config.loss_factor_scale.empty() || !config.loss_exponent.empty();
-  v.loss_factor = loss_law ? base_loss_factor : 0.0;
-  v.sensitivity_scale.assign(static_cast<size_t>(channels), 1.0);
+  v.structure.loss_factor = loss_law ? base_loss_factor : 0.0;
+  v.chain.sensitivity_scale.assign(static_cast<size_t>(channels), 1.0);
   Rng rng(sample_seed, Stream::kRandomize);
   for (const Field& f : Fields(config)) {
     const bool set = !f.range->empty();
-    if (set && f.channels != nullptr) (v.*f.channels).resize(static_cast<size_t>(channels));
+    if (set && f.channels != nullptr) (v.chain.*f.channels).resize(static_cast<size_t>(channels));
     for (int c = 0; c < (f.channels != nullptr ? channels : 1); ++c) {
       const double u = rng.Uniform();  // drawn whether the range is set or not
       if (!set) continue;
       const double x = Draw(*f.range, f.law, u);
       if (f.channels != nullptr) {
-        (v.*f.channels)[static_cast<size_t>(c)] = x;
+        (v.chain.*f.channels)[static_cast<size_t>(c)] = x;
       } else {
         f.assign(&v, x);
       }
@@ -345,35 +354,35 @@ Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, 
   // hum: a phase per harmonic, a pickup scale per channel
   for (int64_t k = 0; k < config.hum_harmonics; ++k) {
     const double u = rng.Uniform();
-    if (!config.hum_rms_v.empty()) v.hum_phase_rad.push_back(2.0 * std::numbers::pi * u);
+    if (!config.hum_rms_v.empty()) v.chain.hum_phase_rad.push_back(2.0 * std::numbers::pi * u);
   }
   for (int c = 0; c < channels; ++c) {
     const double u = rng.Uniform();
-    if (!config.hum_rms_v.empty()) v.hum_channel_scale.push_back(0.5 + u);
+    if (!config.hum_rms_v.empty()) v.chain.hum_channel_scale.push_back(0.5 + u);
   }
   // microphone placement per channel, then the structure variant
   for (const auto& [field, name] :
-       {std::pair{&Variation::mic_z_offset_m, &config.mic_z_offset_m},
-        std::pair{&Variation::mic_theta_offset_deg, &config.mic_theta_offset_deg},
-        std::pair{&Variation::disc_diameter_m, &config.disc_diameter_m}}) {
+       {std::pair{&StructureDraw::mic_z_offset_m, &config.mic_z_offset_m},
+        std::pair{&StructureDraw::mic_theta_offset_deg, &config.mic_theta_offset_deg},
+        std::pair{&StructureDraw::disc_diameter_m, &config.disc_diameter_m}}) {
     for (int c = 0; c < channels; ++c) {
       const double u = rng.Uniform();
       if (name->empty()) continue;
       const double x = Draw(*name, Law::kUniform, u);
-      (v.*field).push_back(x);
+      (v.structure.*field).push_back(x);
       v.values.push_back(x);
     }
   }
   const double u = rng.Uniform();
   if (config.structure()) {
-    v.structure_variant =
+    v.structure.structure_variant =
         std::min<int64_t>(static_cast<int64_t>(u * static_cast<double>(config.structure_variants)),
                           config.structure_variants - 1);
   }
   return v;
 }
 
-MaterialConfig VariedMaterial(const MaterialConfig& base, const Variation& v) {
+MaterialConfig VariedMaterial(const MaterialConfig& base, const StructureDraw& v) {
   MaterialConfig m = base;
   m.youngs_modulus_pa *= v.youngs_modulus_scale;
   m.density_kg_m3 *= v.density_scale;

@@ -175,14 +175,14 @@ struct ShellModalBank::Impl {
   Eigen::MatrixXf placement_shapes;    // (DOFs around the discs x modes)
 
   // the tables of the structure under a variation, for the lowest n modes
-  RecursionTables Varied(const Variation& v, int64_t n) const;
+  RecursionTables Varied(const StructureDraw& v, int64_t n) const;
   // (mics x n) S phi_n of the discs where the variation puts them
-  Eigen::MatrixXd PlacedSensorShape(const Variation& v, int64_t n) const;
+  Eigen::MatrixXd PlacedSensorShape(const StructureDraw& v, int64_t n) const;
   // damping ratio of bank mode k at the varied angular frequency omega
-  double VariedDamping(const Variation& v, double omega_rad_s) const;
+  double VariedDamping(const StructureDraw& v, double omega_rad_s) const;
 };
 
-double ShellModalBank::Impl::VariedDamping(const Variation& v, double omega_rad_s) const {
+double ShellModalBank::Impl::VariedDamping(const StructureDraw& v, double omega_rad_s) const {
   const double zeta = v.loss_factor > 0.0 ? v.DampingRatio(omega_rad_s / (2 * M_PI))
                                           : model->DampingRatio(omega_rad_s);
   if (!(zeta < 1.0)) {
@@ -194,7 +194,7 @@ double ShellModalBank::Impl::VariedDamping(const Variation& v, double omega_rad_
   return zeta;
 }
 
-RecursionTables ShellModalBank::Impl::Varied(const Variation& v, int64_t n) const {
+RecursionTables ShellModalBank::Impl::Varied(const StructureDraw& v, int64_t n) const {
   RecursionTables t;
   const double s = v.frequency_scale();
   const Eigen::VectorXd w = omega.head(n) * s;
@@ -206,14 +206,12 @@ RecursionTables ShellModalBank::Impl::Varied(const Variation& v, int64_t n) cons
   t.SetPoles(w, z, 1.0 / fs);
   t.shape_scale = 1.0 / std::sqrt(v.density_scale);
   t.static_scale = 1.0 / v.youngs_modulus_scale;
-  const bool placed =
-      !v.mic_z_offset_m.empty() || !v.mic_theta_offset_deg.empty() || !v.disc_diameter_m.empty();
-  const Eigen::MatrixXd shape = placed ? PlacedSensorShape(v, n) : sensor_shape.leftCols(n);
+  const Eigen::MatrixXd shape = v.placed() ? PlacedSensorShape(v, n) : sensor_shape.leftCols(n);
   t.sensor_gain = (shape * (t.shape_scale * out_scale).asDiagonal()).cast<float>();
   return t;
 }
 
-Eigen::MatrixXd ShellModalBank::Impl::PlacedSensorShape(const Variation& v, int64_t n) const {
+Eigen::MatrixXd ShellModalBank::Impl::PlacedSensorShape(const StructureDraw& v, int64_t n) const {
   if (placement_shapes.size() == 0) {
     throw ConfigError(
         "randomize: microphone placement ranges need a modal bank built with a "
@@ -411,15 +409,15 @@ int64_t ShellModalBank::ModesBelow(double band_hz) const {
   return std::upper_bound(f.data(), f.data() + f.size(), band_hz) - f.data();
 }
 
-int64_t ShellModalBank::ModesBelow(double band_hz, const Variation* variation) const {
-  return ModesBelow(variation != nullptr ? band_hz / variation->frequency_scale() : band_hz);
+int64_t ShellModalBank::ModesBelow(double band_hz, const StructureDraw& structure) const {
+  return ModesBelow(structure.Nominal() ? band_hz : band_hz / structure.frequency_scale());
 }
 
 DrivingPoint ShellModalBank::WallAt(double z_m, double theta_rad, double band_hz,
-                                    const Variation* variation) const {
+                                    const StructureDraw& structure) const {
   const Impl& m = *impl_;
   const PointWeights p = SparseWeights(*m.model, m.w_row, z_m, theta_rad);
-  const int64_t n = ModesBelow(band_hz, variation);
+  const int64_t n = ModesBelow(band_hz, structure);
   DrivingPoint wall;
   wall.omega_rad_s = m.omega.head(n);
   wall.zeta = m.zeta.head(n);
@@ -428,16 +426,16 @@ DrivingPoint ShellModalBank::WallAt(double z_m, double theta_rad, double band_hz
     wall.phi += p.weight[i] * m.shapes.row(p.dof[i]).head(n).transpose().cast<double>();
   }
   // the varied structure: frequencies and shapes scaled, damping by its law
-  if (variation != nullptr) {
-    wall.omega_rad_s *= variation->frequency_scale();
-    for (int64_t k = 0; k < n; ++k) wall.zeta[k] = m.VariedDamping(*variation, wall.omega_rad_s[k]);
-    wall.phi /= std::sqrt(variation->density_scale);
+  if (!structure.Nominal()) {
+    wall.omega_rad_s *= structure.frequency_scale();
+    for (int64_t k = 0; k < n; ++k) wall.zeta[k] = m.VariedDamping(structure, wall.omega_rad_s[k]);
+    wall.phi /= std::sqrt(structure.density_scale);
   }
   return wall;
 }
 
 Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64_t mode_count,
-                                       int64_t samples, const Variation* variation) const {
+                                       int64_t samples, const StructureDraw& structure) const {
   const Impl& m = *impl_;
   int64_t n = std::clamp<int64_t>(mode_count, 0, m.n_modes);
   const double T = 1.0 / m.fs;
@@ -445,12 +443,13 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
   Eigen::MatrixXd strain = Eigen::MatrixXd::Zero(mics, samples);
   // the recursion tables: the bank's own, or the varied structure's
   RecursionTables varied;
-  if (variation != nullptr) {
+  const bool nominal = structure.Nominal();
+  if (!nominal) {
     // a stiffer varied structure lifts the top modes: keep them below 0.95 Nyquist
-    n = std::min(n, ModesBelow(0.475 * m.fs, variation));
-    varied = m.Varied(*variation, n);
+    n = std::min(n, ModesBelow(0.475 * m.fs, structure));
+    varied = m.Varied(structure, n);
   }
-  const RecursionTables& tab = variation != nullptr ? varied : m.base;
+  const RecursionTables& tab = nominal ? m.base : varied;
 
   // each force's modal input b = phi^T w (modes), its static sensor part, and its span
   std::vector<Eigen::ArrayXf> input(forces.size());

@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "internal/fidelity_metrics.h"
+#include "internal/fidelity_strikes.h"
 #include "internal/reference.h"
 #include "internal/report.h"
 #include "internal/subcommands.h"
@@ -73,27 +74,6 @@ std::string DispersionMark(acoustics::Dispersion d) {
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
-}
-
-// a test strike: a wooden rod crossing the tube (rigid striker) at (z, theta)
-struct TestStrike {
-  double z_m, theta_rad, speed_m_s, mass_kg;
-};
-constexpr TestStrike kStrikes[] = {{0.05, 0.3, 0.1, 0.03},  {-0.08, 2.0, 0.3, 0.03},
-                                   {0.0, -1.2, 1.0, 0.03},  {0.09, 3.0, 0.05, 0.1},
-                                   {-0.1, -2.8, 0.5, 0.02}, {0.03, 1.4, 0.2, 0.05}};
-
-ContactEvent StrikeEvent(const TestStrike& s, double time_s) {
-  ContactEvent c;
-  c.time_s = time_s;
-  c.z_m = s.z_m;
-  c.theta_rad = s.theta_rad;
-  c.normal_speed_m_s = s.speed_m_s;
-  c.effective_mass_kg = s.mass_kg;
-  c.striker_radius_m = 0.011;
-  c.striker_youngs_modulus_pa = 1e9;
-  c.striker_poisson_ratio = 0.35;
-  return c;
 }
 
 // one grid of the shell
@@ -319,30 +299,6 @@ RungResult MeasureRung(const RungEntry& entry, const LadderRung& rung, const Lad
   r.grid_frequency = RankedFrequencyError(rung.GridFrequenciesHz(widest), yardstick->frequencies_hz,
                                           frequency_max_hz);
   return r;
-}
-
-// The whole default strike (contact solve, modes, DAQ) through the production renderer, 40
-// times: {ms per strike, ms of it in the vibration model}.
-std::pair<double, double> WholeStrikeMs(const SonicBoomConfig& config, const Grid& configured,
-                                        bool quick, int64_t strikes) {
-  acoustics::AcousticModelConfig whole = AcousticModel(config);
-  if (quick) {
-    whole.shell.grid_spacing_m = configured.arc_m;
-    whole.shell.axial_spacing_m = configured.axial_m;
-  }
-  const acoustics::StrikeSynthesizer synth(whole);
-  const int64_t reps = 40;
-  const auto t0 = Clock::now();
-  double vibration_s = 0;
-  for (int64_t i = 0; i < reps; ++i) {
-    const TestStrike& ts = kStrikes[i % strikes];
-    ContactEvent ev = StrikeEvent(ts, config.audio.onset_time_s);
-    sim::ObjectConfig rod;  // the default struck rod: its bending modes take part
-    sim::DescribeStruckBeam(rod, rod.length_m - 0.05, &ev);
-    const acoustics::RenderedStrike rs = synth.Render(ev, {}, 0.0, static_cast<uint64_t>(i));
-    vibration_s += rs.vibration_s;
-  }
-  return {1e3 * Seconds(t0) / reps, 1e3 * vibration_s / reps};
 }
 
 // The FD rung's damping against the loss law (shell.damping = law): the Rayleigh curve meets the
@@ -809,8 +765,10 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
     WriteTextAtomic(o.signals_dir + "/index.json", signal_index.dump(1) + "\n");
   }
   FrequenciesOfGrids(rungs, &results);
-  const auto [whole_ms, whole_vibration_ms] =
-      WholeStrikeMs(config, settings.configured, o.quick, o.strikes);
+  const WholeStrikeSetup whole{&config, settings.configured.arc_m, settings.configured.axial_m,
+                               o.quick, o.strikes};
+  const WholeStrikeTime whole_time = WholeStrikeMs(whole);
+  const double whole_ms = whole_time.ms, whole_vibration_ms = whole_time.vibration_ms;
 
   // the table
   std::string md = fmt::format(
@@ -859,9 +817,11 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
   md += Recommendations(rungs, results);
   md += fmt::format(
       "\nWhole default strike through `StrikeSynthesizer` (acoustics.model = {}, contact solve "
-      "with the rod's bending modes, modal bank, DAQ and noise, 1 s record): {:.2f} ms per strike "
-      "= {:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
-      NameOf(config.acoustics.model), whole_ms, 1e3 / whole_ms, whole_vibration_ms);
+      "with the rod's bending modes, modal bank, DAQ and noise, {:.1f} s record): {:.2f} ms per "
+      "strike = {:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
+      NameOf(config.acoustics.model), config.audio.record_duration_s, whole_ms, 1e3 / whole_ms,
+      whole_vibration_ms);
+  const json span_json = RenderSpanSection(whole, &md);
   const json damping_json = DampingSection(config, &md);
   json j = {{"rungs", rows_json},
             {"strikes", o.strikes},
@@ -871,6 +831,7 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
             {"damping", damping_json},
             {"whole_strike_ms", whole_ms},
             {"whole_strike_vibration_ms", whole_vibration_ms},
+            {"render_span", span_json},
             {"quick", o.quick}};
   if (!o.out.empty()) {
     WriteTextAtomic(o.out, md);

@@ -98,7 +98,17 @@ acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config) {
   a.noise = config.noise;
   a.randomize = config.randomize;
   a.seed = config.seed;
+  if (a.synth.render_span == acoustics::RenderSpan::kFeatures) {
+    a.synth.span_after_contact_s = FeatureSpanAfterContact(config.features);
+  }
   return a;
+}
+
+double FeatureSpanAfterContact(const dsp::FeatureConfig& features) {
+  // the window ends half a window after the detected onset, which trails the contact by the
+  // wave's travel to the discs and at most an energy frame; 5 ms more for both
+  constexpr double kOnsetSlackS = 0.005;
+  return 0.5 * features.window_s + features.onset_frame_s + kOnsetSlackS;
 }
 
 StrikePipeline::StrikePipeline(const SonicBoomConfig& config) : impl_(std::make_unique<Impl>()) {
@@ -138,8 +148,9 @@ StrikeSample StrikePipeline::Simulate(uint64_t index) const {
     variation =
         acoustics::DrawVariation(c.randomize, c.material.loss_factor, c.mics.count(), sample.seed);
     sample.variation = variation.values;
-    if (variation.structure_variant >= 0) {
-      const std::vector<double>& drawn = impl_->synth->StructureValues(variation.structure_variant);
+    if (variation.structure.structure_variant >= 0) {
+      const std::vector<double>& drawn =
+          impl_->synth->StructureValues(variation.structure.structure_variant);
       sample.variation.insert(sample.variation.end(), drawn.begin(), drawn.end());
     }
   }
@@ -456,12 +467,44 @@ Eigen::MatrixXf GatingClipFor(const SonicBoomConfig& config, double sample_rate_
 
 }  // namespace
 
+namespace {
+
+// a dataset rendered over its features' span (acoustics.render_span = features) is silent after
+// it: features that read further are refused
+void CheckRenderedSpan(const DatasetInfo& info, const SonicBoomConfig& config,
+                       const std::string& path) {
+  if (info.config_yaml.empty() || info.source != "sim") return;
+  ConfigSources sources;
+  sources.embedded_yaml = info.config_yaml;
+  sources.embedded_name = path + " (its config)";
+  SonicBoomConfig made;
+  try {
+    made = ResolveConfig(sources);
+  } catch (const ConfigError&) {
+    return;  // a file of an earlier version, whose keys have changed: rendered over the record
+  }
+  if (made.acoustics.render_span != acoustics::RenderSpan::kFeatures) return;
+  const double rendered = FeatureSpanAfterContact(made.features);
+  const double read = FeatureSpanAfterContact(config.features);
+  if (read > rendered + 1e-9) {
+    throw ConfigError(fmt::format(
+        "{}: rendered with acoustics.render_span = features for features.window_s = {} s (the "
+        "vibration stops {:.1f} ms after the contact), but features.window_s = {} s reads "
+        "{:.1f} ms after it: generate it again for this window, or with "
+        "acoustics.render_span = record",
+        path, made.features.window_s, 1e3 * rendered, config.features.window_s, 1e3 * read));
+  }
+}
+
+}  // namespace
+
 learning::FeatureSet ComputeDatasetFeatures(const std::string& dataset_path,
                                             const SonicBoomConfig& config, int threads,
                                             bool show_progress,
                                             std::vector<uint64_t>* sample_indices) {
   DatasetReader reader(dataset_path);
   const DatasetInfo& info = reader.info();
+  CheckRenderedSpan(info, config, dataset_path);
   if (config.features.gating && config.features.gating_noise_wav.empty() &&
       info.source == "hardware") {
     spdlog::warn(

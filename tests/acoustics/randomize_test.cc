@@ -72,17 +72,17 @@ TEST(RandomizeDrawTest, DrawsFollowTheSeedAndStayInRange) {
   EXPECT_EQ(names[0], "youngs_modulus_scale");
   EXPECT_EQ(names[1], "sensitivity_scale_0");
   EXPECT_EQ(names[7], "hum_rms_v");
-  EXPECT_EQ(a.values[0], a.youngs_modulus_scale);
-  EXPECT_EQ(a.values[3], a.sensitivity_scale[2]);
-  EXPECT_EQ(a.hum_phase_rad.size(), 5u);
-  EXPECT_EQ(a.hum_channel_scale.size(), 6u);
+  EXPECT_EQ(a.values[0], a.structure.youngs_modulus_scale);
+  EXPECT_EQ(a.values[3], a.chain.sensitivity_scale[2]);
+  EXPECT_EQ(a.chain.hum_phase_rad.size(), 5u);
+  EXPECT_EQ(a.chain.hum_channel_scale.size(), 6u);
   // over many seeds every draw stays inside its range and spans it
   double lo = 10, hi = 0;
   for (uint64_t s = 0; s < 400; ++s) {
     const Variation v = DrawVariation(c, 0.02, 6, s);
-    ASSERT_GE(v.youngs_modulus_scale, 0.9);
-    ASSERT_LE(v.youngs_modulus_scale, 1.1);
-    for (const double x : v.sensitivity_scale) {
+    ASSERT_GE(v.structure.youngs_modulus_scale, 0.9);
+    ASSERT_LE(v.structure.youngs_modulus_scale, 1.1);
+    for (const double x : v.chain.sensitivity_scale) {
       lo = std::min(lo, x);
       hi = std::max(hi, x);
     }
@@ -101,15 +101,15 @@ TEST(RandomizeDrawTest, TurningOneRangeOnKeepsTheOthersNumbers) {
   c.youngs_modulus_scale = {0.8, 1.2};
   c.channel_gain_db = {-3, 3};
   const Variation after = DrawVariation(c, 0.02, 6, 99);
-  EXPECT_EQ(before.speed_scale, after.speed_scale);
-  EXPECT_EQ(before.record_level_db, after.record_level_db);
-  EXPECT_NE(after.youngs_modulus_scale, 1.0);
+  EXPECT_EQ(before.striker.speed_scale, after.striker.speed_scale);
+  EXPECT_EQ(before.chain.record_level_db, after.chain.record_level_db);
+  EXPECT_NE(after.structure.youngs_modulus_scale, 1.0);
   // temperature shifts the modulus by modulus_per_c per kelvin
   RandomizeConfig t;
   t.temperature_c = {35, 35};
   const Variation warm = DrawVariation(t, 0.02, 6, 5);
-  EXPECT_NEAR(warm.youngs_modulus_scale, 1.0 - 0.004 * 15, 1e-12);
-  EXPECT_NEAR(warm.frequency_scale(), std::sqrt(0.94), 1e-12);
+  EXPECT_NEAR(warm.structure.youngs_modulus_scale, 1.0 - 0.004 * 15, 1e-12);
+  EXPECT_NEAR(warm.structure.frequency_scale(), std::sqrt(0.94), 1e-12);
 }
 
 // a coarse seamed tube (10 mm grid), modes to 8 kHz, no noise or gain draw, one cache
@@ -164,9 +164,9 @@ TEST(RandomizeRenderTest, ScaledMaterialMatchesAFullSolveOfThatMaterial) {
   solved.synth.mode_band_hz = 8000 * std::sqrt(1.2 / 0.9);
   const StrikeSynthesizer a(base), b(solved);
   Variation v;
-  v.youngs_modulus_scale = 1.2;
-  v.density_scale = 0.9;
-  v.sensitivity_scale.assign(6, 1.0);
+  v.structure.youngs_modulus_scale = 1.2;
+  v.structure.density_scale = 0.9;
+  v.chain.sensitivity_scale.assign(6, 1.0);
   const ContactEvent strike = Ball(0.04, 1.0, 0.3);
   const RenderedStrike va = a.Render(strike, {}, {}, 0.0, 7, &v);
   const RenderedStrike vb = b.Render(strike, {}, {}, 0.0, 7, nullptr);
@@ -184,27 +184,27 @@ TEST(RandomizeRenderTest, ScaledMaterialMatchesAFullSolveOfThatMaterial) {
 TEST(RandomizeRenderTest, StrikerDrawsChangeTheContactAsHertzSays) {
   const StrikeSynthesizer synth(Coarse());
   Variation v;
-  v.sensitivity_scale.assign(6, 1.0);
+  v.chain.sensitivity_scale.assign(6, 1.0);
   const ContactEvent strike = Ball(-0.05, 0.3, 0.3);
   const RenderedStrike base = synth.Render(strike, {}, {}, 0.0, 1, &v);
   // a soft tip lengthens the contact and lowers its force; a steel one raises the force (the
   // wall's own compliance, in series, keeps its duration near the wooden one's)
-  v.striker_youngs_modulus_pa = 3e8;
+  v.striker.youngs_modulus_pa = 3e8;
   const RenderedStrike soft = synth.Render(strike, {}, {}, 0.0, 1, &v);
-  v.striker_youngs_modulus_pa = 200e9;
+  v.striker.youngs_modulus_pa = 200e9;
   const RenderedStrike steel = synth.Render(strike, {}, {}, 0.0, 1, &v);
   EXPECT_GT(soft.duration_s, 1.2 * base.duration_s);
   EXPECT_LT(soft.peak_force_n, 0.9 * base.peak_force_n);
   EXPECT_GT(steel.peak_force_n, 1.2 * base.peak_force_n);
   // a heavier striker at the same speed: a longer contact and a larger impulse
-  v.striker_youngs_modulus_pa = 0.0;
-  v.striker_mass_scale = 4.0;
+  v.striker.youngs_modulus_pa = 0.0;
+  v.striker.mass_scale = 4.0;
   const RenderedStrike heavy = synth.Render(strike, {}, {}, 0.0, 1, &v);
   EXPECT_GT(heavy.duration_s, 1.5 * base.duration_s);
   EXPECT_GT(heavy.impulse_ns, 2.0 * base.impulse_ns);
   // a faster one: a shorter contact (Hertz: t_c ~ v^-1/5) and more impulse
-  v.striker_mass_scale = 1.0;
-  v.speed_scale = 3.0;
+  v.striker.mass_scale = 1.0;
+  v.striker.speed_scale = 3.0;
   const RenderedStrike fast = synth.Render(strike, {}, {}, 0.0, 1, &v);
   EXPECT_LT(fast.duration_s, base.duration_s);
   EXPECT_GT(fast.impulse_ns, 2.0 * base.impulse_ns);
@@ -218,11 +218,11 @@ TEST(RandomizeDaqTest, LevelHighPassAndHumAsDrawn) {
   Eigen::MatrixXf plain, varied;
   chain.Convert(strain, {}, 0.0, 1, &plain);
   Variation v;
-  v.sensitivity_scale = {1, 2, 1, 1, 1, 1};
-  v.record_level_db = 6.0206;
-  v.highpass_hz = {10, 10, 10, 10, 10, 300};
-  v.noise_floor_v = 0.0;
-  chain.Convert(strain, {}, 0.0, 1, &varied, &v);
+  v.chain.sensitivity_scale = {1, 2, 1, 1, 1, 1};
+  v.chain.record_level_db = 6.0206;
+  v.chain.highpass_hz = {10, 10, 10, 10, 10, 300};
+  v.chain.noise_floor_v = 0.0;
+  chain.Convert(strain, {}, 0.0, 1, &varied, v.chain);
   // record level x2 on every channel, bonding x2 on channel 1
   EXPECT_NEAR(varied(0, 0) / plain(0, 0), 2.0, 2e-3);
   EXPECT_NEAR(varied(1, 0) / plain(1, 0), 4.0, 4e-3);
@@ -230,14 +230,14 @@ TEST(RandomizeDaqTest, LevelHighPassAndHumAsDrawn) {
   EXPECT_LT(std::abs(varied(5, 221)), 0.01 * std::abs(varied(5, 0)));
   // hum alone: 50 Hz and harmonics at the drawn rms, scaled per channel, on no strain
   Variation hum;
-  hum.sensitivity_scale.assign(6, 1.0);
-  hum.noise_floor_v = 0.0;
-  hum.hum_hz = 50.0;
-  hum.hum_rms_v = 0.01;
-  hum.hum_phase_rad = {0.1, 0.2, 0.3, 0.4, 0.5};
-  hum.hum_channel_scale = {1, 0.5, 1, 1, 1, 1.5};
+  hum.chain.sensitivity_scale.assign(6, 1.0);
+  hum.chain.noise_floor_v = 0.0;
+  hum.chain.hum_hz = 50.0;
+  hum.chain.hum_rms_v = 0.01;
+  hum.chain.hum_phase_rad = {0.1, 0.2, 0.3, 0.4, 0.5};
+  hum.chain.hum_channel_scale = {1, 0.5, 1, 1, 1, 1.5};
   Eigen::MatrixXf out;
-  chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, &hum);
+  chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, hum.chain);
   const auto rms = [&](int ch) {
     return std::sqrt(out.row(ch).cast<double>().squaredNorm() / 44100);
   };
@@ -255,9 +255,9 @@ TEST(RandomizeDaqTest, LevelHighPassAndHumAsDrawn) {
   EXPECT_NEAR(fundamental_rms * fundamental_rms / (0.01 * 0.01), share, 0.02);
   // a noise floor leaves no exact zeros in a silent record
   Variation noisy;
-  noisy.sensitivity_scale.assign(6, 1.0);
-  noisy.noise_floor_v = 1e-3;
-  chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, &noisy);
+  noisy.chain.sensitivity_scale.assign(6, 1.0);
+  noisy.chain.noise_floor_v = 1e-3;
+  chain.Convert(Eigen::MatrixXd::Zero(6, 44100), {}, 0.0, 1, &out, noisy.chain);
   EXPECT_LT((out.array() == 0.0f).cast<double>().mean(), 0.02);
 }
 
@@ -323,13 +323,13 @@ TEST(RandomizeStructureTest, VariantsFollowTheSeedAndTheRanges) {
   std::set<int64_t> picked;
   for (uint64_t seed = 0; seed < 200; ++seed) {
     const Variation v = DrawVariation(c, 0.02, 6, seed);
-    ASSERT_GE(v.structure_variant, 0);
-    ASSERT_LT(v.structure_variant, 16);
-    picked.insert(v.structure_variant);
-    ASSERT_EQ(v.mic_z_offset_m.size(), 6u);
-    ASSERT_EQ(v.disc_diameter_m.size(), 6u);
-    EXPECT_TRUE(v.mic_theta_offset_deg.empty());
-    for (double d : v.disc_diameter_m) EXPECT_TRUE(d >= 0.015 && d <= 0.025);
+    ASSERT_GE(v.structure.structure_variant, 0);
+    ASSERT_LT(v.structure.structure_variant, 16);
+    picked.insert(v.structure.structure_variant);
+    ASSERT_EQ(v.structure.mic_z_offset_m.size(), 6u);
+    ASSERT_EQ(v.structure.disc_diameter_m.size(), 6u);
+    EXPECT_TRUE(v.structure.mic_theta_offset_deg.empty());
+    for (double d : v.structure.disc_diameter_m) EXPECT_TRUE(d >= 0.015 && d <= 0.025);
   }
   EXPECT_EQ(picked.size(), 16u);
   // names: the per-sample draws (placement per channel), then the variant's values
@@ -350,13 +350,13 @@ TEST(RandomizeStructureTest, MovedDiscsRenderAsABankBuiltForThem) {
   drawn.randomize.mic_theta_offset_deg = {-8, 8};
   drawn.randomize.disc_diameter_m = {0.012, 0.026};
   Variation v;
-  v.sensitivity_scale.assign(6, 1.0);
-  v.mic_z_offset_m = {0.006, -0.005, 0.004, 0.007, -0.006, 0.005};
-  v.mic_theta_offset_deg = {-6.0, 5.0, 4.0, 6.0, -4.0, 3.0};
-  v.disc_diameter_m = {0.012, 0.026, 0.02, 0.015, 0.022, 0.018};
+  v.chain.sensitivity_scale.assign(6, 1.0);
+  v.structure.mic_z_offset_m = {0.006, -0.005, 0.004, 0.007, -0.006, 0.005};
+  v.structure.mic_theta_offset_deg = {-6.0, 5.0, 4.0, 6.0, -4.0, 3.0};
+  v.structure.disc_diameter_m = {0.012, 0.026, 0.02, 0.015, 0.022, 0.018};
   for (int c = 0; c < 6; ++c) {
-    moved.mics.z_m[c] += v.mic_z_offset_m[c];
-    moved.mics.theta_deg[c] += v.mic_theta_offset_deg[c];
+    moved.mics.z_m[c] += v.structure.mic_z_offset_m[c];
+    moved.mics.theta_deg[c] += v.structure.mic_theta_offset_deg[c];
   }
   const StrikeSynthesizer a(drawn);
   const ContactEvent strike = Ball(-0.03, 2.0, 0.4);
@@ -365,7 +365,7 @@ TEST(RandomizeStructureTest, MovedDiscsRenderAsABankBuiltForThem) {
   // the per-channel diameters: one array per channel's diameter, compared channel by channel
   for (int c = 0; c < 6; ++c) {
     AcousticModelConfig one = moved;
-    one.mics.disc_diameter_m = v.disc_diameter_m[c];
+    one.mics.disc_diameter_m = v.structure.disc_diameter_m[c];
     const RenderedStrike ref = StrikeSynthesizer(one).Render(strike, {}, {}, 0.0, 7, nullptr);
     const double norm = ref.audio.row(c).cast<double>().norm();
     ASSERT_GT(norm, 0.0);
@@ -385,10 +385,10 @@ TEST(RandomizeStructureTest, PoolVariantsAreDrawnStructuresWithTheirOwnModes) {
   ASSERT_EQ(synth.structure_variants(), 3);
   const ContactEvent strike = Ball(0.05, -1.0, 0.4);
   Variation v;
-  v.sensitivity_scale.assign(6, 1.0);
+  v.chain.sensitivity_scale.assign(6, 1.0);
   std::vector<Eigen::MatrixXf> audio;
   for (int64_t k = 0; k < 3; ++k) {
-    v.structure_variant = k;
+    v.structure.structure_variant = k;
     EXPECT_EQ(synth.StructureValues(k)[0], static_cast<double>(k));
     audio.push_back(synth.Render(strike, {}, {}, 0.0, 7, &v).audio);
   }
@@ -404,7 +404,7 @@ TEST(RandomizeStructureTest, PoolVariantsAreDrawnStructuresWithTheirOwnModes) {
   AcousticModelConfig full = Coarse();
   full.audio.record_duration_s = 0.06;
   full.shell = draw.shell;
-  v.structure_variant = 1;
+  v.structure.structure_variant = 1;
   const RenderedStrike exact = StrikeSynthesizer(full).Render(strike, {}, {}, 0.0, 7, nullptr);
   const double err =
       (audio[1] - exact.audio).cast<double>().norm() / exact.audio.cast<double>().norm();

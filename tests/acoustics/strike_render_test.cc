@@ -290,5 +290,78 @@ TEST(DaqChainTest, RecordedNoiseIsInjectedAndCheckedWhenLoaded) {
   EXPECT_THROW(DaqChain(c.daq, c.noise, 6, 44100, 44100), ConfigError);
 }
 
+
+// The render's stages read one view of a sample's draws: an empty draw is the configured set-up
+// on every rung (bit for bit), a striker draw alone leaves the structure nominal (every rung
+// plays it, as the contact with that striker), and a structure draw is refused by the rungs that
+// cannot follow it, naming acoustics.model.
+TEST(RenderStagesTest, AnEmptyDrawIsTheConfiguredSetUpAndOnlyTheModalRungFollowsAStructure) {
+  EXPECT_TRUE(StructureDraw{}.Nominal());
+  StructureDraw moved;
+  moved.mic_z_offset_m.assign(6, 0.0);
+  EXPECT_FALSE(moved.Nominal());  // placed, even by zero: the placed-disc tables are used
+  StructureDraw pooled;
+  pooled.structure_variant = 0;
+  EXPECT_FALSE(pooled.Nominal());
+  for (const VibrationModel model :
+       {VibrationModel::kModal, VibrationModel::kFd, VibrationModel::kModalClosedForm}) {
+    SCOPED_TRACE(std::string(NameOf(model)));
+    AcousticModelConfig c = Coarse(model);
+    c.audio.record_duration_s = 0.02;
+    c.audio.onset_time_s = 0.005;
+    const StrikeSynthesizer synth(c);
+    const ContactEvent strike = Dowel(0.04, 0.9, 0.3, 0.005);
+    const Variation empty;
+    const RenderedStrike plain = synth.Render(strike, {}, {}, 0.0, 5, nullptr);
+    const RenderedStrike drawn = synth.Render(strike, {}, {}, 0.0, 5, &empty);
+    EXPECT_TRUE(plain.audio.cwiseEqual(drawn.audio).all());
+    EXPECT_EQ(plain.duration_s, drawn.duration_s);
+    // a striker draw is the contact with that striker, bit for bit, on every rung
+    Variation hard;
+    hard.striker.youngs_modulus_pa = 200e9;
+    hard.striker.speed_scale = 2.0;
+    EXPECT_TRUE(hard.structure.Nominal());
+    ContactEvent steel = strike;
+    steel.striker_youngs_modulus_pa = 200e9;
+    steel.normal_speed_m_s = 0.6;
+    const RenderedStrike by_draw = synth.Render(strike, {}, {}, 0.0, 5, &hard);
+    EXPECT_TRUE(by_draw.audio.cwiseEqual(synth.Render(steel, {}, {}, 0.0, 5, nullptr).audio).all());
+    EXPECT_GT((by_draw.audio - plain.audio).norm(), 0.05 * plain.audio.norm());
+    // a stiffer tube: the modal rung plays it, the others name the key they need
+    Variation stiff;
+    stiff.structure.youngs_modulus_scale = 1.2;
+    if (model == VibrationModel::kModal) {
+      const RenderedStrike r = synth.Render(strike, {}, {}, 0.0, 5, &stiff);
+      EXPECT_GT((r.audio - plain.audio).norm(), 0.05 * plain.audio.norm());
+    } else {
+      const std::string message = testing::ThrownMessage<ConfigError>(
+          [&] { synth.Render(strike, {}, {}, 0.0, 5, &stiff); });
+      EXPECT_NE(message.find("acoustics.model = modal"), std::string::npos) << message;
+    }
+  }
+}
+
+
+// acoustics.render_span = features without the span the pipeline derives from the features is
+// refused naming the key; with it, the strain after the span is silent (noise off: the record
+// ends in zeros) while the whole record rings on.
+TEST(RenderStagesTest, AFeatureSpanNeedsItsLengthAndSilencesTheRestOfTheRecord) {
+  AcousticModelConfig c = Coarse();
+  c.audio.record_duration_s = 0.1;
+  c.audio.onset_time_s = 0.01;
+  c.synth.render_span = RenderSpan::kFeatures;
+  const std::string message = testing::ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(c); });
+  EXPECT_NE(message.find("acoustics.render_span = features"), std::string::npos) << message;
+  c.synth.span_after_contact_s = 0.02;
+  const RenderedStrike span = StrikeSynthesizer(c).Render(Dowel(0.04, 0.9, 0.3, 0.01), {}, 0.0, 5);
+  c.synth.render_span = RenderSpan::kRecord;
+  const RenderedStrike whole = StrikeSynthesizer(c).Render(Dowel(0.04, 0.9, 0.3, 0.01), {}, 0.0, 5);
+  // the span ends 30 ms into the record; the DAQ's high-pass lets the last value decay
+  const Eigen::MatrixXf tail_span = span.audio.rightCols(2205);  // the last 50 ms
+  const Eigen::MatrixXf tail_whole = whole.audio.rightCols(2205);
+  EXPECT_LT(tail_span.cwiseAbs().maxCoeff(), 0.01 * tail_whole.cwiseAbs().maxCoeff());
+  EXPECT_TRUE(span.audio.leftCols(1200).cwiseEqual(whole.audio.leftCols(1200)).all());
+}
+
 }  // namespace
 }  // namespace sonicboom::acoustics

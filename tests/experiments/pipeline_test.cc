@@ -1,11 +1,17 @@
 // Determinism of generated data across thread counts and shards.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "common/test_util.h"
 #include "experiments/dataset_expect.h"
 #include "sonicboom/core/config_io.h"
 #include "sonicboom/core/dataset.h"
+#include "sonicboom/acoustics/synth.h"
+#include "sonicboom/core/errors.h"
 #include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/sim/strike.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -67,6 +73,58 @@ TEST(PipelineTest, SplitDependsOnlyOnSampleIndex) {
   std::sort(a.begin(), a.end());
   std::sort(b.begin(), b.end());
   EXPECT_EQ(a, b);
+}
+
+
+// acoustics.render_span = features renders the vibration only as long after the contact as the
+// features read: every audio sample before the span's fade is the whole record's, bit for bit
+// (the sensor chain is causal and draws the same noise), the window's features agree, the record
+// after the span holds the chain's noise alone, and features reading further are refused
+// naming the key.
+TEST(PipelineTest, FeatureSpanKeepsTheWindowAndRefusesWiderFeatures) {
+  testing::TempDir dir;
+  SonicBoomConfig whole = ShortConfig();
+  whole.strike.engine = sim::StrikeEngine::kKinematic;
+  whole.features.window_s = 0.02;
+  whole.features.audio_representation = dsp::AudioRepresentation::kWaveform;
+  whole.features.gating = false;
+  whole.features.gcc_max_lag = 96;
+  whole.features.onset_frame_s = 0.0007;
+  SonicBoomConfig span = whole;
+  span.acoustics.render_span = acoustics::RenderSpan::kFeatures;
+  GenerateDataset(whole, dir / "whole.h5", {.count = 4});
+  GenerateDataset(span, dir / "span.h5", {.count = 4});
+  DatasetReader a(dir / "whole.h5"), b(dir / "span.h5");
+  const double fs = whole.audio.sample_rate_hz;
+  const double after_s = FeatureSpanAfterContact(whole.features);
+  for (int64_t i = 0; i < a.size(); ++i) {
+    const StrikeSample sa = a.Read(i), sb = b.Read(i);
+    const int64_t end = std::llround((sa.label.time_s + after_s) * fs);
+    const int64_t same = end - std::llround(acoustics::kSpanFadeS * fs);
+    ASSERT_LT(end + 2000, sa.audio.cols());
+    EXPECT_TRUE(sa.audio.leftCols(same).cwiseEqual(sb.audio.leftCols(same)).all()) << i;
+    // after the span: the noise floor, far below the strike that rings on in the whole record
+    const auto rms = [](const Eigen::MatrixXf& x) { return std::sqrt(x.squaredNorm() / x.size()); };
+    EXPECT_LT(rms(sb.audio.middleCols(end + 1000, 1000)),
+              0.1 * rms(sa.audio.middleCols(end + 1000, 1000)))
+        << i;
+  }
+  const learning::FeatureSet fa = ComputeDatasetFeatures(dir / "whole.h5", whole, 1, false);
+  const learning::FeatureSet fb = ComputeDatasetFeatures(dir / "span.h5", span, 1, false);
+  ASSERT_EQ(fa.mel.size(), fb.mel.size());
+  float peak = 0, diff = 0;
+  for (size_t k = 0; k < fa.mel.size(); ++k) {
+    peak = std::max(peak, std::abs(fa.mel[k]));
+    diff = std::max(diff, std::abs(fa.mel[k] - fb.mel[k]));
+  }
+  EXPECT_LT(diff, 1e-3f * peak);
+  // a wider window reads past what the file holds
+  SonicBoomConfig wider = span;
+  wider.features.window_s = 0.1;
+  const std::string message = testing::ThrownMessage<ConfigError>(
+      [&] { ComputeDatasetFeatures(dir / "span.h5", wider, 1, false); });
+  EXPECT_NE(message.find("features.window_s = 0.1"), std::string::npos) << message;
+  EXPECT_NE(message.find("acoustics.render_span"), std::string::npos) << message;
 }
 
 }  // namespace

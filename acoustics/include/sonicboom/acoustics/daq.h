@@ -75,11 +75,11 @@ class DaqChain {
   /// strain (channels x T, surface strain) -> audio (channels x T, full scale 1, quantized to
   /// output_bits). joint_speed_rad_s is sampled at joint_speed_rate_hz from the record start (may
   /// be empty). Returns whether any sample clipped. Throws NumericalError on a non-finite sample.
-  /// variation: this sample's sensor chain (bonding, gains, high-pass corners, noise floor, hum,
-  /// record level, full scale); null = as configured.
+  /// chain: this sample's draw of the sensor chain (bonding, gains, high-pass corners, noise
+  /// floor, hum, record level, full scale); default-constructed = as configured.
   bool Convert(const Eigen::MatrixXd& strain, std::span<const double> joint_speed_rad_s,
                double joint_speed_rate_hz, uint64_t sample_seed, Eigen::MatrixXf* audio,
-               const Variation* variation = nullptr) const;
+               const ChainDraw& chain = {}) const;
 
   const DaqConfig& daq() const;
 

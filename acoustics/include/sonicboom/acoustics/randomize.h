@@ -111,8 +111,9 @@ std::vector<std::string> StructureValueNames(const RandomizeConfig& config);
 StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig& base_shell,
                                double base_poisson_ratio, uint64_t global_seed, int64_t variant);
 
-/// The draws of one sample. Fields hold the configured value where a range is not set.
-struct Variation {
+/// The structure part of a sample's draws: how the modes it is played on differ from the solved
+/// ones. Default-constructed, it is the configured structure (Nominal()).
+struct StructureDraw {
   double youngs_modulus_scale{1.0};  // total, temperature included
   double density_scale{1.0};
   double temperature_c{20.0};
@@ -121,20 +122,6 @@ struct Variation {
   double loss_factor{0.0};
   double loss_exponent{0.0};
   double loss_reference_hz{2000.0};
-  double striker_mass_scale{1.0};
-  double striker_radius_m{0.0};           // 0 = as the contact says
-  double striker_youngs_modulus_pa{0.0};  // 0 = as the contact says
-  double speed_scale{1.0};
-  std::vector<double> sensitivity_scale;  // (channels)
-  std::vector<double> channel_gain_db;    // (channels); empty = the DAQ's own draw
-  std::vector<double> highpass_hz;        // (channels); empty = daq's R C corner
-  double noise_floor_v{-1.0};             // < 0 = as configured
-  double hum_hz{50.0};
-  double hum_rms_v{0.0};                  // 0 = no hum
-  std::vector<double> hum_phase_rad;      // (hum harmonics) not stored
-  std::vector<double> hum_channel_scale;  // (channels) pickup of each cable, not stored
-  double record_level_db{0.0};
-  double full_scale_scale{1.0};
   std::vector<double> mic_z_offset_m;        // (channels); empty = the configured placement
   std::vector<double> mic_theta_offset_deg;  // (channels)
   std::vector<double> disc_diameter_m;       // (channels); empty = mics.disc_diameter_m
@@ -145,6 +132,41 @@ struct Variation {
   /// Damping ratio of a mode at f Hz (the varied frequency) under the loss law; only when
   /// loss_factor > 0.
   double DampingRatio(double frequency_hz) const;
+  /// Whether a disc is moved or resized.
+  bool placed() const;
+  /// Whether the sample plays the solved modes as they are: nothing scaled, no loss law, no
+  /// pool variant, no disc moved. Only the numerical modal rung follows anything else.
+  bool Nominal() const;
+};
+
+/// The striker part: what hits the tube, relative to the simulated contact.
+struct StrikerDraw {
+  double mass_scale{1.0};          // a rigid striker's mass (a rod keeps its beam modes)
+  double radius_m{0.0};            // tip radius; 0 = as the contact says
+  double youngs_modulus_pa{0.0};   // 0 = as the contact says
+  double speed_scale{1.0};         // approach speed of every impact
+};
+
+/// The sensor-chain part. Default-constructed, it is the configured chain.
+struct ChainDraw {
+  std::vector<double> sensitivity_scale;  // (channels) bonding; empty = 1
+  std::vector<double> channel_gain_db;    // (channels); empty = the DAQ's own draw
+  std::vector<double> highpass_hz;        // (channels); empty = daq's R C corner
+  double noise_floor_v{-1.0};             // < 0 = as configured
+  double hum_hz{50.0};
+  double hum_rms_v{0.0};                  // 0 = no hum
+  std::vector<double> hum_phase_rad;      // (hum harmonics) not stored
+  std::vector<double> hum_channel_scale;  // (channels) pickup of each cable, not stored
+  double record_level_db{0.0};
+  double full_scale_scale{1.0};
+};
+
+/// The draws of one sample, by the stage that reads them. Fields hold the configured value
+/// where a range is not set; a default-constructed Variation is the configured set-up.
+struct Variation {
+  StructureDraw structure;
+  StrikerDraw striker;
+  ChainDraw chain;
   std::vector<double> values;  // the set ranges' draws, as VariationNames
 };
 
@@ -161,6 +183,6 @@ Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, 
                         uint64_t sample_seed);
 
 /// The tube's material under a draw (modulus and density scaled, loss unchanged).
-MaterialConfig VariedMaterial(const MaterialConfig& base, const Variation& v);
+MaterialConfig VariedMaterial(const MaterialConfig& base, const StructureDraw& v);
 
 }  // namespace sonicboom::acoustics

@@ -71,16 +71,16 @@ class ShellModalBank {
   /// Number of bank modes with frequency <= band_hz.
   int64_t ModesBelow(double band_hz) const;
   /// The wall seen at (z, theta) by a contact: modes up to band_hz (rigid part: held).
-  /// variation: the structure with a scaled modulus and density and its loss law (randomize.h),
-  /// exact for the same geometry and Poisson ratio; null = as solved.
+  /// structure: this sample's draw (randomize.h): a scaled modulus and density and its loss law,
+  /// exact for the same geometry and Poisson ratio; a Nominal() one plays the modes as solved.
   DrivingPoint WallAt(double z_m, double theta_rad, double band_hz,
-                      const Variation* variation = nullptr) const;
+                      const StructureDraw& structure = {}) const;
   /// Sensor strain (mics x samples) of the structure from rest under the forces, using the
   /// lowest `mode_count` modes (plus the residual of the rest when enabled).
   Eigen::MatrixXd Render(std::span<const ForceInput> forces, int64_t mode_count, int64_t samples,
-                         const Variation* variation = nullptr) const;
-  /// ModesBelow for the varied structure (its frequencies scaled).
-  int64_t ModesBelow(double band_hz, const Variation* variation) const;
+                         const StructureDraw& structure = {}) const;
+  /// ModesBelow for the drawn structure (its frequencies scaled).
+  int64_t ModesBelow(double band_hz, const StructureDraw& structure) const;
 
  private:
   struct Impl;

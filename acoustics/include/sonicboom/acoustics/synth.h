@@ -41,6 +41,19 @@ inline std::span<const EnumName<VibrationModel>> EnumNames(VibrationModel) {
   return kVibrationModelNames;
 }
 
+/// How much of the record the vibration is rendered over. record: all of it; features: only as
+/// long after the first contact as the features read (SynthConfig::span_after_contact_s, derived
+/// from the features' window by the pipeline), then faded out over kSpanFadeS and silent (the
+/// sensor chain's noise runs on).
+enum class RenderSpan { kRecord, kFeatures };
+inline constexpr EnumName<RenderSpan> kRenderSpanNames[] = {{RenderSpan::kRecord, "record"},
+                                                            {RenderSpan::kFeatures, "features"}};
+inline std::span<const EnumName<RenderSpan>> EnumNames(RenderSpan) {
+  return kRenderSpanNames;
+}
+/// The fade that ends a span shorter than the record, s (raised cosine).
+inline constexpr double kSpanFadeS = 0.002;
+
 /// Vibration model fidelity: the rung of the ladder (docs/fidelity.md). Keys under "acoustics".
 struct SynthConfig {
   VibrationModel model{VibrationModel::kModal};
@@ -55,6 +68,10 @@ struct SynthConfig {
   int64_t fd_oversampling{0};  // fd: steps per audio sample; 0 = smallest stable
   std::string mode_cache_dir;  // "" = $SONICBOOM_CACHE_DIR or ~/.cache/sonicboom/modes
   ContactConfig contact;       // the striker-tube contact solve
+  RenderSpan render_span{RenderSpan::kRecord};
+  // derived, not a key: with render_span = features, the vibration is rendered this long after
+  // the first contact (then faded out over kSpanFadeS), s
+  double span_after_contact_s{0.0};
 
   void Serialize(Archive* a);
 

@@ -14,8 +14,13 @@
 
 namespace sonicboom::experiments {
 
-/// The acoustic part of a config, as the strike renderer takes it.
+/// The acoustic part of a config, as the strike renderer takes it (with acoustics.render_span =
+/// features, the span derived from the config's features section).
 acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config);
+
+/// How long after a strike's first contact the features read, s: half the window (centred on
+/// the detected onset), an onset frame and 5 ms of slack for the onset's lag behind the contact.
+double FeatureSpanAfterContact(const dsp::FeatureConfig& features);
 
 /// Immutable models of one config, shared by all worker threads.
 class StrikePipeline {
