@@ -653,11 +653,38 @@ std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
   return split;
 }
 
+namespace {
+
+// train.rotate_rings turns a record by 120 degrees: the discs must be rings of three, 120
+// degrees apart in channel order, every ring at the same angles
+void CheckRingsTurn(const SonicBoomConfig& config) {
+  if (!config.train.rotate_rings) return;
+  const MicArrayConfig& mics = config.mics;
+  const int count = mics.count();
+  bool ok = count % 3 == 0;
+  for (int c = 0; ok && c < count; ++c) {
+    const double want = mics.theta_deg[static_cast<size_t>(c / 3 * 3)] + 120.0 * (c % 3);
+    const double off = std::remainder(mics.theta_deg[static_cast<size_t>(c)] - want, 360.0);
+    const double ring_off = std::remainder(
+        mics.theta_deg[static_cast<size_t>(c)] - mics.theta_deg[static_cast<size_t>(c % 3)], 360.0);
+    ok = std::abs(off) < 1e-6 && std::abs(ring_off) < 1e-6 &&
+         mics.z_m[static_cast<size_t>(c)] == mics.z_m[static_cast<size_t>(c / 3 * 3)];
+  }
+  if (!ok) {
+    throw ConfigError(
+        "train.rotate_rings = true needs mics.theta_deg in rings of three, 120 degrees apart in "
+        "channel order and at the same angles in every ring, each ring at one mics.z_m");
+  }
+}
+
+}  // namespace
+
 learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning::FeatureSet& all,
                                   const std::vector<uint64_t>& sample_indices,
                                   const std::string& data, const std::string& run_dir, bool resume,
                                   bool quiet, const learning::FineTune& fine_tune,
                                   const learning::DataParallel& parallel) {
+  CheckRingsTurn(config);
   const auto [train_rows, val_rows] =
       SplitRows(sample_indices, config.train.val_fraction, config.seed);
   if (train_rows.empty() || val_rows.empty()) {

@@ -98,6 +98,8 @@ void TrainConfig::Serialize(Archive* a) {
   a->Visit("time_mask_frames", &time_mask_frames, Bounds::NonNegative());
   a->Visit("freq_mask_bands", &freq_mask_bands, Bounds::NonNegative());
   a->Visit("polarity_flip", &polarity_flip);
+  a->Visit("time_stretch", &time_stretch, Bounds{0.0, 0.5, false, false});
+  a->Visit("rotate_rings", &rotate_rings);
   a->Visit("normalize", &normalize);
   a->Visit("keep_best", &keep_best);
   a->Visit("ensemble_members", &ensemble_members, AtLeastOne());
@@ -122,6 +124,7 @@ void TrainConfig::Validate() const {
   RequireAtLeast("train.time_shift_frames", time_shift_frames, 0);
   RequireAtLeast("train.time_mask_frames", time_mask_frames, 0);
   RequireAtLeast("train.freq_mask_bands", freq_mask_bands, 0);
+  RequireIn("train.time_stretch", time_stretch, Bounds{0.0, 0.5, false, false});
   RequireAtLeast("train.ensemble_members", ensemble_members, 1);
   RequireAtLeast("train.threads", threads, 0);
 }

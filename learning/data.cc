@@ -18,6 +18,7 @@
 
 #include "internal/data.h"
 #include "internal/json_archive.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
@@ -143,6 +144,11 @@ Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, in
       static_cast<int64_t>(rng.UniformInt(static_cast<uint64_t>(mels - a.freq_mask_width + 1)));
   // polarity last: the draws above stay what they were without it
   if (config.polarity_flip && rng.UniformInt(2) == 1) a.sign = -1.0f;
+  if (config.time_stretch > 0.0) {
+    const double ln = std::log1p(config.time_stretch);
+    a.stretch = std::exp(ln * (2.0 * rng.Uniform() - 1.0));
+  }
+  if (config.rotate_rings) a.rotation = static_cast<int64_t>(rng.UniformInt(kRingDiscs));
   return a;
 }
 
@@ -150,6 +156,31 @@ int64_t ProprioShiftRows(int64_t shift_frames, int64_t frame_hop_samples) {
   return std::llround(static_cast<double>(shift_frames * frame_hop_samples) * kProprioRateHz /
                       kSampleRateHz);
 }
+
+namespace {
+
+// One row of a crop (crop samples from `start` of a src row of `frames`) read through a time
+// stretch about the crop's centre: linear interpolation between source samples, the fill
+// outside the source and under the masks.
+void StretchedRow(const float* src, int64_t frames, int64_t start, int64_t crop,
+                  const Augmentation& a, float fill, bool band_masked, float* row) {
+  const double centre = static_cast<double>(start) + 0.5 * static_cast<double>(crop - 1);
+  for (int64_t t = 0; t < crop; ++t) {
+    const double x = centre + (static_cast<double>(start + t) - centre) / a.stretch;
+    const bool masked =
+        band_masked || (t >= a.time_mask_start && t < a.time_mask_start + a.time_mask_width);
+    const double lo = std::floor(x);
+    const int64_t k = static_cast<int64_t>(lo);
+    if (masked || k < 0 || k + 1 >= frames) {
+      row[t] = fill;
+      continue;
+    }
+    const double w = x - lo;
+    row[t] = a.sign * static_cast<float>((1.0 - w) * src[k] + w * src[k + 1]);
+  }
+}
+
+}  // namespace
 
 Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
                     const ModalitySet& use, int64_t crop_frames,
@@ -169,11 +200,18 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
       float* dst = batch.mel.data_ptr<float>() + b * f.channels * f.mels * crop_frames;
       const int64_t start = centre_start + a.shift_frames;
       for (int64_t c = 0; c < f.channels; ++c) {
+        // the disc this channel reads once the record is turned (train.rotate_rings)
+        const int64_t ring = c / kRingDiscs * kRingDiscs;
+        const int64_t read = ring + (c - ring - a.rotation + kRingDiscs) % kRingDiscs;
         for (int64_t m = 0; m < f.mels; ++m) {
-          const float* src = f.mel.data() + ((r * f.channels + c) * f.mels + m) * f.frames;
+          const float* src = f.mel.data() + ((r * f.channels + read) * f.mels + m) * f.frames;
           float* row = dst + (c * f.mels + m) * crop_frames;
           const bool band_masked =
               m >= a.freq_mask_start && m < a.freq_mask_start + a.freq_mask_width;
+          if (a.stretch != 1.0) {
+            StretchedRow(src, f.frames, start, crop_frames, a, mel_fill[c], band_masked, row);
+            continue;
+          }
           for (int64_t t = 0; t < crop_frames; ++t) {
             const int64_t src_t = start + t;
             const bool masked = band_masked || (t >= a.time_mask_start &&
@@ -208,15 +246,18 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
   return batch;
 }
 
-torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& records) {
-  // (B, 3): z in cm, cos theta, sin theta
+torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& records,
+                              const std::vector<Augmentation>* augment) {
+  // (B, 3): z in cm, cos theta, sin theta (theta turned with the record)
   torch::Tensor targets = torch::empty({static_cast<int64_t>(records.size()), 3});
   auto acc = targets.accessor<float, 2>();
   for (size_t b = 0; b < records.size(); ++b) {
     const int64_t r = records[b];
+    const int64_t turns = augment != nullptr ? (*augment)[b].rotation : 0;
+    const double theta = f.theta_rad[r] + 2.0 * kPi * static_cast<double>(turns) / kRingDiscs;
     acc[b][0] = static_cast<float>(f.z_m[r] * 100.0);
-    acc[b][1] = static_cast<float>(std::cos(f.theta_rad[r]));
-    acc[b][2] = static_cast<float>(std::sin(f.theta_rad[r]));
+    acc[b][1] = static_cast<float>(std::cos(theta));
+    acc[b][2] = static_cast<float>(std::sin(theta));
   }
   return targets;
 }

@@ -269,6 +269,22 @@ std::vector<int64_t> CheckedTrainingRecords(const FeatureSet& train, const Featu
         "config key 'train.polarity_flip' = true: needs features.audio_representation = "
         "waveform (a log-mel image has no sign)");
   }
+  // a stretch in time belongs to a waveform: a mel frame's spectrum would need its own stretch
+  if (use.audio && train_config.augment && train_config.time_stretch > 0.0 &&
+      train.frame_hop_samples != 1) {
+    throw ConfigError(fmt::format(
+        "config key 'train.time_stretch' = {}: needs features.audio_representation = waveform "
+        "(a mel frame's frequencies would have to stretch too)",
+        train_config.time_stretch));
+  }
+  // a turned record must be audio alone, in rings of three
+  if (train_config.augment && train_config.rotate_rings &&
+      (use.gcc || use.proprio || !use.audio || train.channels % internal::kRingDiscs != 0)) {
+    throw ConfigError(fmt::format(
+        "config key 'train.rotate_rings' = true: needs model.modalities = [audio] (a GCC pair "
+        "or an arm pose would have to turn too) and channels in rings of {} (got {})",
+        internal::kRingDiscs, train.channels));
+  }
   // data parallel: every process's part of a batch needs two records
   if (world > 1 && train_config.batch_size < 2 * world) {
     throw ConfigError(fmt::format(

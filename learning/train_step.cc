@@ -69,7 +69,8 @@ StepLoss TrainStep(NetworkImpl& network, torch::optim::Optimizer& optimizer,
   const Batch batch = AssembleBatch(train, records, use, model_config.crop_frames,
                                     train_config.augment ? &augment : nullptr, fill);
   // (B, 3) targets; (B, 3) or (B, 5) outputs
-  const torch::Tensor target = AssembleTargets(train, records);
+  const torch::Tensor target =
+      AssembleTargets(train, records, train_config.augment ? &augment : nullptr);
   const LossTerms terms = Loss(network.forward(batch), target, train_config);
   const torch::Tensor loss =
       terms.nll.defined() ? terms.point + train_config.uncertainty_weight * terms.nll : terms.point;

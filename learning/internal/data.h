@@ -46,7 +46,14 @@ struct Augmentation {
   int64_t freq_mask_start{0};
   int64_t freq_mask_width{0};
   float sign{1.0f};  // -1: the record's audio inverted (train.polarity_flip)
+  // the record's waveform read at centre + (t - centre) / stretch (train.time_stretch); 1: as is
+  double stretch{1.0};
+  // the record turned by rotation x 120 degrees (train.rotate_rings): channel p of each ring of
+  // three reads disc (p - rotation) mod 3 of that ring, theta grows by as much; 0: as is
+  int64_t rotation{0};
 };
+/// Discs per ring that train.rotate_rings turns.
+inline constexpr int64_t kRingDiscs = 3;
 /// Draws the augmentation of record `record` in epoch `epoch` (deterministic in all three).
 Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, int64_t mels,
                               uint64_t seed, int64_t epoch, int64_t record);
@@ -63,7 +70,8 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
                     const std::vector<Augmentation>* augment, const std::vector<float>& mel_fill);
 
 /// (B, 3) targets (z_cm, cos theta, sin theta) of `records`.
-torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& records);
+torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& records,
+                              const std::vector<Augmentation>* augment = nullptr);
 
 /// Predictions for every record of `f` in eval mode without gradients, in batches of
 /// kPredictBatch, with the uncalibrated distribution when the network has an uncertainty head.

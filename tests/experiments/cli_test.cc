@@ -257,6 +257,26 @@ TEST(CliTest, FeaturesOfSynthWav) {
   EXPECT_EQ(json::parse(inspect.out)["complete"], true);
 }
 
+// train.rotate_rings turns records by 120 degrees: it refuses discs that are not rings of three
+// 120 degrees apart before anything is trained, and trains on the configured layout
+TEST(CliTest, RotateRingsNeedsRingsOfThreeDiscs) {
+  TempDir dir;
+  const std::string tiny = kShort + testing::kTinyModelArgs +
+                           "--set train.epochs=1 --set strike.engine=kinematic "
+                           "--set model.modalities=[audio] --set train.rotate_rings=true ";
+  auto run = RunCli(tiny + "generate --count 12 --out D.h5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli(tiny + "--set mics.theta_deg=[0,90,240,0,120,240] train --data D.h5 --out BAD -q",
+               dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("train.rotate_rings"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("mics.theta_deg"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "BAD/model.pt"));
+  run = RunCli(tiny + "train --data D.h5 --out RUN -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_TRUE(fs::exists(dir / "RUN/model.pt"));
+}
+
 TEST(CliTest, TrainEvalLocalizeTinyModel) {
   TempDir dir;
   const std::string tiny = kShort + testing::kTinyModelArgs + "--set train.epochs=2 ";

@@ -170,14 +170,18 @@ TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
       ::testing::ElementsAre("epochs", "batch_size", "learning_rate", "lr_step_epochs", "lr_gamma",
                              "val_fraction", "loss_weight_z", "loss_weight_cos", "loss_weight_sin",
                              "uncertainty_weight", "augment", "time_shift_frames",
-                             "time_mask_frames", "freq_mask_bands", "polarity_flip", "normalize",
-                             "keep_best", "ensemble_members", "threads"));
+                             "time_mask_frames", "freq_mask_bands", "polarity_flip",
+                             "time_stretch", "rotate_rings", "normalize", "keep_best",
+                             "ensemble_members", "threads"));
   EXPECT_FALSE(archive.bounds[1].Contains(0.0));  // batch_size
   EXPECT_FALSE(archive.bounds[2].Contains(0.0));  // learning_rate
   EXPECT_TRUE(archive.bounds[9].Contains(0.0));   // uncertainty_weight: 0 disables
   EXPECT_FALSE(archive.bounds[9].Contains(-0.1));
-  EXPECT_FALSE(archive.bounds[17].Contains(0.0));  // ensemble_members: at least one
-  EXPECT_TRUE(archive.bounds[18].Contains(0.0));   // threads
+  EXPECT_TRUE(archive.bounds[15].Contains(0.0));   // time_stretch: 0 is off
+  EXPECT_TRUE(archive.bounds[15].Contains(0.5));
+  EXPECT_FALSE(archive.bounds[15].Contains(0.51));
+  EXPECT_FALSE(archive.bounds[19].Contains(0.0));  // ensemble_members: at least one
+  EXPECT_TRUE(archive.bounds[20].Contains(0.0));   // threads
 }
 
 // Runs `f` and returns the ConfigError message ("" when nothing was thrown).

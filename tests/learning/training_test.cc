@@ -131,6 +131,21 @@ std::vector<nlohmann::json> ReadMetricsLines(const std::string& run_dir) {
 
 using TrainingTest = RunDirTest;
 
+// Train refuses `config` on `train` with a ConfigError naming `key` and `reason`, and leaves no
+// model in `run_dir`
+void ExpectTrainRefuses(const FeatureSet& train, const ModelConfig& model,
+                        const TrainConfig& config, const std::string& run_dir,
+                        const std::string& key, const std::string& reason) {
+  try {
+    Train(train, train, model, config, kRadius, 1, run_dir, false, false);
+    ADD_FAILURE() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(key));
+    EXPECT_THAT(e.what(), HasSubstr(reason));
+  }
+  EXPECT_FALSE(fs::exists(run_dir + "/model.pt"));
+}
+
 TEST_F(TrainingTest, OverfitsTinySetAndLocalizerReproducesFinalMetrics) {
   const FeatureSet train = MakeFeatures(32, 1);
   const FeatureSet val = MakeFeatures(8, 2);
@@ -410,17 +425,118 @@ TEST(AugmentationTest, PolarityFlipInvertsHalfTheRecordsAndChangesNothingElse) {
   EXPECT_TRUE(torch::equal(a.slice(3, 4, 32), -b.slice(3, 4, 32)));
 }
 
+// train.time_stretch: off changes no draw; on, factors stay in [1 / (1 + r), 1 + r] and reach
+// both sides; a stretched waveform moves a pulse d samples from the crop's centre to d * s (so
+// inter-channel delays scale alike) and keeps the centre where it was.
+TEST(AugmentationTest, TimeStretchScalesDelaysAboutTheCentre) {
+  TrainConfig off, on;
+  on.time_stretch = 0.2;
+  double lo = 2.0, hi = 0.0;
+  for (int64_t r = 0; r < 400; ++r) {
+    const internal::Augmentation a = internal::DrawAugmentation(off, 64, 1, 7, 3, r);
+    const internal::Augmentation b = internal::DrawAugmentation(on, 64, 1, 7, 3, r);
+    EXPECT_EQ(a.stretch, 1.0);
+    EXPECT_EQ(a.shift_frames, b.shift_frames);
+    EXPECT_EQ(a.time_mask_start, b.time_mask_start);
+    lo = std::min(lo, b.stretch);
+    hi = std::max(hi, b.stretch);
+  }
+  EXPECT_GE(lo, 1.0 / 1.2 - 1e-12);
+  EXPECT_LE(hi, 1.2 + 1e-12);
+  EXPECT_LT(lo, 0.9);
+  EXPECT_GT(hi, 1.1);
+  // a waveform record (one row per channel): a unit pulse 20 samples after the centre on
+  // channel 0, 10 before it on channel 1
+  FeatureSet f = MakeFeatures(1, 3);
+  f.mels = 1;
+  f.frames = 201;  // the crop's centre is sample 100
+  f.frame_hop_samples = 1;
+  f.mel.assign(f.channels * f.frames, 0.0f);
+  f.mel[0 * f.frames + 120] = 1.0f;
+  f.mel[1 * f.frames + 90] = 1.0f;
+  internal::ModalitySet use;
+  use.audio = true;
+  const std::vector<float> fill(f.channels, 0.0f);
+  internal::Augmentation slow;
+  slow.stretch = 1.25;
+  const std::vector<internal::Augmentation> augment{slow};
+  const torch::Tensor x = internal::AssembleBatch(f, {0}, use, 201, &augment, fill).mel;
+  // the pulse's centroid in the output, samples
+  const auto centroid = [&](int64_t c) {
+    double sum = 0.0, weight = 0.0;
+    for (int64_t t = 0; t < 201; ++t) {
+      const double v = x[0][c][0][t].item<float>();
+      sum += v * t;
+      weight += v;
+    }
+    return sum / weight;
+  };
+  EXPECT_NEAR(centroid(0), 100 + 20 * 1.25, 1e-4);
+  EXPECT_NEAR(centroid(1), 100 - 10 * 1.25, 1e-4);
+  // the delay between them: 30 samples became 37.5
+  EXPECT_NEAR(centroid(0) - centroid(1), 37.5, 1e-4);
+}
+
+// train.rotate_rings: a third of the records each turn by 0, 120 or 240 degrees; a turned
+// record's channel p of each ring reads disc p - 1 of that ring and its label's theta grows by
+// 120 degrees (what a strike 120 degrees on would give on a tube with the discs' symmetry);
+// off changes no other draw.
+TEST(AugmentationTest, RotateRingsMovesEveryRingOneDiscOnWithTheLabel) {
+  TrainConfig off, on;
+  on.rotate_rings = true;
+  int64_t count[3] = {0, 0, 0};
+  for (int64_t r = 0; r < 600; ++r) {
+    const internal::Augmentation a = internal::DrawAugmentation(off, 32, 12, 7, 3, r);
+    const internal::Augmentation b = internal::DrawAugmentation(on, 32, 12, 7, 3, r);
+    EXPECT_EQ(a.rotation, 0);
+    EXPECT_EQ(a.shift_frames, b.shift_frames);
+    ASSERT_GE(b.rotation, 0);
+    ASSERT_LT(b.rotation, 3);
+    ++count[b.rotation];
+  }
+  for (int64_t k : count) EXPECT_NEAR(static_cast<double>(k), 200.0, 45.0);
+  FeatureSet f = MakeFeatures(1, 3);
+  internal::ModalitySet use;
+  use.audio = true;
+  const std::vector<float> fill(f.channels, 0.0f);
+  internal::Augmentation turned;
+  turned.rotation = 1;
+  const std::vector<internal::Augmentation> one{turned};
+  const torch::Tensor x = internal::AssembleBatch(f, {0}, use, f.frames, &one, fill).mel;
+  const torch::Tensor plain = internal::AssembleBatch(f, {0}, use, f.frames, nullptr, fill).mel;
+  for (int64_t c = 0; c < 6; ++c) {
+    const int64_t read = c / 3 * 3 + (c % 3 + 2) % 3;  // disc p - 1 of the same ring
+    EXPECT_TRUE(torch::equal(x[0][c], plain[0][read])) << c;
+  }
+  const torch::Tensor t = internal::AssembleTargets(f, {0}, &one);
+  const double theta = std::atan2(t[0][2].item<float>(), t[0][1].item<float>());
+  EXPECT_NEAR(std::remainder(theta - f.theta_rad[0] - 2.0 * std::numbers::pi / 3.0,
+                             2.0 * std::numbers::pi),
+              0.0, 1e-5);
+  EXPECT_NEAR(t[0][0].item<float>(), f.z_m[0] * 100.0, 1e-4);
+}
+
+TEST_F(TrainingTest, RotateRingsWithGccIsAConfigError) {
+  TrainConfig config = TinyTraining(1);
+  config.rotate_rings = true;
+  ExpectTrainRefuses(MakeFeatures(4, 5), TinyModel(), config, Dir("run"), "train.rotate_rings",
+                     "modalities");
+}
+
 TEST_F(TrainingTest, PolarityFlipOfALogMelImageIsAConfigError) {
-  const FeatureSet train = MakeFeatures(4, 5);  // log-mel, 128-sample hop
   TrainConfig config = TinyTraining(1);
   config.polarity_flip = true;
-  try {
-    Train(train, train, TinyModel(), config, kRadius, 1, Dir("run"), false, false);
-    FAIL() << "expected ConfigError";
-  } catch (const ConfigError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("train.polarity_flip"));
-    EXPECT_THAT(e.what(), HasSubstr("waveform"));
-  }
+  // log-mel, 128-sample hop
+  ExpectTrainRefuses(MakeFeatures(4, 5), TinyModel(), config, Dir("run"), "train.polarity_flip",
+                     "waveform");
+}
+
+TEST_F(TrainingTest, TimeStretchOfALogMelImageIsAConfigError) {
+  TrainConfig config = TinyTraining(1);
+  config.time_stretch = 0.1;
+  // log-mel, 128-sample hop
+  ExpectTrainRefuses(MakeFeatures(4, 5), TinyModel(), config, Dir("run"), "train.time_stretch",
+                     "waveform");
 }
 
 TEST(Conv1dEncoderTest, OutputDoesNotDependOnTheRecordsLevel) {

@@ -80,6 +80,20 @@ struct TrainConfig {
   // model that must not depend on the wiring's polarity of the discs (waveform features only;
   // a mel image has no sign). Drawn after the other augmentations, so that off changes nothing.
   bool polarity_flip{false};
+  // Stretch each record's waveform in time about the window's centre (the onset) by a factor
+  // drawn log-uniformly in [1 / (1 + r), 1 + r], r = time_stretch (linear interpolation): every
+  // inter-channel delay and the coda scale alike, as a slower or faster group speed would make
+  // them, so that no one theory's wave speed is learned as fact. 0: off. Waveform features only;
+  // drawn after polarity, so that off changes nothing.
+  double time_stretch{0.0};
+  // Rotate each record about the tube's axis by a random multiple of 120 degrees (a third of
+  // the records each): in both rings of three discs the channels move one disc on and the
+  // label's theta by as much. Exact for a tube with the symmetry of its discs, so that no
+  // structure's seam or bolt position is learned as the way to the angle. Needs the channels to
+  // be rings of three discs 120 degrees apart in order, every ring at the same angles (the
+  // experiments layer checks mics.*), and audio alone (a GCC pair or an arm pose would have to
+  // rotate too). Drawn after the stretch.
+  bool rotate_rings{false};
   bool normalize{true};  // per-mic normalization, train-split statistics
   // Save the epoch with the lowest validation loss instead of the last (early stopping without
   // stopping: every epoch still runs). Meant for fine-tuning on few strikes.
