@@ -817,8 +817,9 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
   md += Recommendations(rungs, results);
   md += fmt::format(
       "\nWhole default strike through `StrikeSynthesizer` (acoustics.model = {}, contact solve "
-      "with the rod's bending modes, modal bank, DAQ and noise, {:.1f} s record): {:.2f} ms per "
-      "strike = {:.0f} strikes/s on one core, of which the vibration model {:.2f} ms.\n",
+      "with the rod's bending modes, modal bank, DAQ and noise, {:.1f} s record; the median of 40 "
+      "renders): {:.2f} ms per strike = {:.0f} strikes/s on one core, of which the vibration "
+      "model {:.2f} ms.\n",
       NameOf(config.acoustics.model), config.audio.record_duration_s, whole_ms, 1e3 / whole_ms,
       whole_vibration_ms);
   const json span_json = RenderSpanSection(whole, &md);

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "internal/fidelity_strikes.h"
+#include "internal/statistics.h"
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/sim/scene.h"
@@ -41,19 +42,20 @@ WholeStrikeTime TimeRenders(const WholeStrikeSetup& setup, const SonicBoomConfig
     whole.shell.axial_spacing_m = setup.axial_m;
   }
   const acoustics::StrikeSynthesizer synth(whole);
-  const auto t0 = std::chrono::steady_clock::now();
-  double vibration_s = 0;
+  // each render timed alone; the medians, so that another process's burst moves nothing
+  std::vector<double> total_ms, vibration_ms;
   for (int64_t i = 0; i < kReps; ++i) {
     ContactEvent ev = StrikeEvent(kStrikes[i % setup.strikes], config.audio.onset_time_s);
     sim::ObjectConfig rod;  // the default struck rod: its bending modes take part
     sim::DescribeStruckBeam(rod, rod.length_m - 0.05, &ev);
+    const auto t0 = std::chrono::steady_clock::now();
     acoustics::RenderedStrike rs = synth.Render(ev, {}, 0.0, static_cast<uint64_t>(i));
-    vibration_s += rs.vibration_s;
+    total_ms.push_back(
+        1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    vibration_ms.push_back(1e3 * rs.vibration_s);
     if (audio != nullptr && i < keep) audio->push_back(std::move(rs.audio));
   }
-  const double total_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return {1e3 * total_s / kReps, 1e3 * vibration_s / kReps};
+  return {Median(total_ms), Median(vibration_ms)};
 }
 
 // largest |a - b| over the largest |a|, over every element of every record's array
@@ -93,8 +95,8 @@ json RenderSpanSection(const WholeStrikeSetup& setup, std::string* md) {
       "feature set reads (render_span: features: half the window, an onset frame and 5 ms, then a "
       "{:.0f} ms fade; the sensor chain's noise runs on). Features: each set computed on both "
       "renders of the first {} strikes, largest difference over the largest value.\n\n"
-      "| features | rendered after the contact (ms) | ms per strike (record / span) | "
-      "vibration model (ms, record / span) | saved | mel or waveform difference | GCC-PHAT "
+      "| features | rendered after the contact (ms) | ms per strike (record / span; medians) | "
+      "vibration model (ms, record / span; medians) | saved | mel or waveform difference | GCC-PHAT "
       "difference |\n|---|---|---|---|---|---|---|\n",
       kReps, config.audio.record_duration_s, 1e3 * acoustics::kSpanFadeS, setup.strikes);
   json rows = json::array();

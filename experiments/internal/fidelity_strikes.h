@@ -34,7 +34,8 @@ struct WholeStrikeSetup {
 };
 
 /// The whole default strike (contact solve with the rod's bending modes, modes, DAQ) through
-/// the production renderer, 40 times: ms per strike, and of it in the vibration model.
+/// the production renderer, 40 times, each timed alone: the median ms per strike, and the
+/// median of it in the vibration model.
 struct WholeStrikeTime {
   double ms{0.0}, vibration_ms{0.0};
 };
