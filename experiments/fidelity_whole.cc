@@ -109,11 +109,12 @@ json RenderSpanSection(const WholeStrikeSetup& setup, std::string* md) {
     std::vector<Eigen::MatrixXf> audio_record, audio_span;
     const WholeStrikeTime t_record = TimeRenders(setup, record, setup.strikes, &audio_record);
     const WholeStrikeTime t_span = TimeRenders(setup, span, setup.strikes, &audio_span);
+    // the two configs differ in acoustics alone: one featurizer (gate clip, plans) serves both
+    const RecordFeaturizer featurizer(record, config.audio.sample_rate_hz, config.mics.count());
     std::vector<std::vector<float>> mel_a, mel_b, gcc_a, gcc_b;
     for (size_t r = 0; r < audio_record.size(); ++r) {
-      const double fs = config.audio.sample_rate_hz;
-      const learning::FeatureSet a = ComputeRecordFeatures(audio_record[r], fs, {}, record);
-      const learning::FeatureSet b = ComputeRecordFeatures(audio_span[r], fs, {}, span);
+      const learning::FeatureSet a = featurizer.Compute(audio_record[r], {});
+      const learning::FeatureSet b = featurizer.Compute(audio_span[r], {});
       mel_a.push_back(a.mel);
       mel_b.push_back(b.mel);
       gcc_a.push_back(a.gcc);
