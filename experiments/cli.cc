@@ -46,7 +46,8 @@ int RunCli(int argc, char** argv) {
         RegisterVariants,  RegisterFeatures, RegisterTrain,     RegisterEval,
         RegisterCalibrate, RegisterBaseline, RegisterAblate,    RegisterLocalize,
         RegisterImport,    RegisterExport,   RegisterListen,    RegisterGeometryCheck,
-        RegisterMap,       RegisterFk,       RegisterInspect,   RegisterConfig}) {
+        RegisterMap,       RegisterFk,       RegisterInspect,   RegisterConfig,
+        RegisterAdapt}) {
     register_subcommand(app, g, &run);
   }
 

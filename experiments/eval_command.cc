@@ -46,13 +46,14 @@ std::string PredictionsCsv(const learning::FeatureSet& set,
 }  // namespace
 
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
-                      const std::string& data, const std::string& predictions_csv, bool force) {
+                      const std::string& data, const EvalOptions& options) {
+  const std::string& predictions_csv = options.predictions_csv;
   if (!predictions_csv.empty()) {
-    CheckOutput(g, {predictions_csv, "--predictions", force},
+    CheckOutput(g, {predictions_csv, "--predictions", options.force},
                 {{data, "--data"}, {model_dir, "--model"}});
   }
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
-  learning::Localizer localizer(model_dir);
+  learning::Localizer localizer(model_dir, {.turn_average = options.turn_average});
   std::vector<uint64_t> indices;
   const learning::FeatureSet set =
       ComputeDatasetFeatures(data, config, g.threads, !g.quiet, &indices);
@@ -78,19 +79,22 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
 
 void RegisterEval(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
-    std::string model, data, predictions;
-    bool force = false;
+    std::string model, data;
+    EvalOptions eval;
   };
   auto o = std::make_shared<Options>();
   auto* eval = app.add_subcommand("eval", "evaluate a trained localizer on a dataset");
   eval->add_option("--model", o->model, "run directory")->required();
   eval->add_option("--data", o->data, "dataset (.h5)")->required();
-  eval->add_option("--predictions", o->predictions,
+  eval->add_option("--predictions", o->eval.predictions_csv,
                    "also write one CSV row per strike: index, label, prediction, error (cm)");
-  eval->add_flag("--force", o->force,
+  eval->add_flag("--force", o->eval.force,
                  "replace an existing predictions file (once the new one is complete)");
+  eval->add_flag("--turn-average", o->eval.turn_average,
+                 "answer by the layout's symmetry: each strike also read with its rings turned "
+                 "by 120 and 240 degrees, answers turned back and combined (audio-only models)");
   eval->callback([&g, run, o] {
-    *run = [&g, o] { return RunEval(g, o->model, o->data, o->predictions, o->force); };
+    *run = [&g, o] { return RunEval(g, o->model, o->data, o->eval); };
   });
 }
 

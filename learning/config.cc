@@ -51,6 +51,8 @@ void ModelConfig::Serialize(Archive* a) {
   a->Visit("modalities", &modalities);
   a->Visit("crop_frames", &crop_frames, AtLeastOne());
   a->Visit("gcc_encoder", &gcc_encoder);
+  a->Visit("arrival_picks", &arrival_picks);
+  a->Visit("turn_average", &turn_average);
 }
 
 void ModelConfig::Validate() const {
@@ -80,6 +82,16 @@ void ModelConfig::Validate() const {
     }
   }
   RequireAtLeast("model.crop_frames", crop_frames, 1);
+  // the picks are read off the waveform the audio features carry
+  if (arrival_picks != ArrivalPicks::kNone && !seen.contains("audio")) {
+    Reject("model.arrival_picks", std::string(NameOf(arrival_picks)),
+           fmt::format("needs audio in model.modalities (got [{}])", fmt::join(modalities, ", ")));
+  }
+  // a turned strike moves its audio; a GCC pair or an arm pose would have to turn too
+  if (turn_average && modalities != std::vector<std::string>{"audio"}) {
+    Reject("model.turn_average", "true",
+           fmt::format("needs model.modalities = [audio] (got [{}])", fmt::join(modalities, ", ")));
+  }
 }
 
 void TrainConfig::Serialize(Archive* a) {

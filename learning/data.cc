@@ -262,7 +262,8 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
   return targets;
 }
 
-std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames) {
+std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames,
+                                   int64_t turns) {
   network.eval();
   // inference mode: no autograd record and no version counters on the tensors made here
   c10::InferenceMode inference;
@@ -272,16 +273,25 @@ std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, in
     const int64_t count = std::min(kPredictBatch, f.size() - first);
     std::vector<int64_t> records(count);
     for (int64_t i = 0; i < count; ++i) records[i] = first + i;
+    // every record turned alike (none: as is)
+    Augmentation turned;
+    turned.rotation = turns;
+    const std::vector<Augmentation> augment(count, turned);
     // (B, 3) = (z_cm, cos, sin), then (log sigma_z_cm, log kappa) with the uncertainty head
-    torch::Tensor out =
-        network.forward(AssembleBatch(f, records, network.modalities(), crop_frames, nullptr, fill))
-            .contiguous();
+    torch::Tensor out = network
+                            .forward(AssembleBatch(f, records, network.modalities(), crop_frames,
+                                                   turns > 0 ? &augment : nullptr, fill))
+                            .contiguous();
     auto acc = out.accessor<float, 2>();
     const bool uncertain = out.size(1) == 5;
     for (int64_t i = 0; i < count; ++i) {
       Prediction& p = predictions[first + i];
       p.z_m = acc[i][0] / 100.0;
       p.theta_rad = std::atan2(double{acc[i][2]}, double{acc[i][1]});
+      if (turns > 0) {
+        p.theta_rad = std::remainder(p.theta_rad - 2.0 * kPi * double(turns) / kRingDiscs,
+                                     2.0 * kPi);
+      }
       if (uncertain) {
         p.z_std_m = std::exp(double{acc[i][3]}) / 100.0;
         p.theta_kappa = std::exp(double{acc[i][4]});
@@ -433,7 +443,11 @@ ModelFile ModelFileFromJson(const json& j, const std::string& origin) {
   if (!j.contains("model")) throw SchemaError(fmt::format("{}: 'model' is missing", origin));
   if (!j.contains("shapes")) throw SchemaError(fmt::format("{}: 'shapes' is missing", origin));
   ModelFile file;
-  file.model_config = ConfigFromJson<ModelConfig>(j["model"], origin + " (model)");
+  // a file written before model.arrival_picks and model.turn_average existed has neither
+  json model = j["model"];
+  if (model.is_object() && !model.contains("arrival_picks")) model["arrival_picks"] = "none";
+  if (model.is_object() && !model.contains("turn_average")) model["turn_average"] = false;
+  file.model_config = ConfigFromJson<ModelConfig>(model, origin + " (model)");
   try {
     file.model_config.Validate();
   } catch (const ConfigError& e) {

@@ -12,6 +12,7 @@
 #include <torch/serialize.h>
 
 #include "internal/data.h"
+#include "internal/loaded_run.h"
 #include "internal/network.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/learning/learning.h"
@@ -20,21 +21,11 @@ namespace sonicboom::learning {
 
 namespace fs = std::filesystem;
 
-// One trained network and its model.json (named, not anonymous: Localizer::Impl holds them).
-struct LocalizerMember {
-  internal::ModelFile file;
-  internal::Network network{nullptr};
-};
-
-namespace {
-
-using Member = LocalizerMember;
-
-Member LoadMember(const std::string& run_dir) {
+internal::LoadedRun internal::LoadRun(const std::string& run_dir) {
   if (!fs::is_directory(run_dir)) {
     throw IoError(fmt::format("{}: run directory not found", run_dir));
   }
-  Member member;
+  LoadedRun member;
   // model.json: config and shapes the weights were trained with.
   const std::string json_path = (fs::path(run_dir) / "model.json").string();
   member.file = internal::ModelFileFromJson(internal::ReadJsonFile(json_path), json_path);
@@ -76,6 +67,10 @@ Member LoadMember(const std::string& run_dir) {
   return member;
 }
 
+namespace {
+
+using Member = internal::LoadedRun;
+
 // What a member reads of each strike.
 FeatureNeeds NeedsOf(const Member& m) {
   const internal::ModalitySet use = m.network->modalities();
@@ -88,8 +83,21 @@ bool SameNeeds(const FeatureNeeds& a, const FeatureNeeds& b) {
          a.mel_first_frame == b.mel_first_frame && a.mel_frames == b.mel_frames;
 }
 
-// The calibrated predictions of one member for `features` (checked against its shapes).
-std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& features) {
+// Turning a strike moves its audio alone, by whole rings of three discs.
+void CheckTurnable(const Member& m, const FeatureSet& features) {
+  const internal::ModalitySet use = m.network->modalities();
+  if (use.gcc || use.proprio || !use.audio || features.channels % internal::kRingDiscs != 0) {
+    throw ConfigError(fmt::format(
+        "turn averaging needs model.modalities = [audio] (a GCC pair or an arm pose would have "
+        "to turn too) and channels in rings of {} (got {} channels)",
+        internal::kRingDiscs, features.channels));
+  }
+}
+
+// The calibrated predictions of one member for `features` (checked against its shapes), each
+// the combination of its three turns with `turn_average`.
+std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& features,
+                                      bool turn_average) {
   const internal::ModalitySet use = m.network->modalities();
   internal::CheckFeatureSet(features, use, "features to localize");
   // the whole-window spectrogram as trained, or exactly the crop (its centre crop is itself)
@@ -112,39 +120,52 @@ std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& feature
   check_finite(features.mel, use.audio, "mel spectrogram");
   check_finite(features.gcc, use.gcc, "GCC-PHAT");
   check_finite(features.proprio, use.proprio, "proprioception");
-  std::vector<Prediction> predictions = internal::PredictAll(*m.network.ptr(), features, crop);
-  for (size_t i = 0; i < predictions.size(); ++i) {
-    Prediction& p = predictions[i];
-    if (!std::isfinite(p.z_m) || !std::isfinite(p.theta_rad)) {
-      throw NumericalError(
-          fmt::format("the network's answer for strike {} is not finite (z = {}, theta = {}): "
-                      "its inputs lie far outside what it was trained on",
-                      i, p.z_m, p.theta_rad));
+  std::vector<std::vector<Prediction>> turns;
+  for (int64_t turn = 0; turn < (turn_average ? internal::kRingDiscs : 1); ++turn) {
+    turns.push_back(internal::PredictAll(*m.network.ptr(), features, crop, turn));
+    for (size_t i = 0; i < turns.back().size(); ++i) {
+      Prediction& p = turns.back()[i];
+      if (!std::isfinite(p.z_m) || !std::isfinite(p.theta_rad)) {
+        throw NumericalError(
+            fmt::format("the network's answer for strike {} is not finite (z = {}, theta = {}): "
+                        "its inputs lie far outside what it was trained on",
+                        i, p.z_m, p.theta_rad));
+      }
+      p = ApplyCalibration(p, m.file.calibration);
     }
-    p = ApplyCalibration(p, m.file.calibration);
   }
-  return predictions;
+  if (turns.size() == 1) return turns.front();
+  // one mixture of the turns per strike
+  std::vector<Prediction> combined(features.size()), strike(turns.size());
+  for (size_t i = 0; i < combined.size(); ++i) {
+    for (size_t k = 0; k < turns.size(); ++k) strike[k] = turns[k][i];
+    combined[i] = CombinePredictions(strike);
+  }
+  return combined;
 }
 
 }  // namespace
 
 struct Localizer::Impl {
-  std::vector<LocalizerMember> members;        // one, or an ensemble's
+  LocalizerOptions options;
+  std::vector<internal::LoadedRun> members;       // one, or an ensemble's
   UncertaintyCalibration mixture_calibration;  // an ensemble's, of the combined distribution
 };
 
-Localizer::Localizer(const std::string& run_dir) : impl_(std::make_unique<Impl>()) {
+Localizer::Localizer(const std::string& run_dir, const LocalizerOptions& options)
+    : impl_(std::make_unique<Impl>()) {
   if (!fs::is_directory(run_dir)) {
     throw IoError(fmt::format("{}: run directory not found", run_dir));
   }
+  impl_->options = options;
   const std::vector<std::string> member_dirs = EnsembleMembers(run_dir);
   if (member_dirs.empty()) {
-    impl_->members.push_back(LoadMember(run_dir));
+    impl_->members.push_back(internal::LoadRun(run_dir));
     return;
   }
   impl_->mixture_calibration = EnsembleCalibration(run_dir);
   for (const std::string& dir : member_dirs) {
-    impl_->members.push_back(LoadMember(dir));
+    impl_->members.push_back(internal::LoadRun(dir));
     if (!SameNeeds(NeedsOf(impl_->members.front()), NeedsOf(impl_->members.back())) ||
         impl_->members.front().file.surface_radius_m !=
             impl_->members.back().file.surface_radius_m) {
@@ -162,10 +183,13 @@ Localizer& Localizer::operator=(Localizer&&) noexcept = default;
 
 std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   const std::vector<Member>& members = impl_->members;
-  if (members.size() == 1) return PredictMember(members.front(), features);
+  const bool turn =
+      impl_->options.turn_average || members.front().file.model_config.turn_average;
+  if (turn) CheckTurnable(members.front(), features);
+  if (members.size() == 1) return PredictMember(members.front(), features, turn);
   // every member's predictions, then one mixture per strike
   std::vector<std::vector<Prediction>> each;
-  for (const Member& m : members) each.push_back(PredictMember(m, features));
+  for (const Member& m : members) each.push_back(PredictMember(m, features, turn));
   std::vector<Prediction> combined(each.front().size());
   std::vector<Prediction> strike(members.size());
   for (size_t i = 0; i < combined.size(); ++i) {

@@ -26,6 +26,8 @@ ModalitySet SelectedModalities(const ModelConfig& config) {
     if (m == "gcc") set.gcc = true;
     if (m == "proprio") set.proprio = true;
   }
+  set.arrivals = set.audio && config.arrival_picks != ArrivalPicks::kNone;
+  set.audio_token = set.audio && config.arrival_picks != ArrivalPicks::kOnly;
   return set;
 }
 
@@ -245,6 +247,52 @@ torch::Tensor GccEncoderImpl::forward(torch::Tensor gcc) {
   return ForwardRows(mlp_, gcc.flatten(1));
 }
 
+torch::Tensor ArrivalPicksOf(const torch::Tensor& waveform) {
+  constexpr int64_t kSmoothSamples = 31;  // 0.7 ms at 44.1 kHz
+  torch::NoGradGuard no_grad;
+  // (B, C, 1, T) -> (B, C, T) energy, smoothed
+  const torch::Tensor x = waveform.squeeze(2);
+  const torch::Tensor energy = torch::avg_pool1d(x * x, kSmoothSamples, 1, kSmoothSamples / 2,
+                                                 /*ceil_mode=*/false, /*count_include_pad=*/false);
+  // (B, C, 1) each channel's peak (a silent channel picks 0)
+  const torch::Tensor peak = std::get<0>(energy.max(2, /*keepdim=*/true)) + 1e-30;
+  std::vector<torch::Tensor> picks;
+  for (double fraction : kArrivalFractions) {
+    const torch::Tensor level = peak * fraction;
+    // first sample at or above the level (argmax returns the first maximum)
+    const torch::Tensor at = (energy >= level).to(torch::kFloat).argmax(2, /*keepdim=*/true);
+    const torch::Tensor before = (at - 1).clamp_min(0);
+    // linear interpolation between the sample before and the crossing
+    const torch::Tensor e0 = energy.gather(2, before), e1 = energy.gather(2, at);
+    const torch::Tensor step = ((level - e0) / (e1 - e0).clamp_min(1e-30)).clamp(0.0, 1.0);
+    const torch::Tensor t = before.to(torch::kFloat) + step * (at > 0).to(torch::kFloat);
+    picks.push_back(t.squeeze(2));
+  }
+  return torch::stack(picks, 2);  // (B, C, K)
+}
+
+ArrivalEncoderImpl::ArrivalEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
+  const int64_t w = config.width, k = std::size(kArrivalFractions);
+  const int64_t in = 2 * shapes.channels * k + k;
+  mlp_ = register_module(
+      "mlp", nn::Sequential(nn::Linear(in, 4 * w), nn::LayerNorm(nn::LayerNormOptions({4 * w})),
+                            nn::GELU(), nn::Dropout(config.dropout), nn::Linear(4 * w, w)));
+}
+
+torch::Tensor ArrivalEncoderImpl::forward(const torch::Tensor& waveform) {
+  constexpr double kSamplesPerMs = 44.1;  // a fixed scale; the MLP learns its own
+  // (B, C, K) picks relative to the channels' mean, ms
+  const torch::Tensor picks = ArrivalPicksOf(waveform);
+  const torch::Tensor relative = (picks - picks.mean(1, /*keepdim=*/true)) / kSamplesPerMs;
+  // (B, 1, K) spread across channels, ms (at least one sample)
+  const torch::Tensor spread =
+      relative.pow(2).mean(1, /*keepdim=*/true).sqrt().clamp_min(1.0 / kSamplesPerMs);
+  // (B, 2CK + K)
+  const torch::Tensor features = torch::cat(
+      {relative.flatten(1), (relative / spread).flatten(1), spread.log().flatten(1)}, 1);
+  return ForwardRows(mlp_, features);
+}
+
 ProprioEncoderImpl::ProprioEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes) {
   auto conv = [](int64_t in, int64_t out) {
     return nn::Conv1d(nn::Conv1dOptions(in, out, 5).stride(2).padding(2));
@@ -299,13 +347,18 @@ NetworkImpl::NetworkImpl(const ModelConfig& config, const NetworkShapes& shapes,
   const int64_t w = config.width;
   // Encoders of the selected modalities only.
   if (modalities_.audio) {
-    audio_encoder_ = register_module("audio_encoder", AudioEncoder(config, shapes));
+    if (modalities_.audio_token) {
+      audio_encoder_ = register_module("audio_encoder", AudioEncoder(config, shapes));
+    }
     mel_mean_ = register_buffer("mel_mean", torch::zeros({1, shapes.channels, 1, 1}));
     mel_std_ = register_buffer("mel_std", torch::ones({1, shapes.channels, 1, 1}));
   }
   if (modalities_.gcc) gcc_encoder_ = register_module("gcc_encoder", GccEncoder(config, shapes));
   if (modalities_.proprio) {
     proprio_encoder_ = register_module("proprio_encoder", ProprioEncoder(config, shapes));
+  }
+  if (modalities_.arrivals) {
+    arrival_encoder_ = register_module("arrival_encoder", ArrivalEncoder(config, shapes));
   }
   // Tokens, transformer and head.
   cls_token_ = register_parameter("cls_token", torch::randn({1, 1, w}) * 0.02);
@@ -364,15 +417,17 @@ std::vector<float> NetworkImpl::MelMean() const {
 }
 
 torch::Tensor NetworkImpl::forward(const Batch& batch) {
-  // One (B, w) token per selected modality, in the fixed order audio, gcc, proprio.
+  // One (B, w) token per selected modality, in the fixed order audio, gcc, proprio, arrivals.
   std::vector<torch::Tensor> tokens;
-  if (modalities_.audio) {
+  if (modalities_.audio_token) {
     // (B, C, mels, crop), normalized per mic
     torch::Tensor mel = (batch.mel - mel_mean_) / mel_std_;
     tokens.push_back(audio_encoder_->forward(mel));
   }
   if (modalities_.gcc) tokens.push_back(gcc_encoder_->forward(batch.gcc));
   if (modalities_.proprio) tokens.push_back(proprio_encoder_->forward(batch.proprio));
+  // picks of the raw waveform: each channel against its own peak, so no scale matters
+  if (modalities_.arrivals) tokens.push_back(arrival_encoder_->forward(batch.mel));
   const int64_t b = tokens.front().size(0);
   // (B, M, w) modality tokens + embeddings, then (B, 1 + M, w) with the CLS token first.
   torch::Tensor x = torch::stack(tokens, 1) + modality_embedding_;
@@ -390,13 +445,17 @@ torch::Tensor NetworkImpl::forward(const Batch& batch) {
   return torch::cat({point, torch::stack({log_std, log_kappa}, 1)}, 1);
 }
 
+bool IsEncoder(const std::string& part) {
+  return part == "audio_encoder" || part == "gcc_encoder" || part == "proprio_encoder" ||
+         part == "arrival_encoder";
+}
+
 std::map<std::string, int64_t> CountParametersOf(const NetworkImpl& network) {
   std::map<std::string, int64_t> counts;
   for (const auto& item : network.named_parameters(/*recurse=*/true)) {
     const std::string& name = item.key();
     const std::string top = name.substr(0, name.find('.'));
-    const bool encoder = top == "audio_encoder" || top == "gcc_encoder" || top == "proprio_encoder";
-    counts[encoder ? top : "fusion"] += item.value().numel();
+    counts[IsEncoder(top) ? top : "fusion"] += item.value().numel();
   }
   return counts;
 }

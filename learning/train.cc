@@ -157,7 +157,7 @@ bool IsFrozen(const std::string& part, FineTune::Freeze freeze) {
     case FineTune::Freeze::kNone:
       return false;
     case FineTune::Freeze::kEncoders:
-      return part == "audio_encoder" || part == "gcc_encoder" || part == "proprio_encoder";
+      return internal::IsEncoder(part);
     case FineTune::Freeze::kAllButHead:
       return part != "head" && part != "uncertainty_head";
   }
@@ -284,6 +284,13 @@ std::vector<int64_t> CheckedTrainingRecords(const FeatureSet& train, const Featu
         "config key 'train.rotate_rings' = true: needs model.modalities = [audio] (a GCC pair "
         "or an arm pose would have to turn too) and channels in rings of {} (got {})",
         internal::kRingDiscs, train.channels));
+  }
+  // picks are times of samples, which a mel frame does not keep
+  if (use.arrivals && train.frame_hop_samples != 1) {
+    throw ConfigError(fmt::format(
+        "config key 'model.arrival_picks' = {}: needs features.audio_representation = waveform "
+        "(the picks are read off the window's samples)",
+        NameOf(model_config.arrival_picks)));
   }
   // data parallel: every process's part of a batch needs two records
   if (world > 1 && train_config.batch_size < 2 * world) {

@@ -67,6 +67,7 @@ void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterEval(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterCalibrate(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterAdapt(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterBaseline(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterAblate(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterLocalize(CLI::App& app, GlobalOptions& g, Runner* run);

@@ -75,8 +75,10 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
 
 /// Predictions for every record of `f` in eval mode without gradients, in batches of
 /// kPredictBatch, with the uncalibrated distribution when the network has an uncertainty head.
-/// Leaves the network in eval mode.
-std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames);
+/// Leaves the network in eval mode. With `turns` > 0 every record is read turned by turns x 120
+/// degrees (Augmentation.rotation: rings of three discs) and each answer's theta turned back.
+std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames,
+                                   int64_t turns = 0);
 
 /// Writes a torch archive to `path` through core's checked atomic writer (IoError, no partial
 /// left, when the disk is full).

@@ -45,12 +45,18 @@ inline constexpr double kLogStdZCmMax = 7.0;
 inline constexpr double kLogKappaMin = -7.0;
 inline constexpr double kLogKappaMax = 12.0;
 
-/// Which modalities a config selects.
+/// Which modalities a config selects. `audio` says the audio features are read; `audio_token`
+/// whether the audio encoder makes a token of them, `arrivals` whether the arrival picks do.
 struct ModalitySet {
   bool audio{false};
   bool gcc{false};
   bool proprio{false};
-  int64_t count() const { return int64_t{audio} + int64_t{gcc} + int64_t{proprio}; }
+  bool audio_token{false};
+  bool arrivals{false};
+  /// Tokens besides CLS.
+  int64_t count() const {
+    return int64_t{audio_token} + int64_t{gcc} + int64_t{proprio} + int64_t{arrivals};
+  }
 };
 ModalitySet SelectedModalities(const ModelConfig& config);
 
@@ -153,6 +159,25 @@ class GccEncoderImpl : public torch::nn::Module {
 };
 TORCH_MODULE(GccEncoder);
 
+/// Arrival picks of a waveform window (model.arrival_picks): (B, C, 1, T) -> (B, C, K), in
+/// samples, the first (sub-sample) time each channel's energy, smoothed over kSmoothSamples,
+/// reaches kArrivalFractions[k] of that channel's peak. Not differentiable (an input).
+inline constexpr double kArrivalFractions[] = {0.03, 0.1, 0.3, 1.0};
+torch::Tensor ArrivalPicksOf(const torch::Tensor& waveform);
+
+/// Arrival token: from the picks, the times relative to the channels' mean (ms at 44.1 kHz),
+/// the same over their spread across channels, and the log spread, (B, 2CK + K), through an
+/// MLP (4w, LayerNorm, GELU) to width.
+class ArrivalEncoderImpl : public torch::nn::Module {
+ public:
+  ArrivalEncoderImpl(const ModelConfig& config, const NetworkShapes& shapes);
+  torch::Tensor forward(const torch::Tensor& waveform);  // (B, C, 1, T) -> (B, width)
+
+ private:
+  torch::nn::Sequential mlp_{nullptr};
+};
+TORCH_MODULE(ArrivalEncoder);
+
 /// Proprioception token: BatchNorm over features, three strided 1-D convs, pooled, linear.
 class ProprioEncoderImpl : public torch::nn::Module {
  public:
@@ -206,6 +231,7 @@ class NetworkImpl : public torch::nn::Module {
   AudioEncoder audio_encoder_{nullptr};
   GccEncoder gcc_encoder_{nullptr};
   ProprioEncoder proprio_encoder_{nullptr};
+  ArrivalEncoder arrival_encoder_{nullptr};
   torch::Tensor mel_mean_, mel_std_;  // (1, channels, 1, 1) buffers
   torch::Tensor cls_token_;           // (1, 1, width)
   torch::Tensor modality_embedding_;  // (1, modalities, width)
@@ -216,7 +242,11 @@ class NetworkImpl : public torch::nn::Module {
 };
 TORCH_MODULE(Network);
 
-/// Trainable parameters per part ("audio_encoder", "gcc_encoder", "proprio_encoder", "fusion").
+/// Whether a top-level part of the network (a child module's name) is a modality encoder.
+bool IsEncoder(const std::string& part);
+
+/// Trainable parameters per part ("audio_encoder", "gcc_encoder", "proprio_encoder",
+/// "arrival_encoder", "fusion").
 std::map<std::string, int64_t> CountParametersOf(const NetworkImpl& network);
 
 }  // namespace sonicboom::learning::internal

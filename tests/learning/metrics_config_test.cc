@@ -148,10 +148,13 @@ TEST(ConfigTest, ModelConfigKeysAreMemberNames) {
   config.Serialize(&archive);
   EXPECT_THAT(archive.names,
               ::testing::ElementsAre("audio_encoder", "width", "blocks", "heads", "dropout",
-                                     "modalities", "crop_frames", "gcc_encoder"));
+                                     "modalities", "crop_frames", "gcc_encoder", "arrival_picks",
+                                     "turn_average"));
   EXPECT_EQ(archive.kinds[0], "choice");
   EXPECT_EQ(archive.kinds[7], "choice");
-  EXPECT_THAT(archive.choices, ::testing::ElementsAre("mlp", "conv"));  // the last choice visited
+  EXPECT_EQ(archive.kinds[8], "choice");
+  // the last choice visited
+  EXPECT_THAT(archive.choices, ::testing::ElementsAre("none", "token", "only"));
   EXPECT_EQ(archive.kinds[5], "strings");
   // width must be positive
   EXPECT_FALSE(archive.bounds[1].Contains(0.0));
@@ -211,6 +214,20 @@ TEST(ConfigTest, ModalitiesMustBeAKnownNonEmptySet) {
   config.modalities = {"gcc", "gcc"};
   EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.modalities"));
   config.modalities = {"proprio"};
+  EXPECT_NO_THROW(config.Validate());
+  // arrival picks are read off the audio features
+  config.arrival_picks = ArrivalPicks::kToken;
+  const std::string no_audio = ConfigErrorOf([&] { config.Validate(); });
+  EXPECT_THAT(no_audio, HasSubstr("model.arrival_picks"));
+  EXPECT_THAT(no_audio, HasSubstr("[proprio]"));
+  config.modalities = {"audio", "proprio"};
+  EXPECT_NO_THROW(config.Validate());
+  // turning a strike moves its audio alone
+  config.turn_average = true;
+  const std::string turned = ConfigErrorOf([&] { config.Validate(); });
+  EXPECT_THAT(turned, HasSubstr("model.turn_average"));
+  EXPECT_THAT(turned, HasSubstr("[audio, proprio]"));
+  config.modalities = {"audio"};
   EXPECT_NO_THROW(config.Validate());
 }
 
@@ -398,6 +415,21 @@ TEST(CountParametersTest, OnlySelectedEncodersAreBuilt) {
   const auto point_only = CountParameters(config, shapes, /*uncertainty_head=*/false);
   EXPECT_EQ(proprio.at("fusion") - point_only.at("fusion"), 2 * 32 + 32 * 32 + 32 + 32 * 2 + 2);
   EXPECT_EQ(point_only.at("proprio_encoder"), proprio.at("proprio_encoder"));
+  // Arrival picks only: no audio encoder; the picks' MLP reads 2 x 6 x 4 + 4 = 52 values:
+  // Linear(52, 128), LayerNorm(128), Linear(128, 32).
+  config.modalities = {"audio"};
+  config.arrival_picks = ArrivalPicks::kOnly;
+  const auto picks = CountParameters(config, shapes);
+  EXPECT_EQ(picks.size(), 2u);
+  EXPECT_EQ(picks.at("arrival_encoder"), 52 * 128 + 128 + 2 * 128 + 128 * 32 + 32);
+  // beside the waveform's token: both encoders and one more modality embedding than audio alone
+  config.arrival_picks = ArrivalPicks::kToken;
+  const auto both = CountParameters(config, shapes);
+  config.arrival_picks = ArrivalPicks::kNone;
+  const auto audio = CountParameters(config, shapes);
+  EXPECT_EQ(both.at("audio_encoder"), audio.at("audio_encoder"));
+  EXPECT_EQ(both.at("arrival_encoder"), picks.at("arrival_encoder"));
+  EXPECT_EQ(both.at("fusion"), audio.at("fusion") + 32);
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 
 #include "common/test_util.h"
 #include "internal/data.h"
+#include "internal/loaded_run.h"
 #include "internal/network.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
@@ -319,6 +320,14 @@ TEST_F(TrainingTest, LocalizerReportsMissingAndCorruptFiles) {
   changed["shapes"]["gcc_lags"] = 30;
   std::ofstream(json_path) << changed.dump();
   EXPECT_THROW(Localizer{run}, SchemaError);
+  // A file from before model.arrival_picks reads as none; a misspelt value is an error.
+  changed = j;
+  changed["model"].erase("arrival_picks");
+  std::ofstream(json_path) << changed.dump();
+  EXPECT_EQ(Localizer{run}.model_config().arrival_picks, ArrivalPicks::kNone);
+  changed["model"]["arrival_picks"] = "tokens";
+  std::ofstream(json_path) << changed.dump();
+  EXPECT_THROW(Localizer{run}, SchemaError);
   // An unknown model config key.
   changed = j;
   changed["model"]["colour"] = "red";
@@ -514,6 +523,179 @@ TEST(AugmentationTest, RotateRingsMovesEveryRingOneDiscOnWithTheLabel) {
                              2.0 * std::numbers::pi),
               0.0, 1e-5);
   EXPECT_NEAR(t[0][0].item<float>(), f.z_m[0] * 100.0, 1e-4);
+}
+
+// model.arrival_picks: a step of constant amplitude at sample t0 smoothed over 31 samples
+// rises linearly from t0 - 15 to t0 + 15, so the energy reaches fraction f of its peak at
+// t0 - 16 + 31 f, whatever the channel's amplitude (the last fraction, 1, is the peak, which a
+// plateau leaves to rounding).
+TEST(ArrivalPicksTest, EachChannelIsPickedOnItsOwnRiseToTheSubSample) {
+  const int64_t onsets[6] = {300, 310, 327, 400, 301, 500};
+  torch::Tensor x = torch::zeros({2, 6, 1, 882});
+  for (int64_t c = 0; c < 6; ++c) {
+    x[0][c][0].narrow(0, onsets[c], 882 - onsets[c]).fill_(0.01 * (c + 1));
+    x[1][c][0].narrow(0, onsets[c], 882 - onsets[c]).fill_(-3.0 + c);  // c = 3: silent
+  }
+  const torch::Tensor picks = internal::ArrivalPicksOf(x);  // (2, 6, 4)
+  ASSERT_EQ(picks.sizes(), (std::vector<int64_t>{2, 6, 4}));
+  for (int64_t c = 0; c < 6; ++c) {
+    for (int64_t k = 0; k < 3; ++k) {
+      const double expected = onsets[c] - 16.0 + 31.0 * internal::kArrivalFractions[k];
+      EXPECT_NEAR(picks[0][c][k].item<float>(), expected, 2e-3) << c << " " << k;
+      if (c != 3) EXPECT_NEAR(picks[1][c][k].item<float>(), expected, 2e-3) << c << " " << k;
+    }
+  }
+  // a silent channel picks its first sample rather than anything non-finite
+  EXPECT_TRUE(torch::isfinite(picks).all().item<bool>());
+}
+
+// The arrival token reads times relative to the channels' mean: a whole record later by 37
+// samples and each channel at its own gain is the same token; one channel later is not.
+TEST(ArrivalPicksTest, TheTokenIgnoresTheRecordsTimeAndGainButNotOneChannelsDelay) {
+  torch::manual_seed(5);
+  ModelConfig config;
+  config.width = 16;
+  config.heads = 2;
+  internal::NetworkShapes shapes;
+  shapes.mels = 1;
+  internal::ArrivalEncoder encoder(config, shapes);
+  encoder->eval();
+  // a decaying 3 kHz burst per channel, onsets 20 samples apart
+  auto burst = [](int64_t shift, int64_t late_channel) {
+    torch::Tensor x = torch::zeros({1, 6, 1, 882});
+    for (int64_t c = 0; c < 6; ++c) {
+      const int64_t t0 = 200 + 20 * c + shift + (c == late_channel ? 9 : 0);
+      const torch::Tensor t = torch::arange(0, 882 - t0, torch::kFloat) / 44100.0;
+      x[0][c][0].narrow(0, t0, 882 - t0).copy_(torch::sin(2 * 3.14159265 * 3000.0 * t) *
+                                               torch::exp(-t / 0.004) * (0.5 + c));
+    }
+    return x;
+  };
+  const torch::Tensor base = encoder->forward(burst(0, -1));
+  const torch::Tensor gains = torch::tensor({1.0f, 0.1f, 7.0f, 2.0f, 0.3f, 1.5f}).view({1, 6, 1, 1});
+  const torch::Tensor moved = encoder->forward(burst(37, -1) * gains);
+  EXPECT_LT((base - moved).abs().max().item<float>(), 1e-4);
+  const torch::Tensor late = encoder->forward(burst(0, 4));
+  EXPECT_GT((base - late).abs().max().item<float>(), 1e-2);
+}
+
+// Unlabelled adaptation: the per-mic input statistics become the target's own, the labels are
+// not read (a target without them adapts to the same weights), the source stays as it was, and
+// out_dir in use, an empty target or features of other shapes are refused before anything is
+// written.
+TEST_F(TrainingTest, AdaptRefitsStatisticsOnTheTargetWithoutReadingItsLabels) {
+  const std::string run = Dir("run");
+  Train(MakeFeatures(8, 5), MakeFeatures(4, 6), TinyModel(), TinyTraining(1), kRadius, 1, run,
+        false, false);
+  FeatureSet target = MakeFeatures(6, 11);
+  for (int64_t i = 0; i < target.size(); ++i) {  // channel 0 louder and offset on the target
+    float* c0 = target.mel.data() + i * target.channels * target.mels * target.frames;
+    for (int64_t k = 0; k < target.mels * target.frames; ++k) c0[k] = 3.0f * c0[k] + 2.0f;
+  }
+  const AdaptReport report = AdaptToUnlabelled(run, target, Dir("adapted"), AdaptOptions{});
+  EXPECT_EQ(report.members, 1);
+  EXPECT_EQ(report.records, 6);
+  EXPECT_EQ(report.batch_norm_layers, 4 + 4);  // compact CNN and proprioception encoder
+  std::vector<int64_t> all{0, 1, 2, 3, 4, 5};
+  const std::vector<float> mean = internal::ComputeMelStats(target, all).mean;
+  internal::LoadedRun adapted = internal::LoadRun(Dir("adapted"));
+  EXPECT_EQ(adapted.network->MelMean(), mean);
+  EXPECT_NE(internal::LoadRun(run).network->MelMean(), mean);
+  nlohmann::json j;
+  std::ifstream(fs::path(Dir("adapted")) / "model.json") >> j;
+  EXPECT_EQ(j["adapted"]["labels"], "not read");
+  EXPECT_EQ(j["adapted"]["records"], 6);
+  // the same strikes without labels: the same statistics, buffer for buffer
+  FeatureSet unlabelled = target;
+  std::fill(unlabelled.z_m.begin(), unlabelled.z_m.end(), std::nan(""));
+  std::fill(unlabelled.theta_rad.begin(), unlabelled.theta_rad.end(), std::nan(""));
+  AdaptToUnlabelled(run, unlabelled, Dir("unlabelled"), AdaptOptions{});
+  internal::LoadedRun blind = internal::LoadRun(Dir("unlabelled"));
+  const auto a = adapted.network->named_buffers(), b = blind.network->named_buffers();
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k) {
+    EXPECT_TRUE(torch::equal(a[k].value(), b[k].value())) << a[k].key();
+  }
+  // refusals, and nothing written for them
+  auto config_error = [&](const std::string& out, const FeatureSet& f) -> std::string {
+    try {
+      AdaptToUnlabelled(run, f, out, AdaptOptions{});
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return "no ConfigError";
+  };
+  EXPECT_THAT(config_error(Dir("adapted"), target), HasSubstr("not empty"));
+  EXPECT_THAT(config_error(Dir("empty_target"), FeatureSet{}), HasSubstr("no strikes"));
+  FeatureSet other = MakeFeatures(2, 9);
+  other.mels = 10;
+  other.mel.resize(2 * other.channels * other.mels * other.frames);
+  try {
+    AdaptToUnlabelled(run, other, Dir("other"), AdaptOptions{});
+    ADD_FAILURE() << "expected SchemaError";
+  } catch (const SchemaError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("mels"));
+  }
+  EXPECT_FALSE(fs::exists(Dir("other")));
+  EXPECT_FALSE(fs::exists(Dir("empty_target")));
+}
+
+// model.turn_average: a strike with every ring turned one disc on (channel p reads disc p - 1)
+// is answered 120 degrees on at the same height, for any weights (the three turns of one are the
+// three turns of the other); the network alone is not so. A model reading GCC-PHAT refuses.
+TEST_F(TrainingTest, TurnAveragingAnswersATurnedStrikeTurned) {
+  ModelConfig model = TinyModel();
+  model.modalities = {"audio"};
+  model.turn_average = true;
+  const std::string run = Dir("run");
+  Train(MakeFeatures(8, 5), MakeFeatures(4, 6), model, TinyTraining(1), kRadius, 1, run, false,
+        false);
+  const FeatureSet f = MakeFeatures(5, 21);
+  FeatureSet turned = f;
+  const int64_t plane = f.mels * f.frames;
+  for (int64_t i = 0; i < f.size(); ++i) {
+    for (int64_t c = 0; c < f.channels; ++c) {
+      const int64_t read = c / 3 * 3 + (c % 3 + 2) % 3;
+      std::copy_n(f.mel.data() + (i * f.channels + read) * plane, plane,
+                  turned.mel.data() + (i * f.channels + c) * plane);
+    }
+  }
+  auto largest_miss = [&](const Localizer& localizer) {
+    const std::vector<Prediction> a = localizer.Predict(f), b = localizer.Predict(turned);
+    double miss = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) {
+      miss = std::max(miss, std::abs(a[i].z_m - b[i].z_m) * 100.0);
+      miss = std::max(miss, std::abs(std::remainder(b[i].theta_rad - a[i].theta_rad -
+                                                        2.0 * std::numbers::pi / 3.0,
+                                                    2.0 * std::numbers::pi)));
+    }
+    return miss;
+  };
+  EXPECT_LT(largest_miss(Localizer(run)), 1e-4);
+  // the same weights answering each strike once
+  nlohmann::json j;
+  std::ifstream(fs::path(run) / "model.json") >> j;
+  j["model"]["turn_average"] = false;
+  std::ofstream(fs::path(run) / "model.json") << j.dump();
+  EXPECT_GT(largest_miss(Localizer(run)), 1e-2);
+  EXPECT_LT(largest_miss(Localizer(run, {.turn_average = true})), 1e-4);
+  // GCC-PHAT does not turn with the audio
+  const std::string gcc_run = Dir("gcc_run");
+  Train(MakeFeatures(8, 5), MakeFeatures(4, 6), TinyModel(), TinyTraining(1), kRadius, 1,
+        gcc_run, false, false);
+  try {
+    Localizer(gcc_run, {.turn_average = true}).Predict(f);
+    ADD_FAILURE() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("model.modalities = [audio]"));
+  }
+}
+
+TEST_F(TrainingTest, ArrivalPicksOfALogMelImageIsAConfigError) {
+  ModelConfig model = TinyModel();
+  model.arrival_picks = ArrivalPicks::kToken;
+  ExpectTrainRefuses(MakeFeatures(4, 5), model, TinyTraining(1), Dir("run"),
+                     "model.arrival_picks", "waveform");
 }
 
 TEST_F(TrainingTest, RotateRingsWithGccIsAConfigError) {

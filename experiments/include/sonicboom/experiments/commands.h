@@ -98,14 +98,23 @@ struct TrainOptions {
   NormPolicy norm{NormPolicy::kKeep};
 };
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
-/// `eval`: metrics of a run on a dataset; with `predictions_csv` also one row per strike
-/// (an existing file is replaced only with `force`).
+/// `eval`: metrics of a run on a dataset.
+struct EvalOptions {
+  std::string predictions_csv;  // also one row per strike (empty: none)
+  bool force{false};            // replace an existing predictions file
+  bool turn_average{false};     // learning::LocalizerOptions::turn_average
+};
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir, const std::string& data,
-                      const std::string& predictions_csv = "", bool force = false);
+                      const EvalOptions& options = {});
 /// `calibrate`: refits the run's interval scales (learning::Recalibrate) on the labelled strikes
 /// of `data` (pooled), with the run's features; the run keeps its weights.
 CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
                            const std::vector<std::string>& data);
+/// `adapt`: a new run at `out_dir`, the run's input and BatchNorm statistics re-estimated on
+/// the strikes of `data` (learning::AdaptToUnlabelled; labels unread), its config.yaml beside.
+CommandResult RunAdapt(const GlobalOptions& g, const std::string& model_dir,
+                       const std::string& data, const std::string& out_dir,
+                       const learning::AdaptOptions& options);
 /// `localize --method arrival`: the training-free arrival locator on one WAV, configured by the
 /// global config (tube, microphones, arrival settings); no model. The per-strike path (read,
 /// picks, search) is timed over `repeat` runs, the set-up (the grid's paths) apart.

@@ -39,6 +39,19 @@ inline std::span<const EnumName<GccEncoderKind>> EnumNames(GccEncoderKind) {
   return kGccEncoderKindNames;
 }
 
+/// Arrival picks (waveform features only): per disc, where the smoothed energy of the window
+/// first reaches a fixed fraction of that disc's own peak, taken from the network's waveform
+/// input itself (so every augmentation moves them with the samples) and read as times relative
+/// to the discs' mean and as those times over their spread (a group-speed scale divides out):
+/// none; token, one more token beside the waveform's; only, the picks' token in place of the
+/// waveform encoder (an ablation: what the timing alone carries).
+enum class ArrivalPicks { kNone, kToken, kOnly };
+inline constexpr EnumName<ArrivalPicks> kArrivalPicksNames[] = {
+    {ArrivalPicks::kNone, "none"}, {ArrivalPicks::kToken, "token"}, {ArrivalPicks::kOnly, "only"}};
+inline std::span<const EnumName<ArrivalPicks>> EnumNames(ArrivalPicks) {
+  return kArrivalPicksNames;
+}
+
 /// Network shape. Cheaper settings trade accuracy for speed.
 struct ModelConfig {
   AudioEncoderKind audio_encoder{AudioEncoderKind::kCompact};
@@ -49,6 +62,10 @@ struct ModelConfig {
   std::vector<std::string> modalities{"audio", "gcc", "proprio"};  // any non-empty subset
   int64_t crop_frames{345};  // mel frames seen by the network (centre crop)
   GccEncoderKind gcc_encoder{GccEncoderKind::kMlp};
+  ArrivalPicks arrival_picks{ArrivalPicks::kNone};  // needs audio in modalities
+  // Answer by the layout's symmetry (LocalizerOptions::turn_average) whenever the model is used;
+  // inference only (the weights do not depend on it). Needs modalities = [audio].
+  bool turn_average{false};
 
   void Serialize(Archive* a);
   /// Checks every field and the cross-field rules (heads divide width, known modalities);
@@ -313,6 +330,29 @@ inline constexpr int64_t kMinRecalibrationRecords = 30;
 Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
                           const FeatureSet& truth, const std::string& source);
 
+/// Unlabelled adaptation (`sonicboom adapt`): a trained run's statistics of its inputs and
+/// hidden layers re-estimated on strikes of another structure, labels unread. The weights stay;
+/// what a layer takes as its typical input becomes the target's (for BatchNorm, the "AdaBN"
+/// idea). The interval scales stay those of the source's validation split.
+struct AdaptOptions {
+  bool batch_norm{true};      // every BatchNorm layer's running mean and variance, re-estimated
+                              // as the plain average over the target's records (in eval mode
+                              // otherwise: no dropout)
+  bool mel_statistics{true};  // the per-mic input mean and std (train.normalize), refitted first
+};
+struct AdaptReport {
+  int64_t records{0};            // target strikes read
+  int64_t members{0};            // networks adapted (an ensemble's all)
+  int64_t batch_norm_layers{0};  // per network
+};
+/// Adapts run_dir (a run or an ensemble directory) to `target` and writes the result to out_dir
+/// as a run of the same layout (model.json gains "adapted": source, records, options); out_dir
+/// must not exist or be empty, and is not run_dir. The files that mark a run complete
+/// (model.json, ensemble.json) are written last. Throws ConfigError for an empty target or
+/// out_dir in use, SchemaError for features of other shapes.
+AdaptReport AdaptToUnlabelled(const std::string& run_dir, const FeatureSet& target,
+                              const std::string& out_dir, const AdaptOptions& options);
+
 /// First frame of the network's centre crop of `crop_frames` frames in a `frames`-frame mel
 /// spectrogram (the un-augmented crop of training, evaluation and localization).
 int64_t CentreCropStart(int64_t frames, int64_t crop_frames);
@@ -331,9 +371,21 @@ struct FeatureNeeds {
 /// A trained model loaded from a run directory, for evaluation and localization; from an
 /// ensemble directory (TrainEnsemble), every member, whose predictions are combined
 /// (CombinePredictions). Members must read the same features.
+/// How a Localizer answers.
+struct LocalizerOptions {
+  /// Each strike read as it is and turned by 120 and 240 degrees (each ring of three discs
+  /// moved one and two discs on), every answer turned back, and the three combined as the
+  /// members of an ensemble are (CombinePredictions): a network that should not have learned one
+  /// disc position from another (train.rotate_rings) answers by the symmetry of the layout.
+  /// Needs model.modalities = [audio] and channels in rings of three (ConfigError otherwise).
+  /// On whenever the run's model.turn_average is.
+  bool turn_average{false};
+};
+
 class Localizer {
  public:
-  explicit Localizer(const std::string& run_dir);  // throws IoError/SchemaError naming the file
+  /// Throws IoError/SchemaError naming the file.
+  explicit Localizer(const std::string& run_dir, const LocalizerOptions& options = {});
   ~Localizer();
   Localizer(Localizer&&) noexcept;
   Localizer& operator=(Localizer&&) noexcept;
