@@ -26,8 +26,10 @@ mkdir -p "$OUT"
 train() {  # name seed overrides...
   local name=$1 seed=$2
   shift 2
+  # configs/transfer.yaml as it was measured here (before it turned the rings), then the variant
   [ -f "$OUT/$name/ensemble.json" ] || "$BIN" --config "$ROOT/configs/transfer.yaml" \
-    --seed "$seed" --threads "$THREADS" "$@" train --data "$TRAIN" --out "$OUT/$name" --json \
+    --seed "$seed" --threads "$THREADS" --set train.rotate_rings=false \
+    --set model.turn_average=false "$@" train --data "$TRAIN" --out "$OUT/$name" --json \
     > "$OUT/train_$name.json"
 }
 train stretch 1 --set train.time_stretch=0.15
@@ -49,14 +51,12 @@ for run in "${runs[@]}"; do
   done
 done
 
-/usr/bin/python3 - "$OUT" "${runs[@]}" <<'PY'
-import json, os, sys
+PYTHONPATH="$ROOT/scripts" /usr/bin/python3 - "$OUT" "${runs[@]}" <<'PY'
+import os, sys
+from transfer_tables import EVAL_HEAD as head, eval_cell
 out, runs = sys.argv[1], [os.path.basename(r) for r in sys.argv[2:]]
 def row(kind, family, name):
-    e = json.load(open(f"{out}/{kind}_{family}_{name}.json"))
-    return (f"{e['med_cm']:.2f} / {e['height_err_cm']:.2f} / {e['angle_err_deg']:.1f} / "
-            f"{e['z_coverage_90']:.2f}, {e['theta_coverage_90']:.2f}")
-head = "MED (cm) / height (cm) / angle (°) / 90 % z, θ coverage"
+    return eval_cell(f"{out}/{kind}_{family}_{name}.json")
 lines = ["Validation families (choose here):", "",
          f"| run | closed form: {head} | reference solid: {head} |", "|---|---|---|"]
 lines += [f"| {n} | {row('val', 'closed', n)} | {row('val', 'reference', n)} |" for n in runs]

@@ -1,6 +1,6 @@
-"""Shared by the table steps of scripts/transfer_ablation.sh, transfer_waveform.sh and
-transfer_benchmark.sh (imported with PYTHONPATH=scripts): reading an output directory's JSON
-results and the training time of a run."""
+"""Shared by the table steps of scripts/transfer_ablation.sh, transfer_waveform.sh,
+transfer_benchmark.sh and the theory studies (imported with PYTHONPATH=scripts): reading an
+output directory's JSON results, eval cells and the training time of a run."""
 import json
 import os
 
@@ -30,3 +30,15 @@ def write(out, lines, results):
     with open(os.path.join(out, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     print("\n".join(lines))
+
+
+# Header of an eval cell (theory_augment_study.sh, turn_study.sh, adapt_study.sh).
+EVAL_HEAD = "MED (cm) / height (cm) / angle (°) / 90 % z, θ coverage"
+
+
+def eval_cell(path):
+    """One `eval --json` result as 'MED / height / angle / z, theta coverage'."""
+    with open(path) as f:
+        e = json.load(f)
+    return (f"{e['med_cm']:.2f} / {e['height_err_cm']:.2f} / {e['angle_err_deg']:.1f} / "
+            f"{e['z_coverage_90']:.2f}, {e['theta_coverage_90']:.2f}")
