@@ -47,7 +47,7 @@ int RunCli(int argc, char** argv) {
         RegisterCalibrate, RegisterBaseline, RegisterAblate,    RegisterLocalize,
         RegisterImport,    RegisterExport,   RegisterListen,    RegisterGeometryCheck,
         RegisterMap,       RegisterFk,       RegisterInspect,   RegisterConfig,
-        RegisterAdapt}) {
+        RegisterAdapt,     RegisterReproduce}) {
     register_subcommand(app, g, &run);
   }
 

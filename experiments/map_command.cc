@@ -61,11 +61,6 @@ MapScores ScoreMap(const Eigen::Matrix3Xd& predicted_m, const Eigen::Matrix3Xd& 
 
 namespace {
 
-struct MapOptions {
-  std::string model, data, out, plot_script{"scripts/plot.py"};
-  bool force{false};
-};
-
 // The tube's logged pose at time t_s of a record: its proprio row at or before t (the last row
 // where the window ends earlier), (K x 10) rows of position, quaternion w x y z, velocity.
 Eigen::Isometry3d LoggedTubePose(const Eigen::MatrixXf& proprio, double rate_hz, double t_s) {
@@ -79,6 +74,8 @@ Eigen::Isometry3d LoggedTubePose(const Eigen::MatrixXf& proprio, double rate_hz,
                       .toRotationMatrix();
   return pose;
 }
+
+}  // namespace
 
 CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
   CheckOutput(g, {o.out, "--out", o.force}, {{o.model, "--model"}, {o.data, "--data"}});
@@ -146,8 +143,6 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
                       "to true), {:.2f} cm (true to predicted)\n",
                       s.taps, o.out, s.med_cm, s.chamfer_cm, s.reverse_chamfer_cm)};
 }
-
-}  // namespace
 
 void RegisterMap(CLI::App& app, GlobalOptions& g, Runner* run) {
   auto o = std::make_shared<MapOptions>();

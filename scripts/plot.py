@@ -8,7 +8,13 @@ usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
             (`sonicboom map`, DIR/map.json)
   fewshot   MED against the number of target strikes, fine-tuned and from scratch, per family
             (scripts/fewshot_study.sh, OUT/results.json)
+  errors    per-scenario distributions of the 3-D, height and angle errors, box over violin
+            (`sonicboom reproduce`, DIR/results.json and the eval CSVs it names)
+  ablation  the ablations' held-out MED as bars (`sonicboom reproduce`, DIR/results.json)
 """
+import csv
+import math
+import os
 import json
 import sys
 
@@ -153,7 +159,51 @@ def fewshot(data, src, png):
     fig.savefig(png, dpi=120)
 
 
-KINDS = {"fidelity": fidelity, "inspect": inspect, "map": haptic_map, "fewshot": fewshot}
+def errors(data, src, png):
+    """Per scenario, the per-strike 3-D error (cm), height error (cm) and angle error (deg) of
+    the model, as violins with boxes over them; the paper's MED marked on the first panel."""
+    names, columns = [], [[], [], []]
+    for ts, s in data["scenarios"].items():
+        rows = list(csv.DictReader(open(os.path.join(os.path.dirname(src), s["predictions_csv"]))))
+        names.append(ts)
+        columns[0].append([float(r["error_cm"]) for r in rows])
+        columns[1].append([100 * abs(float(r["z_pred_m"]) - float(r["z_m"])) for r in rows])
+        columns[2].append([abs(math.degrees(math.remainder(
+            float(r["theta_pred_rad"]) - float(r["theta_rad"]), 2 * math.pi))) for r in rows])
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4))
+    for ax, values, label in zip(axes, columns, ["3-D error (cm)", "height error (cm)",
+                                                 "angle error (deg)"]):
+        ax.violinplot(values, showextrema=False)
+        ax.boxplot(values, widths=0.15, showfliers=False)
+        ax.set_xticks(range(1, len(names) + 1), names)
+        ax.set_ylabel(label)
+        ax.grid(True, axis="y", alpha=0.3)
+    axes[0].scatter(range(1, len(names) + 1), [s["paper_med_cm"] for s in data["scenarios"].values()],
+                    marker="x", color="tab:red", zorder=3, label="paper's MED")
+    axes[0].scatter(range(1, len(names) + 1), [s["med_cm"] for s in data["scenarios"].values()],
+                    marker="o", color="k", zorder=3, label="our MED")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"Per-strike errors by scenario ({data['size']}: {data['train_strikes']} ts1 "
+                 f"training strikes, {data['test_strikes_per_scenario']} per scenario)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
+def ablation(data, src, png):
+    """The ablations' MED on the held-out ts1 strikes, cm, one bar each."""
+    rows = data["ablations"]
+    fig, ax = plt.subplots(figsize=(max(5, 0.8 * len(rows) + 2), 4))
+    ax.bar(range(len(rows)), [r["test"]["med_cm"] for r in rows], color="tab:blue")
+    ax.set_xticks(range(len(rows)), [r["name"] for r in rows], rotation=30, ha="right")
+    ax.set_ylabel("MED on held-out ts1 (cm)")
+    ax.set_title("Modality and preprocessing ablations")
+    ax.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
+KINDS = {"fidelity": fidelity, "inspect": inspect, "map": haptic_map, "fewshot": fewshot,
+         "errors": errors, "ablation": ablation}
 
 if __name__ == "__main__":
     if len(sys.argv) != 4 or sys.argv[1] not in KINDS:

@@ -68,6 +68,7 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterEval(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterCalibrate(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterAdapt(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterReproduce(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterBaseline(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterAblate(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterLocalize(CLI::App& app, GlobalOptions& g, Runner* run);

@@ -133,6 +133,27 @@ inline std::span<const EnumName<BaselineMethod>> EnumNames(BaselineMethod) {
   return kBaselineMethodNames;
 }
 
+/// Options of `sonicboom map` (docs/mapping.md).
+struct MapOptions {
+  std::string model, data, out;
+  std::string plot_script{"scripts/plot.py"};  // "" draws no figure
+  bool force{false};
+};
+/// Localized taps placed in the base frame with the arm's logged pose and scored against the
+/// true contact points (MED, RMS Chamfer both ways); writes out/map.json and out/map.png.
+CommandResult RunMap(const GlobalOptions& g, const MapOptions& o);
+
+/// Options of `sonicboom reproduce`.
+struct ReproduceOptions {
+  std::string size{"quick"};  // quick, paper or smoke
+  std::string out;            // DIR: data/, model/, eval/, baselines/, ablations/, map/, report.md
+  std::string configs_dir{"configs"};
+  std::string plot_script{"scripts/plot.py"};
+};
+/// The paper's evaluation as DIR/report.md with figures and DIR/results.json; resumable stage by
+/// stage (a stage reruns when what it was computed from changed).
+CommandResult RunReproduce(const GlobalOptions& g, const ReproduceOptions& o);
+
 /// Options of `sonicboom baseline` (docs/baselines.md).
 struct BaselineOptions {
   BaselineMethod method{BaselineMethod::kKnn};

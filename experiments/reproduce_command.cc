@@ -1,0 +1,452 @@
+// `reproduce`: the paper's evaluation from one command, as DIR/report.md with its figures and
+// DIR/results.json. The scenarios are generated (ts1 training strikes; held-out strikes of ts1
+// to ts4), the scenario model trained and evaluated on each with the baselines, the modality
+// and preprocessing ablations run, and the ts3 taps mapped (paper §V). Stages are resumable: a
+// finished stage leaves a stamp holding the key of what it was computed from (the size, its
+// resolved configs and the keys of the stages it reads); a stage whose key changed runs again,
+// and with it every stage that reads it.
+#include "sonicboom/experiments/commands.h"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
+#include "sonicboom/experiments/config.h"
+
+#include "internal/report.h"
+#include "internal/subcommands.h"
+
+namespace sonicboom::experiments {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+// The paper's 3-D MED per scenario (Table II), cm.
+constexpr double kPaperMedCm[] = {0.43, 1.01, 2.01, 2.22};
+constexpr const char* kScenarios[] = {"ts1", "ts2", "ts3", "ts4"};
+constexpr int64_t kTestFirstIndex = 100000;  // held-out strikes: indices no training strike has
+
+// How much of everything a size runs.
+struct ReproduceSize {
+  std::string name;
+  int64_t train{0};                    // ts1 training strikes
+  int64_t test{0};                     // held-out strikes per scenario
+  int64_t epochs{0};                   // every training's epochs; 0: the model config's
+  std::string model_config;            // file in the configs directory
+  std::vector<std::string> ablations;  // configs/ablations names; empty: every one
+  std::vector<BaselineMethod> baselines;
+};
+
+ReproduceSize SizeNamed(const std::string& name) {
+  using B = BaselineMethod;
+  const std::vector<std::string> modality = {"all", "audio", "proprio", "audio_proprio",
+                                             "audio_gcc"};
+  if (name == "quick") {
+    return {name, 1200, 120, 30, "study_fast.yaml", modality, {B::kKnn, B::kConstant}};
+  }
+  if (name == "paper") {
+    return {name, 18000, 500, 0, "study.yaml", {}, {B::kKnn, B::kTdoa, B::kArrival, B::kConstant}};
+  }
+  if (name == "smoke") return {name, 48, 12, 1, "study_fast.yaml", {"all", "audio"}, {B::kConstant}};
+  throw ConfigError(fmt::format("--size {}: choose quick, paper or smoke", name));
+}
+
+// A short, stable digest of a text (FNV-1a, 64 bit) as hex.
+std::string Digest(const std::string& text) {
+  uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : text) h = (h ^ c) * 1099511628211ull;
+  return fmt::format("{:016x}", h);
+}
+
+// Stages run in order; each reruns when its key changed, and reports progress with an ETA from
+// the weights of the stages left.
+class StageRunner {
+ public:
+  StageRunner(std::string dir, double total_weight, bool progress)
+      : dir_(std::move(dir)), total_(total_weight), progress_(progress),
+        start_(std::chrono::steady_clock::now()) {
+    MakeDirectories((fs::path(dir_) / "stamps").string());
+  }
+  // Runs `body` unless stage `name` finished with `key`; returns the key.
+  std::string Run(const std::string& name, const std::string& key, double weight,
+                  const std::function<void()>& body) {
+    const fs::path stamp = fs::path(dir_) / "stamps" / (name + ".key");
+    const fs::path wall = fs::path(dir_) / "stamps" / (name + ".wall_s");
+    const bool fresh = fs::exists(stamp) && fs::exists(wall) && ReadText(stamp.string()) == key;
+    if (progress_) {
+      spdlog::info("reproduce: stage {} ({}){}", ++stage_, name, fresh ? ": reused" : "");
+    }
+    // the stage's wall time when it ran, kept beside its stamp
+    if (!fresh) {
+      fs::remove(stamp);
+      const auto t0 = std::chrono::steady_clock::now();
+      body();
+      const double s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      WriteTextAtomic(wall.string(), fmt::format("{}", s));
+      WriteTextAtomic(stamp.string(), key);
+    }
+    wall_s_.push_back(
+        {{"stage", name}, {"s", std::stod(ReadText(wall.string()))}, {"reused", fresh}});
+    done_ += weight;
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    if (progress_ && done_ < total_) {
+      spdlog::info("reproduce: {:.0f} % of the work done, {:.0f} s elapsed, ETA {:.0f} s",
+                   100.0 * done_ / total_, elapsed, elapsed / done_ * (total_ - done_));
+    }
+    return key;
+  }
+  const json& wall_s() const { return wall_s_; }
+
+ private:
+  std::string dir_;
+  double total_, done_{0.0};
+  bool progress_;
+  int stage_{0};
+  std::chrono::steady_clock::time_point start_;
+  json wall_s_ = json::array();  // in the order run
+};
+
+// The user's options with `files` layered before their own config files and `sets` after
+// their own overrides; results come back as JSON whatever --json says.
+GlobalOptions Layered(const GlobalOptions& g, const std::vector<std::string>& files,
+                      const std::vector<std::string>& sets = {}) {
+  GlobalOptions out = g;
+  out.sources.files = files;
+  out.sources.files.insert(out.sources.files.end(), g.sources.files.begin(), g.sources.files.end());
+  out.sources.overrides.insert(out.sources.overrides.end(), sets.begin(), sets.end());
+  out.json = false;  // each stage's own progress shows unless --quiet
+  return out;
+}
+
+// The resolved config of a stage as its key's text.
+std::string ConfigKey(const GlobalOptions& g) { return ConfigToYaml(ResolveConfig(g.sources)); }
+
+// What a generated dataset depends on: the resolved config but for what reads the data (the
+// features, the model, its training, the locator) and the demo's sizes.
+std::string DataKey(const GlobalOptions& g) {
+  SonicBoomConfig c = ResolveConfig(g.sources);
+  c.features = {};
+  c.model = {};
+  c.train = {};
+  c.arrival = {};
+  c.demo = {};
+  return ConfigToYaml(c);
+}
+
+// The checkout's commit, when run from one ("unknown" otherwise).
+std::string CommitOf(const fs::path& root) {
+  try {
+    std::string head = ReadText((root / ".git" / "HEAD").string());
+    while (!head.empty() && std::isspace(static_cast<unsigned char>(head.back()))) head.pop_back();
+    if (head.rfind("ref: ", 0) != 0) return head;
+    const fs::path ref = root / ".git" / head.substr(5);
+    if (fs::exists(ref)) {
+      std::string hash = ReadText(ref.string());
+      return hash.substr(0, hash.find_first_of(" \n"));
+    }
+  } catch (const Error&) {
+  }
+  return "unknown";
+}
+
+// One figure cell: a metric in cm with two decimals, or a dash.
+std::string Cm(const json& j, const char* key) {
+  return j.contains(key) && j[key].is_number() ? fmt::format("{:.2f}", j[key].get<double>()) : "–";
+}
+
+// DIR/report.md from results.json's content.
+std::string ReproduceReport(const json& r, const std::string& size) {
+  std::string md = fmt::format(
+      "# SonicBoom: the paper's evaluation reproduced (`sonicboom reproduce --size {}`)\n\n"
+      "Commit {}; seed {}; {} ts1 training strikes, {} held-out strikes per scenario (sample "
+      "indices from {}); {} hardware threads. Every figure below comes from results.json beside "
+      "this file (scripts/plot.py draws them).\n\n",
+      size, r["commit"].get<std::string>(), r["seed"].get<uint64_t>(),
+      r["train_strikes"].get<int64_t>(), r["test_strikes_per_scenario"].get<int64_t>(),
+      kTestFirstIndex, r["machine"]["hardware_threads"].get<unsigned>());
+  // per scenario: ours, the published code's metric, the paper's, the baselines
+  md += "## Localization per scenario (paper Table II and Fig. 5)\n\n| scenario | MED (cm) | "
+        "published-code MED | paper | height (cm) | angle (°) | 90 % z / θ coverage |";
+  for (const auto& [name, unused] : r["baselines"].items()) md += fmt::format(" {} MED |", name);
+  md += "\n|---|---|---|---|---|---|---|";
+  for (size_t b = 0; b < r["baselines"].size(); ++b) md += "---|";
+  md += "\n";
+  for (const char* ts : kScenarios) {
+    const json& s = r["scenarios"][ts];
+    md += fmt::format("| {} | {} | {} | {:.2f} | {} | {:.1f} | {:.2f} / {:.2f} |", ts,
+                      Cm(s, "med_cm"), Cm(s, "reference_med_cm"), s["paper_med_cm"].get<double>(),
+                      Cm(s, "height_err_cm"), s["angle_err_deg"].get<double>(),
+                      s.value("z_coverage_90", 0.0), s.value("theta_coverage_90", 0.0));
+    for (const auto& [name, per] : r["baselines"].items()) md += " " + Cm(per[ts], "med_cm") + " |";
+    md += "\n";
+  }
+  md += "\n![per-strike errors](errors.png)\n\n";
+  if (r["materials"].is_object()) {
+    const json& m = r["materials"];
+    md += fmt::format(
+        "Novel striker materials (configs/materials.yaml: wood, aluminium and PVC strikers, as "
+        "ts4; paper §V-C2), the same model: MED {} cm, height {} cm, angle {:.1f}° over {} "
+        "strikes.\n\n",
+        Cm(m, "med_cm"), Cm(m, "height_err_cm"), m["angle_err_deg"].get<double>(),
+        m["n"].get<int64_t>());
+  }
+  // ablations
+  md += "## Modality and preprocessing ablations (trained on ts1, tested on ts1's held-out "
+        "strikes)\n\n| ablation | modalities | MED (cm) | height (cm) | angle (°) | train (s) "
+        "|\n|---|---|---|---|---|---|\n";
+  for (const json& a : r["ablations"]) {
+    md += fmt::format("| {} | {} | {} | {} | {:.1f} | {:.0f} |\n", a["name"].get<std::string>(),
+                      fmt::join(a["modalities"].get<std::vector<std::string>>(), ", "),
+                      Cm(a["test"], "med_cm"), Cm(a["test"], "height_err_cm"),
+                      a["test"]["angle_err_deg"].get<double>(), a["train_s"].get<double>());
+  }
+  md += "\n![ablations](ablation.png)\n\n";
+  // the haptic map
+  const json& m = r["map"];
+  md += fmt::format(
+      "## Haptic map (paper §V-C): the ts3 taps placed with the arm's logged pose\n\n{} taps: "
+      "MED {} cm between each predicted and true contact point; RMS Chamfer distance {} cm "
+      "(predicted to true, the paper's), {} cm (true to predicted).\n\n![map](map/map.png)\n\n"
+      "## The data\n\n![ts3 coverage and one strike](coverage_ts3.png)\n\n"
+      "## Figures of studies with their own commands (copied from docs/, not rerun here)\n\n"
+      "![the fidelity ladder](fidelity_pareto.png)\n\n*`sonicboom fidelity` (docs/fidelity.md).*"
+      "\n\n![few-shot fine-tuning](fewshot.png)\n\n*scripts/fewshot_study.sh and "
+      "`scripts/plot.py fewshot` (docs/captures.md).*\n\n",
+      m["taps"].get<int64_t>(), Cm(m, "med_cm"), Cm(m, "chamfer_cm"), Cm(m, "reverse_chamfer_cm"));
+  // how each figure was made
+  md += "## Stages, wall times and commands\n\n| stage | wall (s, when it ran) | this run |\n"
+        "|---|---|---|\n";
+  for (const json& stage : r["wall_s"]) {
+    md += fmt::format("| {} | {:.1f} | {} |\n", stage["stage"].get<std::string>(),
+                      stage["s"].get<double>(), stage["reused"].get<bool>() ? "reused" : "ran");
+  }
+  md += fmt::format(
+      "\nEach stage is the command of the same name on the same files: `generate --config "
+      "configs/tsK.yaml --first-index {}` for the held-out sets, `train --config configs/ts1.yaml "
+      "--config configs/{}` for the model, `eval --predictions`, `baseline --method M` (kNN with "
+      "k = 1 and all GCC lags), `ablate --configs configs/ablations`, `map` and `inspect --png`. "
+      "Not run by this report yet: the per-material breakdown, the held-out-physics benchmark "
+      "(scripts/transfer_benchmark.sh), the few-shot study (scripts/reference_fewshot.sh) and "
+      "the fidelity ladder (docs/fidelity.md).\n",
+      kTestFirstIndex, size == "paper" ? "study.yaml" : "study_fast.yaml");
+  return md;
+}
+
+}  // namespace
+
+CommandResult RunReproduce(const GlobalOptions& g, const ReproduceOptions& o) {
+  const ReproduceSize size = SizeNamed(o.size);
+  const fs::path cfg(o.configs_dir), out(o.out);
+  for (const char* ts : kScenarios) {
+    if (!fs::is_regular_file(cfg / (std::string(ts) + ".yaml"))) {
+      throw IoError(fmt::format("--configs {}: no {}.yaml (run from the repository root or pass "
+                                "the configs directory)",
+                                o.configs_dir, ts));
+    }
+  }
+  if (!fs::is_regular_file(o.plot_script)) {
+    throw IoError(fmt::format("--plot {}: no such script", o.plot_script));
+  }
+  MakeDirectories((out / "data").string());
+  const auto path = [&](const std::string& rel) { return (out / rel).string(); };
+  const std::vector<std::string> epochs =
+      size.epochs > 0 ? std::vector<std::string>{fmt::format("train.epochs={}", size.epochs)}
+                      : std::vector<std::string>{};
+  // the ETA's weights: strikes generated or scored, epochs x strikes trained
+  int64_t n_ablations = static_cast<int64_t>(size.ablations.size());
+  if (n_ablations == 0 && fs::is_directory(cfg / "ablations")) {
+    for (const auto& entry : fs::directory_iterator(cfg / "ablations")) {
+      n_ablations += entry.path().extension() == ".yaml";
+    }
+  }
+  const double train_weight = 0.05 * size.train * std::max<int64_t>(size.epochs, 60);
+  const double total = size.train + 6.0 * size.test + train_weight + 4.0 * size.test +
+                       size.baselines.size() * 4.0 * size.test + n_ablations * train_weight +
+                       size.test + 1.0;
+  StageRunner stages(o.out, total, !g.quiet);
+
+  // 1. data: ts1 training strikes, held-out strikes of every scenario
+  std::map<std::string, std::string> data_key;
+  const GlobalOptions g_train_data = Layered(g, {(cfg / "ts1.yaml").string()});
+  data_key["train"] = stages.Run(
+      "generate_train", Digest(size.name + DataKey(g_train_data) + std::to_string(size.train)),
+      static_cast<double>(size.train), [&] {
+        RunGenerate(g_train_data, path("data/train.h5"), size.train, 0, "0", 1, true);
+      });
+  for (const char* ts : kScenarios) {
+    const GlobalOptions gt = Layered(g, {(cfg / (std::string(ts) + ".yaml")).string()});
+    data_key[ts] = stages.Run(
+        std::string("generate_") + ts,
+        Digest(size.name + DataKey(gt) + std::to_string(size.test)), static_cast<double>(size.test),
+        [&] {
+          RunGenerate(gt, path(fmt::format("data/test_{}.h5", ts)), size.test, kTestFirstIndex, "0",
+                      1, true);
+        });
+  }
+
+  // 2. the scenario model on ts1
+  const GlobalOptions g_model =
+      Layered(g, {(cfg / "ts1.yaml").string(), (cfg / size.model_config).string()}, epochs);
+  const std::string model_key =
+      stages.Run("train", Digest(ConfigKey(g_model) + data_key["train"]), train_weight, [&] {
+        TrainOptions t;
+        t.data = path("data/train.h5");
+        t.out = path("model");
+        t.force = true;
+        RunTrain(g_model, t);
+      });
+
+  // 3. the model and the baselines on every scenario
+  json scenarios = json::object(), baselines = json::object();
+  for (int k = 0; k < 4; ++k) {
+    const std::string ts = kScenarios[k];
+    const std::string test = path(fmt::format("data/test_{}.h5", ts));
+    const std::string result = path(fmt::format("eval/{}.json", ts));
+    stages.Run("eval_" + ts, Digest(model_key + data_key[ts]), static_cast<double>(size.test), [&] {
+      MakeDirectories(path("eval"));
+      EvalOptions e;
+      e.predictions_csv = path(fmt::format("eval/{}.csv", ts));
+      e.force = true;
+      WriteTextAtomic(result, RunEval(Layered(g, {}), path("model"), test, e).json + "\n");
+    });
+    json s = json::parse(ReadText(result));
+    s["paper_med_cm"] = kPaperMedCm[k];
+    s["predictions_csv"] = fmt::format("eval/{}.csv", ts);
+    scenarios[ts] = s;
+    for (BaselineMethod m : size.baselines) {
+      const std::string name(NameOf(m));
+      const std::string file = path(fmt::format("baselines/{}_{}.json", name, ts));
+      stages.Run(fmt::format("baseline_{}_{}", name, ts),
+                 Digest(name + data_key["train"] + data_key[ts] + ConfigKey(g)),
+                 static_cast<double>(size.test), [&] {
+                   MakeDirectories(path("baselines"));
+                   BaselineOptions b;
+                   b.method = m;
+                   b.data = test;
+                   b.train = m == BaselineMethod::kArrival ? "" : path("data/train.h5");
+                   b.k = 1;  // kNN as docs/baselines.md chose it on a validation set
+                   b.knn_gcc_lags = 441;
+                   WriteTextAtomic(file, RunBaseline(Layered(g, {}), b).json + "\n");
+                 });
+      baselines[name][ts] = json::parse(ReadText(file));
+    }
+  }
+
+  // the novel striker materials (paper §V-C2): wood, aluminium and PVC strikers by hand, as ts4
+  json materials;
+  if (fs::is_regular_file(cfg / "materials.yaml")) {
+    const GlobalOptions gm = Layered(g, {(cfg / "materials.yaml").string()});
+    const std::string key = stages.Run(
+        "generate_materials", Digest(size.name + DataKey(gm) + std::to_string(size.test)),
+        static_cast<double>(size.test), [&] {
+          RunGenerate(gm, path("data/test_materials.h5"), size.test, kTestFirstIndex, "0", 1,
+                      true);
+        });
+    stages.Run("eval_materials", Digest(model_key + key), static_cast<double>(size.test), [&] {
+      MakeDirectories(path("eval"));
+      WriteTextAtomic(path("eval/materials.json"),
+                      RunEval(Layered(g, {}), path("model"), path("data/test_materials.h5")).json +
+                          "\n");
+    });
+    materials = json::parse(ReadText(path("eval/materials.json")));
+  }
+
+  // 4. the modality and preprocessing ablations on ts1
+  const std::string ablation_dir = path("ablations");
+  stages.Run("ablations",
+             Digest(ConfigKey(g_model) + data_key["train"] + data_key["ts1"] +
+                    fmt::format("{}", fmt::join(size.ablations, ","))),
+             n_ablations * train_weight, [&] {
+               fs::remove_all(ablation_dir);
+               AblateOptions a;
+               a.data = path("data/train.h5");
+               a.test = path("data/test_ts1.h5");
+               a.out = ablation_dir;
+               a.configs_dir = (cfg / "ablations").string();
+               a.only = size.ablations;
+               RunAblate(g_model, a);
+             });
+  const json ablations = json::parse(ReadText(ablation_dir + "/results.json"));
+
+  // 5. the haptic map of the ts3 taps, and the figures
+  stages.Run("map", Digest(model_key + data_key["ts3"]), static_cast<double>(size.test), [&] {
+    MapOptions m;
+    m.model = path("model");
+    m.data = path("data/test_ts3.h5");
+    m.out = path("map");
+    m.plot_script = o.plot_script;
+    m.force = true;
+    RunMap(Layered(g, {}), m);
+  });
+  json map = json::parse(ReadText(path("map/map.json")));
+  map.erase("points");
+
+  json results = {{"size", size.name},
+                  {"train_strikes", size.train},
+                  {"test_strikes_per_scenario", size.test},
+                  {"seed", ResolveConfig(g_model.sources).seed},
+                  {"commit", CommitOf(fs::current_path())},
+                  {"machine", {{"hardware_threads", std::thread::hardware_concurrency()},
+                               {"threads", g.threads}}},
+                  {"scenarios", scenarios},
+                  {"baselines", baselines},
+                  {"ablations", ablations["ablations"]},
+                  {"map", map},
+                  {"materials", materials}};
+  stages.Run("figures", Digest(results.dump()), 1.0, [&] {
+    WriteTextAtomic(path("results.json"), results.dump(1) + "\n");
+    const std::string advice = "needs /usr/bin/python3 with python3-matplotlib";
+    DrawFigure(o.plot_script, "errors", path("results.json"), path("errors.png"), advice);
+    DrawFigure(o.plot_script, "ablation", path("results.json"), path("ablation.png"), advice);
+    InspectOptions inspect;
+    inspect.png = path("coverage_ts3.png");
+    inspect.plot_script = o.plot_script;
+    RunInspect(Layered(g, {}), path("data/test_ts3.h5"), inspect);
+    // figures of studies this command does not run, as docs/ holds them
+    const fs::path docs = cfg.parent_path() / "docs";
+    for (const char* figure : {"fidelity_pareto.png", "figures/fewshot.png"}) {
+      if (fs::is_regular_file(docs / figure)) {
+        fs::copy_file(docs / figure, path(fs::path(figure).filename().string()),
+                      fs::copy_options::overwrite_existing);
+      }
+    }
+  });
+  results["wall_s"] = stages.wall_s();
+  WriteTextAtomic(path("results.json"), results.dump(1) + "\n");
+  const std::string report = ReproduceReport(results, o.size);
+  WriteTextAtomic(path("report.md"), report);
+  return {results.dump(), fmt::format("{}\nreport: {}\n", report, path("report.md"))};
+}
+
+void RegisterReproduce(CLI::App& app, GlobalOptions& g, Runner* run) {
+  auto o = std::make_shared<ReproduceOptions>();
+  auto* cmd = app.add_subcommand(
+      "reproduce",
+      "the paper's evaluation in one command: scenarios, training, baselines, ablations and the "
+      "haptic map, as DIR/report.md with figures and DIR/results.json (resumable)");
+  cmd->add_option("--size", o->size,
+                  "quick (about 15 min on 2 cores), paper (18 000 training strikes) or smoke (a "
+                  "check that every stage runs; its figures mean nothing)");
+  cmd->add_option("--out", o->out, "output directory")->required();
+  cmd->add_option("--configs", o->configs_dir, "the configs directory (ts1-ts4, ablations/)");
+  cmd->add_option("--plot", o->plot_script, "plotting script");
+  cmd->callback([&g, run, o] { *run = [&g, o] { return RunReproduce(g, *o); }; });
+}
+
+}  // namespace sonicboom::experiments

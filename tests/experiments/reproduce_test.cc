@@ -1,0 +1,89 @@
+// `reproduce --size smoke`: every stage runs into one report with its figures, a second run
+// reuses every stage, and a changed training key reruns the training and what reads it, not the
+// data.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "common/test_util.h"
+
+namespace sonicboom::experiments {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using sonicboom::testing::RunCli;
+using sonicboom::testing::TempDir;
+
+// stage -> whether a run of results.json reused it
+std::map<std::string, bool> ReusedOf(const fs::path& results) {
+  json r;
+  std::ifstream(results) >> r;
+  std::map<std::string, bool> reused;
+  for (const json& s : r["wall_s"]) reused[s["stage"]] = s["reused"];
+  return reused;
+}
+
+TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
+  TempDir dir;
+  const std::string cwd = dir.path().string();
+  const std::string source(SONICBOOM_SOURCE_DIR);
+  const std::string cmd = "--threads 2 -q reproduce --size smoke --out R --configs " + source +
+                          "/configs --plot " + source + "/scripts/plot.py";
+  auto run = RunCli(cmd, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const fs::path out = dir.path() / "R";
+  for (const char* file : {"report.md", "results.json", "errors.png", "ablation.png",
+                           "coverage_ts3.png", "map/map.png", "fidelity_pareto.png", "fewshot.png"}) {
+    EXPECT_TRUE(fs::is_regular_file(out / file)) << file;
+  }
+  json r;
+  std::ifstream(out / "results.json") >> r;
+  for (const char* ts : {"ts1", "ts2", "ts3", "ts4"}) {
+    EXPECT_GT(r["scenarios"][ts]["n"].get<int64_t>(), 0) << ts;
+    EXPECT_GT(r["scenarios"][ts]["med_cm"].get<double>(), 0.0) << ts;
+  }
+  EXPECT_EQ(r["scenarios"]["ts1"]["paper_med_cm"], 0.43);
+  EXPECT_EQ(r["ablations"].size(), 2u);
+  EXPECT_GT(r["materials"]["n"].get<int64_t>(), 0);
+  EXPECT_GT(r["map"]["chamfer_cm"].get<double>(), 0.0);
+  std::ifstream report(out / "report.md");
+  const std::string text((std::istreambuf_iterator<char>(report)), {});
+  EXPECT_THAT(text, ::testing::HasSubstr("RMS Chamfer distance"));
+  EXPECT_THAT(text, ::testing::HasSubstr("| ts4 |"));
+
+  // the same command again: every stage reused
+  run = RunCli(cmd, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  for (const auto& [stage, reused] : ReusedOf(out / "results.json")) EXPECT_TRUE(reused) << stage;
+
+  // another learning rate: the data stay, the model and everything that reads it run again
+  run = RunCli(cmd + " --set train.learning_rate=0.002", cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const auto reused = ReusedOf(out / "results.json");
+  for (const char* stage : {"generate_train", "generate_ts1", "generate_ts3"}) {
+    EXPECT_TRUE(reused.at(stage)) << stage;
+  }
+  for (const char* stage : {"train", "eval_ts1", "eval_ts4", "eval_materials", "ablations", "map"}) {
+    EXPECT_FALSE(reused.at(stage)) << stage;
+  }
+}
+
+TEST(ReproduceTest, AnUnknownSizeOrMissingConfigsAreRefused) {
+  TempDir dir;
+  auto run = RunCli("reproduce --size huge --out R", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_THAT(run.err, ::testing::HasSubstr("--size huge"));
+  run = RunCli("reproduce --size smoke --out R --configs nowhere", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_THAT(run.err, ::testing::HasSubstr("--configs nowhere"));
+  EXPECT_FALSE(fs::exists(dir.path() / "R"));
+}
+
+}  // namespace
+}  // namespace sonicboom::experiments
