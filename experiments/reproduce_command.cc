@@ -13,6 +13,8 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <memory>
+#include <utility>
 #include <string>
 #include <thread>
 #include <vector>
@@ -248,190 +250,237 @@ std::string ReproduceReport(const json& r, const std::string& size) {
   return md;
 }
 
-}  // namespace
 
-CommandResult RunReproduce(const GlobalOptions& g, const ReproduceOptions& o) {
-  const ReproduceSize size = SizeNamed(o.size);
-  const fs::path cfg(o.configs_dir), out(o.out);
-  for (const char* ts : kScenarios) {
-    if (!fs::is_regular_file(cfg / (std::string(ts) + ".yaml"))) {
-      throw IoError(fmt::format("--configs {}: no {}.yaml (run from the repository root or pass "
-                                "the configs directory)",
-                                o.configs_dir, ts));
+// One reproduction: its options, sizes, paths and stages; each method is one part of the report.
+class Reproduction {
+ public:
+  Reproduction(const GlobalOptions& g, const ReproduceOptions& o)
+      : g_(g), o_(o), size_(SizeNamed(o.size)), cfg_(o.configs_dir), out_(o.out) {
+    for (const char* ts : kScenarios) {
+      if (!fs::is_regular_file(cfg_ / (std::string(ts) + ".yaml"))) {
+        throw IoError(fmt::format("--configs {}: no {}.yaml (run from the repository root or "
+                                  "pass the configs directory)",
+                                  o.configs_dir, ts));
+      }
     }
-  }
-  if (!fs::is_regular_file(o.plot_script)) {
-    throw IoError(fmt::format("--plot {}: no such script", o.plot_script));
-  }
-  MakeDirectories((out / "data").string());
-  const auto path = [&](const std::string& rel) { return (out / rel).string(); };
-  const std::vector<std::string> epochs =
-      size.epochs > 0 ? std::vector<std::string>{fmt::format("train.epochs={}", size.epochs)}
-                      : std::vector<std::string>{};
-  // the ETA's weights: strikes generated or scored, epochs x strikes trained
-  int64_t n_ablations = static_cast<int64_t>(size.ablations.size());
-  if (n_ablations == 0 && fs::is_directory(cfg / "ablations")) {
-    for (const auto& entry : fs::directory_iterator(cfg / "ablations")) {
-      n_ablations += entry.path().extension() == ".yaml";
+    if (!fs::is_regular_file(o.plot_script)) {
+      throw IoError(fmt::format("--plot {}: no such script", o.plot_script));
     }
-  }
-  const double train_weight = 0.05 * size.train * std::max<int64_t>(size.epochs, 60);
-  const double total = size.train + 6.0 * size.test + train_weight + 4.0 * size.test +
-                       size.baselines.size() * 4.0 * size.test + n_ablations * train_weight +
-                       size.test + 1.0;
-  StageRunner stages(o.out, total, !g.quiet);
-
-  // 1. data: ts1 training strikes, held-out strikes of every scenario
-  std::map<std::string, std::string> data_key;
-  const GlobalOptions g_train_data = Layered(g, {(cfg / "ts1.yaml").string()});
-  data_key["train"] = stages.Run(
-      "generate_train", Digest(size.name + DataKey(g_train_data) + std::to_string(size.train)),
-      static_cast<double>(size.train), [&] {
-        RunGenerate(g_train_data, path("data/train.h5"), size.train, 0, "0", 1, true);
-      });
-  for (const char* ts : kScenarios) {
-    const GlobalOptions gt = Layered(g, {(cfg / (std::string(ts) + ".yaml")).string()});
-    data_key[ts] = stages.Run(
-        std::string("generate_") + ts,
-        Digest(size.name + DataKey(gt) + std::to_string(size.test)), static_cast<double>(size.test),
-        [&] {
-          RunGenerate(gt, path(fmt::format("data/test_{}.h5", ts)), size.test, kTestFirstIndex, "0",
-                      1, true);
-        });
-  }
-
-  // 2. the scenario model on ts1
-  const GlobalOptions g_model =
-      Layered(g, {(cfg / "ts1.yaml").string(), (cfg / size.model_config).string()}, epochs);
-  const std::string model_key =
-      stages.Run("train", Digest(ConfigKey(g_model) + data_key["train"]), train_weight, [&] {
-        TrainOptions t;
-        t.data = path("data/train.h5");
-        t.out = path("model");
-        t.force = true;
-        RunTrain(g_model, t);
-      });
-
-  // 3. the model and the baselines on every scenario
-  json scenarios = json::object(), baselines = json::object();
-  for (int k = 0; k < 4; ++k) {
-    const std::string ts = kScenarios[k];
-    const std::string test = path(fmt::format("data/test_{}.h5", ts));
-    const std::string result = path(fmt::format("eval/{}.json", ts));
-    stages.Run("eval_" + ts, Digest(model_key + data_key[ts]), static_cast<double>(size.test), [&] {
-      MakeDirectories(path("eval"));
-      EvalOptions e;
-      e.predictions_csv = path(fmt::format("eval/{}.csv", ts));
-      e.force = true;
-      WriteTextAtomic(result, RunEval(Layered(g, {}), path("model"), test, e).json + "\n");
-    });
-    json s = json::parse(ReadText(result));
-    s["paper_med_cm"] = kPaperMedCm[k];
-    s["predictions_csv"] = fmt::format("eval/{}.csv", ts);
-    scenarios[ts] = s;
-    for (BaselineMethod m : size.baselines) {
-      const std::string name(NameOf(m));
-      const std::string file = path(fmt::format("baselines/{}_{}.json", name, ts));
-      stages.Run(fmt::format("baseline_{}_{}", name, ts),
-                 Digest(name + data_key["train"] + data_key[ts] + ConfigKey(g)),
-                 static_cast<double>(size.test), [&] {
-                   MakeDirectories(path("baselines"));
-                   BaselineOptions b;
-                   b.method = m;
-                   b.data = test;
-                   b.train = m == BaselineMethod::kArrival ? "" : path("data/train.h5");
-                   b.k = 1;  // kNN as docs/baselines.md chose it on a validation set
-                   b.knn_gcc_lags = 441;
-                   WriteTextAtomic(file, RunBaseline(Layered(g, {}), b).json + "\n");
-                 });
-      baselines[name][ts] = json::parse(ReadText(file));
+    if (size_.epochs > 0) epochs_.push_back(fmt::format("train.epochs={}", size_.epochs));
+    g_model_ = Layered(g, {Config("ts1.yaml"), Config(size_.model_config)}, epochs_);
+    // the ETA's weights: strikes generated or scored, epochs x strikes trained
+    ablation_count_ = static_cast<int64_t>(size_.ablations.size());
+    if (ablation_count_ == 0 && fs::is_directory(cfg_ / "ablations")) {
+      for (const auto& entry : fs::directory_iterator(cfg_ / "ablations")) {
+        ablation_count_ += entry.path().extension() == ".yaml";
+      }
     }
+    train_weight_ = 0.05 * size_.train * std::max<int64_t>(size_.epochs, 60);
+    const double total = size_.train + 10.0 * size_.test + train_weight_ +
+                         size_.baselines.size() * 4.0 * size_.test +
+                         ablation_count_ * train_weight_ + size_.test + 1.0;
+    MakeDirectories(Path("data"));
+    stages_ = std::make_unique<StageRunner>(o.out, total, !g.quiet);
+  }
+
+  // ts1 training strikes and held-out strikes of every scenario: their keys by name
+  void GenerateData() {
+    const GlobalOptions gt = Layered(g_, {Config("ts1.yaml")});
+    data_key_["train"] = stages_->Run(
+        "generate_train", Digest(size_.name + DataKey(gt) + std::to_string(size_.train)),
+        static_cast<double>(size_.train),
+        [&] { RunGenerate(gt, Path("data/train.h5"), size_.train, 0, "0", 1, true); });
+    for (const char* ts : kScenarios) data_key_[ts] = GenerateTest(ts, std::string(ts) + ".yaml");
+  }
+
+  // the scenario model on ts1
+  void TrainModel() {
+    model_key_ = stages_->Run("train", Digest(ConfigKey(g_model_) + data_key_["train"]),
+                              train_weight_, [&] {
+                                TrainOptions t;
+                                t.data = Path("data/train.h5");
+                                t.out = Path("model");
+                                t.force = true;
+                                RunTrain(g_model_, t);
+                              });
+  }
+
+  // the model and the baselines on every scenario: (scenarios, baselines)
+  std::pair<json, json> ScoreScenarios() {
+    json scenarios = json::object(), baselines = json::object();
+    for (int k = 0; k < 4; ++k) {
+      const std::string ts = kScenarios[k];
+      json s = Evaluate(ts, /*with_predictions=*/true);
+      s["paper_med_cm"] = kPaperMedCm[k];
+      s["predictions_csv"] = fmt::format("eval/{}.csv", ts);
+      scenarios[ts] = s;
+      for (BaselineMethod m : size_.baselines) {
+        baselines[std::string(NameOf(m))][ts] = Baseline(m, ts);
+      }
+    }
+    return {scenarios, baselines};
   }
 
   // the novel striker materials (paper §V-C2): wood, aluminium and PVC strikers by hand, as ts4
-  json materials;
-  if (fs::is_regular_file(cfg / "materials.yaml")) {
-    const GlobalOptions gm = Layered(g, {(cfg / "materials.yaml").string()});
-    const std::string key = stages.Run(
-        "generate_materials", Digest(size.name + DataKey(gm) + std::to_string(size.test)),
-        static_cast<double>(size.test), [&] {
-          RunGenerate(gm, path("data/test_materials.h5"), size.test, kTestFirstIndex, "0", 1,
-                      true);
-        });
-    stages.Run("eval_materials", Digest(model_key + key), static_cast<double>(size.test), [&] {
-      MakeDirectories(path("eval"));
-      WriteTextAtomic(path("eval/materials.json"),
-                      RunEval(Layered(g, {}), path("model"), path("data/test_materials.h5")).json +
-                          "\n");
-    });
-    materials = json::parse(ReadText(path("eval/materials.json")));
+  json Materials() {
+    if (!fs::is_regular_file(cfg_ / "materials.yaml")) return json();
+    data_key_["materials"] = GenerateTest("materials", "materials.yaml");
+    return Evaluate("materials", /*with_predictions=*/false);
   }
 
-  // 4. the modality and preprocessing ablations on ts1
-  const std::string ablation_dir = path("ablations");
-  stages.Run("ablations",
-             Digest(ConfigKey(g_model) + data_key["train"] + data_key["ts1"] +
-                    fmt::format("{}", fmt::join(size.ablations, ","))),
-             n_ablations * train_weight, [&] {
-               fs::remove_all(ablation_dir);
-               AblateOptions a;
-               a.data = path("data/train.h5");
-               a.test = path("data/test_ts1.h5");
-               a.out = ablation_dir;
-               a.configs_dir = (cfg / "ablations").string();
-               a.only = size.ablations;
-               RunAblate(g_model, a);
-             });
-  const json ablations = json::parse(ReadText(ablation_dir + "/results.json"));
+  // the modality (and at paper size preprocessing) ablations on ts1: their rows
+  json Ablations() {
+    const std::string dir = Path("ablations");
+    stages_->Run("ablations",
+                 Digest(ConfigKey(g_model_) + data_key_["train"] + data_key_["ts1"] +
+                        fmt::format("{}", fmt::join(size_.ablations, ","))),
+                 ablation_count_ * train_weight_, [&] {
+                   fs::remove_all(dir);
+                   AblateOptions a;
+                   a.data = Path("data/train.h5");
+                   a.test = Path("data/test_ts1.h5");
+                   a.out = dir;
+                   a.configs_dir = (cfg_ / "ablations").string();
+                   a.only = size_.ablations;
+                   RunAblate(g_model_, a);
+                 });
+    return json::parse(ReadText(dir + "/results.json"))["ablations"];
+  }
 
-  // 5. the haptic map of the ts3 taps, and the figures
-  stages.Run("map", Digest(model_key + data_key["ts3"]), static_cast<double>(size.test), [&] {
-    MapOptions m;
-    m.model = path("model");
-    m.data = path("data/test_ts3.h5");
-    m.out = path("map");
-    m.plot_script = o.plot_script;
-    m.force = true;
-    RunMap(Layered(g, {}), m);
-  });
-  json map = json::parse(ReadText(path("map/map.json")));
-  map.erase("points");
+  // the haptic map of the ts3 taps: its scores
+  json Map() {
+    stages_->Run("map", Digest(model_key_ + data_key_["ts3"]), static_cast<double>(size_.test),
+                 [&] {
+                   MapOptions m;
+                   m.model = Path("model");
+                   m.data = Path("data/test_ts3.h5");
+                   m.out = Path("map");
+                   m.plot_script = o_.plot_script;
+                   m.force = true;
+                   RunMap(Layered(g_, {}), m);
+                 });
+    json map = json::parse(ReadText(Path("map/map.json")));
+    map.erase("points");
+    return map;
+  }
 
-  json results = {{"size", size.name},
-                  {"train_strikes", size.train},
-                  {"test_strikes_per_scenario", size.test},
-                  {"seed", ResolveConfig(g_model.sources).seed},
+  // results.json and every figure drawn from it
+  void Figures(const json& results) {
+    stages_->Run("figures", Digest(results.dump()), 1.0, [&] {
+      WriteTextAtomic(Path("results.json"), results.dump(1) + "\n");
+      const std::string advice = "needs /usr/bin/python3 with python3-matplotlib";
+      DrawFigure(o_.plot_script, "errors", Path("results.json"), Path("errors.png"), advice);
+      DrawFigure(o_.plot_script, "ablation", Path("results.json"), Path("ablation.png"), advice);
+      InspectOptions inspect;
+      inspect.png = Path("coverage_ts3.png");
+      inspect.plot_script = o_.plot_script;
+      RunInspect(Layered(g_, {}), Path("data/test_ts3.h5"), inspect);
+      // figures of studies this command does not run, as docs/ holds them
+      const fs::path docs = cfg_.parent_path() / "docs";
+      for (const char* figure : {"fidelity_pareto.png", "figures/fewshot.png"}) {
+        if (fs::is_regular_file(docs / figure)) {
+          fs::copy_file(docs / figure, Path(fs::path(figure).filename().string()),
+                        fs::copy_options::overwrite_existing);
+        }
+      }
+    });
+  }
+
+  std::string Path(const std::string& rel) const { return (out_ / rel).string(); }
+  const ReproduceSize& size() const { return size_; }
+  uint64_t seed() const { return ResolveConfig(g_model_.sources).seed; }
+  const json& wall_s() const { return stages_->wall_s(); }
+
+ private:
+  std::string Config(const std::string& file) const { return (cfg_ / file).string(); }
+
+  // size.test held-out strikes of `config` into data/test_<name>.h5; returns the stage's key
+  std::string GenerateTest(const std::string& name, const std::string& config) {
+    const GlobalOptions gt = Layered(g_, {Config(config)});
+    return stages_->Run(
+        "generate_" + name, Digest(size_.name + DataKey(gt) + std::to_string(size_.test)),
+        static_cast<double>(size_.test), [&] {
+          RunGenerate(gt, Path(fmt::format("data/test_{}.h5", name)), size_.test,
+                      kTestFirstIndex, "0", 1, true);
+        });
+  }
+
+  // the model's eval of data/test_<name>.h5 (eval/<name>.json; with its per-strike CSV)
+  json Evaluate(const std::string& name, bool with_predictions) {
+    const std::string result = Path(fmt::format("eval/{}.json", name));
+    stages_->Run("eval_" + name, Digest(model_key_ + data_key_[name]),
+                 static_cast<double>(size_.test), [&] {
+                   MakeDirectories(Path("eval"));
+                   EvalOptions e;
+                   if (with_predictions) e.predictions_csv = Path(fmt::format("eval/{}.csv", name));
+                   e.force = true;
+                   const std::string data = Path(fmt::format("data/test_{}.h5", name));
+                   WriteTextAtomic(result, RunEval(Layered(g_, {}), Path("model"), data, e).json +
+                                               "\n");
+                 });
+    return json::parse(ReadText(result));
+  }
+
+  // a baseline on scenario ts (baselines/<method>_<ts>.json)
+  json Baseline(BaselineMethod m, const std::string& ts) {
+    const std::string name(NameOf(m));
+    const std::string file = Path(fmt::format("baselines/{}_{}.json", name, ts));
+    stages_->Run(fmt::format("baseline_{}_{}", name, ts),
+                 Digest(name + data_key_["train"] + data_key_[ts] + ConfigKey(g_)),
+                 static_cast<double>(size_.test), [&] {
+                   MakeDirectories(Path("baselines"));
+                   BaselineOptions b;
+                   b.method = m;
+                   b.data = Path(fmt::format("data/test_{}.h5", ts));
+                   b.train = m == BaselineMethod::kArrival ? "" : Path("data/train.h5");
+                   b.k = 1;  // kNN as docs/baselines.md chose it on a validation set
+                   b.knn_gcc_lags = 441;
+                   WriteTextAtomic(file, RunBaseline(Layered(g_, {}), b).json + "\n");
+                 });
+    return json::parse(ReadText(file));
+  }
+
+  const GlobalOptions& g_;
+  const ReproduceOptions& o_;
+  ReproduceSize size_;
+  fs::path cfg_, out_;
+  std::vector<std::string> epochs_;
+  GlobalOptions g_model_;
+  int64_t ablation_count_{0};
+  double train_weight_{0.0};
+  std::unique_ptr<StageRunner> stages_;
+  std::map<std::string, std::string> data_key_;
+  std::string model_key_;
+};
+
+}  // namespace
+
+CommandResult RunReproduce(const GlobalOptions& g, const ReproduceOptions& o) {
+  Reproduction r(g, o);
+  r.GenerateData();
+  r.TrainModel();
+  const auto [scenarios, baselines] = r.ScoreScenarios();
+  const json materials = r.Materials();
+  const json ablations = r.Ablations();
+  const json map = r.Map();
+  json results = {{"size", r.size().name},
+                  {"train_strikes", r.size().train},
+                  {"test_strikes_per_scenario", r.size().test},
+                  {"seed", r.seed()},
                   {"commit", CommitOf(fs::current_path())},
                   {"machine", {{"hardware_threads", std::thread::hardware_concurrency()},
                                {"threads", g.threads}}},
                   {"scenarios", scenarios},
                   {"baselines", baselines},
-                  {"ablations", ablations["ablations"]},
+                  {"ablations", ablations},
                   {"map", map},
                   {"materials", materials}};
-  stages.Run("figures", Digest(results.dump()), 1.0, [&] {
-    WriteTextAtomic(path("results.json"), results.dump(1) + "\n");
-    const std::string advice = "needs /usr/bin/python3 with python3-matplotlib";
-    DrawFigure(o.plot_script, "errors", path("results.json"), path("errors.png"), advice);
-    DrawFigure(o.plot_script, "ablation", path("results.json"), path("ablation.png"), advice);
-    InspectOptions inspect;
-    inspect.png = path("coverage_ts3.png");
-    inspect.plot_script = o.plot_script;
-    RunInspect(Layered(g, {}), path("data/test_ts3.h5"), inspect);
-    // figures of studies this command does not run, as docs/ holds them
-    const fs::path docs = cfg.parent_path() / "docs";
-    for (const char* figure : {"fidelity_pareto.png", "figures/fewshot.png"}) {
-      if (fs::is_regular_file(docs / figure)) {
-        fs::copy_file(docs / figure, path(fs::path(figure).filename().string()),
-                      fs::copy_options::overwrite_existing);
-      }
-    }
-  });
-  results["wall_s"] = stages.wall_s();
-  WriteTextAtomic(path("results.json"), results.dump(1) + "\n");
+  r.Figures(results);
+  results["wall_s"] = r.wall_s();
+  WriteTextAtomic(r.Path("results.json"), results.dump(1) + "\n");
   const std::string report = ReproduceReport(results, o.size);
-  WriteTextAtomic(path("report.md"), report);
-  return {results.dump(), fmt::format("{}\nreport: {}\n", report, path("report.md"))};
+  WriteTextAtomic(r.Path("report.md"), report);
+  return {results.dump(), fmt::format("{}\nreport: {}\n", report, r.Path("report.md"))};
 }
 
 void RegisterReproduce(CLI::App& app, GlobalOptions& g, Runner* run) {
