@@ -45,21 +45,20 @@ CommandResult RunAdapt(const GlobalOptions& g, const std::string& model_dir,
                {"out", out_dir},              {"records", r.records},
                {"members", r.members},        {"batch_norm_layers", r.batch_norm_layers},
                {"batch_norm", options.batch_norm}, {"mel_statistics", options.mel_statistics}};
-  const std::string text = fmt::format(
-      "adapted {} network(s) of {} to {} unlabelled strikes ({}{}) -> {}\n", r.members, model_dir,
-      r.records,
-      options.batch_norm ? fmt::format("{} BatchNorm layers", r.batch_norm_layers) : "",
-      options.mel_statistics ? (options.batch_norm ? ", per-mic input statistics"
-                                                   : "per-mic input statistics")
-                             : "",
-      out_dir);
+  std::vector<std::string> refitted;
+  if (options.batch_norm) {
+    refitted.push_back(fmt::format("{} BatchNorm layers", r.batch_norm_layers));
+  }
+  if (options.mel_statistics) refitted.push_back("per-mic input statistics");
+  const std::string text =
+      fmt::format("adapted {} network(s) of {} to {} unlabelled strikes ({}) -> {}\n", r.members,
+                  model_dir, r.records, fmt::join(refitted, ", "), out_dir);
   return {j.dump(), text};
 }
 
 void RegisterAdapt(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
-    std::string model, out;
-    std::string data;
+    std::string model, data, out;
     bool keep_batch_norm{false}, keep_mel_statistics{false};
   };
   auto o = std::make_shared<Options>();
@@ -70,7 +69,9 @@ void RegisterAdapt(CLI::App& app, GlobalOptions& g, Runner* run) {
       "new run");
   adapt->add_option("--model", o->model, "run directory (one network or an ensemble)")
       ->required();
-  adapt->add_option("--data", o->data, "strikes of the new structure (.h5; labels, if any, unread)")->required();
+  adapt->add_option("--data", o->data,
+                    "strikes of the new structure (.h5; labels, if any, unread)")
+      ->required();
   adapt->add_option("--out", o->out, "new run directory (must not exist or be empty)")
       ->required();
   adapt->add_flag("--keep-batch-norm", o->keep_batch_norm,

@@ -67,6 +67,17 @@ internal::LoadedRun internal::LoadRun(const std::string& run_dir) {
   return member;
 }
 
+void internal::CheckFeaturesFor(const LoadedRun& run, const FeatureSet& features,
+                                const std::string& what) {
+  const ModalitySet use = run.network->modalities();
+  CheckFeatureSet(features, use, what);
+  // the whole-window spectrogram as trained, or exactly the crop (its centre crop is itself)
+  const int64_t crop = run.file.model_config.crop_frames;
+  FeatureSet expected = run.file.shapes.ShapesOnly();
+  if (use.audio && features.frames == crop) expected.frames = crop;
+  CheckSameShapes(expected, features, use, what);
+}
+
 namespace {
 
 using Member = internal::LoadedRun;
@@ -83,10 +94,19 @@ bool SameNeeds(const FeatureNeeds& a, const FeatureNeeds& b) {
          a.mel_first_frame == b.mel_first_frame && a.mel_frames == b.mel_frames;
 }
 
+// One mixture per strike of several answers to every strike (each[k][i]: answer k to strike i).
+std::vector<Prediction> MixPerStrike(const std::vector<std::vector<Prediction>>& each) {
+  std::vector<Prediction> combined(each.front().size()), strike(each.size());
+  for (size_t i = 0; i < combined.size(); ++i) {
+    for (size_t k = 0; k < each.size(); ++k) strike[k] = each[k][i];
+    combined[i] = CombinePredictions(strike);
+  }
+  return combined;
+}
+
 // Turning a strike moves its audio alone, by whole rings of three discs.
 void CheckTurnable(const Member& m, const FeatureSet& features) {
-  const internal::ModalitySet use = m.network->modalities();
-  if (use.gcc || use.proprio || !use.audio || features.channels % internal::kRingDiscs != 0) {
+  if (!internal::TurnsByRings(m.network->modalities(), features.channels)) {
     throw ConfigError(fmt::format(
         "turn averaging needs model.modalities = [audio] (a GCC pair or an arm pose would have "
         "to turn too) and channels in rings of {} (got {} channels)",
@@ -99,12 +119,7 @@ void CheckTurnable(const Member& m, const FeatureSet& features) {
 std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& features,
                                       bool turn_average) {
   const internal::ModalitySet use = m.network->modalities();
-  internal::CheckFeatureSet(features, use, "features to localize");
-  // the whole-window spectrogram as trained, or exactly the crop (its centre crop is itself)
-  const int64_t crop = m.file.model_config.crop_frames;
-  FeatureSet expected = m.file.shapes.ShapesOnly();
-  if (use.audio && features.frames == crop) expected.frames = crop;
-  internal::CheckSameShapes(expected, features, use, "features to localize");
+  internal::CheckFeaturesFor(m, features, "features to localize");
   // non-finite inputs never become an answer
   auto check_finite = [&](const std::vector<float>& values, bool used, const char* what) {
     if (!used) return;
@@ -122,7 +137,8 @@ std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& feature
   check_finite(features.proprio, use.proprio, "proprioception");
   std::vector<std::vector<Prediction>> turns;
   for (int64_t turn = 0; turn < (turn_average ? internal::kRingDiscs : 1); ++turn) {
-    turns.push_back(internal::PredictAll(*m.network.ptr(), features, crop, turn));
+    turns.push_back(
+        internal::PredictAll(*m.network.ptr(), features, m.file.model_config.crop_frames, turn));
     for (size_t i = 0; i < turns.back().size(); ++i) {
       Prediction& p = turns.back()[i];
       if (!std::isfinite(p.z_m) || !std::isfinite(p.theta_rad)) {
@@ -134,14 +150,7 @@ std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& feature
       p = ApplyCalibration(p, m.file.calibration);
     }
   }
-  if (turns.size() == 1) return turns.front();
-  // one mixture of the turns per strike
-  std::vector<Prediction> combined(features.size()), strike(turns.size());
-  for (size_t i = 0; i < combined.size(); ++i) {
-    for (size_t k = 0; k < turns.size(); ++k) strike[k] = turns[k][i];
-    combined[i] = CombinePredictions(strike);
-  }
-  return combined;
+  return turns.size() == 1 ? turns.front() : MixPerStrike(turns);
 }
 
 }  // namespace
@@ -190,12 +199,8 @@ std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   // every member's predictions, then one mixture per strike
   std::vector<std::vector<Prediction>> each;
   for (const Member& m : members) each.push_back(PredictMember(m, features, turn));
-  std::vector<Prediction> combined(each.front().size());
-  std::vector<Prediction> strike(members.size());
-  for (size_t i = 0; i < combined.size(); ++i) {
-    for (size_t k = 0; k < members.size(); ++k) strike[k] = each[k][i];
-    combined[i] = ApplyCalibration(CombinePredictions(strike), impl_->mixture_calibration);
-  }
+  std::vector<Prediction> combined = MixPerStrike(each);
+  for (Prediction& p : combined) p = ApplyCalibration(p, impl_->mixture_calibration);
   return combined;
 }
 

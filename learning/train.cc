@@ -279,7 +279,7 @@ std::vector<int64_t> CheckedTrainingRecords(const FeatureSet& train, const Featu
   }
   // a turned record must be audio alone, in rings of three
   if (train_config.augment && train_config.rotate_rings &&
-      (use.gcc || use.proprio || !use.audio || train.channels % internal::kRingDiscs != 0)) {
+      !internal::TurnsByRings(use, train.channels)) {
     throw ConfigError(fmt::format(
         "config key 'train.rotate_rings' = true: needs model.modalities = [audio] (a GCC pair "
         "or an arm pose would have to turn too) and channels in rings of {} (got {})",

@@ -54,6 +54,11 @@ struct Augmentation {
 };
 /// Discs per ring that train.rotate_rings turns.
 inline constexpr int64_t kRingDiscs = 3;
+/// Whether a record can be turned by whole rings (train.rotate_rings, model.turn_average): audio
+/// alone (a GCC pair or an arm pose would have to turn too), channels in rings of kRingDiscs.
+inline bool TurnsByRings(const ModalitySet& use, int64_t channels) {
+  return use.audio && !use.gcc && !use.proprio && channels % kRingDiscs == 0;
+}
 /// Draws the augmentation of record `record` in epoch `epoch` (deterministic in all three).
 Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, int64_t mels,
                               uint64_t seed, int64_t epoch, int64_t record);

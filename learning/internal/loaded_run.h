@@ -18,4 +18,8 @@ struct LoadedRun {
 /// SchemaError naming the file for anything unreadable or inconsistent.
 LoadedRun LoadRun(const std::string& run_dir);
 
+/// Checks that `features` hold what the run reads, in its shapes: the whole-window spectrogram
+/// as trained or exactly its centre crop. SchemaError naming `what` and the first difference.
+void CheckFeaturesFor(const LoadedRun& run, const FeatureSet& features, const std::string& what);
+
 }  // namespace sonicboom::learning::internal

@@ -542,7 +542,9 @@ TEST(ArrivalPicksTest, EachChannelIsPickedOnItsOwnRiseToTheSubSample) {
     for (int64_t k = 0; k < 3; ++k) {
       const double expected = onsets[c] - 16.0 + 31.0 * internal::kArrivalFractions[k];
       EXPECT_NEAR(picks[0][c][k].item<float>(), expected, 2e-3) << c << " " << k;
-      if (c != 3) EXPECT_NEAR(picks[1][c][k].item<float>(), expected, 2e-3) << c << " " << k;
+      if (c != 3) {
+        EXPECT_NEAR(picks[1][c][k].item<float>(), expected, 2e-3) << c << " " << k;
+      }
     }
   }
   // a silent channel picks its first sample rather than anything non-finite

@@ -347,7 +347,7 @@ struct AdaptReport {
 };
 /// Adapts run_dir (a run or an ensemble directory) to `target` and writes the result to out_dir
 /// as a run of the same layout (model.json gains "adapted": source, records, options); out_dir
-/// must not exist or be empty, and is not run_dir. The files that mark a run complete
+/// must not exist or be empty (so it is never run_dir). The files that mark a run complete
 /// (model.json, ensemble.json) are written last. Throws ConfigError for an empty target or
 /// out_dir in use, SchemaError for features of other shapes.
 AdaptReport AdaptToUnlabelled(const std::string& run_dir, const FeatureSet& target,
