@@ -7,10 +7,7 @@
 #include <numbers>
 #include <utility>
 
-#include "sonicboom/acoustics/closed_form_bank.h"
-#include "sonicboom/acoustics/fd_render.h"
-#include "sonicboom/acoustics/shell_fd.h"
-#include "sonicboom/acoustics/shell_modes.h"
+#include "internal/render_stages.h"
 #include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
@@ -26,79 +23,59 @@ void UseFdDamping(const TubeConfig& tube, MaterialConfig* material, ShellConfig*
   shell->damping = DampingModel::kRayleigh;
 }
 
+AcousticModelConfig RungConfig(const AcousticModelConfig& base, const RungSpec& spec,
+                               double full_band_hz) {
+  AcousticModelConfig c = base;
+  c.randomize = RandomizeConfig{};
+  c.synth.model = spec.model;
+  c.synth.render_span = RenderSpan::kRecord;
+  c.synth.mode_band_hz = spec.mode_band_hz > 0 ? spec.mode_band_hz : full_band_hz;
+  c.synth.mode_count = spec.mode_count;
+  c.synth.residual = spec.residual;
+  c.synth.fd_oversampling = 0;
+  // the closed form's widest band; a modal rung's band is the ladder's to choose per render
+  c.synth.max_frequency_hz = spec.model == VibrationModel::kModalClosedForm ? full_band_hz : 0.0;
+  if (spec.model == VibrationModel::kFd) c.synth.decay_floor_db = -300.0;
+  c.shell.grid_spacing_m = spec.arc_m;
+  c.shell.axial_spacing_m = spec.axial_m;
+  return c;
+}
+
 struct VibrationRung::Impl {
   RungSpec spec;
-  std::unique_ptr<ShellModel> model;
-  Eigen::MatrixXd sensor_rows;  // (mics x dofs): what an FD render reads
-  std::unique_ptr<ShellFd> fd;
-  ShellModes modes;
-  std::unique_ptr<ShellModalBank> bank;
-  std::unique_ptr<ClosedFormBank> closed_form;
-  double full_band_hz{0.0};
+  std::unique_ptr<VibrationRenderer> renderer;
 };
 
-VibrationRung::VibrationRung(const TubeConfig& tube, const MaterialConfig& material,
-                             const ShellConfig& shell, const MicArrayConfig& mics,
-                             double sample_rate_hz, const RungSpec& spec, double full_band_hz,
-                             double decay_floor_db, const std::string& cache_dir)
+VibrationRung::VibrationRung(const AcousticModelConfig& base, const RungSpec& spec,
+                             double full_band_hz)
     : impl_(std::make_unique<Impl>()) {
-  Impl& m = *impl_;
-  m.spec = spec;
-  m.full_band_hz = full_band_hz;
-  if (spec.model == VibrationModel::kModalClosedForm) {
-    // the ideal tube in closed form: no grid, no shell
-    m.closed_form = std::make_unique<ClosedFormBank>(tube, material, mics, sample_rate_hz,
-                                                     full_band_hz, decay_floor_db);
-    return;
-  }
-  ShellConfig grid = shell;
-  grid.grid_spacing_m = spec.arc_m;
-  grid.axial_spacing_m = spec.axial_m;
-  m.model = std::make_unique<ShellModel>(tube, material, grid);
-  m.sensor_rows = m.model->SensorRows(mics);
-  if (spec.model == VibrationModel::kFd) {
-    // a multiple of the smallest stable oversampling
-    const ShellFd stable(*m.model, sample_rate_hz, 0);
-    m.fd = std::make_unique<ShellFd>(*m.model, sample_rate_hz,
-                                     stable.oversampling() * spec.oversampling_factor);
-  } else if (spec.model == VibrationModel::kModal) {
-    m.modes = CachedShellModes(*m.model, full_band_hz, 0, true, cache_dir);
-    m.bank = std::make_unique<ShellModalBank>(*m.model, m.modes, mics, sample_rate_hz,
-                                              decay_floor_db, spec.residual);
-  } else {
+  if (spec.model != VibrationModel::kModal && spec.model != VibrationModel::kFd &&
+      spec.model != VibrationModel::kModalClosedForm) {
     throw ConfigError(
         fmt::format("a ladder rung is modal, fd or modal-closed-form, not {}", NameOf(spec.model)));
   }
+  impl_->spec = spec;
+  impl_->renderer = MakeVibrationRenderer(RungConfig(base, spec, full_band_hz));
 }
 
 VibrationRung::~VibrationRung() = default;
 
 int64_t VibrationRung::ModesPlayed(double derived_band_hz) const {
-  const Impl& m = *impl_;
-  if (m.fd) return 0;
-  if (m.closed_form) return m.closed_form->FrequenciesHz(PlayedBand(derived_band_hz)).size();
-  if (m.spec.mode_count > 0) return m.spec.mode_count;
-  return m.bank->ModesBelow(PlayedBand(derived_band_hz));
+  return impl_->renderer->ModesPlayed(PlayedBand(derived_band_hz));
 }
 
 Eigen::MatrixXd VibrationRung::Render(std::span<const ForceInput> forces, int64_t samples,
                                       double derived_band_hz) const {
-  const Impl& m = *impl_;
-  if (m.fd) return FdRender(*m.model, *m.fd, forces, m.sensor_rows, samples, -300.0);
-  if (m.closed_form) return m.closed_form->Render(forces, PlayedBand(derived_band_hz), samples);
-  return m.bank->Render(forces, ModesPlayed(derived_band_hz), samples);
+  return impl_->renderer->PlayForces(forces, PlayedBand(derived_band_hz), samples);
 }
 
 Eigen::MatrixXd VibrationRung::RenderImpacts(std::span<const FdImpact> impacts,
-                                             const ContactConfig& contact, int64_t samples) const {
-  const Impl& m = *impl_;
-  if (!m.fd) throw Error("VibrationRung::RenderImpacts: only an FD rung closes its own contact");
-  return FdRender(*m.model, *m.fd, {}, impacts, contact, m.sensor_rows, samples, -300.0).strain;
+                                             int64_t samples) const {
+  return impl_->renderer->PlayImpacts(impacts, samples);
 }
 
 DrivingPoint VibrationRung::WallAt(double z_m, double theta_rad, double band_hz) const {
-  if (!impl_->bank) throw Error("VibrationRung::WallAt: only a modal rung has a modal wall");
-  return impl_->bank->WallAt(z_m, theta_rad, band_hz);
+  return impl_->renderer->WallAt(z_m, theta_rad, band_hz);
 }
 
 double VibrationRung::PlayedBand(double derived_band_hz) const {
@@ -106,26 +83,23 @@ double VibrationRung::PlayedBand(double derived_band_hz) const {
 }
 
 Eigen::VectorXd VibrationRung::FrequenciesHz() const {
-  if (impl_->fd) return {};
-  if (impl_->closed_form) return impl_->closed_form->FrequenciesHz(impl_->full_band_hz);
-  return impl_->bank->frequencies_hz();
+  return impl_->renderer->FrequenciesHz();
 }
 
 Eigen::VectorXd VibrationRung::GridFrequenciesHz() const {
-  if (impl_->fd || impl_->closed_form) return {};
-  return impl_->modes.omega_rad_s / (2.0 * kPi);
+  return impl_->renderer->GridFrequenciesHz();
 }
 
 int64_t VibrationRung::dofs() const {
-  return impl_->model ? impl_->model->dofs() : 0;
+  return impl_->renderer->dofs();
 }
 
 int64_t VibrationRung::oversampling() const {
-  return impl_->fd ? impl_->fd->oversampling() : 0;
+  return impl_->renderer->oversampling();
 }
 
 bool VibrationRung::fd() const {
-  return impl_->fd != nullptr;
+  return impl_->spec.model == VibrationModel::kFd;
 }
 
 SolvedForce SolveRigidStrikeForce(const ContactEvent& contact, const VibrationRung& wall,

@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "sonicboom/acoustics/tdoa.h"
 #include "sonicboom/core/config_io.h"
 #include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
@@ -36,7 +37,7 @@ double ArcDistance(double radius_m, double a_rad, double b_rad) {
 }  // namespace
 
 void ShellConfig::Serialize(Archive* a) {
-  a->Visit("grid_spacing_m", &grid_spacing_m, Bounds::Open(0.0, 1.0));
+  a->Visit("grid_spacing_m", &grid_spacing_m, Bounds::Closed(0.0, 1.0));
   a->Visit("axial_spacing_m", &axial_spacing_m, Bounds::Closed(0.0, 1.0));
   a->Visit("ends", &ends);
   a->Visit("ideal", &ideal);
@@ -60,8 +61,20 @@ void ShellConfig::Serialize(Archive* a) {
   a->Visit("dispersion", &dispersion);
 }
 
+double DerivedGridSpacing(const TubeConfig& tube, const MaterialConfig& material, double band_hz) {
+  SONICBOOM_DEMAND(band_hz > 0.0);
+  const double wavelength_m =
+      FlexuralPhaseVelocity(band_hz, material, tube.wall_thickness_m) / band_hz;
+  return std::min(kCoarsestDerivedSpacingM, wavelength_m / kGridPointsPerWavelength);
+}
+
 void ShellConfig::Validate(const TubeConfig& tube) const {
   const double half_length_m = 0.5 * tube.length_m;
+  if (grid_spacing_m == 0.0) {
+    throw ConfigError(
+        "shell.grid_spacing_m = 0 (derived from the mode band) is resolved with the whole "
+        "configuration (ResolveConfig); a shell built on its own needs a spacing");
+  }
   for (const auto& [key, value] : {std::pair{"grid_spacing_m", grid_spacing_m},
                                    std::pair{"axial_spacing_m", AxialSpacing()}}) {
     if (!(value > 0.0) || value > 0.25 * tube.length_m) {

@@ -22,6 +22,17 @@ double SynthConfig::ModeBandHz(double sample_rate_hz) const {
                           : std::min(0.95 * 0.5 * sample_rate_hz, kDefaultModeBandHz);
 }
 
+double SolvedModeBandHz(const AcousticModelConfig& config) {
+  const SynthConfig& s = config.synth;
+  const double band = s.ModeBandHz(config.audio.sample_rate_hz);
+  const bool drawn = config.randomize.material() || config.randomize.structure();
+  if (s.mode_band_hz > 0 || !(s.max_frequency_hz > 0) || drawn) return band;
+  // the thick-plate correction carries a grid mode down by less than 20 % below 20 kHz
+  // (docs/shell.md, "Dispersion"): the modes solved to 1.25 x the band hold every mode it plays
+  constexpr double kCorrectionHeadroom = 1.25;
+  return std::min(band, kCorrectionHeadroom * s.max_frequency_hz);
+}
+
 std::string SynthConfig::ModeCacheDir() const {
   return mode_cache_dir.empty() ? DefaultModeCacheDir() : mode_cache_dir;
 }

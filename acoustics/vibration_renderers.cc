@@ -23,6 +23,14 @@ const std::vector<double>& VibrationRenderer::StructureValues(int64_t) const {
   return none;
 }
 
+Eigen::MatrixXd VibrationRenderer::PlayImpacts(std::span<const FdImpact>, int64_t) const {
+  throw Error("VibrationRenderer::PlayImpacts: only the FD rung closes its own contact");
+}
+
+DrivingPoint VibrationRenderer::WallAt(double, double, double) const {
+  throw Error("VibrationRenderer::WallAt: only the modal rung has a modal wall");
+}
+
 namespace {
 
 // the closed-form and FD rungs play the configured structure only
@@ -54,6 +62,14 @@ class ClosedFormRenderer final : public VibrationRenderer {
               c.synth.decay_floor_db) {}
 
   int64_t mode_count() const override { return bank_.families(); }
+  Eigen::MatrixXd PlayForces(std::span<const ForceInput> forces, double band_hz,
+                             int64_t frames) const override {
+    return bank_.Render(forces, band_hz, frames);
+  }
+  int64_t ModesPlayed(double band_hz) const override {
+    return bank_.FrequenciesHz(band_hz).size();
+  }
+  Eigen::VectorXd FrequenciesHz() const override { return bank_.FrequenciesHz(band_.limit_hz); }
 
   Eigen::MatrixXd Play(const SampleView& view, std::span<const ContactEpisode>, uint64_t,
                        RenderedStrike* out) const override {
@@ -118,6 +134,20 @@ class ModalRenderer final : public VibrationRenderer {
   ModalRenderer(const AcousticModelConfig& c, const BandRule& band);
 
   int64_t mode_count() const override { return bank_->modes(); }
+  Eigen::MatrixXd PlayForces(std::span<const ForceInput> forces, double band_hz,
+                             int64_t frames) const override {
+    return bank_->Render(forces, ModesPlayed(band_hz), frames);
+  }
+  int64_t ModesPlayed(double band_hz) const override {
+    return c_.synth.mode_count > 0 ? std::min(c_.synth.mode_count, bank_->modes())
+                                   : bank_->ModesBelow(band_hz);
+  }
+  DrivingPoint WallAt(double z_m, double theta_rad, double band_hz) const override {
+    return bank_->WallAt(z_m, theta_rad, band_hz);
+  }
+  Eigen::VectorXd FrequenciesHz() const override { return bank_->frequencies_hz(); }
+  Eigen::VectorXd GridFrequenciesHz() const override { return grid_omega_ / (2.0 * kPi); }
+  int64_t dofs() const override { return shell_->dofs(); }
   int64_t structure_variants() const override { return static_cast<int64_t>(pool_.size()); }
   const std::vector<double>& StructureValues(int64_t variant) const override {
     SONICBOOM_DEMAND(variant >= 0 && variant < structure_variants());
@@ -138,6 +168,7 @@ class ModalRenderer final : public VibrationRenderer {
   AcousticModelConfig c_;
   std::unique_ptr<ShellModel> shell_;
   std::unique_ptr<ShellModalBank> bank_;
+  Eigen::VectorXd grid_omega_;  // (modes) as the grid solved them, rad/s
   std::vector<Variant> pool_;
 };
 
@@ -147,6 +178,7 @@ ModalRenderer::ModalRenderer(const AcousticModelConfig& c, const BandRule& band)
   // its modes to band_.mode_band_hz (from the cache when solved before)
   const ShellModes modes =
       CachedShellModes(*shell_, band_.mode_band_hz, 0, true, c.synth.ModeCacheDir());
+  grid_omega_ = modes.omega_rad_s;
   const double margin = PlacementMargin(c);
   bank_ = std::make_unique<ShellModalBank>(*shell_, modes, c.mics, c.audio.sample_rate_hz,
                                            c.synth.decay_floor_db, c.synth.residual, margin);
@@ -223,6 +255,18 @@ class FdRenderer final : public VibrationRenderer {
         sensor_rows_(shell_.SensorRows(c.mics)) {}
 
   int64_t mode_count() const override { return 0; }
+  Eigen::MatrixXd PlayForces(std::span<const ForceInput> forces, double,
+                             int64_t frames) const override {
+    return FdRender(shell_, fd_, forces, sensor_rows_, frames, c_.synth.decay_floor_db);
+  }
+  int64_t ModesPlayed(double) const override { return 0; }
+  Eigen::MatrixXd PlayImpacts(std::span<const FdImpact> impacts, int64_t frames) const override {
+    return FdRender(shell_, fd_, {}, impacts, c_.synth.contact, sensor_rows_, frames,
+                    c_.synth.decay_floor_db)
+        .strain;
+  }
+  int64_t dofs() const override { return shell_.dofs(); }
+  int64_t oversampling() const override { return fd_.oversampling(); }
 
   Eigen::MatrixXd Play(const SampleView& view, std::span<const ContactEpisode> episodes,
                        uint64_t sample_seed, RenderedStrike* out) const override {
@@ -283,7 +327,7 @@ std::unique_ptr<VibrationRenderer> MakeVibrationRenderer(const AcousticModelConf
   // the FD rung steps the grid itself and closes its impacts against it: no modes to solve
   if (synth.model == VibrationModel::kFd) return std::make_unique<FdRenderer>(config, band);
   // modes to the configured band; by default what the grid resolves (20 kHz) below Nyquist
-  band.mode_band_hz = synth.ModeBandHz(config.audio.sample_rate_hz);
+  band.mode_band_hz = SolvedModeBandHz(config);
   if (band.mode_band_hz >= nyquist) {
     throw ConfigError(fmt::format(
         "acoustics.mode_band_hz = {} must be below the Nyquist frequency {} Hz",

@@ -2,8 +2,11 @@
 
 #include <fmt/format.h>
 
+#include "sonicboom/acoustics/shell.h"
+#include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/config_io.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/experiments/pipeline.h"
 
 namespace sonicboom::experiments {
 
@@ -116,6 +119,11 @@ SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
   if (sources.seed >= 0) layers.AddOverride(fmt::format("seed={}", sources.seed));
   SonicBoomConfig config;
   layers.ReadInto(&config);
+  // shell.grid_spacing_m = 0: the grid the solved mode band needs, written into the config
+  if (config.shell.grid_spacing_m == 0.0) {
+    config.shell.grid_spacing_m = acoustics::DerivedGridSpacing(
+        config.tube, config.material, acoustics::SolvedModeBandHz(AcousticModel(config)));
+  }
   config.Validate();
   // the resolved config states the integrator step that the contact time scale implies
   if (config.strike.engine == sim::StrikeEngine::kMujoco ||

@@ -108,13 +108,12 @@ class LadderRung {
 class ShellRung final : public LadderRung {
  public:
   // own_contact: an FD rung that closes the strike's impact against its own wall
-  ShellRung(std::unique_ptr<acoustics::VibrationRung> rung, bool own_contact,
-            const acoustics::ContactConfig& contact)
-      : rung_(std::move(rung)), own_contact_(own_contact), contact_(contact) {}
+  ShellRung(std::unique_ptr<acoustics::VibrationRung> rung, bool own_contact)
+      : rung_(std::move(rung)), own_contact_(own_contact) {}
   Eigen::MatrixXd Render(std::span<const acoustics::ForceInput> forces,
                          const acoustics::FdImpact& impact, int64_t samples,
                          double derived_band_hz) const override {
-    if (own_contact_) return rung_->RenderImpacts(std::span(&impact, 1), contact_, samples);
+    if (own_contact_) return rung_->RenderImpacts(std::span(&impact, 1), samples);
     return rung_->Render(forces, samples, derived_band_hz);
   }
   Eigen::VectorXd PlayedFrequenciesHz(double derived_band_hz) const override {
@@ -133,7 +132,6 @@ class ShellRung final : public LadderRung {
  private:
   std::unique_ptr<acoustics::VibrationRung> rung_;
   bool own_contact_;
-  acoustics::ContactConfig contact_;
 };
 
 // a rung of the reference solid: its modes below band_hz, each damped by zeta(omega), driven by
@@ -515,18 +513,19 @@ LadderSettings SettingsOf(const SonicBoomConfig& config, const FidelityOptions& 
   return s;
 }
 
-// A rung of the shell on `grid` (modal, FD or the closed form, by spec.model).
+// A rung of the shell on `grid` (modal, FD or the closed form, by spec.model), made by the strike
+// renderer's factory from the configuration, damped by the shared Rayleigh curve.
 std::unique_ptr<acoustics::VibrationRung> BuildShellRung(const SonicBoomConfig& config,
                                                          const LadderSettings& s,
                                                          acoustics::RungSpec spec,
                                                          const Grid& grid) {
   spec.arc_m = grid.arc_m;
   spec.axial_m = grid.axial_m;
-  acoustics::ShellConfig shell = s.rayleigh_shell;
-  if (grid.dispersion) shell.dispersion = *grid.dispersion;
-  return std::make_unique<acoustics::VibrationRung>(config.tube, s.rayleigh_material, shell,
-                                                    config.mics, s.fs, spec, s.full_band_hz,
-                                                    config.acoustics.decay_floor_db, s.cache);
+  acoustics::AcousticModelConfig base = AcousticModel(config);
+  base.material = s.rayleigh_material;
+  base.shell = s.rayleigh_shell;
+  if (grid.dispersion) base.shell.dispersion = *grid.dispersion;
+  return std::make_unique<acoustics::VibrationRung>(base, spec, s.full_band_hz);
 }
 
 // The reference solid of the configured structure on elements of element_m, modes to band_hz
@@ -572,8 +571,7 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
   };
   auto shell = [&](const acoustics::RungSpec& spec, const Grid& grid, bool own_contact = false) {
     return [&config, &s, spec, grid, own_contact]() -> std::unique_ptr<LadderRung> {
-      return std::make_unique<ShellRung>(BuildShellRung(config, s, spec, grid), own_contact,
-                                         config.acoustics.contact);
+      return std::make_unique<ShellRung>(BuildShellRung(config, s, spec, grid), own_contact);
     };
   };
   // a grid's name, with its dispersion when that is not the thin plate's
@@ -649,6 +647,15 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
        shell(modal_spec(0, 0, true), s.coarse)},
       {"modal, derived band", "modal", grid_name(s.coarser),
        shell(modal_spec(0, 0, true), s.coarser)}};
+  // a scene that plays a fixed band, on the grid derived from it (shell.grid_spacing_m = 0)
+  for (double band : kDerivedGridBandsHz) {
+    const FixedBandScene scene = SceneOfBand(config, band);
+    acoustics::RungSpec spec = modal_spec(band, 0, true);
+    spec.mode_band_hz = scene.solved_band_hz;
+    const Grid grid{"derived", scene.spacing_m, scene.spacing_m};
+    rungs.push_back({fmt::format("modal, {:.0f} kHz, derived grid", band / 1000), "modal",
+                     grid_name(grid), shell(spec, grid)});
+  }
   // a rung that coincides with another (--quick: coarse is coarser; a square configured grid is
   // the fine one) is measured once, under its first name
   const auto same = [](const RungEntry& a, const RungEntry& b) {
@@ -823,6 +830,7 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
       NameOf(config.acoustics.model), config.audio.record_duration_s, whole_ms, 1e3 / whole_ms,
       whole_vibration_ms);
   const json span_json = RenderSpanSection(whole, &md);
+  const json band_json = ModeBandSection(whole, &md);
   const json damping_json = DampingSection(config, &md);
   json j = {{"rungs", rows_json},
             {"strikes", o.strikes},
@@ -833,6 +841,7 @@ CommandResult RunFidelity(const GlobalOptions& g, const FidelityOptions& o) {
             {"whole_strike_ms", whole_ms},
             {"whole_strike_vibration_ms", whole_vibration_ms},
             {"render_span", span_json},
+            {"mode_band", band_json},
             {"quick", o.quick}};
   if (!o.out.empty()) {
     WriteTextAtomic(o.out, md);

@@ -84,6 +84,28 @@ class VibrationRenderer {
                                uint64_t sample_seed, RenderedStrike* out) const = 0;
   /// Modes in the rung's widest band (0 for the FD grid).
   virtual int64_t mode_count() const = 0;
+
+  // Prescribed forces, for the fidelity ladder (ladder.h), which compares rungs on one set of
+  // forces solved once: the configured structure, no excitation stage.
+  /// Disc strain (mics x frames) of `forces` from rest, the modes at or below band_hz played
+  /// (or acoustics.mode_count of them); the FD grid plays everything it resolves.
+  virtual Eigen::MatrixXd PlayForces(std::span<const ForceInput> forces, double band_hz,
+                                     int64_t frames) const = 0;
+  /// The modes PlayForces plays for band_hz (0 for the FD grid).
+  virtual int64_t ModesPlayed(double band_hz) const = 0;
+  /// FD only (Error otherwise): disc strain (mics x frames) of impacts closed against the grid.
+  virtual Eigen::MatrixXd PlayImpacts(std::span<const FdImpact> impacts, int64_t frames) const;
+  /// Modal only (Error otherwise): the wall a contact sees at (z, theta) to band_hz.
+  virtual DrivingPoint WallAt(double z_m, double theta_rad, double band_hz) const;
+  /// (modes) the frequencies the rung plays in its widest band, ascending, Hz (shell.dispersion
+  /// applied; empty for the FD grid).
+  virtual Eigen::VectorXd FrequenciesHz() const { return {}; }
+  /// (modes) the same as the grid solved them, before a dispersion correction (empty for the FD
+  /// grid and the closed form).
+  virtual Eigen::VectorXd GridFrequenciesHz() const { return {}; }
+  virtual int64_t dofs() const { return 0; }
+  /// FD time steps per audio sample (0: not stepped).
+  virtual int64_t oversampling() const { return 0; }
   const BandRule& band() const { return band_; }
   /// The structure pool (randomize.structure_variants; the modal rung alone has one).
   virtual int64_t structure_variants() const { return 0; }

@@ -47,4 +47,21 @@ WholeStrikeTime WholeStrikeMs(const WholeStrikeSetup& setup);
 /// section to md; returns its rows.
 nlohmann::json RenderSpanSection(const WholeStrikeSetup& setup, std::string* md);
 
+/// A scene that plays a fixed band (acoustics.max_frequency_hz = band_hz) on a derived grid
+/// (shell.grid_spacing_m = axial_spacing_m = 0), as ResolveConfig makes it: the band its modes
+/// are solved to and its square grid's spacing.
+struct FixedBandScene {
+  double band_hz{0.0}, solved_band_hz{0.0}, spacing_m{0.0};
+};
+FixedBandScene SceneOfBand(const SonicBoomConfig& config, double band_hz);
+
+/// The fixed bands the ladder shows on derived grids, Hz.
+inline constexpr double kDerivedGridBandsHz[] = {10000.0, 5000.0, 2000.0};
+
+/// "What a scene needs", the mode solve: the configured grid to its full band against each fixed
+/// band's derived grid to its solved band, each solved afresh (no cache) and timed: DOFs, modes,
+/// seconds, and the whole strike's ms through the production renderer. Appends to md; returns
+/// its rows.
+nlohmann::json ModeBandSection(const WholeStrikeSetup& setup, std::string* md);
+
 }  // namespace sonicboom::experiments

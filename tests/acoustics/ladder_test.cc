@@ -29,12 +29,17 @@ std::unique_ptr<VibrationRung> Rung(VibrationModel model, double band_hz = 0.0) 
   // the thin shell the FD rung integrates (the thick-plate correction is dispersion_test's)
   shell.dispersion = Dispersion::kThin;
   UseFdDamping(TubeConfig{}, &material, &shell);
+  AcousticModelConfig base;
+  base.material = material;
+  base.shell = shell;
+  base.audio.sample_rate_hz = kFs;
+  base.synth.decay_floor_db = -80.0;
+  base.synth.mode_cache_dir = Cache().path().string();
   RungSpec spec;
   spec.model = model;
   spec.arc_m = spec.axial_m = 0.01;
   spec.band_hz = band_hz;
-  return std::make_unique<VibrationRung>(TubeConfig{}, material, shell, MicArrayConfig{}, kFs, spec,
-                                         kBandHz, -80.0, Cache().path().string());
+  return std::make_unique<VibrationRung>(base, spec, kBandHz);
 }
 
 ContactEvent Dowel() {
@@ -128,3 +133,4 @@ TEST(LadderTest, ClosedFormRungPushesInwardAndPlaysItsBand) {
 
 }  // namespace
 }  // namespace sonicboom::acoustics
+

@@ -275,6 +275,30 @@ TEST(ShellModelTest, BadSettingsAreConfigErrors) {
   EXPECT_THROW(ShellModel(tube, material, s), ConfigError);
 }
 
+// a derived grid keeps 8 points per flexural wavelength at the top of the band: the wavelength
+// goes as f^-1/2 and E^1/4, the default tube at 20 kHz gets about the default 2.5 mm, a low band
+// stops at the coarsest spacing, and a shell built on its own refuses the unresolved 0
+TEST(ShellModelTest, DerivedGridFollowsTheFlexuralWavelength) {
+  const TubeConfig tube;
+  MaterialConfig material;
+  const double at_20k = DerivedGridSpacing(tube, material, 20000.0);
+  EXPECT_GT(at_20k, 0.0025);
+  EXPECT_LT(at_20k, 0.0027);
+  EXPECT_NEAR(DerivedGridSpacing(tube, material, 5000.0), 2.0 * at_20k, 1e-12);
+  MaterialConfig stiffer = material;
+  stiffer.youngs_modulus_pa *= 4.0;
+  EXPECT_NEAR(DerivedGridSpacing(tube, stiffer, 20000.0), std::sqrt(2.0) * at_20k, 1e-12);
+  EXPECT_EQ(DerivedGridSpacing(tube, material, 100.0), kCoarsestDerivedSpacingM);
+  ShellConfig s;
+  s.grid_spacing_m = 0.0;
+  try {
+    s.Validate(tube);
+    FAIL() << "an unresolved derived grid was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("shell.grid_spacing_m = 0"));
+  }
+}
+
 TEST(ShellModelTest, RayleighDampingHitsBothAnchors) {
   const TubeConfig tube;
   MaterialConfig material;

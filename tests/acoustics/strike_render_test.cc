@@ -114,6 +114,31 @@ TEST(StrikeRenderTest, BandFollowsTheContactUnlessOverridden) {
   EXPECT_EQ(fixed.modes_used, 40);
 }
 
+// a fixed band needs no mode above it (the contact's wall and the signal play the band, the
+// residual stands for the rest): solved to 1.25 x the band, the strike is the one solved to 12 kHz
+TEST(StrikeRenderTest, AFixedBandSolvesOnlyTheModesItPlays) {
+  AcousticModelConfig wide = Coarse();
+  wide.shell.dispersion = Dispersion::kThickPlate;  // the correction the headroom is for
+  wide.synth.max_frequency_hz = 3000;
+  AcousticModelConfig narrow = wide;
+  narrow.synth.mode_band_hz = 0;
+  EXPECT_DOUBLE_EQ(SolvedModeBandHz(narrow), 3750.0);
+  EXPECT_DOUBLE_EQ(SolvedModeBandHz(wide), 12000.0);  // mode_band_hz set: as asked
+  const StrikeSynthesizer a(wide), b(narrow);
+  EXPECT_LT(b.mode_count(), a.mode_count() / 2);
+  const RenderedStrike ra = a.Render(Dowel(0.03, 0.7, 0.5), {}, 0.0, 3);
+  const RenderedStrike rb = b.Render(Dowel(0.03, 0.7, 0.5), {}, 0.0, 3);
+  EXPECT_EQ(ra.modes_used, rb.modes_used);
+  EXPECT_NEAR(ra.duration_s, rb.duration_s, 1e-6 * ra.duration_s);
+  const double peak = ra.audio.cwiseAbs().maxCoeff();
+  ASSERT_GT(peak, 0.0);
+  EXPECT_LT((ra.audio - rb.audio).cwiseAbs().maxCoeff(), 1e-4 * peak);
+  // a drawn material moves modes across the band: then every mode is solved
+  AcousticModelConfig drawn = narrow;
+  drawn.randomize.youngs_modulus_scale = {0.8, 1.2};
+  EXPECT_DOUBLE_EQ(SolvedModeBandHz(drawn), narrow.synth.ModeBandHz(44100.0));
+}
+
 TEST(StrikeRenderTest, FdRungAgreesWithModalRung) {
   // the same structure, force and sensors: only time integration and truncation differ
   AcousticModelConfig c = Coarse(VibrationModel::kFd);

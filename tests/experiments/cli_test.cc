@@ -164,7 +164,7 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
              dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
-  ASSERT_EQ(j["rungs"].size(), 22u);
+  ASSERT_EQ(j["rungs"].size(), 25u);
   const json& rungs = j["rungs"];
   // the default rung (thick-plate) plays other frequencies than its thin twin on the same grid;
   // an FD rung's are those its grid solves, the thin modal rung's of that grid
@@ -220,6 +220,21 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
   EXPECT_NE(prescribed["relative_error"], own["relative_error"]);
   EXPECT_NEAR(own["relative_error"].get<double>(), prescribed["relative_error"].get<double>(), 0.1);
   EXPECT_GT(j["whole_strike_ms"].get<double>(), 0.0);
+  // a fixed band's scene: modes solved to 1.25 x the band on its derived grid, fewer DOFs and
+  // modes as the band falls; its rung in the ladder plays that band
+  const json& scenes = j["mode_band"];
+  ASSERT_EQ(scenes.size(), 4u);
+  const double solved[] = {20000.0, 12500.0, 6250.0, 2500.0};
+  for (size_t k = 0; k < scenes.size(); ++k) {
+    EXPECT_DOUBLE_EQ(scenes[k]["solved_band_hz"].get<double>(), solved[k]) << scenes[k].dump();
+    if (k > 1) {
+      EXPECT_LT(scenes[k]["dofs"].get<int64_t>(), scenes[k - 1]["dofs"].get<int64_t>());
+      EXPECT_LT(scenes[k]["modes"].get<int64_t>(), scenes[k - 1]["modes"].get<int64_t>());
+      EXPECT_GT(scenes[k]["arc_m"].get<double>(), scenes[k - 1]["arc_m"].get<double>());
+    }
+  }
+  EXPECT_LT(row("modal, 2 kHz, derived grid")["modes"].get<double>(),
+            row("modal, 5 kHz, derived grid")["modes"].get<double>());
   EXPECT_TRUE(std::filesystem::exists(dir / "F.md"));
   EXPECT_TRUE(std::filesystem::exists(dir / "F.json"));
   EXPECT_GT(std::filesystem::file_size(dir / "F_pareto.png"), 10000u);
@@ -227,7 +242,7 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
   std::ifstream index(dir / "S/index.json");
   ASSERT_TRUE(index) << "no S/index.json";
   const json signals = json::parse(index);
-  ASSERT_EQ(signals.size(), 22u);
+  ASSERT_EQ(signals.size(), 25u);
   EXPECT_EQ(signals[0]["rung"], rungs[0]["rung"]);
   // header (128 bytes for this shape) plus 1 x 6 x 309 doubles
   EXPECT_EQ(std::filesystem::file_size(dir / ("S/" + signals[3]["file"].get<std::string>())),

@@ -81,6 +81,25 @@ TEST(PipelineTest, SplitDependsOnlyOnSampleIndex) {
 // (the sensor chain is causal and draws the same noise), the window's features agree, the record
 // after the span holds the chain's noise alone, and features reading further are refused
 // naming the key.
+// shell.grid_spacing_m = 0 is resolved with the config from the band the modes are solved to:
+// the default band, or 1.25 x a fixed band; the resolved spacing is what the dataset records
+TEST(PipelineTest, AZeroGridSpacingIsDerivedFromTheSolvedBand) {
+  ConfigSources sources;
+  sources.overrides = {"shell.grid_spacing_m=0", "shell.axial_spacing_m=0"};
+  const SonicBoomConfig full = ResolveConfig(sources);
+  EXPECT_DOUBLE_EQ(full.shell.grid_spacing_m,
+                   acoustics::DerivedGridSpacing(full.tube, full.material, 20000.0));
+  EXPECT_EQ(full.shell.AxialSpacing(), full.shell.grid_spacing_m);
+  sources.overrides.push_back("acoustics.max_frequency_hz=4000");
+  const SonicBoomConfig fixed = ResolveConfig(sources);
+  EXPECT_NEAR(fixed.shell.grid_spacing_m, 2.0 * full.shell.grid_spacing_m, 1e-12);  // 5 kHz
+  // the resolved config reads back as itself
+  ConfigSources again;
+  again.embedded_yaml = ConfigToYaml(fixed);
+  again.embedded_name = "resolved";
+  EXPECT_DOUBLE_EQ(ResolveConfig(again).shell.grid_spacing_m, fixed.shell.grid_spacing_m);
+}
+
 TEST(PipelineTest, FeatureSpanKeepsTheWindowAndRefusesWiderFeatures) {
   testing::TempDir dir;
   SonicBoomConfig whole = ShortConfig();

@@ -31,21 +31,30 @@ struct RungSpec {
   VibrationModel model{VibrationModel::kModal};  // modal, fd or modal-closed-form
   double arc_m{0.0025};                          // grid spacing around the tube
   double axial_m{0.005};                         // grid spacing along it
-  double band_hz{0.0};             // modal: the modes below this; 0 = the strike's derived band
-  int64_t mode_count{0};           // modal: the lowest N modes (overrides band_hz)
-  bool residual{true};             // modal: the static residual of the modes left out
-  int64_t oversampling_factor{1};  // fd: steps per sample, as a multiple of the stable minimum
+  double band_hz{0.0};    // modal: the modes below this; 0 = the strike's derived band
+  int64_t mode_count{0};  // modal: the lowest N modes (overrides band_hz)
+  bool residual{true};    // modal: the static residual of the modes left out
+  double mode_band_hz{0.0};  // modal: modes solved to here; 0 = the ladder's full band
 };
 
-/// A rung built on the shell of (tube, material, shell) with spec's grid. Modal rungs hold the
-/// modes up to full_band_hz (cached in cache_dir). Render is const.
+/// The configuration of the rung `spec` names on `base`: base's tube, material, mics, sample
+/// rate, contact, decay floor and mode cache, its shell on spec's grid, modes solved to
+/// spec.mode_band_hz or full_band_hz (the closed form's widest band), the configured structure
+/// (no randomization),
+/// the whole record rendered. An FD rung runs to the end of every render (decay floor -300 dB):
+/// the ladder compares whole windows.
+AcousticModelConfig RungConfig(const AcousticModelConfig& base, const RungSpec& spec,
+                               double full_band_hz);
+
+/// A rung made by the strike renderer's one factory (MakeVibrationRenderer) from
+/// RungConfig(base, spec, full_band_hz), so the ladder times and measures exactly what
+/// `generate` renders. Modal rungs read their modes from the mode cache when solved before.
+/// Render is const.
 class VibrationRung {
  public:
-  /// Throws ConfigError for a bad grid (naming the key). A closed-form rung (the ideal simply
-  /// supported tube, closed_form_bank.h) has no grid and no DOFs.
-  VibrationRung(const TubeConfig& tube, const MaterialConfig& material, const ShellConfig& shell,
-                const MicArrayConfig& mics, double sample_rate_hz, const RungSpec& spec,
-                double full_band_hz, double decay_floor_db, const std::string& cache_dir);
+  /// Throws ConfigError for a bad grid or model (naming the key). A closed-form rung (the ideal
+  /// simply supported tube, closed_form_bank.h) has no grid and no DOFs.
+  VibrationRung(const AcousticModelConfig& base, const RungSpec& spec, double full_band_hz);
   ~VibrationRung();
   VibrationRung(const VibrationRung&) = delete;
   VibrationRung& operator=(const VibrationRung&) = delete;
@@ -55,9 +64,8 @@ class VibrationRung {
   Eigen::MatrixXd Render(std::span<const ForceInput> forces, int64_t samples,
                          double derived_band_hz) const;
   /// FD rungs only (Error otherwise): sensor strain (mics x samples) of impacts closed against
-  /// the FD wall itself (fd_render.h), from rest.
-  Eigen::MatrixXd RenderImpacts(std::span<const FdImpact> impacts, const ContactConfig& contact,
-                                int64_t samples) const;
+  /// the FD wall itself (fd_render.h; base's acoustics.contact), from rest.
+  Eigen::MatrixXd RenderImpacts(std::span<const FdImpact> impacts, int64_t samples) const;
   /// The band a render plays: the spec's, or the strike's derived band.
   double PlayedBand(double derived_band_hz) const;
   /// Modes a render plays (0 for an FD rung).
@@ -68,8 +76,8 @@ class VibrationRung {
   /// (modes) the modal rung's elastic mode frequencies as it plays them, ascending, Hz
   /// (shell.dispersion applied; empty for an FD rung).
   Eigen::VectorXd FrequenciesHz() const;
-  /// (modes) the grid's frequencies as solved, ascending, Hz: an FD rung's are those of a modal
-  /// rung on the same grid (empty for an FD rung and the closed form).
+  /// (modes) the grid's frequencies as solved, ascending, Hz (empty for an FD rung and the
+  /// closed form).
   Eigen::VectorXd GridFrequenciesHz() const;
   int64_t dofs() const;
   int64_t oversampling() const;  // FD steps per audio sample (0 for a modal rung)

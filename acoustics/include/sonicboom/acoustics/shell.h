@@ -57,9 +57,20 @@ inline std::span<const EnumName<Dispersion>> EnumNames(Dispersion) {
   return kDispersionNames;
 }
 
+/// Grid points per flexural wavelength at the top of the solved mode band that a derived grid
+/// keeps (shell.grid_spacing_m = 0): the default 2.5 mm grid holds 8.4 at 20 kHz on the default
+/// tube; docs/fidelity.md measures what that costs and gets wrong at each band.
+inline constexpr double kGridPointsPerWavelength = 8.0;
+/// The coarsest derived spacing, m: the discs, holes and bolt rows stay resolved.
+inline constexpr double kCoarsestDerivedSpacingM = 0.02;
+
+/// The arc spacing a scene needs for modes up to band_hz, m: the thin-plate flexural wavelength
+/// of the wall at band_hz over kGridPointsPerWavelength, at most kCoarsestDerivedSpacingM.
+double DerivedGridSpacing(const TubeConfig& tube, const MaterialConfig& material, double band_hz);
+
 /// Keys under "shell": the discretized tube structure.
 struct ShellConfig {
-  double grid_spacing_m{0.0025};  // target arc spacing of the grid
+  double grid_spacing_m{0.0025};  // target arc spacing of the grid; 0 = derived (DerivedGridSpacing)
   double axial_spacing_m{0.0025};  // target axial spacing; 0 = grid_spacing_m
   TubeEnds ends{TubeEnds::kFree};
   bool ideal{false};                                // uniform tube: no seam, holes, bolts or mounts

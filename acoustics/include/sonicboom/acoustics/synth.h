@@ -96,6 +96,13 @@ struct AcousticModelConfig {
   uint64_t seed{0};           // global seed: the structure pool's draws
 };
 
+/// The band the modal rung solves its modes to for `config`, Hz: acoustics.mode_band_hz when set;
+/// else, for a fixed acoustics.max_frequency_hz and no draw that moves modes (no material or
+/// structure ranges), 1.25 x that band (the dispersion correction's headroom): nothing above a
+/// fixed band is played, neither in the signal nor in the contact's wall, and the residual stands
+/// for the rest; else SynthConfig::ModeBandHz.
+double SolvedModeBandHz(const AcousticModelConfig& config);
+
 /// The Hertz impact of a striker on the wall (rigid target): docs/physics.md, "Hertz impact".
 struct HertzImpact {
   double stiffness_n_m15{0.0};  // K in F = K delta^1.5
