@@ -34,7 +34,9 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
   for (const std::string& path : {o.data, o.train}) {
     if (!path.empty() && !fs::exists(path)) throw IoError(fmt::format("{}: no such dataset", path));
   }
-  const SonicBoomConfig config = ResolveWithDataset(g, o.data);
+  // a fitted baseline reads both files as its training file's config does (as a trained model
+  // reads with its run's): a test set that logs the arm longer (configs/ts3.yaml) is read alike
+  const SonicBoomConfig config = ResolveWithDataset(g, o.train.empty() ? o.data : o.train);
   const double radius = config.tube.outer_radius_m;
   std::vector<learning::Prediction> predictions;
   learning::FeatureSet truth;

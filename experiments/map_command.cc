@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -24,6 +25,7 @@
 #include "sonicboom/experiments/commands.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
+#include "sonicboom/sim/scene.h"
 
 #include "internal/report.h"
 #include "internal/subcommands.h"
@@ -48,7 +50,20 @@ Eigen::Vector3d TubeSurfacePoint(const Eigen::Isometry3d& tube_pose, double z_m,
          Eigen::Vector3d(radius_m * std::cos(theta_rad), radius_m * std::sin(theta_rad), z_m);
 }
 
-MapScores ScoreMap(const Eigen::Matrix3Xd& predicted_m, const Eigen::Matrix3Xd& true_m) {
+double SurfaceDistance(const std::vector<sim::ObjectSegment>& segments, const Eigen::Vector3d& p) {
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const sim::ObjectSegment& s : segments) {
+    // the axis point nearest p, clamped to the segment
+    const Eigen::Vector3d axis = s.p1 - s.p0;
+    const double len_sq = axis.squaredNorm();
+    const double t = len_sq > 0.0 ? std::clamp((p - s.p0).dot(axis) / len_sq, 0.0, 1.0) : 0.0;
+    nearest = std::min(nearest, (p - (s.p0 + t * axis)).norm() - s.radius_m);
+  }
+  return segments.empty() ? std::numeric_limits<double>::quiet_NaN() : std::abs(nearest);
+}
+
+MapScores ScoreMap(const Eigen::Matrix3Xd& predicted_m, const Eigen::Matrix3Xd& true_m,
+                   const std::vector<sim::ObjectSegment>& surface) {
   SONICBOOM_DEMAND(predicted_m.cols() == true_m.cols());
   MapScores s;
   s.taps = predicted_m.cols();
@@ -56,6 +71,18 @@ MapScores ScoreMap(const Eigen::Matrix3Xd& predicted_m, const Eigen::Matrix3Xd& 
                         : std::numeric_limits<double>::quiet_NaN();
   s.chamfer_cm = 100.0 * RmsChamfer(predicted_m, true_m);
   s.reverse_chamfer_cm = 100.0 * RmsChamfer(true_m, predicted_m);
+  if (surface.empty() || s.taps == 0) return s;
+  // RMS over a cloud of each point's distance to the object's surface, cm
+  const auto rms_to_surface = [&](const Eigen::Matrix3Xd& cloud) {
+    double sum_sq = 0.0;
+    for (Eigen::Index i = 0; i < cloud.cols(); ++i) {
+      const double d = SurfaceDistance(surface, cloud.col(i));
+      sum_sq += d * d;
+    }
+    return 100.0 * std::sqrt(sum_sq / static_cast<double>(cloud.cols()));
+  };
+  s.surface_cm = rms_to_surface(predicted_m);
+  s.true_surface_cm = rms_to_surface(true_m);
   return s;
 }
 
@@ -83,34 +110,44 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
     throw IoError(fmt::format("--plot {}: no such script (--plot \"\" draws no figure)",
                               o.plot_script));
   }
-  const SonicBoomConfig config = ResolveWithRun(g, o.model);
-  learning::Localizer localizer(o.model);
-  std::vector<uint64_t> indices;
-  const learning::FeatureSet set =
-      ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet, &indices);
-  const std::vector<learning::Prediction> predictions = localizer.Predict(set);
-
-  // each localized tap's logged pose and true contact point, by sample index
+  // every row's metadata, read once, by sample index; each valid tap needs the tube's logged pose
+  // at its contact (a log that ends before it would place the tap where the arm was)
   const DatasetReader reader(o.data);
   if (reader.info().proprio_rows < 1) {
     throw SchemaError(fmt::format(
         "{}: no proprioception rows: a map places each tap with the arm's logged tube pose",
         o.data));
   }
-  // every row's metadata, read once, by sample index
+  const double rate_hz = reader.info().proprio_rate_hz;
   std::map<uint64_t, StrikeSample> meta_of;
   for (int64_t r = 0; r < reader.size(); ++r) {
     StrikeSample meta = reader.ReadMeta(r);
+    const double log_end_s = static_cast<double>(meta.proprio.rows()) / rate_hz;
+    if (meta.valid && meta.label.time_s >= log_end_s) {
+      throw SchemaError(fmt::format(
+          "{}: sample {} touches at {:.3f} s, after its proprioception log ends ({} rows at {} Hz "
+          "= {:.3f} s): a map places each tap with the tube's pose at its contact; generate the "
+          "taps with strike.proprio_rows covering the record (as configs/ts3.yaml does) or log "
+          "the arm longer",
+          o.data, meta.index, meta.label.time_s, meta.proprio.rows(), rate_hz, log_end_s));
+    }
     meta_of.emplace(meta.index, std::move(meta));
   }
+
+  // the taps localized
+  const SonicBoomConfig config = ResolveWithRun(g, o.model);
+  learning::Localizer localizer(o.model);
+  std::vector<uint64_t> indices;
+  const learning::FeatureSet set =
+      ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet, &indices);
+  const std::vector<learning::Prediction> predictions = localizer.Predict(set);
   const double radius_m = localizer.surface_radius_m();
   const auto n = static_cast<Eigen::Index>(indices.size());
   Eigen::Matrix3Xd predicted(3, n), truth(3, n);  // base frame, m
   json taps = json::array();
   for (Eigen::Index i = 0; i < n; ++i) {
     const StrikeSample& meta = meta_of.at(indices[static_cast<size_t>(i)]);
-    const Eigen::Isometry3d pose =
-        LoggedTubePose(meta.proprio, reader.info().proprio_rate_hz, meta.label.time_s);
+    const Eigen::Isometry3d pose = LoggedTubePose(meta.proprio, rate_hz, meta.label.time_s);
     predicted.col(i) = TubeSurfacePoint(pose, predictions[static_cast<size_t>(i)].z_m,
                                         predictions[static_cast<size_t>(i)].theta_rad, radius_m);
     truth.col(i) = pose * meta.label.point_m;
@@ -118,7 +155,20 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
                     {"predicted_m", {predicted(0, i), predicted(1, i), predicted(2, i)}},
                     {"true_m", {truth(0, i), truth(1, i), truth(2, i)}}});
   }
-  const MapScores s = ScoreMap(predicted, truth);
+  // the mapped object, where the taps were generated in a guided scene: its segments in the
+  // base frame (a capture's or an older file's is unknown)
+  const std::optional<SonicBoomConfig> made = SimulatedWith(reader.info(), o.data);
+  const std::vector<sim::ObjectSegment> object =
+      made ? sim::GuidedSegmentsInBase(made->scene) : std::vector<sim::ObjectSegment>{};
+  json skeleton = json::array();
+  for (const sim::ObjectSegment& seg : object) {
+    skeleton.push_back({{"p0_m", {seg.p0.x(), seg.p0.y(), seg.p0.z()}},
+                        {"p1_m", {seg.p1.x(), seg.p1.y(), seg.p1.z()}},
+                        {"radius_m", seg.radius_m}});
+  }
+  const MapScores s = ScoreMap(predicted, truth, object);
+  // NaN (no geometry) as null
+  const auto or_null = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
 
   // the map, its scores and its figure
   MakeDirectories(o.out);
@@ -129,6 +179,9 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
                        {"med_cm", s.med_cm},
                        {"chamfer_cm", s.chamfer_cm},
                        {"reverse_chamfer_cm", s.reverse_chamfer_cm},
+                       {"surface_cm", or_null(s.surface_cm)},
+                       {"true_surface_cm", or_null(s.true_surface_cm)},
+                       {"skeleton", skeleton},
                        {"points", taps}};
   const std::string json_path = (fs::path(o.out) / "map.json").string();
   WriteTextAtomic(json_path, result.dump(1) + "\n");
@@ -138,10 +191,16 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
   }
   json summary = result;
   summary.erase("points");
+  summary.erase("skeleton");
+  const std::string surface =
+      object.empty() ? std::string("; the mapped object's geometry is not in the file")
+                     : fmt::format("; RMS distance to the object's surface {:.2f} cm (true "
+                                   "points: {:.2f} cm)",
+                                   s.surface_cm, s.true_surface_cm);
   return {summary.dump(),
           fmt::format("{} taps mapped into {}: MED {:.2f} cm, RMS Chamfer {:.2f} cm (predicted "
-                      "to true), {:.2f} cm (true to predicted)\n",
-                      s.taps, o.out, s.med_cm, s.chamfer_cm, s.reverse_chamfer_cm)};
+                      "to true), {:.2f} cm (true to predicted){}\n",
+                      s.taps, o.out, s.med_cm, s.chamfer_cm, s.reverse_chamfer_cm, surface)};
 }
 
 void RegisterMap(CLI::App& app, GlobalOptions& g, Runner* run) {

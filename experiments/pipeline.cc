@@ -11,6 +11,7 @@
 #include <cmath>
 #include <mutex>
 #include <numbers>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -467,22 +468,28 @@ Eigen::MatrixXf GatingClipFor(const SonicBoomConfig& config, double sample_rate_
 
 }  // namespace
 
+std::optional<SonicBoomConfig> SimulatedWith(const DatasetInfo& info, const std::string& path) {
+  if (info.config_yaml.empty() || info.source != "sim") return std::nullopt;
+  ConfigSources sources;
+  sources.embedded_yaml = info.config_yaml;
+  sources.embedded_name = path + " (its config)";
+  try {
+    return ResolveConfig(sources);
+  } catch (const ConfigError&) {
+    return std::nullopt;
+  }
+}
+
 namespace {
 
 // a dataset rendered over its features' span (acoustics.render_span = features) is silent after
 // it: features that read further are refused
 void CheckRenderedSpan(const DatasetInfo& info, const SonicBoomConfig& config,
                        const std::string& path) {
-  if (info.config_yaml.empty() || info.source != "sim") return;
-  ConfigSources sources;
-  sources.embedded_yaml = info.config_yaml;
-  sources.embedded_name = path + " (its config)";
-  SonicBoomConfig made;
-  try {
-    made = ResolveConfig(sources);
-  } catch (const ConfigError&) {
-    return;  // a file of an earlier version, whose keys have changed: rendered over the record
-  }
+  // a file of an earlier version, whose keys have changed, was rendered over the record
+  const std::optional<SonicBoomConfig> made_with = SimulatedWith(info, path);
+  if (!made_with) return;
+  const SonicBoomConfig& made = *made_with;
   if (made.acoustics.render_span != acoustics::RenderSpan::kFeatures) return;
   const double rendered = FeatureSpanAfterContact(made.features);
   const double read = FeatureSpanAfterContact(config.features);

@@ -16,6 +16,7 @@
 
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_modes.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/commands.h"
@@ -31,7 +32,6 @@ namespace sonicboom::experiments {
 namespace {
 
 using nlohmann::json;
-constexpr double kDeg = std::numbers::pi / 180.0;
 
 // the study's own options, beyond the meshes of ReferenceLevelOptions
 struct ReferenceOptions : ReferenceLevelOptions {

@@ -224,13 +224,15 @@ std::string ReproduceReport(const json& r, const std::string& size) {
   md += fmt::format(
       "## Haptic map (paper §V-C): the ts3 taps placed with the arm's logged pose\n\n{} taps: "
       "MED {} cm between each predicted and true contact point; RMS Chamfer distance {} cm "
-      "(predicted to true, the paper's), {} cm (true to predicted).\n\n![map](map/map.png)\n\n"
+      "(predicted to true, the paper's), {} cm (true to predicted); RMS distance to the branch "
+      "surface {} cm (the true points: {} cm, the placement's check).\n\n![map](map/map.png)\n\n"
       "## The data\n\n![ts3 coverage and one strike](coverage_ts3.png)\n\n"
       "## Figures of studies with their own commands (copied from docs/, not rerun here)\n\n"
       "![the fidelity ladder](fidelity_pareto.png)\n\n*`sonicboom fidelity` (docs/fidelity.md).*"
       "\n\n![few-shot fine-tuning](fewshot.png)\n\n*scripts/fewshot_study.sh and "
       "`scripts/plot.py fewshot` (docs/captures.md).*\n\n",
-      m["taps"].get<int64_t>(), Cm(m, "med_cm"), Cm(m, "chamfer_cm"), Cm(m, "reverse_chamfer_cm"));
+      m["taps"].get<int64_t>(), Cm(m, "med_cm"), Cm(m, "chamfer_cm"), Cm(m, "reverse_chamfer_cm"),
+      Cm(m, "surface_cm"), Cm(m, "true_surface_cm"));
   // how each figure was made
   md += "## Stages, wall times and commands\n\n| stage | wall (s, when it ran) | this run |\n"
         "|---|---|---|\n";
@@ -361,6 +363,7 @@ class Reproduction {
                  });
     json map = json::parse(ReadText(Path("map/map.json")));
     map.erase("points");
+    map.erase("skeleton");
     return map;
   }
 

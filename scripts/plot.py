@@ -4,8 +4,8 @@ usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
   fidelity  the fidelity ladder's Pareto figure (`sonicboom fidelity`, FIDELITY.json)
   inspect   a dataset's (z, theta) coverage and one strike's six channels with their
             spectrograms (`sonicboom inspect D.h5 --png OUT.png`, OUT.png.json)
-  map       a haptic map: predicted and true contact points in 3-D, each pair joined
-            (`sonicboom map`, DIR/map.json)
+  map       a haptic map: predicted and true contact points in 3-D, each pair joined, over the
+            mapped branch's skeleton where known (`sonicboom map`, DIR/map.json)
   fewshot   MED against the number of target strikes, fine-tuned and from scratch, per family
             (scripts/fewshot_study.sh, OUT/results.json)
   errors    per-scenario distributions of the 3-D, height and angle errors, box over violin
@@ -122,6 +122,12 @@ def haptic_map(data, src, png):
     true = [p["true_m"] for p in data["points"]]
     fig = plt.figure(figsize=(9, 8))
     ax = fig.add_subplot(projection="3d")
+    # the mapped object's skeleton (guided taps only): each segment's axis, drawn by its radius
+    for k, seg in enumerate(data.get("skeleton", [])):
+        a, b = seg["p0_m"], seg["p1_m"]
+        ax.plot([100 * a[0], 100 * b[0]], [100 * a[1], 100 * b[1]], [100 * a[2], 100 * b[2]],
+                color="tab:green", lw=max(1.0, 300 * seg["radius_m"]), alpha=0.5,
+                label="branch skeleton" if k == 0 else None)
     for p, t in zip(pred, true):
         ax.plot([100 * p[0], 100 * t[0]], [100 * p[1], 100 * t[1]], [100 * p[2], 100 * t[2]],
                 color="grey", lw=0.5)
@@ -133,9 +139,12 @@ def haptic_map(data, src, png):
     ax.set_ylabel("y (cm)")
     ax.set_zlabel("z (cm)")
     ax.legend(fontsize=8)
+    surface = ""
+    if data.get("surface_cm") is not None:
+        surface = f", to the surface {data['surface_cm']:.2f}"
     ax.set_title(f"{data['data']} by {data['model']}: {data['taps']} taps, MED "
                  f"{data['med_cm']:.2f} cm, RMS Chamfer {data['chamfer_cm']:.2f} cm "
-                 f"(reverse {data['reverse_chamfer_cm']:.2f})", fontsize=9)
+                 f"(reverse {data['reverse_chamfer_cm']:.2f}{surface})", fontsize=9)
     fig.tight_layout()
     fig.savefig(png, dpi=100)
 

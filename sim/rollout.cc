@@ -28,7 +28,6 @@ using internal::ModelPtr;
 using internal::RequireId;
 using internal::SegmentDistance;
 
-constexpr double kDeg = kPi / 180.0;
 // object surface this far beyond the intended contact point at the kinematic contact pose, m
 constexpr double kObjectGapM = 0.001;
 // a one-end-clamped rod is struck this far from its free tip, m (room to slide while pressed)
@@ -267,10 +266,7 @@ void StrikeRollout::BuildGuided() {
   // the object's fixed pose, and its segments in the base frame
   const GuidedConfig& g = scene_.guided;
   guided_ = std::make_unique<Guided>();
-  guided_->object_pose.translation() =
-      Eigen::Vector3d(g.object_position_m[0], g.object_position_m[1], g.object_position_m[2]);
-  guided_->object_pose.linear() =
-      Eigen::AngleAxisd(g.object_yaw_deg * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  guided_->object_pose = GuidedObjectPose(g);
   const ObjectGeometry& geometry = variants_[0][0]->geometry;
 
   // the tube's mapping orientation: the home pose with joint 7 at guided.joint7_rad

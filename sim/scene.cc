@@ -14,7 +14,6 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kDeg = kPi / 180.0;
 // fundamental roots (docs/physics.md, "Beam modes"): cantilever cos cosh = -1, clamped-clamped 1
 constexpr double kCantileverBetaL = 1.875104068711961;
 constexpr double kClampedBetaL = 4.730040744862704;
@@ -183,6 +182,26 @@ void SceneConfig::Validate() const {
   Require(total_weight > 0.0, "scene.objects: the weights sum to zero");
   stationary.Validate();
   guided.Validate();
+}
+
+Eigen::Isometry3d GuidedObjectPose(const GuidedConfig& guided) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(guided.object_position_m[0], guided.object_position_m[1],
+                                       guided.object_position_m[2]);
+  pose.linear() =
+      Eigen::AngleAxisd(guided.object_yaw_deg * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return pose;
+}
+
+std::vector<ObjectSegment> GuidedSegmentsInBase(const SceneConfig& scene) {
+  if (scene.mode != SceneMode::kGuided || scene.objects.empty()) return {};
+  const Eigen::Isometry3d pose = GuidedObjectPose(scene.guided);
+  std::vector<ObjectSegment> segments = BuildObjectGeometry(scene.objects.front(), 0).segments;
+  for (ObjectSegment& s : segments) {
+    s.p0 = pose * s.p0;
+    s.p1 = pose * s.p1;
+  }
+  return segments;
 }
 
 int64_t ObjectVariants(const ObjectConfig& object) {

@@ -24,7 +24,6 @@ using internal::DataPtr;
 using internal::ModelPtr;
 using internal::RequireId;
 
-constexpr double kDeg = kPi / 180.0;
 // the striker starts this far (m) clear of the surface at least
 constexpr double kMinStartGapM = 0.002;
 

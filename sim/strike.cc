@@ -13,7 +13,6 @@
 namespace sonicboom::sim {
 namespace {
 
-constexpr double kDeg = kPi / 180.0;
 
 }  // namespace
 

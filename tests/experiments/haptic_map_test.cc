@@ -57,6 +57,60 @@ TEST(HapticMapTest, ChamferAndScoresOnSetsWithKnownAnswers) {
   EXPECT_TRUE(p.isApprox(Eigen::Vector3d(1.05, 2.0 - 0.1, 3.0), 1e-12)) << p.transpose();
 }
 
+// distances to an object of capsules: beside the axis, past an end (to the cap), inside (the
+// depth), the nearest of two; the surface scores of a map whose true points lie on the object,
+// and none without an object
+TEST(HapticMapTest, SurfaceDistanceOfCapsulesAndTheMapsSurfaceScores) {
+  sim::ObjectSegment along_x;  // a 2 cm thick rod from the origin to x = 1 m
+  along_x.p1 = Eigen::Vector3d(1, 0, 0);
+  along_x.radius_m = 0.01;
+  const std::vector<sim::ObjectSegment> rod{along_x};
+  EXPECT_NEAR(SurfaceDistance(rod, {0.5, 0.03, 0}), 0.02, 1e-12);
+  EXPECT_NEAR(SurfaceDistance(rod, {1.05, 0, 0}), 0.04, 1e-12);
+  EXPECT_NEAR(SurfaceDistance(rod, {0.5, 0, 0.004}), 0.006, 1e-12);
+  sim::ObjectSegment along_y = along_x;  // a second rod 10 cm above
+  along_y.p0 = Eigen::Vector3d(0, 0, 0.1);
+  along_y.p1 = Eigen::Vector3d(0, 1, 0.1);
+  const std::vector<sim::ObjectSegment> two{along_x, along_y};
+  EXPECT_NEAR(SurfaceDistance(two, {0, 0.5, 0.085}), 0.005, 1e-12);
+  EXPECT_TRUE(std::isnan(SurfaceDistance({}, {0, 0, 0})));
+  // true points on the rod's surface, predictions 1 cm off it
+  Eigen::Matrix3Xd truth(3, 2), predicted(3, 2);
+  truth << 0.2, 0.7,  //
+      0.01, 0,        //
+      0, -0.01;
+  predicted << 0.2, 0.7,  //
+      0.02, 0,            //
+      0, -0.02;
+  const MapScores s = ScoreMap(predicted, truth, rod);
+  EXPECT_NEAR(s.true_surface_cm, 0.0, 1e-12);
+  EXPECT_NEAR(s.surface_cm, 1.0, 1e-12);
+  EXPECT_TRUE(std::isnan(ScoreMap(predicted, truth).surface_cm));
+}
+
+// the guided scene's object in the base frame: at object_position_m, turned by object_yaw_deg
+// about base z, as the taps were planned around it; other modes have none
+TEST(HapticMapTest, GuidedObjectIsPlacedWhereTheTapsWerePlanned) {
+  sim::SceneConfig scene;
+  scene.mode = sim::SceneMode::kGuided;
+  scene.objects.resize(1);
+  scene.objects[0].kind = sim::ObjectKind::kRod;
+  scene.guided.object_position_m = {-0.4, 0.4, 0.31};
+  scene.guided.object_yaw_deg = 90;
+  const sim::ObjectGeometry local = sim::BuildObjectGeometry(scene.objects[0], 0);
+  const std::vector<sim::ObjectSegment> base = sim::GuidedSegmentsInBase(scene);
+  ASSERT_EQ(base.size(), local.segments.size());
+  ASSERT_FALSE(base.empty());
+  const Eigen::Vector3d at(-0.4, 0.4, 0.31);
+  for (size_t k = 0; k < base.size(); ++k) {
+    const Eigen::Vector3d& p = local.segments[k].p1;
+    EXPECT_TRUE(base[k].p1.isApprox(at + Eigen::Vector3d(-p.y(), p.x(), p.z()), 1e-12));
+    EXPECT_EQ(base[k].radius_m, local.segments[k].radius_m);
+  }
+  scene.mode = sim::SceneMode::kStrike;
+  EXPECT_TRUE(sim::GuidedSegmentsInBase(scene).empty());
+}
+
 // map and eval of one model on one dataset: the map's MED (between points placed in the base
 // frame with the logged pose) is eval's (on the tube surface), since a placement is rigid
 TEST(HapticMapTest, MapScoresTheTapsEvalScores) {
@@ -86,6 +140,18 @@ TEST(HapticMapTest, MapScoresTheTapsEvalScores) {
   run = RunCli("map --model R --data T.h5 --out M --plot ''", cwd);
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("M: exists; --force"), std::string::npos) << run.err;
+  // taps whose arm log ends before their contact (0.1 s of rows, contacts at 0.25 s) are refused
+  // before any work, naming the key that logs longer
+  ASSERT_EQ(RunCli(args + "--set strike.proprio_rows=10 generate --count 4 --out S.h5", cwd)
+                .exit_code,
+            0);
+  run = RunCli("map --model R --data S.h5 --out M2 --plot ''", cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("after its proprioception log ends (10 rows at 100 Hz"),
+            std::string::npos)
+      << run.err;
+  EXPECT_NE(run.err.find("strike.proprio_rows"), std::string::npos) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "M2/map.json"));
 }
 
 }  // namespace

@@ -25,7 +25,6 @@ namespace sonicboom::sim {
 namespace {
 
 using sonicboom::kPi;
-constexpr double kDeg = kPi / 180.0;
 
 ObjectConfig Rod(double diameter_m, double length_m) {
   ObjectConfig o;

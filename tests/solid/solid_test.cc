@@ -28,7 +28,6 @@ namespace sonicboom::solid {
 namespace {
 
 using sonicboom::kPi;
-constexpr double kDeg = kPi / 180.0;
 
 TEST(GllTest, IntegratesPolynomialsToDegreeTwoNMinusOneAndDifferentiatesExactly) {
   for (int n = 1; n <= 8; ++n) {

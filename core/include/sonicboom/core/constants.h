@@ -6,5 +6,7 @@
 namespace sonicboom {
 
 inline constexpr double kPi = std::numbers::pi;
+/// Radians per degree.
+inline constexpr double kDeg = kPi / 180.0;
 
 }  // namespace sonicboom

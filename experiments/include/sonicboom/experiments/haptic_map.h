@@ -5,6 +5,10 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "sonicboom/sim/scene.h"
 
 namespace sonicboom::experiments {
 
@@ -18,14 +22,25 @@ double RmsChamfer(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to);
 Eigen::Vector3d TubeSurfacePoint(const Eigen::Isometry3d& tube_pose, double z_m, double theta_rad,
                                  double radius_m);
 
+/// Distance from p to the object made of the capsules `segments` (each its axis p0-p1 and its
+/// radius, one frame with p), m: |min over capsules of (distance to the axis - radius)|, exact
+/// outside the object and the depth in the deepest capsule inside it; NaN without segments.
+double SurfaceDistance(const std::vector<sim::ObjectSegment>& segments, const Eigen::Vector3d& p);
+
 /// The scores of a map, cm: MED between corresponding predicted and true points, the RMS Chamfer
-/// distance from the predicted cloud to the true one (the paper's) and back.
+/// distance from the predicted cloud to the true one (the paper's) and back, and, where the
+/// mapped object's geometry is known, the RMS distance of each cloud to its surface (the true
+/// cloud's is the check that the placement is right: a contact lies on what it touched).
 struct MapScores {
   int64_t taps{0};
   double med_cm{0.0};
   double chamfer_cm{0.0};          // predicted -> true
   double reverse_chamfer_cm{0.0};  // true -> predicted
+  double surface_cm{std::numeric_limits<double>::quiet_NaN()};       // predicted -> surface
+  double true_surface_cm{std::numeric_limits<double>::quiet_NaN()};  // true -> surface
 };
-MapScores ScoreMap(const Eigen::Matrix3Xd& predicted_m, const Eigen::Matrix3Xd& true_m);
+/// surface: the mapped object's segments in the points' frame (empty: unknown, NaN scores).
+MapScores ScoreMap(const Eigen::Matrix3Xd& predicted_m, const Eigen::Matrix3Xd& true_m,
+                   const std::vector<sim::ObjectSegment>& surface = {});
 
 }  // namespace sonicboom::experiments

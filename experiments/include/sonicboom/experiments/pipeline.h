@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,11 @@ acoustics::AcousticModelConfig AcousticModel(const SonicBoomConfig& config);
 /// How long after a strike's first contact the features read, s: half the window (centred on
 /// the detected onset), an onset frame and 5 ms of slack for the onset's lag behind the contact.
 double FeatureSpanAfterContact(const dsp::FeatureConfig& features);
+
+/// The config a simulated dataset was generated with (its stored config_yaml resolved), or none:
+/// a file from a capture or import, or of an earlier version whose keys have changed. path names
+/// the file in errors.
+std::optional<SonicBoomConfig> SimulatedWith(const DatasetInfo& info, const std::string& path);
 
 /// Immutable models of one config, shared by all worker threads.
 class StrikePipeline {

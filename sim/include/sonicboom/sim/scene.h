@@ -15,6 +15,7 @@
 /// structure grows from its trunk base (the origin, clamped) along +x and forks.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -181,6 +182,14 @@ struct ObjectGeometry {
 
 /// The geometry of `object` (variant v of a branch structure; other kinds have one variant).
 ObjectGeometry BuildObjectGeometry(const ObjectConfig& object, int64_t variant);
+
+/// Guided mode's mapped object placed in the base frame: scene.guided.object_position_m, turned
+/// by object_yaw_deg about base z (object frame to base frame).
+Eigen::Isometry3d GuidedObjectPose(const GuidedConfig& guided);
+
+/// Guided mode: the mapped object's segments (the first object's first variant, the one the
+/// taps visit) in the base frame, m; empty in any other mode or without objects.
+std::vector<ObjectSegment> GuidedSegmentsInBase(const SceneConfig& scene);
 
 /// Number of distinct geometries of an object (branch variants; 1 otherwise).
 int64_t ObjectVariants(const ObjectConfig& object);
