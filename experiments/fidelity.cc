@@ -442,7 +442,10 @@ std::string Recommendations(const std::vector<RungEntry>& rungs,
       "'thick-plate' is shell.dispersion: thick-plate (docs/shell.md, \"Dispersion\"); 'all "
       "modes' is acoustics.max_frequency_hz: 20000 (the solved band), 'N kHz' acoustics."
       "max_frequency_hz: N000, 'derived band' 0 (from the contact); 'N modes' "
-      "acoustics.mode_count; 'no residual' acoustics.residual: false; FD is acoustics.model: fd.\n";
+      "acoustics.mode_count; 'no residual' acoustics.residual: false; 'N kHz, derived grid' "
+      "acoustics.max_frequency_hz: N000 with shell.grid_spacing_m: 0 and shell.axial_spacing_m: 0 "
+      "(its modes solved to 1.25 x N kHz; the section 'the mode band and the grid' below); FD is "
+      "acoustics.model: fd.\n";
   return md;
 }
 
