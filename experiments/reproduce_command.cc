@@ -207,6 +207,16 @@ std::string ReproduceReport(const json& r, const std::string& size) {
         "strikes.\n\n",
         Cm(m, "med_cm"), Cm(m, "height_err_cm"), m["angle_err_deg"].get<double>(),
         m["n"].get<int64_t>());
+    if (m.contains("by_material")) {
+      md += "| striker material | strikes | MED (cm) | height (cm) | angle (°) |\n"
+            "|---|---|---|---|---|\n";
+      for (const auto& [material, per] : m["by_material"].items()) {
+        md += fmt::format("| {} | {} | {} | {} | {:.1f} |\n", material, per["n"].get<int64_t>(),
+                          Cm(per, "med_cm"), Cm(per, "height_err_cm"),
+                          per["angle_err_deg"].get<double>());
+      }
+      md += "\n";
+    }
   }
   // ablations
   md += "## Modality and preprocessing ablations (trained on ts1, tested on ts1's held-out "

@@ -51,6 +51,13 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   EXPECT_EQ(r["scenarios"]["ts1"]["paper_med_cm"], 0.43);
   EXPECT_EQ(r["ablations"].size(), 2u);
   EXPECT_GT(r["materials"]["n"].get<int64_t>(), 0);
+  // the materials row broken down by the striker's material, which sum to it
+  int64_t by_material = 0;
+  for (const auto& [material, per] : r["materials"]["by_material"].items()) {
+    EXPECT_TRUE(material == "wood" || material == "aluminium" || material == "pvc") << material;
+    by_material += per["n"].get<int64_t>();
+  }
+  EXPECT_EQ(by_material, r["materials"]["n"].get<int64_t>());
   EXPECT_GT(r["map"]["chamfer_cm"].get<double>(), 0.0);
   // the true contact points, placed with the arm's pose at each contact, lie on the branch they
   // touched (0.6 mm RMS at quick size; 3.4 cm when the map used the last pose of a 0.5 s log)
