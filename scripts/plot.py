@@ -142,7 +142,7 @@ def haptic_map(data, src, png):
     surface = ""
     if data.get("surface_cm") is not None:
         surface = f", to the surface {data['surface_cm']:.2f}"
-    ax.set_title(f"{data['data']} by {data['model']}: {data['taps']} taps, MED "
+    ax.set_title(f"{data['data']} by {data['model']}\n{data['taps']} taps, MED "
                  f"{data['med_cm']:.2f} cm, RMS Chamfer {data['chamfer_cm']:.2f} cm "
                  f"(reverse {data['reverse_chamfer_cm']:.2f}{surface})", fontsize=9)
     fig.tight_layout()
