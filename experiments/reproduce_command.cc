@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "sonicboom/core/cache_file.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/config.h"
@@ -67,11 +68,9 @@ ReproduceSize SizeNamed(const std::string& name) {
   throw ConfigError(fmt::format("--size {}: choose quick, paper or smoke", name));
 }
 
-// A short, stable digest of a text (FNV-1a, 64 bit) as hex.
+// A short, stable digest of a text (the caches' FNV-1a, 64 bit) as hex.
 std::string Digest(const std::string& text) {
-  uint64_t h = 1469598103934665603ull;
-  for (unsigned char c : text) h = (h ^ c) * 1099511628211ull;
-  return fmt::format("{:016x}", h);
+  return fmt::format("{:016x}", internal::Fnv1a(text.data(), text.size()));
 }
 
 // Stages run in order; each reruns when its key changed, and reports progress with an ETA from
@@ -255,7 +254,7 @@ std::string ReproduceReport(const json& r, const std::string& size) {
       "configs/tsK.yaml --first-index {}` for the held-out sets, `train --config configs/ts1.yaml "
       "--config configs/{}` for the model, `eval --predictions`, `baseline --method M` (kNN with "
       "k = 1 and all GCC lags), `ablate --configs configs/ablations`, `map` and `inspect --png`. "
-      "Not run by this report yet: the per-material breakdown, the held-out-physics benchmark "
+      "Not run by this report yet: the held-out-physics benchmark "
       "(scripts/transfer_benchmark.sh), the few-shot study (scripts/reference_fewshot.sh) and "
       "the fidelity ladder (docs/fidelity.md).\n",
       kTestFirstIndex, size == "paper" ? "study.yaml" : "study_fast.yaml");
