@@ -22,10 +22,10 @@ double SynthConfig::ModeBandHz(double sample_rate_hz) const {
                           : std::min(0.95 * 0.5 * sample_rate_hz, kDefaultModeBandHz);
 }
 
-double SolvedModeBandHz(const AcousticModelConfig& config) {
-  const SynthConfig& s = config.synth;
-  const double band = s.ModeBandHz(config.audio.sample_rate_hz);
-  const bool drawn = config.randomize.material() || config.randomize.structure();
+double SolvedModeBandHz(const SynthConfig& s, double sample_rate_hz,
+                        const RandomizeConfig& randomize) {
+  const double band = s.ModeBandHz(sample_rate_hz);
+  const bool drawn = randomize.material() || randomize.structure();
   if (s.mode_band_hz > 0 || !(s.max_frequency_hz > 0) || drawn) return band;
   // the thick-plate correction carries a grid mode down by less than 20 % below 20 kHz
   // (docs/shell.md, "Dispersion"): the modes solved to 1.25 x the band hold every mode it plays

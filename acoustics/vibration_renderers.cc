@@ -138,10 +138,7 @@ class ModalRenderer final : public VibrationRenderer {
                              int64_t frames) const override {
     return bank_->Render(forces, ModesPlayed(band_hz), frames);
   }
-  int64_t ModesPlayed(double band_hz) const override {
-    return c_.synth.mode_count > 0 ? std::min(c_.synth.mode_count, bank_->modes())
-                                   : bank_->ModesBelow(band_hz);
-  }
+  int64_t ModesPlayed(double band_hz) const override { return ModesOf(*bank_, band_hz, {}); }
   DrivingPoint WallAt(double z_m, double theta_rad, double band_hz) const override {
     return bank_->WallAt(z_m, theta_rad, band_hz);
   }
@@ -158,6 +155,12 @@ class ModalRenderer final : public VibrationRenderer {
                        uint64_t sample_seed, RenderedStrike* out) const override;
 
  private:
+  // the modes a bank plays for band_hz on a structure: acoustics.mode_count, or those below it
+  int64_t ModesOf(const ShellModalBank& bank, double band_hz,
+                  const StructureDraw& structure) const {
+    return c_.synth.mode_count > 0 ? std::min(c_.synth.mode_count, bank.modes())
+                                   : bank.ModesBelow(band_hz, structure);
+  }
   // the structure pool from the base modes (with shapes): variants drawn, Ritz modes, banks
   void BuildPool(const ShellModes& base_modes, double placement_margin_m);
   struct Variant {
@@ -238,8 +241,7 @@ Eigen::MatrixXd ModalRenderer::Play(const SampleView& view, std::span<const Cont
   // vibration: the band the first contact excites, or the configured count (the first closure
   // sets it: a chatter's later touches are softer and no shorter)
   out->band_hz = band_(ex.first.first_closure_s, scale);
-  out->modes_used = c_.synth.mode_count > 0 ? std::min(c_.synth.mode_count, bank.modes())
-                                            : bank.ModesBelow(out->band_hz, view.structure);
+  out->modes_used = ModesOf(bank, out->band_hz, view.structure);
   return bank.Render(ex.forces, out->modes_used, view.frames, view.structure);
 }
 
@@ -327,7 +329,7 @@ std::unique_ptr<VibrationRenderer> MakeVibrationRenderer(const AcousticModelConf
   // the FD rung steps the grid itself and closes its impacts against it: no modes to solve
   if (synth.model == VibrationModel::kFd) return std::make_unique<FdRenderer>(config, band);
   // modes to the configured band; by default what the grid resolves (20 kHz) below Nyquist
-  band.mode_band_hz = SolvedModeBandHz(config);
+  band.mode_band_hz = SolvedModeBandHz(synth, config.audio.sample_rate_hz, config.randomize);
   if (band.mode_band_hz >= nyquist) {
     throw ConfigError(fmt::format(
         "acoustics.mode_band_hz = {} must be below the Nyquist frequency {} Hz",

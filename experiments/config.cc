@@ -6,7 +6,6 @@
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/config_io.h"
 #include "sonicboom/core/errors.h"
-#include "sonicboom/experiments/pipeline.h"
 
 namespace sonicboom::experiments {
 
@@ -109,6 +108,14 @@ void SonicBoomConfig::Validate() const {
   }
 }
 
+void ResolveDerivedGrid(SonicBoomConfig* config) {
+  if (config->shell.grid_spacing_m != 0.0) return;
+  const double band_hz = acoustics::SolvedModeBandHz(
+      config->acoustics, config->audio.sample_rate_hz, config->randomize);
+  config->shell.grid_spacing_m =
+      acoustics::DerivedGridSpacing(config->tube, config->material, band_hz);
+}
+
 SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
   // layers: struct defaults, embedded layer, files in order, --set overrides, --seed
   ConfigLayers layers;
@@ -120,10 +127,7 @@ SonicBoomConfig ResolveConfig(const ConfigSources& sources) {
   SonicBoomConfig config;
   layers.ReadInto(&config);
   // shell.grid_spacing_m = 0: the grid the solved mode band needs, written into the config
-  if (config.shell.grid_spacing_m == 0.0) {
-    config.shell.grid_spacing_m = acoustics::DerivedGridSpacing(
-        config.tube, config.material, acoustics::SolvedModeBandHz(AcousticModel(config)));
-  }
+  ResolveDerivedGrid(&config);
   config.Validate();
   // the resolved config states the integrator step that the contact time scale implies
   if (config.strike.engine == sim::StrikeEngine::kMujoco ||

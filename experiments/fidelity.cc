@@ -655,7 +655,8 @@ std::vector<RungEntry> LadderRungs(const SonicBoomConfig& config, const LadderSe
     const FixedBandScene scene = SceneOfBand(config, band);
     acoustics::RungSpec spec = modal_spec(band, 0, true);
     spec.mode_band_hz = scene.solved_band_hz;
-    const Grid grid{"derived", scene.spacing_m, scene.spacing_m};
+    const double spacing_m = scene.config.shell.grid_spacing_m;
+    const Grid grid{"derived", spacing_m, spacing_m};
     rungs.push_back({fmt::format("modal, {:.0f} kHz, derived grid", band / 1000), "modal",
                      grid_name(grid), shell(spec, grid)});
   }

@@ -148,11 +148,11 @@ FixedBandScene SceneOfBand(const SonicBoomConfig& config, double band_hz) {
   SonicBoomConfig scene = config;
   scene.acoustics.max_frequency_hz = band_hz;
   scene.acoustics.mode_band_hz = 0.0;
-  FixedBandScene out;
-  out.band_hz = band_hz;
-  out.solved_band_hz = acoustics::SolvedModeBandHz(AcousticModel(scene));
-  out.spacing_m = acoustics::DerivedGridSpacing(config.tube, config.material, out.solved_band_hz);
-  return out;
+  scene.shell.grid_spacing_m = scene.shell.axial_spacing_m = 0.0;
+  ResolveDerivedGrid(&scene);
+  const double solved_hz = acoustics::SolvedModeBandHz(
+      scene.acoustics, scene.audio.sample_rate_hz, scene.randomize);
+  return {std::move(scene), solved_hz};
 }
 
 json ModeBandSection(const WholeStrikeSetup& setup, std::string* md) {
@@ -168,12 +168,8 @@ json ModeBandSection(const WholeStrikeSetup& setup, std::string* md) {
     scenes.front().config.shell.axial_spacing_m = setup.axial_m;
   }
   for (double band : kDerivedGridBandsHz) {
-    const FixedBandScene fixed = SceneOfBand(config, band);
-    Scene s{fmt::format("fixed {:.0f} kHz, derived grid", band / 1000), config};
-    s.config.acoustics.max_frequency_hz = band;
-    s.config.acoustics.mode_band_hz = 0.0;
-    s.config.shell.grid_spacing_m = s.config.shell.axial_spacing_m = fixed.spacing_m;
-    scenes.push_back(std::move(s));
+    scenes.push_back({fmt::format("fixed {:.0f} kHz, derived grid", band / 1000),
+                      SceneOfBand(config, band).config});
   }
   *md += fmt::format(
       "\nWhat a scene needs (the mode band and the grid): a scene that plays a fixed band "
@@ -185,12 +181,16 @@ json ModeBandSection(const WholeStrikeSetup& setup, std::string* md) {
       "against the reference.\n\n"
       "| scene | modes solved to (kHz) | grid | DOFs | modes | mode solve (s) | ms per strike "
       "(vibration model) |\n|---|---|---|---|---|---|---|\n",
-      acoustics::SolvedModeBandHz(AcousticModel(config)) / 1000, acoustics::kGridPointsPerWavelength,
+      acoustics::SolvedModeBandHz(config.acoustics, config.audio.sample_rate_hz,
+                                  config.randomize) /
+          1000,
+      acoustics::kGridPointsPerWavelength,
       1e3 * acoustics::kCoarsestDerivedSpacingM);
   json rows = json::array();
   for (const Scene& scene : scenes) {
     const acoustics::AcousticModelConfig a = AcousticModel(scene.config);
-    const double solved_hz = acoustics::SolvedModeBandHz(a);
+    const double solved_hz =
+        acoustics::SolvedModeBandHz(a.synth, a.audio.sample_rate_hz, a.randomize);
     const acoustics::ShellModel shell(a.tube, a.material, a.shell);
     const auto t0 = std::chrono::steady_clock::now();
     const acoustics::ShellModes modes = acoustics::SolveShellModes(shell, solved_hz, 0);

@@ -48,10 +48,12 @@ WholeStrikeTime WholeStrikeMs(const WholeStrikeSetup& setup);
 nlohmann::json RenderSpanSection(const WholeStrikeSetup& setup, std::string* md);
 
 /// A scene that plays a fixed band (acoustics.max_frequency_hz = band_hz) on a derived grid
-/// (shell.grid_spacing_m = axial_spacing_m = 0), as ResolveConfig makes it: the band its modes
-/// are solved to and its square grid's spacing.
+/// (shell.grid_spacing_m = axial_spacing_m = 0), resolved as ResolveConfig resolves it: its
+/// config (the square grid's spacing in shell.grid_spacing_m) and the band its modes are solved
+/// to.
 struct FixedBandScene {
-  double band_hz{0.0}, solved_band_hz{0.0}, spacing_m{0.0};
+  SonicBoomConfig config;
+  double solved_band_hz{0.0};
 };
 FixedBandScene SceneOfBand(const SonicBoomConfig& config, double band_hz);
 

@@ -122,8 +122,8 @@ TEST(StrikeRenderTest, AFixedBandSolvesOnlyTheModesItPlays) {
   wide.synth.max_frequency_hz = 3000;
   AcousticModelConfig narrow = wide;
   narrow.synth.mode_band_hz = 0;
-  EXPECT_DOUBLE_EQ(SolvedModeBandHz(narrow), 3750.0);
-  EXPECT_DOUBLE_EQ(SolvedModeBandHz(wide), 12000.0);  // mode_band_hz set: as asked
+  EXPECT_DOUBLE_EQ(SolvedModeBandHz(narrow.synth, 44100.0, narrow.randomize), 3750.0);
+  EXPECT_DOUBLE_EQ(SolvedModeBandHz(wide.synth, 44100.0, wide.randomize), 12000.0);  // mode_band_hz set: as asked
   const StrikeSynthesizer a(wide), b(narrow);
   EXPECT_LT(b.mode_count(), a.mode_count() / 2);
   const RenderedStrike ra = a.Render(Dowel(0.03, 0.7, 0.5), {}, 0.0, 3);
@@ -136,7 +136,7 @@ TEST(StrikeRenderTest, AFixedBandSolvesOnlyTheModesItPlays) {
   // a drawn material moves modes across the band: then every mode is solved
   AcousticModelConfig drawn = narrow;
   drawn.randomize.youngs_modulus_scale = {0.8, 1.2};
-  EXPECT_DOUBLE_EQ(SolvedModeBandHz(drawn), narrow.synth.ModeBandHz(44100.0));
+  EXPECT_DOUBLE_EQ(SolvedModeBandHz(drawn.synth, 44100.0, drawn.randomize), narrow.synth.ModeBandHz(44100.0));
 }
 
 TEST(StrikeRenderTest, FdRungAgreesWithModalRung) {

@@ -96,12 +96,14 @@ struct AcousticModelConfig {
   uint64_t seed{0};           // global seed: the structure pool's draws
 };
 
-/// The band the modal rung solves its modes to for `config`, Hz: acoustics.mode_band_hz when set;
+/// The band the modal rung solves its modes to, Hz, from the acoustics keys, the sample rate and
+/// the randomize ranges: acoustics.mode_band_hz when set;
 /// else, for a fixed acoustics.max_frequency_hz and no draw that moves modes (no material or
 /// structure ranges), 1.25 x that band (the dispersion correction's headroom): nothing above a
 /// fixed band is played, neither in the signal nor in the contact's wall, and the residual stands
 /// for the rest; else SynthConfig::ModeBandHz.
-double SolvedModeBandHz(const AcousticModelConfig& config);
+double SolvedModeBandHz(const SynthConfig& synth, double sample_rate_hz,
+                        const RandomizeConfig& randomize);
 
 /// The Hertz impact of a striker on the wall (rigid target): docs/physics.md, "Hertz impact".
 struct HertzImpact {

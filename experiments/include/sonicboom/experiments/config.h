@@ -81,6 +81,9 @@ struct ConfigSources {
 
 /// Resolves and validates a config. Throws ConfigError / IoError naming the culprit.
 SonicBoomConfig ResolveConfig(const ConfigSources& sources);
+/// shell.grid_spacing_m = 0 resolved (ResolveConfig does it): the spacing DerivedGridSpacing gives
+/// for the band the modes are solved to (acoustics::SolvedModeBandHz); a set spacing stays.
+void ResolveDerivedGrid(SonicBoomConfig* config);
 
 /// The resolved config as YAML.
 std::string ConfigToYaml(const SonicBoomConfig& config);
