@@ -106,7 +106,10 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
                 {{data, "--data"}, {model_dir, "--model"}});
   }
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
-  learning::Localizer localizer(model_dir, {.turn_average = options.turn_average});
+  // mirror images are taken of each turn, so --mirror-average turns too
+  learning::Localizer localizer(model_dir,
+                                {.turn_average = options.turn_average || options.mirror_average,
+                                 .mirror_average = options.mirror_average});
   std::vector<uint64_t> indices;
   const learning::FeatureSet set =
       ComputeDatasetFeatures(data, config, g.threads, !g.quiet, &indices);
@@ -151,6 +154,9 @@ void RegisterEval(CLI::App& app, GlobalOptions& g, Runner* run) {
   eval->add_flag("--turn-average", o->eval.turn_average,
                  "answer by the layout's symmetry: each strike also read with its rings turned "
                  "by 120 and 240 degrees, answers turned back and combined (audio-only models)");
+  eval->add_flag("--mirror-average", o->eval.mirror_average,
+                 "--turn-average with each turn also read mirrored about theta 0 (in each ring "
+                 "discs 1 and 2 swapped): six answers combined");
   eval->callback([&g, run, o] {
     *run = [&g, o] { return RunEval(g, o->model, o->data, o->eval); };
   });

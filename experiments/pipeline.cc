@@ -663,9 +663,11 @@ std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
 namespace {
 
 // train.rotate_rings turns a record by 120 degrees: the discs must be rings of three, 120
-// degrees apart in channel order, every ring at the same angles
+// degrees apart in channel order, every ring at the same angles; train.mirror_rings mirrors it
+// about theta 0, where disc 0 of each ring must then sit
 void CheckRingsTurn(const SonicBoomConfig& config) {
-  if (!config.train.rotate_rings) return;
+  if (!config.train.rotate_rings && !config.train.mirror_rings) return;
+  const char* key = config.train.mirror_rings ? "train.mirror_rings" : "train.rotate_rings";
   const MicArrayConfig& mics = config.mics;
   const int count = mics.count();
   bool ok = count % 3 == 0;
@@ -678,9 +680,15 @@ void CheckRingsTurn(const SonicBoomConfig& config) {
          mics.z_m[static_cast<size_t>(c)] == mics.z_m[static_cast<size_t>(c / 3 * 3)];
   }
   if (!ok) {
-    throw ConfigError(
-        "train.rotate_rings = true needs mics.theta_deg in rings of three, 120 degrees apart in "
-        "channel order and at the same angles in every ring, each ring at one mics.z_m");
+    throw ConfigError(fmt::format(
+        "{} = true needs mics.theta_deg in rings of three, 120 degrees apart in channel order "
+        "and at the same angles in every ring, each ring at one mics.z_m",
+        key));
+  }
+  if (config.train.mirror_rings && std::abs(std::remainder(mics.theta_deg[0], 360.0)) > 1e-6) {
+    throw ConfigError(fmt::format(
+        "train.mirror_rings = true mirrors about theta 0: needs mics.theta_deg[0] = 0 (got {})",
+        mics.theta_deg[0]));
   }
 }
 

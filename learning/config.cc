@@ -53,6 +53,7 @@ void ModelConfig::Serialize(Archive* a) {
   a->Visit("gcc_encoder", &gcc_encoder);
   a->Visit("arrival_picks", &arrival_picks);
   a->Visit("turn_average", &turn_average);
+  a->Visit("mirror_average", &mirror_average);
 }
 
 void ModelConfig::Validate() const {
@@ -92,6 +93,10 @@ void ModelConfig::Validate() const {
     Reject("model.turn_average", "true",
            fmt::format("needs model.modalities = [audio] (got [{}])", fmt::join(modalities, ", ")));
   }
+  // the mirror images are taken of each turn
+  if (mirror_average && !turn_average) {
+    Reject("model.mirror_average", "true", "needs model.turn_average = true");
+  }
 }
 
 void TrainConfig::Serialize(Archive* a) {
@@ -112,6 +117,7 @@ void TrainConfig::Serialize(Archive* a) {
   a->Visit("polarity_flip", &polarity_flip);
   a->Visit("time_stretch", &time_stretch, Bounds{0.0, 0.5, false, false});
   a->Visit("rotate_rings", &rotate_rings);
+  a->Visit("mirror_rings", &mirror_rings);
   a->Visit("normalize", &normalize);
   a->Visit("keep_best", &keep_best);
   a->Visit("ensemble_members", &ensemble_members, AtLeastOne());

@@ -149,7 +149,20 @@ Augmentation DrawAugmentation(const TrainConfig& config, int64_t crop_frames, in
     a.stretch = std::exp(ln * (2.0 * rng.Uniform() - 1.0));
   }
   if (config.rotate_rings) a.rotation = static_cast<int64_t>(rng.UniformInt(kRingDiscs));
+  // mirror last: the draws above stay what they were without it
+  if (config.mirror_rings) a.mirror = rng.UniformInt(2) == 1;
   return a;
+}
+
+double SymmetricTheta(double theta_rad, const Augmentation& a) {
+  const double turned = theta_rad + 2.0 * kPi * static_cast<double>(a.rotation) / kRingDiscs;
+  return a.mirror ? -turned : turned;
+}
+
+double UnturnedTheta(double seen_rad, const Augmentation& a) {
+  const double turned = a.mirror ? -seen_rad : seen_rad;
+  return std::remainder(turned - 2.0 * kPi * static_cast<double>(a.rotation) / kRingDiscs,
+                        2.0 * kPi);
 }
 
 int64_t ProprioShiftRows(int64_t shift_frames, int64_t frame_hop_samples) {
@@ -200,9 +213,11 @@ Batch AssembleBatch(const FeatureSet& f, const std::vector<int64_t>& records,
       float* dst = batch.mel.data_ptr<float>() + b * f.channels * f.mels * crop_frames;
       const int64_t start = centre_start + a.shift_frames;
       for (int64_t c = 0; c < f.channels; ++c) {
-        // the disc this channel reads once the record is turned (train.rotate_rings)
+        // the disc this channel reads once the record is turned (train.rotate_rings), then
+        // mirrored (train.mirror_rings): disc (-p - rotation) mod 3 of its ring
         const int64_t ring = c / kRingDiscs * kRingDiscs;
-        const int64_t read = ring + (c - ring - a.rotation + kRingDiscs) % kRingDiscs;
+        const int64_t p = a.mirror ? (kRingDiscs - (c - ring)) % kRingDiscs : c - ring;
+        const int64_t read = ring + (p - a.rotation + kRingDiscs) % kRingDiscs;
         for (int64_t m = 0; m < f.mels; ++m) {
           const float* src = f.mel.data() + ((r * f.channels + read) * f.mels + m) * f.frames;
           float* row = dst + (c * f.mels + m) * crop_frames;
@@ -253,8 +268,8 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
   auto acc = targets.accessor<float, 2>();
   for (size_t b = 0; b < records.size(); ++b) {
     const int64_t r = records[b];
-    const int64_t turns = augment != nullptr ? (*augment)[b].rotation : 0;
-    const double theta = f.theta_rad[r] + 2.0 * kPi * static_cast<double>(turns) / kRingDiscs;
+    const double theta =
+        augment != nullptr ? SymmetricTheta(f.theta_rad[r], (*augment)[b]) : f.theta_rad[r];
     acc[b][0] = static_cast<float>(f.z_m[r] * 100.0);
     acc[b][1] = static_cast<float>(std::cos(theta));
     acc[b][2] = static_cast<float>(std::sin(theta));
@@ -263,7 +278,7 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
 }
 
 std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames,
-                                   int64_t turns) {
+                                   const Augmentation& symmetry) {
   network.eval();
   // inference mode: no autograd record and no version counters on the tensors made here
   c10::InferenceMode inference;
@@ -273,14 +288,16 @@ std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, in
     const int64_t count = std::min(kPredictBatch, f.size() - first);
     std::vector<int64_t> records(count);
     for (int64_t i = 0; i < count; ++i) records[i] = first + i;
-    // every record turned alike (none: as is)
+    // every record turned and mirrored alike (none: as is)
     Augmentation turned;
-    turned.rotation = turns;
+    turned.rotation = symmetry.rotation;
+    turned.mirror = symmetry.mirror;
+    const bool moved = turned.rotation != 0 || turned.mirror;
     const std::vector<Augmentation> augment(count, turned);
     // (B, 3) = (z_cm, cos, sin), then (log sigma_z_cm, log kappa) with the uncertainty head
     torch::Tensor out = network
                             .forward(AssembleBatch(f, records, network.modalities(), crop_frames,
-                                                   turns > 0 ? &augment : nullptr, fill))
+                                                   moved ? &augment : nullptr, fill))
                             .contiguous();
     auto acc = out.accessor<float, 2>();
     const bool uncertain = out.size(1) == 5;
@@ -288,10 +305,7 @@ std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, in
       Prediction& p = predictions[first + i];
       p.z_m = acc[i][0] / 100.0;
       p.theta_rad = std::atan2(double{acc[i][2]}, double{acc[i][1]});
-      if (turns > 0) {
-        p.theta_rad = std::remainder(p.theta_rad - 2.0 * kPi * double(turns) / kRingDiscs,
-                                     2.0 * kPi);
-      }
+      if (moved) p.theta_rad = UnturnedTheta(p.theta_rad, turned);
       if (uncertain) {
         p.z_std_m = std::exp(double{acc[i][3]}) / 100.0;
         p.theta_kappa = std::exp(double{acc[i][4]});
@@ -443,10 +457,11 @@ ModelFile ModelFileFromJson(const json& j, const std::string& origin) {
   if (!j.contains("model")) throw SchemaError(fmt::format("{}: 'model' is missing", origin));
   if (!j.contains("shapes")) throw SchemaError(fmt::format("{}: 'shapes' is missing", origin));
   ModelFile file;
-  // a file written before model.arrival_picks and model.turn_average existed has neither
+  // a file written before model.arrival_picks, turn_average or mirror_average existed lacks it
   json model = j["model"];
   if (model.is_object() && !model.contains("arrival_picks")) model["arrival_picks"] = "none";
   if (model.is_object() && !model.contains("turn_average")) model["turn_average"] = false;
+  if (model.is_object() && !model.contains("mirror_average")) model["mirror_average"] = false;
   file.model_config = ConfigFromJson<ModelConfig>(model, origin + " (model)");
   try {
     file.model_config.Validate();

@@ -115,9 +115,10 @@ void CheckTurnable(const Member& m, const FeatureSet& features) {
 }
 
 // The calibrated predictions of one member for `features` (checked against its shapes), each
-// the combination of its three turns with `turn_average`.
+// the combination of its three turns with `turn_average`, of each turn and its mirror image
+// with `mirror_average` too.
 std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& features,
-                                      bool turn_average) {
+                                      const LocalizerOptions& symmetry) {
   const internal::ModalitySet use = m.network->modalities();
   internal::CheckFeaturesFor(m, features, "features to localize");
   // non-finite inputs never become an answer
@@ -135,10 +136,18 @@ std::vector<Prediction> PredictMember(const Member& m, const FeatureSet& feature
   check_finite(features.mel, use.audio, "mel spectrogram");
   check_finite(features.gcc, use.gcc, "GCC-PHAT");
   check_finite(features.proprio, use.proprio, "proprioception");
+  // the strike as it is, then its turns and their mirror images as asked
+  std::vector<internal::Augmentation> images;
+  for (int64_t turn = 0; turn < (symmetry.turn_average ? internal::kRingDiscs : 1); ++turn) {
+    for (const bool mirror : {false, true}) {
+      if (mirror && !symmetry.mirror_average) continue;
+      images.push_back({.rotation = turn, .mirror = mirror});
+    }
+  }
   std::vector<std::vector<Prediction>> turns;
-  for (int64_t turn = 0; turn < (turn_average ? internal::kRingDiscs : 1); ++turn) {
+  for (const internal::Augmentation& image : images) {
     turns.push_back(
-        internal::PredictAll(*m.network.ptr(), features, m.file.model_config.crop_frames, turn));
+        internal::PredictAll(*m.network.ptr(), features, m.file.model_config.crop_frames, image));
     for (size_t i = 0; i < turns.back().size(); ++i) {
       Prediction& p = turns.back()[i];
       if (!std::isfinite(p.z_m) || !std::isfinite(p.theta_rad)) {
@@ -192,13 +201,18 @@ Localizer& Localizer::operator=(Localizer&&) noexcept = default;
 
 std::vector<Prediction> Localizer::Predict(const FeatureSet& features) const {
   const std::vector<Member>& members = impl_->members;
-  const bool turn =
-      impl_->options.turn_average || members.front().file.model_config.turn_average;
-  if (turn) CheckTurnable(members.front(), features);
-  if (members.size() == 1) return PredictMember(members.front(), features, turn);
+  const ModelConfig& model = members.front().file.model_config;
+  LocalizerOptions symmetry;
+  symmetry.turn_average = impl_->options.turn_average || model.turn_average;
+  symmetry.mirror_average = impl_->options.mirror_average || model.mirror_average;
+  if (symmetry.mirror_average && !symmetry.turn_average) {
+    throw ConfigError("mirror averaging reads each turn mirrored: it needs turn averaging too");
+  }
+  if (symmetry.turn_average) CheckTurnable(members.front(), features);
+  if (members.size() == 1) return PredictMember(members.front(), features, symmetry);
   // every member's predictions, then one mixture per strike
   std::vector<std::vector<Prediction>> each;
-  for (const Member& m : members) each.push_back(PredictMember(m, features, turn));
+  for (const Member& m : members) each.push_back(PredictMember(m, features, symmetry));
   std::vector<Prediction> combined = MixPerStrike(each);
   for (Prediction& p : combined) p = ApplyCalibration(p, impl_->mixture_calibration);
   return combined;

@@ -278,12 +278,14 @@ std::vector<int64_t> CheckedTrainingRecords(const FeatureSet& train, const Featu
         train_config.time_stretch));
   }
   // a turned record must be audio alone, in rings of three
-  if (train_config.augment && train_config.rotate_rings &&
-      !internal::TurnsByRings(use, train.channels)) {
-    throw ConfigError(fmt::format(
-        "config key 'train.rotate_rings' = true: needs model.modalities = [audio] (a GCC pair "
-        "or an arm pose would have to turn too) and channels in rings of {} (got {})",
-        internal::kRingDiscs, train.channels));
+  for (const auto& [key, on] : {std::pair{"train.rotate_rings", train_config.rotate_rings},
+                                std::pair{"train.mirror_rings", train_config.mirror_rings}}) {
+    if (train_config.augment && on && !internal::TurnsByRings(use, train.channels)) {
+      throw ConfigError(fmt::format(
+          "config key '{}' = true: needs model.modalities = [audio] (a GCC pair or an arm pose "
+          "would have to turn too) and channels in rings of {} (got {})",
+          key, internal::kRingDiscs, train.channels));
+    }
   }
   // picks are times of samples, which a mel frame does not keep
   if (use.arrivals && train.frame_hop_samples != 1) {

@@ -51,7 +51,14 @@ struct Augmentation {
   // the record turned by rotation x 120 degrees (train.rotate_rings): channel p of each ring of
   // three reads disc (p - rotation) mod 3 of that ring, theta grows by as much; 0: as is
   int64_t rotation{0};
+  // then mirrored about disc 0's angle (train.mirror_rings): channel p reads what channel -p mod
+  // 3 of its ring read, theta becomes -theta (disc 0 at theta 0)
+  bool mirror{false};
 };
+/// Theta (rad) of a strike seen through `a`'s turn and mirror.
+double SymmetricTheta(double theta_rad, const Augmentation& a);
+/// Theta (rad) of the strike whose image through `a` is at `seen_rad` (SymmetricTheta undone).
+double UnturnedTheta(double seen_rad, const Augmentation& a);
 /// Discs per ring that train.rotate_rings turns.
 inline constexpr int64_t kRingDiscs = 3;
 /// Whether a record can be turned by whole rings (train.rotate_rings, model.turn_average): audio
@@ -80,10 +87,11 @@ torch::Tensor AssembleTargets(const FeatureSet& f, const std::vector<int64_t>& r
 
 /// Predictions for every record of `f` in eval mode without gradients, in batches of
 /// kPredictBatch, with the uncalibrated distribution when the network has an uncertainty head.
-/// Leaves the network in eval mode. With `turns` > 0 every record is read turned by turns x 120
-/// degrees (Augmentation.rotation: rings of three discs) and each answer's theta turned back.
+/// Leaves the network in eval mode. `symmetry` reads every record turned by rotation x 120
+/// degrees and mirrored (Augmentation.rotation, .mirror: rings of three discs; the rest of it is
+/// ignored) and maps each answer's theta back (UnturnedTheta).
 std::vector<Prediction> PredictAll(NetworkImpl& network, const FeatureSet& f, int64_t crop_frames,
-                                   int64_t turns = 0);
+                                   const Augmentation& symmetry = {});
 
 /// Writes a torch archive to `path` through core's checked atomic writer (IoError, no partial
 /// left, when the disk is full).

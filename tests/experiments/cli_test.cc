@@ -287,6 +287,15 @@ TEST(CliTest, RotateRingsNeedsRingsOfThreeDiscs) {
   EXPECT_NE(run.err.find("train.rotate_rings"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("mics.theta_deg"), std::string::npos) << run.err;
   EXPECT_FALSE(fs::exists(dir / "BAD/model.pt"));
+  // mirroring is about theta 0, where disc 0 must sit
+  run = RunCli(tiny +
+                   "--set train.mirror_rings=true --set mics.theta_deg=[30,150,270,30,150,270] "
+                   "train --data D.h5 --out BAD -q",
+               dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("train.mirror_rings"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("mics.theta_deg[0] = 0"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "BAD/model.pt"));
   run = RunCli(tiny + "train --data D.h5 --out RUN -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_TRUE(fs::exists(dir / "RUN/model.pt"));

@@ -149,7 +149,7 @@ TEST(ConfigTest, ModelConfigKeysAreMemberNames) {
   EXPECT_THAT(archive.names,
               ::testing::ElementsAre("audio_encoder", "width", "blocks", "heads", "dropout",
                                      "modalities", "crop_frames", "gcc_encoder", "arrival_picks",
-                                     "turn_average"));
+                                     "turn_average", "mirror_average"));
   EXPECT_EQ(archive.kinds[0], "choice");
   EXPECT_EQ(archive.kinds[7], "choice");
   EXPECT_EQ(archive.kinds[8], "choice");
@@ -168,14 +168,13 @@ TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
   TrainConfig config;
   RecordingArchive archive;
   config.Serialize(&archive);
-  EXPECT_THAT(
-      archive.names,
-      ::testing::ElementsAre("epochs", "batch_size", "learning_rate", "lr_step_epochs", "lr_gamma",
-                             "val_fraction", "loss_weight_z", "loss_weight_cos", "loss_weight_sin",
-                             "uncertainty_weight", "augment", "time_shift_frames",
-                             "time_mask_frames", "freq_mask_bands", "polarity_flip",
-                             "time_stretch", "rotate_rings", "normalize", "keep_best",
-                             "ensemble_members", "threads"));
+  EXPECT_THAT(archive.names,
+              ::testing::ElementsAre(
+                  "epochs", "batch_size", "learning_rate", "lr_step_epochs", "lr_gamma",
+                  "val_fraction", "loss_weight_z", "loss_weight_cos", "loss_weight_sin",
+                  "uncertainty_weight", "augment", "time_shift_frames", "time_mask_frames",
+                  "freq_mask_bands", "polarity_flip", "time_stretch", "rotate_rings",
+                  "mirror_rings", "normalize", "keep_best", "ensemble_members", "threads"));
   EXPECT_FALSE(archive.bounds[1].Contains(0.0));  // batch_size
   EXPECT_FALSE(archive.bounds[2].Contains(0.0));  // learning_rate
   EXPECT_TRUE(archive.bounds[9].Contains(0.0));   // uncertainty_weight: 0 disables
@@ -183,8 +182,8 @@ TEST(ConfigTest, TrainConfigKeysAreMemberNames) {
   EXPECT_TRUE(archive.bounds[15].Contains(0.0));   // time_stretch: 0 is off
   EXPECT_TRUE(archive.bounds[15].Contains(0.5));
   EXPECT_FALSE(archive.bounds[15].Contains(0.51));
-  EXPECT_FALSE(archive.bounds[19].Contains(0.0));  // ensemble_members: at least one
-  EXPECT_TRUE(archive.bounds[20].Contains(0.0));   // threads
+  EXPECT_FALSE(archive.bounds[20].Contains(0.0));  // ensemble_members: at least one
+  EXPECT_TRUE(archive.bounds[21].Contains(0.0));   // threads
 }
 
 // Runs `f` and returns the ConfigError message ("" when nothing was thrown).
@@ -229,6 +228,10 @@ TEST(ConfigTest, ModalitiesMustBeAKnownNonEmptySet) {
   EXPECT_THAT(turned, HasSubstr("[audio, proprio]"));
   config.modalities = {"audio"};
   EXPECT_NO_THROW(config.Validate());
+  // the mirror images are taken of each turn
+  config.turn_average = false;
+  config.mirror_average = true;
+  EXPECT_THAT(ConfigErrorOf([&] { config.Validate(); }), HasSubstr("model.turn_average = true"));
 }
 
 TEST(ConfigTest, HeadsMustDivideWidth) {

@@ -519,10 +519,49 @@ TEST(AugmentationTest, RotateRingsMovesEveryRingOneDiscOnWithTheLabel) {
   }
   const torch::Tensor t = internal::AssembleTargets(f, {0}, &one);
   const double theta = std::atan2(t[0][2].item<float>(), t[0][1].item<float>());
-  EXPECT_NEAR(std::remainder(theta - f.theta_rad[0] - 2.0 * std::numbers::pi / 3.0,
+  EXPECT_NEAR(
+      std::remainder(theta - f.theta_rad[0] - 2.0 * std::numbers::pi / 3.0, 2.0 * std::numbers::pi),
+      0.0, 1e-5);
+  EXPECT_NEAR(t[0][0].item<float>(), f.z_m[0] * 100.0, 1e-4);
+}
+
+// train.mirror_rings: half the records mirrored about theta 0 after their turn; a record turned
+// by one disc and mirrored has channel p of each ring read disc -p - 1 of that ring, and its
+// label's theta is -(theta + 120 degrees); off changes no other draw (the turn included).
+TEST(AugmentationTest, MirrorRingsSwapsTheDiscsBesideDiscZeroAndNegatesTheta) {
+  TrainConfig turned, mirrored;
+  turned.rotate_rings = mirrored.rotate_rings = true;
+  mirrored.mirror_rings = true;
+  int64_t count = 0;
+  for (int64_t r = 0; r < 400; ++r) {
+    const internal::Augmentation a = internal::DrawAugmentation(turned, 32, 12, 7, 3, r);
+    const internal::Augmentation b = internal::DrawAugmentation(mirrored, 32, 12, 7, 3, r);
+    EXPECT_FALSE(a.mirror);
+    EXPECT_EQ(a.rotation, b.rotation);
+    EXPECT_EQ(a.time_mask_start, b.time_mask_start);
+    count += b.mirror ? 1 : 0;
+  }
+  EXPECT_NEAR(static_cast<double>(count), 200.0, 40.0);
+  FeatureSet f = MakeFeatures(1, 3);
+  internal::ModalitySet use;
+  use.audio = true;
+  const std::vector<float> fill(f.channels, 0.0f);
+  const std::vector<internal::Augmentation> one{{.rotation = 1, .mirror = true}};
+  const torch::Tensor x = internal::AssembleBatch(f, {0}, use, f.frames, &one, fill).mel;
+  const torch::Tensor plain = internal::AssembleBatch(f, {0}, use, f.frames, nullptr, fill).mel;
+  for (int64_t c = 0; c < 6; ++c) {
+    const int64_t read = c / 3 * 3 + (6 - c % 3 - 1) % 3;  // disc -p - 1 of the same ring
+    EXPECT_TRUE(torch::equal(x[0][c], plain[0][read])) << c;
+  }
+  const torch::Tensor t = internal::AssembleTargets(f, {0}, &one);
+  const double theta = std::atan2(t[0][2].item<float>(), t[0][1].item<float>());
+  EXPECT_NEAR(
+      std::remainder(theta + f.theta_rad[0] + 2.0 * std::numbers::pi / 3.0, 2.0 * std::numbers::pi),
+      0.0, 1e-5);
+  // an answer seen through the symmetry maps back to the strike's own theta
+  EXPECT_NEAR(std::remainder(internal::UnturnedTheta(theta, one[0]) - f.theta_rad[0],
                              2.0 * std::numbers::pi),
               0.0, 1e-5);
-  EXPECT_NEAR(t[0][0].item<float>(), f.z_m[0] * 100.0, 1e-4);
 }
 
 // model.arrival_picks: a step of constant amplitude at sample t0 smoothed over 31 samples
@@ -690,6 +729,56 @@ TEST_F(TrainingTest, TurnAveragingAnswersATurnedStrikeTurned) {
     ADD_FAILURE() << "expected ConfigError";
   } catch (const ConfigError& e) {
     EXPECT_THAT(e.what(), HasSubstr("model.modalities = [audio]"));
+  }
+}
+
+// model.mirror_average: a strike with discs 1 and 2 of every ring swapped is answered at -theta
+// and the same height, for any weights (its six images are the strike's six images); turn
+// averaging alone is not so. Asked without turn averaging, the localizer refuses.
+TEST_F(TrainingTest, MirrorAveragingAnswersAMirroredStrikeMirrored) {
+  ModelConfig model = TinyModel();
+  model.modalities = {"audio"};
+  model.turn_average = true;
+  const std::string run = Dir("run");
+  Train(MakeFeatures(8, 5), MakeFeatures(4, 6), model, TinyTraining(1), kRadius, 1, run, false,
+        false);
+  const FeatureSet f = MakeFeatures(5, 21);
+  FeatureSet mirrored = f;
+  const int64_t plane = f.mels * f.frames;
+  for (int64_t i = 0; i < f.size(); ++i) {
+    for (int64_t c = 0; c < f.channels; ++c) {
+      const int64_t read = c / 3 * 3 + (3 - c % 3) % 3;
+      std::copy_n(f.mel.data() + (i * f.channels + read) * plane, plane,
+                  mirrored.mel.data() + (i * f.channels + c) * plane);
+    }
+  }
+  auto largest_miss = [&](const Localizer& localizer) {
+    const std::vector<Prediction> a = localizer.Predict(f), b = localizer.Predict(mirrored);
+    double miss = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) {
+      miss = std::max(miss, std::abs(a[i].z_m - b[i].z_m) * 100.0);
+      miss = std::max(
+          miss, std::abs(std::remainder(b[i].theta_rad + a[i].theta_rad, 2.0 * std::numbers::pi)));
+    }
+    return miss;
+  };
+  EXPECT_GT(largest_miss(Localizer(run)), 1e-2);
+  EXPECT_LT(largest_miss(Localizer(run, {.mirror_average = true})), 1e-4);
+  // the run's own key does it too
+  nlohmann::json j;
+  std::ifstream(fs::path(run) / "model.json") >> j;
+  j["model"]["mirror_average"] = true;
+  std::ofstream(fs::path(run) / "model.json") << j.dump();
+  EXPECT_LT(largest_miss(Localizer(run)), 1e-4);
+  // mirror images are taken of each turn
+  j["model"]["turn_average"] = false;
+  j["model"]["mirror_average"] = false;
+  std::ofstream(fs::path(run) / "model.json") << j.dump();
+  try {
+    Localizer(run, {.mirror_average = true}).Predict(f);
+    ADD_FAILURE() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("turn averaging"));
   }
 }
 

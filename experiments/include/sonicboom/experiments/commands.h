@@ -103,6 +103,7 @@ struct EvalOptions {
   std::string predictions_csv;  // also one row per strike (empty: none)
   bool force{false};            // replace an existing predictions file
   bool turn_average{false};     // learning::LocalizerOptions::turn_average
+  bool mirror_average{false};   // learning::LocalizerOptions::mirror_average (turns too)
 };
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir, const std::string& data,
                       const EvalOptions& options = {});

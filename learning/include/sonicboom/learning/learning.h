@@ -66,6 +66,8 @@ struct ModelConfig {
   // Answer by the layout's symmetry (LocalizerOptions::turn_average) whenever the model is used;
   // inference only (the weights do not depend on it). Needs modalities = [audio].
   bool turn_average{false};
+  // With turn_average, each turn also read mirrored (LocalizerOptions::mirror_average).
+  bool mirror_average{false};
 
   void Serialize(Archive* a);
   /// Checks every field and the cross-field rules (heads divide width, known modalities);
@@ -111,6 +113,11 @@ struct TrainConfig {
   // experiments layer checks mics.*), and audio alone (a GCC pair or an arm pose would have to
   // rotate too). Drawn after the stretch.
   bool rotate_rings{false};
+  // Mirror half the records (drawn after the turn) about disc 0's angle, which must be theta 0:
+  // in each ring channels 1 and 2 swap and the label's theta becomes -theta. Exact for a tube
+  // with the mirror symmetry of its discs (an ideal tube has it; a seam away from a disc does
+  // not). Needs what rotate_rings needs.
+  bool mirror_rings{false};
   bool normalize{true};  // per-mic normalization, train-split statistics
   // Save the epoch with the lowest validation loss instead of the last (early stopping without
   // stopping: every epoch still runs). Meant for fine-tuning on few strikes.
@@ -380,6 +387,10 @@ struct LocalizerOptions {
   /// Needs model.modalities = [audio] and channels in rings of three (ConfigError otherwise).
   /// On whenever the run's model.turn_average is.
   bool turn_average{false};
+  /// With turn_average: each turn also read mirrored about theta 0 (in each ring discs 1 and 2
+  /// swapped, the answer's theta negated back), six answers combined: the discs' mirror symmetry
+  /// (train.mirror_rings). On whenever the run's model.mirror_average is.
+  bool mirror_average{false};
 };
 
 class Localizer {
