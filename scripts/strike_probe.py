@@ -4,7 +4,7 @@
 and 3) over the 12 ms from 2 ms before the first contact, fitted as a line in z (samples per cm).
 
 Usage: /usr/bin/python3 scripts/strike_probe.py D1.h5 [D2.h5 ...]
-docs/transfer.md quotes it on the benchmark's test sets.
+docs/history.md quotes it on the benchmark's test sets.
 """
 import sys
 

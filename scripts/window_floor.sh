@@ -4,7 +4,7 @@
 # full window (configs/study_fast.yaml, audio + GCC-PHAT), both trained on TRAIN strikes of the
 # default structure (ts4 as configured, indices from 0: the benchmark's train_default), scored on
 # the VALIDATION sets of scripts/transfer_ablation.sh (no test set is touched, nothing is chosen).
-# docs/transfer.md reads it as the floor of the in-distribution target on ts4-like strikes.
+# docs/history.md ("The window's floor") reads it as the floor of the in-distribution target on ts4-like strikes.
 #
 # Usage: scripts/window_floor.sh [OUT=runs/window_floor] [ABLATION=runs/transfer_ablation]
 #                                [TRAIN=3000] [THREADS=2]
