@@ -85,7 +85,7 @@ wanted() { [[ " $(echo $MODELS) " == *" $1 "* ]]; }
 train() {  # run data config-args...
   local run=$1 data=$2; shift 2
   wanted "$run" || return 0
-  if [ ! -f "$OUT/$run/model.json" ]; then
+  if [ ! -f "$OUT/$run/model.json" ] && [ ! -f "$OUT/$run/ensemble.json" ]; then
     "$BIN" "${TS4[@]}" "$@" --threads "$THREADS" -q train --data "$OUT/train_$data.h5" \
       --out "$OUT/$run" $(resume_flag "$OUT/$run") --json > "$OUT/train_$run.json"
   fi
