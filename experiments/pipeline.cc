@@ -7,6 +7,7 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <mutex>
@@ -652,10 +653,27 @@ learning::FeatureSet ComputeRecordFeatures(const Eigen::MatrixXf& audio, double 
 
 std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
     const std::vector<uint64_t>& sample_indices, double val_fraction, uint64_t seed) {
-  std::pair<std::vector<int64_t>, std::vector<int64_t>> split;
+  // each row's draw in [0, 1): below val_fraction it validates
+  std::vector<double> draw(sample_indices.size());
   for (size_t r = 0; r < sample_indices.size(); ++r) {
     Rng rng(SampleSeed(seed, sample_indices[r]), Stream::kSplit);
-    (rng.Uniform() < val_fraction ? split.second : split.first).push_back(static_cast<int64_t>(r));
+    draw[r] = rng.Uniform();
+  }
+  // a few rows may all fall on one side: then the row of the lowest draw validates (or that of
+  // the highest trains), so that any two rows split when val_fraction is inside (0, 1)
+  std::vector<bool> validates(draw.size());
+  for (size_t r = 0; r < draw.size(); ++r) validates[r] = draw[r] < val_fraction;
+  const auto lowest = std::min_element(draw.begin(), draw.end());
+  const auto highest = std::max_element(draw.begin(), draw.end());
+  const auto count = std::count(validates.begin(), validates.end(), true);
+  if (draw.size() >= 2 && val_fraction > 0.0 && val_fraction < 1.0) {
+    if (count == 0) validates[lowest - draw.begin()] = true;
+    if (count == static_cast<std::ptrdiff_t>(draw.size()))
+      validates[highest - draw.begin()] = false;
+  }
+  std::pair<std::vector<int64_t>, std::vector<int64_t>> split;
+  for (size_t r = 0; r < draw.size(); ++r) {
+    (validates[r] ? split.second : split.first).push_back(static_cast<int64_t>(r));
   }
   return split;
 }

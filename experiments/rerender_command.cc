@@ -30,20 +30,7 @@
 #include "internal/subcommands.h"
 
 namespace sonicboom::experiments {
-namespace {
-
 using nlohmann::json;
-
-struct RerenderOptions {
-  std::string in, out;
-  int64_t count = 0;  // 0 = every sample
-  double max_frequency_hz = 15000.0;
-  double element_m = 0.0135;
-  bool force = false;
-  bool ideal = false;  // a uniform tube: no seams, holes, bolts or mounts (a diagnostic)
-};
-
-}  // namespace
 
 CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
   CheckOutput(g, {o.out, "--out", o.force}, {{o.in, "--in"}});

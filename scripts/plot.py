@@ -11,6 +11,9 @@ usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
   errors    per-scenario distributions of the 3-D, height and angle errors, box over violin
             (`sonicboom reproduce`, DIR/results.json and the eval CSVs it names)
   ablation  the ablations' held-out MED as bars (`sonicboom reproduce`, DIR/results.json)
+  transfer  the transfer study: zero-shot MED on our shell and on the reference solid, and MED
+            on the solid against the labelled solid strikes fine-tuned on or trained from
+            scratch on (`sonicboom reproduce`, DIR/results.json)
 """
 import csv
 import math
@@ -211,8 +214,45 @@ def ablation(data, src, png):
     fig.savefig(png, dpi=110)
 
 
+def transfer(data, src, png):
+    """Zero-shot bars per theory, then the few-shot curve on the solid, MED in cm."""
+    t = data["transfer"]
+    rows = t["rows"]
+    fig, (bars, curve) = plt.subplots(1, 2, figsize=(10, 4))
+    # left: the transfer model and the arrival locator on each theory's render of one set
+    width = 0.38
+    for k, (name, key, colour) in enumerate([("transfer, zero-shot", "zero_shot", "tab:blue"),
+                                             ("arrival locator", "arrival", "tab:gray")]):
+        meds = [rows[f"{key}_{theory}"]["med_cm"] for theory in ("shell", "solid")]
+        bars.bar([x + (k - 0.5) * width for x in range(2)], meds, width, label=name,
+                 color=colour)
+    bars.set_xticks(range(2), ["our shell", "reference solid"])
+    bars.set_ylabel("MED on held-out ts4 strikes (cm)")
+    bars.set_title(f"Zero-shot ({t['train_strikes']} randomized training strikes)")
+    bars.legend()
+    bars.grid(True, axis="y", alpha=0.3)
+    # right: MED on the solid against the labelled solid strikes
+    points = rows["fewshot"]
+    ns = [p["n"] for p in points]
+    curve.plot([0] + ns, [rows["zero_shot_solid"]["med_cm"]] + [p["tuned"]["med_cm"]
+                                                             for p in points],
+               "o-", color="tab:blue", label="pretrained, fine-tuned")
+    curve.plot(ns, [p["scratch"]["med_cm"] for p in points], "s--", color="tab:red",
+               label="from scratch")
+    curve.axhline(rows["arrival_solid"]["med_cm"], color="tab:gray", ls=":",
+                  label="arrival locator")
+    curve.set_xlabel("labelled strikes of the reference solid")
+    curve.set_ylabel("MED on the solid's held-out strikes (cm)")
+    curve.set_title("Few-shot in another theory")
+    curve.set_ylim(bottom=0)
+    curve.legend()
+    curve.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
 KINDS = {"fidelity": fidelity, "inspect": inspect, "map": haptic_map, "fewshot": fewshot,
-         "errors": errors, "ablation": ablation}
+         "errors": errors, "ablation": ablation, "transfer": transfer}
 
 if __name__ == "__main__":
     if len(sys.argv) != 4 or sys.argv[1] not in KINDS:

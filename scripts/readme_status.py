@@ -63,6 +63,22 @@ def reproduce_lines(r, path):
         f"strikes, MED on ts1 / ts2 / ts3 / ts4 {meds} cm (the paper, 18 000 real strikes: {paper}); "
         f"the ts3 haptic map's RMS Chamfer distance {r['map']['chamfer_cm']:.2f} cm over "
         f"{r['map']['taps']} taps; {minutes:.1f} min of stages (report.md beside it)."
+    ] + transfer_lines(r.get("transfer"), path)
+
+
+def transfer_lines(t, path):
+    """The reproduce run's transfer study: zero-shot on both theories, the largest few-shot."""
+    if not t:
+        return []
+    rows = t["rows"]
+    last = rows["fewshot"][-1]
+    return [
+        f"- its transfer study ({path}, \"transfer\"): configs/transfer.yaml trained on "
+        f"{t['train_strikes']} randomized shell strikes scores {rows['zero_shot_shell']['med_cm']:.2f} cm "
+        f"on held-out ts4 strikes and {rows['zero_shot_solid']['med_cm']:.2f} cm on the same strikes "
+        f"rendered by the reference solid (another theory; the arrival locator "
+        f"{rows['arrival_solid']['med_cm']:.2f}); fine-tuned on {last['n']} solid strikes "
+        f"{last['tuned']['med_cm']:.2f} cm, from scratch on them {last['scratch']['med_cm']:.2f}."
     ]
 
 

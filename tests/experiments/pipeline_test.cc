@@ -73,6 +73,22 @@ TEST(PipelineTest, SplitDependsOnlyOnSampleIndex) {
   std::sort(a.begin(), a.end());
   std::sort(b.begin(), b.end());
   EXPECT_EQ(a, b);
+  // a few strikes all of whose draws fall on one side still split, one row moved, and a split
+  // that has both sides stays as drawn (10 strikes from index 120000, seed 1: a fine-tune's pool
+  // that once validated on nothing)
+  for (uint64_t first = 0; first < 200000; first += 1000) {
+    std::vector<uint64_t> few(3);
+    for (uint64_t i = 0; i < few.size(); ++i) few[i] = first + i;
+    const auto [t, v] = SplitRows(few, 0.2, 1);
+    ASSERT_FALSE(t.empty()) << first;
+    ASSERT_FALSE(v.empty()) << first;
+    ASSERT_EQ(t.size() + v.size(), few.size());
+  }
+  std::vector<uint64_t> pool(10);
+  for (uint64_t i = 0; i < pool.size(); ++i) pool[i] = 120000 + i;
+  EXPECT_EQ(SplitRows(pool, 0.2, 1).second.size(), 1u);
+  EXPECT_EQ(SplitRows(idx, 0.2, 3).second, val);
+  EXPECT_TRUE(SplitRows({7}, 0.2, 3).second.empty() || SplitRows({7}, 0.2, 3).first.empty());
 }
 
 

@@ -38,8 +38,9 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   auto run = RunCli(cmd, cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const fs::path out = dir.path() / "R";
-  for (const char* file : {"report.md", "results.json", "errors.png", "ablation.png",
-                           "coverage_ts3.png", "map/map.png", "fidelity_pareto.png", "fewshot.png"}) {
+  for (const char* file :
+       {"report.md", "results.json", "errors.png", "ablation.png", "coverage_ts3.png",
+        "map/map.png", "fidelity_pareto.png", "transfer.png"}) {
     EXPECT_TRUE(fs::is_regular_file(out / file)) << file;
   }
   json r;
@@ -63,10 +64,20 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   // touched (0.6 mm RMS at quick size; 3.4 cm when the map used the last pose of a 0.5 s log)
   EXPECT_LT(r["map"]["true_surface_cm"].get<double>(), 0.3);
   EXPECT_GT(r["map"]["surface_cm"].get<double>(), 0.0);
+  // the transfer study: the model and the arrival locator on both theories' render of ts4's
+  // held-out strikes, the few-shot rows on the solid's
+  const json& t = r["transfer"]["rows"];
+  for (const char* row : {"zero_shot_shell", "zero_shot_solid", "arrival_shell", "arrival_solid"}) {
+    EXPECT_EQ(t[row]["n"], r["scenarios"]["ts4"]["n"]) << row;
+  }
+  ASSERT_EQ(t["fewshot"].size(), 1u);
+  EXPECT_GT(t["fewshot"][0]["tuned"]["med_cm"].get<double>(), 0.0);
+  EXPECT_GT(t["fewshot"][0]["scratch"]["med_cm"].get<double>(), 0.0);
   std::ifstream report(out / "report.md");
   const std::string text((std::istreambuf_iterator<char>(report)), {});
   EXPECT_THAT(text, ::testing::HasSubstr("RMS Chamfer distance"));
   EXPECT_THAT(text, ::testing::HasSubstr("| ts4 |"));
+  EXPECT_THAT(text, ::testing::HasSubstr("| fine-tuned on 12 solid strikes |"));
 
   // the same command again: every stage reused
   run = RunCli(cmd, cwd);
@@ -77,10 +88,11 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   run = RunCli(cmd + " --set train.learning_rate=0.002", cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const auto reused = ReusedOf(out / "results.json");
-  for (const char* stage : {"generate_train", "generate_ts1", "generate_ts3"}) {
+  for (const char* stage : {"generate_train", "generate_ts1", "generate_ts3", "rerender_ts4"}) {
     EXPECT_TRUE(reused.at(stage)) << stage;
   }
-  for (const char* stage : {"train", "eval_ts1", "eval_ts4", "eval_materials", "ablations", "map"}) {
+  for (const char* stage : {"train", "eval_ts1", "eval_ts4", "eval_materials", "ablations", "map",
+                            "train_transfer", "tune_shots12", "eval_tuned_shots12_ts4_solid"}) {
     EXPECT_FALSE(reused.at(stage)) << stage;
   }
 }

@@ -172,6 +172,16 @@ struct BaselineOptions {
 /// method's own fields. The config's base layer is the test dataset's own config.
 CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& options);
 CommandResult RunFk(const GlobalOptions& g, const std::string& joints);
+/// `rerender`: the strikes of `in` with audio from the reference solid (another theory).
+struct RerenderOptions {
+  std::string in, out;
+  int64_t count = 0;  // 0 = every sample
+  double max_frequency_hz = 15000.0;
+  double element_m = 0.0135;
+  bool force = false;
+  bool ideal = false;  // a uniform tube: no seams, holes, bolts or mounts (a diagnostic)
+};
+CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o);
 
 /// `import`: recorded strikes (a published trial directory or our capture layout) into a
 /// dataset; `export`: a dataset into the published trial layout (docs/captures.md).

@@ -141,7 +141,9 @@ learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning:
                                   const learning::DataParallel& parallel = {});
 
 /// Splits rows into train and validation by a hash of (seed, sample index): stable under any
-/// reordering or sharding. Returns (train rows, validation rows).
+/// reordering or sharding. Two rows or more always split when 0 < val_fraction < 1 (were every
+/// draw on one side, the row whose draw lies nearest the other moves there). Returns (train
+/// rows, validation rows).
 std::pair<std::vector<int64_t>, std::vector<int64_t>> SplitRows(
     const std::vector<uint64_t>& sample_indices, double val_fraction, uint64_t seed);
 
