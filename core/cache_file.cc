@@ -3,7 +3,11 @@
 #include <cstring>
 #include <filesystem>
 #include <system_error>
+#include <thread>
 
+#include <unistd.h>
+
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 namespace sonicboom::internal {
@@ -61,7 +65,10 @@ void WriteCacheFile(const std::string& cache_dir, const std::string& path, const
                  ec.message());
     return;
   }
-  const std::string partial = path + ".partial";
+  // a writer's own temp file: two processes (or threads) solving one key at once each write
+  // theirs whole, and the last rename wins with a complete file
+  const std::string partial = fmt::format("{}.partial.{}.{:x}", path, static_cast<long>(::getpid()),
+                                          std::hash<std::thread::id>{}(std::this_thread::get_id()));
   {
     std::ofstream out(partial, std::ios::binary | std::ios::trunc);
     const uint64_t key_size = key.size();

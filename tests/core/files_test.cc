@@ -6,10 +6,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
+#include <vector>
 
+#include "sonicboom/core/cache_file.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom {
@@ -92,6 +96,44 @@ TEST(ResolvedPathTest, SpellingsOfOneFileCompareEqualAndContainmentIsByComponent
   EXPECT_FALSE(IsWithin(ResolvedPath(root / "bc"), ResolvedPath(root / "b")));
   EXPECT_FALSE(IsWithin(ResolvedPath(root / "b"), ResolvedPath(root / "b" / "c")));
   fs::remove_all(root);
+}
+
+// Writers of one cache key at once (two tests, or two threads, solving the same modes): each
+// writes its own temp file and the last rename wins, so the file left is whole and no temp file
+// stays; with one shared temp name a writer could rename another's half-written file.
+TEST(CacheFileTest, ConcurrentWritersOfOneKeyLeaveOneWholeFile) {
+  const fs::path dir = fs::temp_directory_path() / ("cache_race_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string path = (dir / "modes-test.bin").string();
+  const char magic[8] = {'S', 'B', 'T', 'E', 'S', 'T', '0', '1'};
+  constexpr size_t kValues = size_t{1} << 19;  // 4 MiB a writer
+  for (int round = 0; round < 3; ++round) {
+    // writer w writes header w and every value w: a file mixing two writers fails its checksum
+    std::vector<std::vector<double>> blocks(4, std::vector<double>(kValues));
+    std::vector<std::thread> writers;
+    for (int w = 0; w < 4; ++w) {
+      std::fill(blocks[w].begin(), blocks[w].end(), static_cast<double>(w));
+      writers.emplace_back([&, w] {
+        internal::WriteCacheFile(dir.string(), path, magic, "key", {int64_t{w}},
+                                 {{blocks[w].data(), kValues * sizeof(double)}});
+      });
+    }
+    for (std::thread& t : writers) t.join();
+    internal::CacheFileReader reader;
+    int64_t header = -1;
+    ASSERT_TRUE(reader.Open(path, magic, "key", &header, 1)) << round;
+    std::vector<double> back(kValues);
+    ASSERT_TRUE(reader.Read(back.data(), kValues * sizeof(double)));
+    EXPECT_TRUE(reader.Finish()) << round;
+    EXPECT_EQ(back, std::vector<double>(kValues, static_cast<double>(header))) << round;
+    int files = 0;
+    for (const auto& entry : fs::directory_iterator(dir)) {
+      ++files;
+      EXPECT_EQ(entry.path().string(), path);
+    }
+    EXPECT_EQ(files, 1);
+  }
+  fs::remove_all(dir);
 }
 
 }  // namespace

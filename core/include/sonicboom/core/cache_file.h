@@ -1,9 +1,9 @@
 #pragma once
 // The mode caches' file format (the shell's base modes and Ritz variants, the reference solid's
 // modes): an 8-byte magic, the key (its length, then its bytes), an int64 header, raw arrays, and
-// a checksum of the header and the arrays. A file is written to PATH.partial and renamed
-// into place, so a reader never sees half a file; a failed write only warns (the cache saves
-// time, it is never needed).
+// a checksum of the header and the arrays. A file is written to a temp file of its writer's own
+// (PATH.partial.<pid>.<thread>) and renamed into place, so a reader never sees half a file, nor
+// one writer another's; a failed write only warns (the cache saves time, it is never needed).
 
 #include <cstddef>
 #include <cstdint>
