@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -681,6 +682,37 @@ TEST_F(TrainingTest, AdaptRefitsStatisticsOnTheTargetWithoutReadingItsLabels) {
   EXPECT_FALSE(fs::exists(Dir("empty_target")));
 }
 
+namespace {
+
+// `f` with channel c of every strike holding what channel read(c) held (a ring turn or mirror)
+FeatureSet ReadingChannels(const FeatureSet& f, const std::function<int64_t(int64_t)>& read) {
+  FeatureSet out = f;
+  const int64_t plane = f.mels * f.frames;
+  for (int64_t i = 0; i < f.size(); ++i) {
+    for (int64_t c = 0; c < f.channels; ++c) {
+      std::copy_n(f.mel.data() + (i * f.channels + read(c)) * plane, plane,
+                  out.mel.data() + (i * f.channels + c) * plane);
+    }
+  }
+  return out;
+}
+
+// The largest gap between a localizer's answers to `f` and to `g`: heights in cm, and g's theta
+// against expected(f's theta) in rad.
+double LargestMiss(const Localizer& localizer, const FeatureSet& f, const FeatureSet& g,
+                   const std::function<double(double)>& expected) {
+  const std::vector<Prediction> a = localizer.Predict(f), b = localizer.Predict(g);
+  double miss = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    miss = std::max(miss, std::abs(a[i].z_m - b[i].z_m) * 100.0);
+    miss = std::max(miss, std::abs(std::remainder(b[i].theta_rad - expected(a[i].theta_rad),
+                                                  2.0 * std::numbers::pi)));
+  }
+  return miss;
+}
+
+}  // namespace
+
 // model.turn_average: a strike with every ring turned one disc on (channel p reads disc p - 1)
 // is answered 120 degrees on at the same height, for any weights (the three turns of one are the
 // three turns of the other); the network alone is not so. A model reading GCC-PHAT refuses.
@@ -692,25 +724,11 @@ TEST_F(TrainingTest, TurnAveragingAnswersATurnedStrikeTurned) {
   Train(MakeFeatures(8, 5), MakeFeatures(4, 6), model, TinyTraining(1), kRadius, 1, run, false,
         false);
   const FeatureSet f = MakeFeatures(5, 21);
-  FeatureSet turned = f;
-  const int64_t plane = f.mels * f.frames;
-  for (int64_t i = 0; i < f.size(); ++i) {
-    for (int64_t c = 0; c < f.channels; ++c) {
-      const int64_t read = c / 3 * 3 + (c % 3 + 2) % 3;
-      std::copy_n(f.mel.data() + (i * f.channels + read) * plane, plane,
-                  turned.mel.data() + (i * f.channels + c) * plane);
-    }
-  }
+  const FeatureSet turned =
+      ReadingChannels(f, [](int64_t c) { return c / 3 * 3 + (c % 3 + 2) % 3; });
   auto largest_miss = [&](const Localizer& localizer) {
-    const std::vector<Prediction> a = localizer.Predict(f), b = localizer.Predict(turned);
-    double miss = 0.0;
-    for (size_t i = 0; i < a.size(); ++i) {
-      miss = std::max(miss, std::abs(a[i].z_m - b[i].z_m) * 100.0);
-      miss = std::max(miss, std::abs(std::remainder(b[i].theta_rad - a[i].theta_rad -
-                                                        2.0 * std::numbers::pi / 3.0,
-                                                    2.0 * std::numbers::pi)));
-    }
-    return miss;
+    return LargestMiss(localizer, f, turned,
+                       [](double theta) { return theta + 2.0 * std::numbers::pi / 3.0; });
   };
   EXPECT_LT(largest_miss(Localizer(run)), 1e-4);
   // the same weights answering each strike once
@@ -743,24 +761,10 @@ TEST_F(TrainingTest, MirrorAveragingAnswersAMirroredStrikeMirrored) {
   Train(MakeFeatures(8, 5), MakeFeatures(4, 6), model, TinyTraining(1), kRadius, 1, run, false,
         false);
   const FeatureSet f = MakeFeatures(5, 21);
-  FeatureSet mirrored = f;
-  const int64_t plane = f.mels * f.frames;
-  for (int64_t i = 0; i < f.size(); ++i) {
-    for (int64_t c = 0; c < f.channels; ++c) {
-      const int64_t read = c / 3 * 3 + (3 - c % 3) % 3;
-      std::copy_n(f.mel.data() + (i * f.channels + read) * plane, plane,
-                  mirrored.mel.data() + (i * f.channels + c) * plane);
-    }
-  }
+  const FeatureSet mirrored =
+      ReadingChannels(f, [](int64_t c) { return c / 3 * 3 + (3 - c % 3) % 3; });
   auto largest_miss = [&](const Localizer& localizer) {
-    const std::vector<Prediction> a = localizer.Predict(f), b = localizer.Predict(mirrored);
-    double miss = 0.0;
-    for (size_t i = 0; i < a.size(); ++i) {
-      miss = std::max(miss, std::abs(a[i].z_m - b[i].z_m) * 100.0);
-      miss = std::max(
-          miss, std::abs(std::remainder(b[i].theta_rad + a[i].theta_rad, 2.0 * std::numbers::pi)));
-    }
-    return miss;
+    return LargestMiss(localizer, f, mirrored, [](double theta) { return -theta; });
   };
   EXPECT_GT(largest_miss(Localizer(run)), 1e-2);
   EXPECT_LT(largest_miss(Localizer(run, {.mirror_average = true})), 1e-4);
