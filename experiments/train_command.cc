@@ -3,8 +3,10 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -15,6 +17,7 @@
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
 
+#include "internal/pseudo_labels.h"
 #include "internal/report.h"
 #include "internal/subcommands.h"
 
@@ -22,6 +25,38 @@ namespace sonicboom::experiments {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+
+namespace {
+
+// --pseudo-labels: the pretrained run answers every strike (with its own turn and mirror
+// averaging) and the fraction it is surest of keeps those answers as labels; the data's labels,
+// where it has them, only score the pseudo-labels (a diagnostic nothing else reads)
+json ApplyPseudoLabels(const std::string& init_from, double keep_fraction,
+                       learning::FeatureSet* features, std::vector<uint64_t>* indices) {
+  const learning::Localizer localizer(init_from);
+  const std::vector<learning::Prediction> predictions = localizer.Predict(*features);
+  const double radius_m = localizer.surface_radius_m();
+  const PseudoLabelSelection s = SelectPseudoLabels(predictions, keep_fraction, radius_m);
+  json j{{"source", init_from},
+         {"fraction", keep_fraction},
+         {"records", features->size()},
+         {"kept", s.rows.size()}};
+  if (std::isfinite(s.spread_limit_cm)) j["spread_limit_cm"] = s.spread_limit_cm;
+  std::vector<learning::Prediction> kept;
+  std::vector<uint64_t> kept_indices;
+  for (const int64_t r : s.rows) {
+    kept.push_back(predictions[static_cast<size_t>(r)]);
+    kept_indices.push_back((*indices)[static_cast<size_t>(r)]);
+  }
+  const learning::Metrics m =
+      learning::ComputeMetrics(kept, features->SelectRows(s.rows), radius_m);
+  if (m.n > 0) j["med_cm_against_labels"] = m.med_cm;
+  *features = WithPseudoLabels(*features, predictions, s.rows);
+  *indices = std::move(kept_indices);
+  return j;
+}
+
+}  // namespace
 
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   // a fine-tune starts from the pretrained run's config (its model and features), then the
@@ -33,6 +68,9 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   if (o.init_from.empty() &&
       (o.freeze != learning::FineTune::Freeze::kNone || o.norm != NormPolicy::kKeep)) {
     throw ConfigError("--freeze and --norm apply to a fine-tune: give --init-from RUN");
+  }
+  if (o.init_from.empty() && o.pseudo_labels > 0.0) {
+    throw ConfigError("--pseudo-labels labels strikes by a pretrained run: give --init-from RUN");
   }
   if (!o.init_from.empty() && fs::absolute(o.init_from) == fs::absolute(o.out)) {
     throw ConfigError(fmt::format(
@@ -56,8 +94,12 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   // the whole dataset is read before anything is written: a damaged file refused, or one that
   // ends the process inside libhdf5 (docs/robustness.md), leaves no OUT.partial behind
   std::vector<uint64_t> indices;
-  const learning::FeatureSet features =
+  learning::FeatureSet features =
       ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet, &indices);
+  json pseudo;
+  if (o.pseudo_labels > 0.0) {
+    pseudo = ApplyPseudoLabels(o.init_from, o.pseudo_labels, &features, &indices);
+  }
   if (!writes) {
     // reads rank 0's OUT.partial when resuming, writes nothing
     TrainOnFeatures(config, features, indices, o.data, work, o.resume, g.quiet, fine_tune,
@@ -87,6 +129,9 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
         {"init_from", o.init_from}, {"freeze", NameOf(o.freeze)}, {"norm", NameOf(o.norm)}};
     WriteTextAtomic((fs::path(work) / "fine_tune.json").string(), init.dump(2) + "\n");
   }
+  if (!pseudo.is_null()) {
+    WriteTextAtomic((fs::path(work) / "pseudo_labels.json").string(), pseudo.dump(2) + "\n");
+  }
   learning::Metrics m;
   try {
     m = TrainOnFeatures(config, features, indices, o.data, work, o.resume, g.quiet, fine_tune,
@@ -103,6 +148,7 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   ReplaceDirectory(work, o.out);
   json j = MetricsJson(m);
   j["run_dir"] = o.out;
+  if (!pseudo.is_null()) j["pseudo_labels"] = pseudo;
   if (parallel.world_size > 1) j["world_size"] = parallel.world_size;
   return {j.dump(), fmt::format("trained {}: validation MED {:.2f} cm, height {:.2f} cm, angle "
                                 "{:.1f} deg ({} strikes)\n",
@@ -132,6 +178,12 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
                 "none | encoders | all-but-head (with --init-from)");
   AddEnumOption(train, "--norm", &o->train.norm,
                 "keep | refit the per-mic mel statistics (with --init-from; default keep)");
+  train
+      ->add_option("--pseudo-labels", o->train.pseudo_labels,
+                   "self-training (with --init-from): keep this fraction of the data's strikes, "
+                   "those the pretrained run is surest of, labelled by its answers; the "
+                   "data's labels are not read")
+      ->check(NumberIn(0.0, 1.0, true));
   train->add_option("--lr", o->lr, "learning rate (sets train.learning_rate)")
       ->check(NumberIn(0.0, 1.0, true));
   train->add_option("--epochs", o->epochs, "epochs (sets train.epochs)")

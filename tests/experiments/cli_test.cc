@@ -1,9 +1,13 @@
 // End-to-end CLI: the acceptance checks of the foundation and its error paths.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <tuple>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -11,6 +15,7 @@
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/learning/learning.h"
 
 namespace sonicboom {
 namespace {
@@ -419,6 +424,61 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
 }
 
 // bad input: non-zero exit, a message naming the culprit, no complete-looking output
+// `train --pseudo-labels F`: the pretrained run's surest answers (smallest predictive spread on
+// the surface) become the labels of a fine-tune, and their error against the real labels is
+// reported
+TEST(CliTest, PseudoLabelsAreThePretrainedRunsSurestAnswers) {
+  TempDir dir;
+  const std::string tiny = kShort + testing::kTinyModelArgs + "--set train.epochs=2 ";
+  auto run = RunCli(tiny + "generate --count 30 --out D.h5 -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli(tiny + "train --data D.h5 --out RUN -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  run = RunCli("eval --model RUN --data D.h5 -q --predictions P.csv", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  // (spread cm, row, error cm) of each answer, surest first (ties: lower row)
+  std::vector<std::tuple<double, int, double>> answers;
+  {
+    std::ifstream csv(dir / "P.csv");
+    std::string line;
+    std::getline(csv, line);
+    for (int row = 0; std::getline(csv, line); ++row) {
+      std::vector<double> v;
+      std::stringstream cells(line);
+      for (std::string cell; std::getline(cells, cell, ',');) v.push_back(std::stod(cell));
+      ASSERT_EQ(v.size(), 8u) << line;
+      const double along_m = 0.05355 * learning::VonMisesCircularStd(v[6]);
+      answers.emplace_back(100.0 * std::hypot(v[5], along_m), row, v[7]);
+    }
+  }
+  ASSERT_EQ(answers.size(), 30u);
+  std::sort(answers.begin(), answers.end());
+  double med = 0.0;
+  for (int k = 0; k < 15; ++k) med += std::get<2>(answers[k]) / 15.0;
+  run = RunCli(tiny +
+                   "train --init-from RUN --data D.h5 --out PL --pseudo-labels 0.5 --epochs 1 "
+                   "-q --json",
+               dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json pseudo = json::parse(run.out)["pseudo_labels"];
+  EXPECT_EQ(pseudo["records"], 30);
+  EXPECT_EQ(pseudo["kept"], 15);
+  EXPECT_NEAR(pseudo["spread_limit_cm"].get<double>(), std::get<0>(answers[14]),
+              1e-5 * std::get<0>(answers[14]));
+  EXPECT_NEAR(pseudo["med_cm_against_labels"].get<double>(), med, 1e-4);
+  EXPECT_EQ(json::parse(ReadText(dir / "PL/pseudo_labels.json")), pseudo);
+  // a label source is needed, and the fraction lies in (0, 1]
+  run = RunCli("train --data D.h5 --out PL2 --pseudo-labels 0.5", dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("--pseudo-labels labels strikes by a pretrained run"), std::string::npos)
+      << run.err;
+  run =
+      RunCli("train --init-from RUN --data D.h5 --out PL2 --pseudo-labels 0", dir.path().string());
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_NE(run.err.find("--pseudo-labels"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "PL2"));
+}
+
 TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   TempDir dir;
   const std::string tiny =

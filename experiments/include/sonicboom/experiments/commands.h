@@ -96,6 +96,9 @@ struct TrainOptions {
   std::string init_from;  // pretrained run directory; empty: from scratch
   learning::FineTune::Freeze freeze{learning::FineTune::Freeze::kNone};
   NormPolicy norm{NormPolicy::kKeep};
+  // self-training (with init_from): the fraction in (0, 1] of the data's strikes that the
+  // pretrained run is surest of, labelled by its answers (the data's labels unread); 0: off
+  double pseudo_labels{0.0};
 };
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
 /// `eval`: metrics of a run on a dataset.
