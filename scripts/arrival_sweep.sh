@@ -3,8 +3,7 @@
 # validation set only: 300 randomized ts4 strikes (configs/ts4.yaml + configs/randomized.yaml,
 # sample indices from 50000, disjoint from every training and test set of
 # scripts/transfer_benchmark.sh and scripts/transfer_ablation.sh). Prints the MED of every pair
-# and the best. (Last run with the preset of 19b014a, before the structure pool and the wider
-# striker ranges.)
+# and the best (docs/baselines.md quotes its last run, at ca7d14f).
 # Usage: scripts/arrival_sweep.sh [OUTDIR=runs/arrival_sweep] [COUNT=300] [THREADS=2]
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)

@@ -85,7 +85,8 @@ for name, label, cmd in rows:
     scale = r.get("speed_scale")
     if scale is not None and "fitted" in label:
         label += f" ({scale:.3f})"
-    lines.append(f"| {label} | `{cmd}` | {r['med_cm']:.2f} | {r['height_err_cm']:.2f} | "
+    cell = cmd if cmd.startswith("(") else f"`{cmd}`"
+    lines.append(f"| {label} | {cell} | {r['med_cm']:.2f} | {r['height_err_cm']:.2f} | "
                  f"{r['angle_err_deg']:.1f} | {'%.0f' % r['wall_s'] if 'wall_s' in r else '–'} |")
     results[name.replace("/", "_")] = r
 val = {f"{feat}_k{k}": load(f"val_knn_{feat}_k{k}")["med_cm"] for feat in ("mel", "gcc")
