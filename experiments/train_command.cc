@@ -42,14 +42,19 @@ json ApplyPseudoLabels(const std::string& init_from, double keep_fraction,
          {"records", features->size()},
          {"kept", s.rows.size()}};
   if (std::isfinite(s.spread_limit_cm)) j["spread_limit_cm"] = s.spread_limit_cm;
+  // the kept answers and the data's labels of their strikes (labels only: the metrics read no
+  // features, and WithPseudoLabels below copies the kept rows' features once)
   std::vector<learning::Prediction> kept;
   std::vector<uint64_t> kept_indices;
+  learning::FeatureSet truth = features->ShapesOnly();
   for (const int64_t r : s.rows) {
-    kept.push_back(predictions[static_cast<size_t>(r)]);
-    kept_indices.push_back((*indices)[static_cast<size_t>(r)]);
+    const auto row = static_cast<size_t>(r);
+    kept.push_back(predictions[row]);
+    kept_indices.push_back((*indices)[row]);
+    truth.z_m.push_back(features->z_m[row]);
+    truth.theta_rad.push_back(features->theta_rad[row]);
   }
-  const learning::Metrics m =
-      learning::ComputeMetrics(kept, features->SelectRows(s.rows), radius_m);
+  const learning::Metrics m = learning::ComputeMetrics(kept, truth, radius_m);
   if (m.n > 0) j["med_cm_against_labels"] = m.med_cm;
   *features = WithPseudoLabels(*features, predictions, s.rows);
   *indices = std::move(kept_indices);
