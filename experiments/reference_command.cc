@@ -72,6 +72,76 @@ double Median(const std::vector<double>& v) {
   return Quantile(v, 0.5);
 }
 
+// a mode's three finest frequencies (coarse to fine, Hz) and their Richardson extrapolation
+struct ModeSeries {
+  std::vector<double> f_hz;
+  solid::Extrapolation e;
+};
+
+// Richardson error estimates of the finest mesh per frequency band of its modes: markdown table
+// rows and their JSON
+std::string BandRows(const std::vector<ModeSeries>& modes, json* bands_json) {
+  const std::vector<double> edges{0.0, 5000.0, 10000.0, 20000.0, 40000.0};
+  struct Band {
+    std::vector<double> error, order;
+    int non_monotone{0};
+  };
+  std::vector<Band> bands(edges.size() - 1);
+  for (const ModeSeries& m : modes) {
+    const size_t b =
+        std::upper_bound(edges.begin(), edges.end(), m.f_hz.back()) - edges.begin() - 1;
+    bands[b].error.push_back(m.e.error / m.e.limit);
+    bands[b].order.push_back(m.e.order);
+    if (m.e.order == 0.0) ++bands[b].non_monotone;
+  }
+  std::string md;
+  *bands_json = json::array();
+  for (size_t b = 0; b < bands.size(); ++b) {
+    if (bands[b].error.empty()) continue;
+    const double max_err = *std::max_element(bands[b].error.begin(), bands[b].error.end());
+    const auto over = std::count_if(bands[b].error.begin(), bands[b].error.end(),
+                                    [](double e) { return e > 0.003; });
+    md += fmt::format("| {:.0f}-{:.0f} Hz | {} | {:.4f} | {:.4f} | {:.4f} | {} | {:.1f} | {} |\n",
+                      edges[b], edges[b + 1], bands[b].error.size(), 100.0 * Median(bands[b].error),
+                      100.0 * Quantile(bands[b].error, 0.9), 100.0 * max_err, over,
+                      Median(bands[b].order), bands[b].non_monotone);
+    bands_json->push_back({{"lo_hz", edges[b]},
+                           {"hi_hz", edges[b + 1]},
+                           {"modes", bands[b].error.size()},
+                           {"median_relative_error", Median(bands[b].error)},
+                           {"p90_relative_error", Quantile(bands[b].error, 0.9)},
+                           {"max_relative_error", max_err},
+                           {"over_0_3_percent", over},
+                           {"non_monotone", bands[b].non_monotone}});
+  }
+  return md;
+}
+
+// the finest mesh's modes followed to the two coarser meshes by shape: those whose two links
+// both hold a modal assurance criterion of at least kFollowedMac, below 0.97 f_max
+constexpr double kFollowedMac = 0.8;
+std::vector<ModeSeries> FollowedByShape(const std::vector<solid::ConvergenceLevel>& levels,
+                                        double max_frequency_hz) {
+  const size_t n = levels.size();
+  const solid::ConvergenceLevel &a = levels[n - 3], &b = levels[n - 2], &c = levels[n - 1];
+  const auto bc = solid::MatchModesByShape(b.f_hz, b.signature, c.f_hz, c.signature, 0.05);
+  const auto ab = solid::MatchModesByShape(a.f_hz, a.signature, b.f_hz, b.signature, 0.05);
+  std::vector<double> h;
+  for (const solid::ConvergenceLevel& l : levels) h.push_back(l.h_m);
+  std::vector<ModeSeries> out;
+  for (size_t k = 0; k < c.f_hz.size() && c.f_hz[k] < 0.97 * max_frequency_hz; ++k) {
+    if (bc[k].from < 0 || bc[k].mac < kFollowedMac) continue;
+    const solid::ModeMatch& up = ab[bc[k].from];
+    if (up.from < 0 || up.mac < kFollowedMac) continue;
+    std::vector<double> f(n, 0.0);  // Richardson reads the last three
+    f[n - 3] = a.f_hz[up.from];
+    f[n - 2] = b.f_hz[bc[k].from];
+    f[n - 1] = c.f_hz[k];
+    out.push_back({{f[n - 3], f[n - 2], f[n - 1]}, solid::Richardson(h, f)});
+  }
+  return out;
+}
+
 }  // namespace
 
 solid::ReferenceTubeConfig ReferenceTubeOf(const SonicBoomConfig& config,
@@ -121,27 +191,19 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
         common,
         std::lower_bound(l.f_hz.begin(), l.f_hz.end(), 0.97 * o.max_frequency_hz) - l.f_hz.begin());
   }
-  const std::vector<double> band_edges{0.0, 5000.0, 10000.0, 20000.0, 40000.0};
-  struct Band {
-    std::vector<double> error, order;
-    int non_monotone{0};
-  };
-  std::vector<Band> bands(band_edges.size() - 1);
+  std::vector<ModeSeries> by_rank;
   json modes_json = json::array();
   for (size_t i = 0; i < common; ++i) {
     std::vector<double> f;
     for (const solid::ConvergenceLevel& l : levels) f.push_back(l.f_hz[i]);
     const solid::Extrapolation e = solid::Richardson(h, f);
-    const size_t b =
-        std::upper_bound(band_edges.begin(), band_edges.end(), f.back()) - band_edges.begin() - 1;
-    bands[b].error.push_back(e.error / e.limit);
-    bands[b].order.push_back(e.order);
-    if (e.order == 0.0) ++bands[b].non_monotone;
+    by_rank.push_back({f, e});
     modes_json.push_back({{"f_hz", f},
                           {"limit_hz", e.limit},
                           {"order", e.order},
                           {"relative_error", e.error / e.limit}});
   }
+  const std::vector<ModeSeries> by_shape = FollowedByShape(levels, o.max_frequency_hz);
   // arrivals and inter-disc delays per probe
   std::vector<double> arrival_err, delay_err;
   const int discs = config.mics.count();
@@ -181,30 +243,24 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
                            {"arrivals_s", l.t_s},
                            {"from_cache", l.from_cache}});
   }
-  md += fmt::format(
-      "\nRichardson error estimate of the finest mesh, {} modes matched by order:\n\n"
+  const std::string table_head =
       "| band | modes | median error (%) | 90th percentile (%) | max error (%) "
       "| modes over 0.3 % | median order | non-monotone |\n"
-      "|---|---|---|---|---|---|---|---|\n",
-      common);
-  json bands_json = json::array();
-  for (size_t b = 0; b < bands.size(); ++b) {
-    if (bands[b].error.empty()) continue;
-    const double max_err = *std::max_element(bands[b].error.begin(), bands[b].error.end());
-    const auto over = std::count_if(bands[b].error.begin(), bands[b].error.end(),
-                                    [](double e) { return e > 0.003; });
-    md += fmt::format("| {:.0f}-{:.0f} Hz | {} | {:.4f} | {:.4f} | {:.4f} | {} | {:.1f} | {} |\n",
-                      band_edges[b], band_edges[b + 1], bands[b].error.size(),
-                      100.0 * Median(bands[b].error), 100.0 * Quantile(bands[b].error, 0.9),
-                      100.0 * max_err, over, Median(bands[b].order), bands[b].non_monotone);
-    bands_json.push_back({{"lo_hz", band_edges[b]},
-                          {"hi_hz", band_edges[b + 1]},
-                          {"modes", bands[b].error.size()},
-                          {"median_relative_error", Median(bands[b].error)},
-                          {"p90_relative_error", Quantile(bands[b].error, 0.9)},
-                          {"max_relative_error", max_err},
-                          {"non_monotone", bands[b].non_monotone}});
-  }
+      "|---|---|---|---|---|---|---|---|\n";
+  json bands_json, shape_bands_json;
+  md +=
+      fmt::format("\nRichardson error estimate of the finest mesh, {} modes matched by order:\n\n",
+                  common) +
+      table_head + BandRows(by_rank, &bands_json);
+  const size_t finest_modes = std::lower_bound(levels.back().f_hz.begin(), levels.back().f_hz.end(),
+                                               0.97 * o.max_frequency_hz) -
+                              levels.back().f_hz.begin();
+  md += fmt::format(
+            "\nThe same, each mode of the finest mesh followed to the two coarser ones by its "
+            "shape (the displacement at {} surface points; modal assurance criterion >= {} on "
+            "both links, pairs within 5 % in frequency): {} of {} modes followed.\n\n",
+            requests.front().signature_points, kFollowedMac, by_shape.size(), finest_modes) +
+        table_head + BandRows(by_shape, &shape_bands_json);
   const double arrival_max = *std::max_element(arrival_err.begin(), arrival_err.end());
   const double delay_max = *std::max_element(delay_err.begin(), delay_err.end());
   // a 20 % threshold can jump to another wave packet between meshes: such jumps (over 50 us)
@@ -257,7 +313,10 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
              static_cast<int64_t>(levels[l].f_hz.size()), levels[l].t_s);
   }
   if (o.compare_shell) {
-    for (const double axial : {config.shell.AxialSpacing(), config.shell.grid_spacing_m}) {
+    // the default axial spacing and the arc spacing along the axis too (one rung when equal)
+    std::vector<double> axials{config.shell.AxialSpacing()};
+    if (config.shell.grid_spacing_m != axials[0]) axials.push_back(config.shell.grid_spacing_m);
+    for (const double axial : axials) {
       int64_t modes = 0;
       const auto t = ShellArrivals(config, o.ends, o.ideal, axial, o.max_frequency_hz, &modes);
       add_rung(fmt::format("shell modal, {:.1f} x {:.1f} mm grid",
@@ -268,6 +327,8 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   if (!o.out.empty()) WriteTextAtomic(o.out, md);
   json j = {{"levels", levels_json},
             {"bands", bands_json},
+            {"bands_by_shape", shape_bands_json},
+            {"followed_by_shape", by_shape.size()},
             {"modes", modes_json},
             {"rungs", rungs_json},
             {"arrival_error_s", {{"median", Median(arrival_err)}, {"max", arrival_max}}},
@@ -291,9 +352,9 @@ void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run) {
   cmd->add_option("--out", o->out, "markdown report (\"\" = print only)");
   cmd->add_option("--cache-dir", o->cache_dir,
                   "solved levels kept and reused here (default: the mode cache directory)");
-  cmd->add_flag(
-      "--compare-shell", o->compare_shell,
-      "also the shell model's arrivals (default and 2.5 mm grids) against the finest mesh");
+  cmd->add_flag("--compare-shell", o->compare_shell,
+                "also the shell model's arrivals (its grid, and the arc spacing along the axis "
+                "where that differs) against the finest mesh");
   cmd->callback([&g, run, o] { *run = [&g, o] { return RunReference(g, *o); }; });
 }
 

@@ -91,7 +91,7 @@ void ReferenceTube::Solve() {
   SolidModeRequest request;
   request.max_frequency_hz = config_.max_frequency_hz;
   request.shape_dofs = surface_dofs_;
-  request.projection_rows = model_->SensorRows(config_.mics);
+  request.projection_rows = model_->SensorRows(config_.mics).sparseView();
   const SolidModes modes = SolveSolidModes(*model_, request);
   omega_rad_s_ = modes.omega_rad_s;
   disc_strain_ = modes.projections;

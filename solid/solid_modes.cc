@@ -167,7 +167,7 @@ SolidModes SolveSolidModes(const SolidTubeModel& model, const SolidModeRequest& 
 
   std::vector<Eigen::VectorXd> values(slices.size());
   std::vector<Eigen::MatrixXd> vectors(slices.size());
-  const bool project = request.projection_rows.size() > 0;
+  const bool project = request.projection_rows.rows() > 0;
   SONICBOOM_DEMAND(!project || request.projection_rows.cols() == model.dofs());
   const Eigen::VectorXd inv_sqrt_mass = model.mass_kg().cwiseSqrt().cwiseInverse();
   std::vector<Eigen::MatrixXd> projected(slices.size());

@@ -441,24 +441,43 @@ const SolidTubeModel::Element& SolidTubeModel::Locate(double z_m, double theta_r
 }
 
 Eigen::VectorXd SolidTubeModel::RadialForceWeights(double z_m, double theta_rad) const {
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> rows = SurfacePointRows({{z_m, theta_rad}});
+  return Eigen::VectorXd(rows.row(0).transpose());
+}
+
+Eigen::SparseMatrix<double, Eigen::RowMajor> SolidTubeModel::SurfacePointRows(
+    const std::vector<std::pair<double, double>>& points_z_theta) const {
   const int p = static_cast<int>(mesh_.degree_wall), q = static_cast<int>(mesh_.degree_thickness);
-  double xi, eta;
-  const Element& el = Locate(z_m, theta_rad, &xi, &eta);
+  std::vector<Eigen::Triplet<double>> triplets;
   Eigen::VectorXd li, dli, lj, dlj;
-  LagrangeBasis(wall_, xi, &li, &dli);
-  LagrangeBasis(wall_, eta, &lj, &dlj);
-  const Eigen::Vector3d normal(std::cos(theta_rad), std::sin(theta_rad), 0.0);
-  Eigen::VectorXd row = Eigen::VectorXd::Zero(dofs());
-  for (int j = 0; j <= p; ++j) {
-    for (int i = 0; i <= p; ++i) {
-      const int64_t node = el.nodes[(q * (p + 1) + j) * (p + 1) + i];  // outer layer, k = q
-      for (int d = 0; d < 3; ++d) {
-        const int64_t dof = node_dof_[3 * node + d];
-        if (dof >= 0) row(dof) += li(i) * lj(j) * normal(d);
+  for (size_t n = 0; n < points_z_theta.size(); ++n) {
+    const auto [z_m, theta_rad] = points_z_theta[n];
+    double xi, eta;
+    const Element& el = Locate(z_m, theta_rad, &xi, &eta);
+    LagrangeBasis(wall_, xi, &li, &dli);
+    LagrangeBasis(wall_, eta, &lj, &dlj);
+    // (3 x 3) rows: the outward normal, the arc and the axis in Cartesian components
+    Eigen::Matrix3d dir;
+    dir << std::cos(theta_rad), std::sin(theta_rad), 0.0, -std::sin(theta_rad), std::cos(theta_rad),
+        0.0, 0.0, 0.0, 1.0;
+    // the element's outer face (k = q) interpolates the surface point
+    for (int j = 0; j <= p; ++j) {
+      for (int i = 0; i <= p; ++i) {
+        const int64_t node = el.nodes[(q * (p + 1) + j) * (p + 1) + i];
+        for (int d = 0; d < 3; ++d) {
+          const int64_t dof = node_dof_[3 * node + d];
+          if (dof < 0) continue;
+          for (int c = 0; c < 3; ++c) {
+            const double w = li(i) * lj(j) * dir(c, d);
+            if (w != 0.0) triplets.emplace_back(static_cast<int>(3 * n + c), dof, w);
+          }
+        }
       }
     }
   }
-  return row;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> rows(3 * points_z_theta.size(), dofs());
+  rows.setFromTriplets(triplets.begin(), triplets.end());
+  return rows;
 }
 
 void SolidTubeModel::AddSurfaceStrain(const Element& el, double xi, double eta, double scale,

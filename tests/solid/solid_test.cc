@@ -126,6 +126,36 @@ TEST(SolidTubeTest, SensorReadsUniformHoopAndAxialStrainAndTheForceRowReadsRadia
   EXPECT_THROW(model.RadialForceWeights(0.2, 0.0), ConfigError);
 }
 
+// each of a surface point's three rows reads one cylindrical component of the displacement
+// there: a rigid turn by eps about the axis moves the surface eps r along the arc and not at all
+// along the normal or the axis; an axial shift moves it along the axis alone
+TEST(SolidTubeTest, SurfacePointRowsReadTheNormalArcAndAxialDisplacement) {
+  const TubeConfig tube;
+  const SolidTubeModel model(tube, MaterialConfig{}, Ideal(TubeEnds::kFree), Coarse());
+  const double eps = 1e-4;
+  const Eigen::VectorXd turn = model.Sample(
+      [&](const Eigen::Vector3d& x) { return Eigen::Vector3d(-eps * x.y(), eps * x.x(), 0.0); });
+  const Eigen::VectorXd shift =
+      model.Sample([&](const Eigen::Vector3d&) { return Eigen::Vector3d(0.0, 0.0, eps); });
+  const std::vector<std::pair<double, double>> points = {{0.013, 0.7}, {-0.14, 4.0}, {0.1, -0.2}};
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> rows = model.SurfacePointRows(points);
+  ASSERT_EQ(rows.rows(), 9);
+  ASSERT_EQ(rows.cols(), model.dofs());
+  const Eigen::VectorXd read_turn = rows * turn, read_shift = rows * shift;
+  for (size_t p = 0; p < points.size(); ++p) {
+    const Eigen::VectorXd radial = model.RadialForceWeights(points[p].first, points[p].second);
+    EXPECT_EQ((Eigen::VectorXd(rows.row(3 * p).transpose()) - radial).cwiseAbs().maxCoeff(), 0.0);
+    // the cylindrical mapping is interpolated: 1e-4 of the field at this degree
+    EXPECT_NEAR(read_turn(3 * p), 0.0, 1e-4 * eps * tube.outer_radius_m) << p;
+    EXPECT_NEAR(read_turn(3 * p + 1), eps * tube.outer_radius_m, 1e-4 * eps * tube.outer_radius_m);
+    EXPECT_NEAR(read_turn(3 * p + 2), 0.0, 1e-15);
+    EXPECT_NEAR(read_shift(3 * p), 0.0, 1e-15);
+    EXPECT_NEAR(read_shift(3 * p + 1), 0.0, 1e-15);
+    EXPECT_NEAR(read_shift(3 * p + 2), eps, 1e-12 * eps);
+  }
+  EXPECT_THROW(model.SurfacePointRows({{0.0, 0.0}, {-0.2, 1.0}}), ConfigError);
+}
+
 TEST(SolidTubeTest, RefusesMeshesThatCannotBeBuiltNamingTheKey) {
   // too long for the circumference, zero, not a number, and below the smallest element
   for (const double arc_m : {0.5, 0.0, std::nan(""), 0.001}) {
@@ -420,6 +450,10 @@ TEST(ConvergenceLevelTest, CacheReadsTheLevelBackAndArrivalsAreCausal) {
   EXPECT_EQ(cached.dofs, solved.dofs);
   EXPECT_EQ(cached.h_m, solved.h_m);
   EXPECT_EQ(cached.solve_s, solved.solve_s);
+  ASSERT_EQ(solved.signature.rows(), 3 * r.signature_points);
+  ASSERT_EQ(solved.signature.cols(), static_cast<Eigen::Index>(solved.f_hz.size()));
+  EXPECT_EQ(cached.signature, solved.signature);
+  EXPECT_GT(solved.signature.cwiseAbs().maxCoeff(), 0.0);
   // discs 3-5 sit at z = +0.13 m (3 at 0 deg, nearest the probe at 20 deg), 0-2 at -0.13 m
   const std::vector<double>& t = solved.t_s[0];
   for (int far = 0; far < 3; ++far) EXPECT_LT(t[3], t[far]) << "disc " << far;
@@ -433,6 +467,81 @@ TEST(ConvergenceLevelTest, CacheReadsTheLevelBackAndArrivalsAreCausal) {
             }()));
   EXPECT_FALSE(SolveConvergenceLevel(r).from_cache);
   std::filesystem::remove_all(dir);
+}
+
+// modes are followed by shape, not rank: two modes that swap order between meshes are matched to
+// their own shapes, a shape outside the frequency window is left unmatched, and each mode is used
+// once even where two of the other mesh resemble it
+TEST(ConvergenceLevelTest, MatchModesByShapeFollowsShapesAcrossAnOrderSwap) {
+  // (4 x 4) orthogonal shapes of the coarse mesh and the fine mesh's versions of them
+  Eigen::MatrixXd from = Eigen::MatrixXd::Identity(4, 4);
+  Eigen::MatrixXd to(4, 4);
+  to.col(0) = from.col(0);
+  to.col(1) = -2.0 * from.col(2) + 0.1 * from.col(1);  // shape 2, sign and scale free
+  to.col(2) = from.col(1) + 0.1 * from.col(3);         // shape 1
+  to.col(3) = from.col(3) + 0.05 * from.col(0);        // shape 3, beyond the window
+  const std::vector<double> f_from = {100.0, 200.0, 201.0, 300.0};
+  const std::vector<double> f_to = {99.0, 199.0, 200.5, 400.0};
+  const std::vector<ModeMatch> m = MatchModesByShape(f_from, from, f_to, to, 0.05);
+  ASSERT_EQ(m.size(), 4u);
+  EXPECT_EQ(m[0].from, 0);
+  EXPECT_NEAR(m[0].mac, 1.0, 1e-12);
+  EXPECT_EQ(m[1].from, 2);  // by rank it would be 1
+  EXPECT_NEAR(m[1].mac, 4.0 / 4.01, 1e-12);
+  EXPECT_EQ(m[2].from, 1);
+  EXPECT_EQ(m[3].from, -1);  // 300 Hz is 25 % from 400 Hz
+  // two fine modes alike one coarse mode: the closer in shape takes it, the other takes what is
+  // left inside its window
+  Eigen::MatrixXd twins(4, 2);
+  twins.col(0) = from.col(1) + 0.5 * from.col(2);
+  twins.col(1) = from.col(1) + 0.2 * from.col(2);
+  const std::vector<ModeMatch> t = MatchModesByShape(f_from, from, {200.0, 200.2}, twins, 0.05);
+  EXPECT_EQ(t[1].from, 1);
+  EXPECT_EQ(t[0].from, 2);
+  EXPECT_NEAR(t[0].mac, 0.25 / 1.25, 1e-12);
+  // a degenerate pair (equal frequencies) returned in another basis by the other mesh: each of
+  // its modes lies in the pair's span, so both are followed, one to each
+  const std::vector<double> f_pair = {100.0, 200.0, 200.0 * (1.0 + 1e-9), 300.0};
+  Eigen::MatrixXd turned(4, 2);
+  turned.col(0) = from.col(1) + from.col(2);
+  turned.col(1) = from.col(1) - from.col(2);
+  const std::vector<ModeMatch> d = MatchModesByShape(f_pair, from, {199.0, 199.0}, turned, 0.05);
+  EXPECT_NEAR(d[0].mac, 1.0, 1e-12);
+  EXPECT_NEAR(d[1].mac, 1.0, 1e-12);
+  EXPECT_EQ(d[0].from + d[1].from, 3);  // 1 and 2
+  EXPECT_NE(d[0].from, d[1].from);
+}
+
+// the same seamed tube on two meshes: every mode below 1.4 kHz of the finer is followed to a mode
+// of the coarser by its shape alone, within 2 % in frequency, and the modes whose order the two
+// meshes swap (near pairs) are followed to their own shapes, where matching by rank mixes them
+TEST(ConvergenceLevelTest, SignaturesFollowTheModesOfASeamedTubeToAFinerMesh) {
+  ConvergenceRequest r;
+  r.solid.structure.seam_theta_deg = {90.0, 270.0};
+  r.solid.structure.bolt_z_m = {-0.1, 0.1};
+  r.solid.structure.bolt_stiffness_n_m = {2e7, 2e7};
+  SolidMeshConfig mesh;
+  mesh.element_arc_m = 0.025;
+  mesh.element_axial_m = 0.03;
+  mesh.degree_wall = 4;
+  mesh.degree_thickness = 2;
+  r.solid.mesh = mesh;
+  r.solid.max_frequency_hz = 1600.0;
+  const ConvergenceLevel coarse = SolveConvergenceLevel(r);
+  r.solid.mesh = mesh.Refined(1.25);
+  const ConvergenceLevel fine = SolveConvergenceLevel(r);
+  const std::vector<ModeMatch> m =
+      MatchModesByShape(coarse.f_hz, coarse.signature, fine.f_hz, fine.signature, 0.05);
+  int below = 0, swapped = 0;
+  for (size_t k = 0; k < fine.f_hz.size() && fine.f_hz[k] < 1400.0; ++k) {
+    ++below;
+    ASSERT_GE(m[k].from, 0) << k;
+    EXPECT_GT(m[k].mac, 0.98) << k;
+    EXPECT_NEAR(coarse.f_hz[m[k].from] / fine.f_hz[k], 1.0, 0.02) << k;
+    swapped += m[k].from != static_cast<int64_t>(k);
+  }
+  EXPECT_GT(below, 30);
+  EXPECT_GE(swapped, 2);  // 452 / 455 Hz and 1070 / 1074 Hz change places
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -32,6 +33,9 @@ struct ConvergenceRequest {
   // solve, keep nothing)
   ReferenceTubeConfig solid;
   std::vector<ConvergenceProbe> probes = DefaultConvergenceProbes();
+  // outer-surface points (SignaturePoints) whose displacement identifies each mode from one mesh
+  // to the next (MatchModesByShape); 0: none
+  int64_t signature_points{768};
 };
 
 struct ConvergenceLevel {
@@ -40,8 +44,33 @@ struct ConvergenceLevel {
   double build_s{0.0}, solve_s{0.0};     // as solved (a cached level keeps its first timing)
   std::vector<double> f_hz;              // elastic modes, ascending, Hz
   std::vector<std::vector<double>> t_s;  // (probe) x (disc) first arrival, s
+  // (3 signature points x modes) each mass-normalized shape's displacement (normal, arc, axis)
+  // at the request's signature points, m per unit modal coordinate
+  Eigen::MatrixXd signature;
   bool from_cache{false};
 };
+
+/// `count` points (z, theta) (m, rad) spread evenly over the outer surface, away from the ends
+/// (|z| <= 0.45 length): a golden-angle lattice, the same for every mesh of a tube.
+std::vector<std::pair<double, double>> SignaturePoints(const TubeConfig& tube, int64_t count);
+
+/// Which mode of one mesh a mode of another is.
+struct ModeMatch {
+  int64_t from{-1};  // index into the `from` modes; -1: none within the window
+  double mac{0.0};   // modal assurance criterion of the pair, 0 to 1
+};
+
+/// For each mode of `to` (frequencies f_to_hz, signature columns `to`), the mode of `from` with
+/// the same shape: every pair within `window` relative frequency of each other is ranked by its
+/// modal assurance criterion, the squared cosine between the `to` signature and the span of the
+/// `from` mode (with the modes degenerate with it, within 1e-4 in frequency, since a mesh returns
+/// any basis of a degenerate set; alone, (a.b)^2 / (|a|^2 |b|^2)), and pairs are taken from the
+/// highest, each mode at most once. Rank matching mixes modes whose order changes between meshes;
+/// this does not. (to modes)
+std::vector<ModeMatch> MatchModesByShape(const std::vector<double>& f_from_hz,
+                                         const Eigen::MatrixXd& from,
+                                         const std::vector<double>& f_to_hz,
+                                         const Eigen::MatrixXd& to, double window);
 
 /// The level of `request`: read from request.cache_dir when a file of the same key is there,
 /// else solved (and written there when cache_dir is set).

@@ -5,6 +5,7 @@
 /// the modes below s) sizes the slices and checks that each slice found every mode it holds.
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <cstdint>
 #include <vector>
 
@@ -22,9 +23,9 @@ struct SolidModeRequest {
   // with_shapes: the DOFs whose rows of the shapes are kept, ascending (empty: all)
   std::vector<int64_t> shape_dofs;
   int64_t modes_per_slice{120};  // target size of one Lanczos slice
-  // (rows x dofs) linear read-outs (sensor rows, force weights) to apply to every shape; empty:
-  // none. Cheaper in memory than the shapes themselves for large meshes.
-  Eigen::MatrixXd projection_rows;
+  // (rows x dofs) linear read-outs (sensor rows, force weights, surface points) to apply to every
+  // shape; no rows: none. Cheaper in memory than the shapes themselves for large meshes.
+  Eigen::SparseMatrix<double, Eigen::RowMajor> projection_rows;
 };
 
 struct SolidModes {

@@ -22,6 +22,7 @@
 #include <Eigen/SparseCore>
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include "sonicboom/core/tube.h"
@@ -85,6 +86,12 @@ class SolidTubeModel {
   /// frame (the spectral interpolation of the element holding the point); its transpose reads
   /// the outward displacement there. Throws ConfigError off the tube.
   Eigen::VectorXd RadialForceWeights(double z_m, double theta_rad) const;
+  /// (3 points x dofs) the same for unit forces along the outward normal, the arc (increasing
+  /// theta) and the axis at each (z, theta) of `points_z_theta` (m, rad), rows point-major
+  /// (r, theta, z); each row transposed reads that displacement component there. Sparse: a
+  /// point's rows touch the nodes of one element face. Throws ConfigError off the tube.
+  Eigen::SparseMatrix<double, Eigen::RowMajor> SurfacePointRows(
+      const std::vector<std::pair<double, double>>& points_z_theta) const;
   /// (dofs) output of a piezo disc of diameter d centred at (z, theta) on the outer surface: the
   /// in-plane strain eps_zz + eps_thth averaged over the disc (a polar quadrature of the disc).
   /// Unit: strain per m of the DOFs.
