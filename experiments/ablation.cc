@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -68,39 +67,53 @@ std::vector<Variant> ListVariants(const std::string& dir, const std::vector<std:
   return variants;
 }
 
-// features of a dataset, computed once per distinct feature config
+// features of a dataset, computed once per distinct feature config; one set in memory at a
+// time (datasets are large): whole (a test set) or split for training
 class FeatureCache {
  public:
   FeatureCache(std::string path, int threads, bool quiet)
       : path_(std::move(path)), threads_(threads), quiet_(quiet) {}
-  const learning::FeatureSet& Get(const SonicBoomConfig& config,
-                                  const std::vector<uint64_t>** indices) {
-    // every section but the model and training ones can change the features
-    SonicBoomConfig stripped = config;
-    stripped.model = learning::ModelConfig{};
-    stripped.train = learning::TrainConfig{};
-    const std::string features_key = ConfigToYaml(stripped);
-    auto it = cache_.find(features_key);
-    if (it == cache_.end()) {
-      // keep one feature set in memory at a time: datasets are large
-      cache_.clear();
-      Entry entry;
-      entry.set = ComputeDatasetFeatures(path_, config, threads_, !quiet_, &entry.indices);
-      it = cache_.emplace(features_key, std::move(entry)).first;
+  const learning::FeatureSet& Whole(const SonicBoomConfig& config) {
+    const std::string key = FeaturesKey(config);
+    if (key != key_) Compute(config, key);
+    return set_;
+  }
+  // the training and validation rows (SplitFeatures: in place, no second copy of the set)
+  const FeatureSplit& Split(const SonicBoomConfig& config) {
+    const std::string key =
+        FeaturesKey(config) + fmt::format("\nsplit: seed {}, val_fraction {:.17g}", config.seed,
+                                          config.train.val_fraction);
+    if (key != key_) {
+      Compute(config, "");
+      split_ = SplitFeatures(config, std::move(set_), indices_, path_);
+      key_ = key;
     }
-    if (indices != nullptr) *indices = &it->second.indices;
-    return it->second.set;
+    return split_;
   }
 
  private:
-  struct Entry {
-    learning::FeatureSet set;
-    std::vector<uint64_t> indices;
-  };
+  // every section but the model and training ones can change the features
+  static std::string FeaturesKey(const SonicBoomConfig& config) {
+    SonicBoomConfig stripped = config;
+    stripped.model = learning::ModelConfig{};
+    stripped.train = learning::TrainConfig{};
+    return ConfigToYaml(stripped);
+  }
+  void Compute(const SonicBoomConfig& config, const std::string& key) {
+    key_.clear();  // nothing held counts until the new set is complete
+    set_ = {};
+    split_ = {};
+    set_ = ComputeDatasetFeatures(path_, config, threads_, !quiet_, &indices_);
+    key_ = key;
+  }
+
   std::string path_;
   int threads_;
   bool quiet_;
-  std::map<std::string, Entry> cache_;
+  std::string key_;  // what set_ or split_ holds; "" = nothing
+  learning::FeatureSet set_;
+  FeatureSplit split_;
+  std::vector<uint64_t> indices_;
 };
 
 std::string Join(const std::vector<std::string>& v) {
@@ -148,16 +161,15 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     } else {
       MakeDirectories(run_dir);
       WriteTextAtomic((fs::path(run_dir) / "config.yaml").string(), ConfigToYaml(config));
-      const std::vector<uint64_t>* indices = nullptr;
-      const learning::FeatureSet& all = train_features.Get(config, &indices);
+      const FeatureSplit& split = train_features.Split(config);
       const auto start = std::chrono::steady_clock::now();
-      TrainOnFeatures(config, all, *indices, o.data, run_dir, /*resume=*/true, g.quiet);
+      TrainOnSplit(config, split, run_dir, /*resume=*/true, g.quiet);
       train_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       WriteTextAtomic(timing.string(), fmt::format("{}\n", train_s));
     }
 
     // held-out errors
-    const learning::FeatureSet& test = test_features.Get(config, nullptr);
+    const learning::FeatureSet& test = test_features.Whole(config);
     learning::Localizer localizer(run_dir);
     const learning::Metrics m =
         learning::ComputeMetrics(localizer.Predict(test), test, localizer.surface_radius_m());

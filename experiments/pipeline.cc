@@ -712,12 +712,8 @@ void CheckRingsTurn(const SonicBoomConfig& config) {
 
 }  // namespace
 
-learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning::FeatureSet& all,
-                                  const std::vector<uint64_t>& sample_indices,
-                                  const std::string& data, const std::string& run_dir, bool resume,
-                                  bool quiet, const learning::FineTune& fine_tune,
-                                  const learning::DataParallel& parallel) {
-  CheckRingsTurn(config);
+FeatureSplit SplitFeatures(const SonicBoomConfig& config, learning::FeatureSet&& all,
+                           const std::vector<uint64_t>& sample_indices, const std::string& data) {
   const auto [train_rows, val_rows] =
       SplitRows(sample_indices, config.train.val_fraction, config.seed);
   if (train_rows.empty() || val_rows.empty()) {
@@ -726,10 +722,32 @@ learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, const learning:
                     "with train.val_fraction = {}",
                     data, all.size(), config.train.val_fraction));
   }
-  spdlog::info("training on {} strikes, validating on {}", train_rows.size(), val_rows.size());
-  return learning::TrainEnsemble(all.SelectRows(train_rows), all.SelectRows(val_rows), config.model,
-                                 config.train, config.tube.outer_radius_m, config.seed, run_dir,
-                                 resume, !quiet, fine_tune, parallel);
+  FeatureSplit split;
+  split.val = all.SelectRows(val_rows);
+  all.KeepRows(train_rows);  // SplitRows lists each side ascending
+  split.train = std::move(all);
+  return split;
+}
+
+learning::Metrics TrainOnSplit(const SonicBoomConfig& config, const FeatureSplit& split,
+                               const std::string& run_dir, bool resume, bool quiet,
+                               const learning::FineTune& fine_tune,
+                               const learning::DataParallel& parallel) {
+  CheckRingsTurn(config);
+  spdlog::info("training on {} strikes, validating on {}", split.train.size(), split.val.size());
+  return learning::TrainEnsemble(split.train, split.val, config.model, config.train,
+                                 config.tube.outer_radius_m, config.seed, run_dir, resume, !quiet,
+                                 fine_tune, parallel);
+}
+
+learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, learning::FeatureSet all,
+                                  const std::vector<uint64_t>& sample_indices,
+                                  const std::string& data, const std::string& run_dir, bool resume,
+                                  bool quiet, const learning::FineTune& fine_tune,
+                                  const learning::DataParallel& parallel) {
+  CheckRingsTurn(config);
+  return TrainOnSplit(config, SplitFeatures(config, std::move(all), sample_indices, data), run_dir,
+                      resume, quiet, fine_tune, parallel);
 }
 
 }  // namespace sonicboom::experiments

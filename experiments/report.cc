@@ -144,8 +144,8 @@ learning::Metrics TrainOnDataset(const SonicBoomConfig& config, const std::strin
                                  const std::string& run_dir, bool resume, int threads, bool quiet,
                                  const learning::FineTune& fine_tune) {
   std::vector<uint64_t> indices;
-  const learning::FeatureSet all = ComputeDatasetFeatures(data, config, threads, !quiet, &indices);
-  return TrainOnFeatures(config, all, indices, data, run_dir, resume, quiet, fine_tune);
+  learning::FeatureSet all = ComputeDatasetFeatures(data, config, threads, !quiet, &indices);
+  return TrainOnFeatures(config, std::move(all), indices, data, run_dir, resume, quiet, fine_tune);
 }
 
 SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_dir) {

@@ -107,8 +107,8 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   if (!writes) {
     // reads rank 0's OUT.partial when resuming, writes nothing
-    TrainOnFeatures(config, features, indices, o.data, work, o.resume, g.quiet, fine_tune,
-                    parallel);
+    TrainOnFeatures(config, std::move(features), indices, o.data, work, o.resume, g.quiet,
+                    fine_tune, parallel);
     const json j = {
         {"run_dir", o.out}, {"rank", parallel.rank}, {"world_size", parallel.world_size}};
     return {j.dump(), fmt::format("rank {} of {}: trained in data parallel; rank 0 writes {}\n",
@@ -139,8 +139,8 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   }
   learning::Metrics m;
   try {
-    m = TrainOnFeatures(config, features, indices, o.data, work, o.resume, g.quiet, fine_tune,
-                        parallel);
+    m = TrainOnFeatures(config, std::move(features), indices, o.data, work, o.resume, g.quiet,
+                        fine_tune, parallel);
   } catch (const Error&) {
     // refused input: a fresh run leaves nothing behind (a resumed one keeps its checkpoint)
     if (!o.resume) fs::remove_all(work, ec);

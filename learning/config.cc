@@ -239,17 +239,50 @@ FeatureSet FeatureSet::ShapesOnly() const {
   return shapes;
 }
 
+namespace {
+
+// an array of `rows` rows of row_size values, or empty (an unused modality)
+void CheckRows(const char* what, const char* name, size_t values, int64_t rows, int64_t row_size) {
+  if (values != 0 && static_cast<int64_t>(values) != rows * row_size) {
+    throw SchemaError(fmt::format("FeatureSet::{}: {} holds {} values, expected {} x {}", what,
+                                  name, values, rows, row_size));
+  }
+}
+
+}  // namespace
+
+void FeatureSet::KeepRows(const std::vector<int64_t>& ascending_rows) {
+  const int64_t n = static_cast<int64_t>(ascending_rows.size());
+  for (int64_t i = 0; i < n; ++i) {
+    SONICBOOM_DEMAND(ascending_rows[i] >= 0 && ascending_rows[i] < size());
+    SONICBOOM_DEMAND(i == 0 || ascending_rows[i] > ascending_rows[i - 1]);
+  }
+  // row i moves from ascending_rows[i] >= i: forward copies never overwrite a row still to move
+  auto keep = [&](const char* name, auto* values, int64_t row_size) {
+    CheckRows("KeepRows", name, values->size(), size(), row_size);
+    if (values->empty()) return;
+    for (int64_t i = 0; i < n; ++i) {
+      if (ascending_rows[i] == i) continue;
+      std::copy_n(values->begin() + ascending_rows[i] * row_size, row_size,
+                  values->begin() + i * row_size);
+    }
+    values->resize(n * row_size);
+  };
+  keep("mel", &mel, channels * mels * frames);
+  keep("gcc", &gcc, gcc_pairs * gcc_lags);
+  keep("proprio", &proprio, proprio_rows * proprio_features);
+  keep("theta_rad", &theta_rad, 1);
+  keep("z_m", &z_m, 1);  // last: size() reads it
+}
+
 FeatureSet FeatureSet::SelectRows(const std::vector<int64_t>& rows) const {
   // copy each chosen row of every array; an empty array (an unused modality) stays empty
   FeatureSet out = ShapesOnly();
   const int64_t n = static_cast<int64_t>(rows.size());
   auto select = [&](const char* name, const std::vector<float>& from, int64_t row_size,
                     std::vector<float>* to) {
+    CheckRows("SelectRows", name, from.size(), size(), row_size);
     if (from.empty()) return;
-    if (static_cast<int64_t>(from.size()) != size() * row_size) {
-      throw SchemaError(fmt::format("FeatureSet::SelectRows: {} holds {} values, expected {} x {}",
-                                    name, from.size(), size(), row_size));
-    }
     to->resize(n * row_size);
     for (int64_t i = 0; i < n; ++i) {
       std::copy_n(from.begin() + rows[i] * row_size, row_size, to->begin() + i * row_size);

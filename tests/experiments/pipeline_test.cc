@@ -91,6 +91,52 @@ TEST(PipelineTest, SplitDependsOnlyOnSampleIndex) {
   EXPECT_TRUE(SplitRows({7}, 0.2, 3).second.empty() || SplitRows({7}, 0.2, 3).first.empty());
 }
 
+// SplitFeatures gives the rows SplitRows draws, validation copied out and training kept in the
+// set's own arrays (a set near the size of memory is not copied whole); one strike cannot split
+TEST(PipelineTest, SplitFeaturesSplitsInPlaceAsSplitRowsDraws) {
+  SonicBoomConfig config;
+  config.seed = 3;
+  config.train.val_fraction = 0.2;
+  learning::FeatureSet all;
+  all.channels = 1;
+  all.mels = 1;
+  all.frames = 3;
+  all.gcc_pairs = 1;
+  all.gcc_lags = 2;
+  all.proprio_rows = 1;
+  all.proprio_features = 1;
+  std::vector<uint64_t> idx;
+  for (int r = 0; r < 50; ++r) {
+    idx.push_back(1000 + 7 * r);
+    all.z_m.push_back(0.001 * r);
+    all.theta_rad.push_back(0.01 * r);
+    for (int k = 0; k < 3; ++k) all.mel.push_back(100.0f * r + k);
+    for (int k = 0; k < 2; ++k) all.gcc.push_back(-100.0f * r - k);
+    all.proprio.push_back(static_cast<float>(r));
+  }
+  const auto [train_rows, val_rows] = SplitRows(idx, 0.2, 3);
+  const learning::FeatureSet want_train = all.SelectRows(train_rows);
+  const learning::FeatureSet want_val = all.SelectRows(val_rows);
+  const float* mel_data = all.mel.data();
+  const FeatureSplit split = SplitFeatures(config, std::move(all), idx, "D.h5");
+  EXPECT_EQ(split.train.mel, want_train.mel);
+  EXPECT_EQ(split.train.gcc, want_train.gcc);
+  EXPECT_EQ(split.train.proprio, want_train.proprio);
+  EXPECT_EQ(split.train.z_m, want_train.z_m);
+  EXPECT_EQ(split.train.theta_rad, want_train.theta_rad);
+  EXPECT_EQ(split.val.mel, want_val.mel);
+  EXPECT_EQ(split.val.z_m, want_val.z_m);
+  EXPECT_EQ(split.train.mel.data(), mel_data);
+  ASSERT_GT(split.val.size(), 0);
+  learning::FeatureSet one = want_val.SelectRows({0});
+  try {
+    SplitFeatures(config, std::move(one), {idx[val_rows[0]]}, "D.h5");
+    FAIL() << "one strike split";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("D.h5"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("train.val_fraction"), std::string::npos) << e.what();
+  }
+}
 
 // acoustics.render_span = features renders the vibration only as long after the contact as the
 // features read: every audio sample before the span's fade is the whole record's, bit for bit

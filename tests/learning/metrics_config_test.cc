@@ -101,6 +101,34 @@ TEST(FeatureSetTest, SelectRowsKeepsUnusedArraysEmpty) {
   EXPECT_THROW(f.SelectRows({0}), SchemaError);
 }
 
+// KeepRows packs the chosen rows in place: the same rows SelectRows copies, in the same arrays
+// (no reallocation), unused arrays left empty, a wrong-sized array refused
+TEST(FeatureSetTest, KeepRowsPacksTheChosenRowsInPlace) {
+  FeatureSet f;
+  f.channels = 1;
+  f.mels = 1;
+  f.frames = 2;
+  f.proprio_rows = 1;
+  f.proprio_features = 1;
+  f.z_m = {0.0, 0.1, 0.2, 0.3};
+  f.theta_rad = {0.0, 1.0, 2.0, 3.0};
+  f.mel = {0, 1, 10, 11, 20, 21, 30, 31};
+  f.proprio = {5, 6, 7, 8};  // gcc left empty
+  const FeatureSet copied = f.SelectRows({1, 3});
+  const float* mel_data = f.mel.data();
+  f.KeepRows({1, 3});
+  EXPECT_EQ(f.mel, copied.mel);
+  EXPECT_EQ(f.mel, (std::vector<float>{10, 11, 30, 31}));
+  EXPECT_EQ(f.proprio, (std::vector<float>{6, 8}));
+  EXPECT_TRUE(f.gcc.empty());
+  EXPECT_EQ(f.z_m, copied.z_m);
+  EXPECT_EQ(f.theta_rad, (std::vector<double>{1.0, 3.0}));
+  EXPECT_EQ(f.size(), 2);
+  EXPECT_EQ(f.mel.data(), mel_data);
+  f.proprio.pop_back();
+  EXPECT_THROW(f.KeepRows({0}), SchemaError);
+}
+
 // Records the names and kinds an Archive is asked to visit.
 class RecordingArchive : public Archive {
  public:

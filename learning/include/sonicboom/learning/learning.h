@@ -155,6 +155,10 @@ struct FeatureSet {
   /// Rows `rows` (indices into this set), in that order. An empty array (a modality that is
   /// not used) stays empty; an array of any other size than size() rows is a SchemaError.
   FeatureSet SelectRows(const std::vector<int64_t>& rows) const;
+  /// Keeps rows `ascending_rows` (strictly increasing indices) in place, packed to the front of
+  /// the same arrays: no second copy of the set, for sets near the size of memory. The arrays
+  /// keep their capacity. The same SchemaError as SelectRows.
+  void KeepRows(const std::vector<int64_t>& ascending_rows);
 };
 
 /// Localization errors over a set of strikes. The coverage and NLL fields are NaN unless every
