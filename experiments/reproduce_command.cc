@@ -140,11 +140,16 @@ class StageRunner {
     wall_s_.push_back(
         {{"stage", name}, {"s", std::stod(ReadText(wall.string()))}, {"reused", fresh}});
     done_ += weight;
+    if (!fresh) ran_ += weight;
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    if (progress_ && done_ < total_) {
+    // the ETA from the pace of the stages this run computed (reused ones took no time)
+    if (progress_ && done_ < total_ && ran_ > 0.0) {
       spdlog::info("reproduce: {:.0f} % of the work done, {:.0f} s elapsed, ETA {:.0f} s",
-                   100.0 * done_ / total_, elapsed, elapsed / done_ * (total_ - done_));
+                   100.0 * done_ / total_, elapsed, elapsed / ran_ * (total_ - done_));
+    } else if (progress_ && done_ < total_) {
+      spdlog::info("reproduce: {:.0f} % of the work done (reused), ETA once a stage has run",
+                   100.0 * done_ / total_);
     }
     return key;
   }
@@ -152,7 +157,7 @@ class StageRunner {
 
  private:
   std::string dir_;
-  double total_, done_{0.0};
+  double total_, done_{0.0}, ran_{0.0};  // weights: all, done, done by this run
   bool progress_;
   int stage_{0};
   std::chrono::steady_clock::time_point start_;

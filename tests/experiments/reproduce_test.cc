@@ -84,9 +84,13 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   for (const auto& [stage, reused] : ReusedOf(out / "results.json")) EXPECT_TRUE(reused) << stage;
 
-  // another learning rate: the data stay, the model and everything that reads it run again
-  run = RunCli(cmd + " --set train.learning_rate=0.002", cwd);
+  // another learning rate: the data stay, the model and everything that reads it run again;
+  // progress shown, the ETA waits for a stage that runs (reused ones take no time)
+  std::string verbose = cmd;
+  verbose.replace(verbose.find("-q "), 3, "");
+  run = RunCli(verbose + " --set train.learning_rate=0.002", cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_THAT(run.out + run.err, ::testing::HasSubstr("(reused), ETA once a stage has run"));
   const auto reused = ReusedOf(out / "results.json");
   for (const char* stage : {"generate_train", "generate_ts1", "generate_ts3", "rerender_ts4"}) {
     EXPECT_TRUE(reused.at(stage)) << stage;
