@@ -112,6 +112,7 @@ std::string BandRows(const std::vector<ModeSeries>& modes, json* bands_json) {
                            {"p90_relative_error", Quantile(bands[b].error, 0.9)},
                            {"max_relative_error", max_err},
                            {"over_0_3_percent", over},
+                           {"median_order", Median(bands[b].order)},
                            {"non_monotone", bands[b].non_monotone}});
   }
   return md;
@@ -329,6 +330,7 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
             {"bands", bands_json},
             {"bands_by_shape", shape_bands_json},
             {"followed_by_shape", by_shape.size()},
+            {"finest_modes", finest_modes},
             {"modes", modes_json},
             {"rungs", rungs_json},
             {"arrival_error_s", {{"median", Median(arrival_err)}, {"max", arrival_max}}},
