@@ -18,7 +18,7 @@ namespace sonicboom::solid {
 namespace {
 
 // bump when anything the solve computes changes
-constexpr int kReferenceModelVersion = 1;
+constexpr int kReferenceModelVersion = 2;  // 2: bolt patches' ends are element edges
 constexpr char kMagic[8] = {'S', 'B', 'R', 'E', 'F', 'M', '0', '1'};
 
 }  // namespace

@@ -87,9 +87,33 @@ void SolidTubeModel::BuildMesh() {
   const double r_mid = tube_.mid_radius_m(), h = tube_.wall_thickness_m;
   const double r_in = tube_.outer_radius_m - h;
 
-  // axial rows and radial layers: GLL points of each element, shared at element boundaries
-  const int nz = std::max(1, static_cast<int>(std::lround(tube_.length_m / mesh_.element_axial_m)));
-  const double dz = tube_.length_m / nz, dr = h / nr;
+  // axial element edges: the ends of every bolt's patch on a seam are edges, so that a patch
+  // covers whole elements on every mesh (a patch's ends inside elements, placed differently by
+  // each mesh, made the modes converge irregularly); each interval between is cut into elements
+  // of about element_axial_m
+  const double half = 0.5 * tube_.length_m;
+  std::vector<double> breaks{-half, half};
+  if (!structure_.seam_theta_deg.empty()) {
+    for (double zb : structure_.bolt_z_m) {
+      for (double sign : {-1.0, 1.0})
+        breaks.push_back(zb + sign * structure_.bolt_patch_half_length_m);
+    }
+  }
+  std::sort(breaks.begin(), breaks.end());
+  z_edges_m_ = {-half};
+  for (size_t b = 1; b < breaks.size(); ++b) {
+    // a break off the tube, or within kMinEdgeGapM of the last edge, is not an edge of its own
+    const double end = b + 1 == breaks.size() ? half : breaks[b];
+    if (end - z_edges_m_.back() < kMinEdgeGapM || end > half - kMinEdgeGapM) {
+      if (b + 1 < breaks.size()) continue;
+    }
+    const double from = z_edges_m_.back(), len = end - from;
+    const int n = std::max(1, static_cast<int>(std::lround(len / mesh_.element_axial_m)));
+    for (int k = 1; k < n; ++k) z_edges_m_.push_back(from + len * k / n);
+    z_edges_m_.push_back(end);
+  }
+  const int nz = static_cast<int>(z_edges_m_.size()) - 1;
+  const double dr = h / nr;
   rows_ = nz * p + 1;
   layers_ = nr * q + 1;
 
@@ -134,8 +158,8 @@ void SolidTubeModel::BuildMesh() {
         for (int er = 0; er < nr; ++er) {
           Element el{sec.theta0 + e * dth,
                      dth,
-                     -0.5 * tube_.length_m + ez * dz,
-                     dz,
+                     z_edges_m_[ez],
+                     z_edges_m_[ez + 1] - z_edges_m_[ez],
                      r_in + er * dr,
                      dr,
                      {}};
@@ -147,7 +171,7 @@ void SolidTubeModel::BuildMesh() {
                 const int row = ez * p + j, layer = er * q + k;
                 const int64_t node = (static_cast<int64_t>(layer) * rows_ + row) * columns + c;
                 const double th = el.theta0_rad + 0.5 * (wall.points(i) + 1.0) * dth;
-                const double z = el.z0_m + 0.5 * (wall.points(j) + 1.0) * dz;
+                const double z = el.z0_m + 0.5 * (wall.points(j) + 1.0) * el.dz_m;
                 const double r = el.r0_m + 0.5 * (thick.points(k) + 1.0) * dr;
                 column_theta_rad_[c] = th;
                 node_position_m_[node] = {r * std::cos(th), r * std::sin(th), z};
@@ -160,7 +184,7 @@ void SolidTubeModel::BuildMesh() {
       }
     }
   }
-  element_length_m_ = 0.5 * (arc_sum * r_mid / arc_count + dz);
+  element_length_m_ = 0.5 * (arc_sum * r_mid / arc_count + tube_.length_m / nz);
 
   // DOFs: three per node; simply supported end faces hold u_x and u_y
   node_dof_.assign(3 * nodes_total, -1);
@@ -339,8 +363,7 @@ void SolidTubeModel::AddSprings() {
 
   // bolts: across each seam, between the last column before it and the first after it
   const double z_first = -0.5 * tube_.length_m;
-  const int nz = (rows_ - 1) / p;
-  const double dz = tube_.length_m / nz;
+  const int nz = static_cast<int>(z_edges_m_.size()) - 1;
   if (!structure_.seam_theta_deg.empty()) {
     // column c ends a sector where column c + 1 starts the next at the same theta
     for (int c = 0; c < columns; ++c) {
@@ -349,31 +372,37 @@ void SolidTubeModel::AddSprings() {
       if (gap > 1e-12) continue;
       for (size_t b = 0; b < structure_.bolt_z_m.size(); ++b) {
         // the bolt clamps a patch of the two faces, bolt_patch_half_length_m either side of its
-        // z, as springs spread evenly over kPatchPoints points (a point spring on a 3-D solid
-        // would soften without limit as the mesh is refined); each face's displacement at a
-        // point is interpolated along the axis with the element row's Lagrange basis
-        constexpr int kPatchPoints = 8;
-        for (int g = 0; g < kPatchPoints; ++g) {
-          const double z =
-              std::clamp(structure_.bolt_z_m[b] + structure_.bolt_patch_half_length_m *
-                                                      (2.0 * (g + 0.5) / kPatchPoints - 1.0),
-                         z_first, -z_first);
-          const int ez = std::clamp(static_cast<int>((z - z_first) / dz), 0, nz - 1);
-          Eigen::VectorXd l, dl;
-          LagrangeBasis(wall_, 2.0 * (z - (z_first + ez * dz)) / dz - 1.0, &l, &dl);
-          for (int layer = 0; layer < layers_; ++layer) {
-            const double k = structure_.bolt_stiffness_n_m[b] * layer_share[layer] / kPatchPoints;
-            for (int d = 0; d < 3; ++d) {
-              // (face c) - (face next) at z
-              terms.clear();
-              for (int j = 0; j <= p; ++j) {
-                const int row = ez * p + j;
-                const int64_t a = node_dof_[3 * node_at(layer, row, c) + d];
-                const int64_t bb = node_dof_[3 * node_at(layer, row, next) + d];
-                if (a >= 0) terms.emplace_back(a, l(j));
-                if (bb >= 0) terms.emplace_back(bb, -l(j));
+        // z: springs of bolt_stiffness / patch length per metre, integrated over the patch's part
+        // of every element row by that row's GLL points (a point spring on a 3-D solid would
+        // soften without limit as the mesh is refined); the patch's ends are element edges
+        const double lo = structure_.bolt_z_m[b] - structure_.bolt_patch_half_length_m;
+        const double hi = structure_.bolt_z_m[b] + structure_.bolt_patch_half_length_m;
+        const double k_per_m = structure_.bolt_stiffness_n_m[b] / (hi - lo);
+        for (int ez = 0; ez < nz; ++ez) {
+          const double z0 = z_edges_m_[ez], z1 = z_edges_m_[ez + 1];
+          const double a = std::max(lo, z0), bnd = std::min(hi, z1);
+          if (!(bnd > a)) continue;
+          for (int g = 0; g <= p; ++g) {
+            // the g-th GLL point of [a, bnd], and the element row's basis there
+            const double z = a + 0.5 * (wall_.points(g) + 1.0) * (bnd - a);
+            const double w = 0.5 * wall_.weights(g) * (bnd - a);
+            Eigen::VectorXd l, dl;
+            LagrangeBasis(wall_, std::clamp(2.0 * (z - z0) / (z1 - z0) - 1.0, -1.0, 1.0), &l, &dl);
+            for (int layer = 0; layer < layers_; ++layer) {
+              const double k = k_per_m * w * layer_share[layer];
+              for (int d = 0; d < 3; ++d) {
+                // (face c) - (face next) at z
+                terms.clear();
+                for (int j = 0; j <= p; ++j) {
+                  if (l(j) == 0.0) continue;
+                  const int row = ez * p + j;
+                  const int64_t at = node_dof_[3 * node_at(layer, row, c) + d];
+                  const int64_t across = node_dof_[3 * node_at(layer, row, next) + d];
+                  if (at >= 0) terms.emplace_back(at, l(j));
+                  if (across >= 0) terms.emplace_back(across, -l(j));
+                }
+                AddTie(terms, k, &triplets);
               }
-              AddTie(terms, k, &triplets);
             }
           }
         }

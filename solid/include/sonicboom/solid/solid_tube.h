@@ -13,10 +13,11 @@
 /// Structure: a seam is a cut through the wall at a fixed theta (element boundaries are placed on
 /// it and its node columns doubled), bridged by bolts: three springs (x, y, z) of the bolt's
 /// stiffness between the two faces, spread over the patch the bolt clamps (bolt_patch_half_length_m
-/// either side of its z) and through the wall. A hole takes its material out of the quadrature
-/// points that lie inside it (their mass and stiffness weights times kHoleFill). Mounts are springs
-/// to ground in every direction, per metre of the end rim. Simply supported ends hold u_x = u_y = 0
-/// (radial and arc motion) on the end faces and leave u_z free (a shear diaphragm).
+/// either side of its z; its ends are axial element edges) and through the wall. A hole takes its
+/// material out of the quadrature points that lie inside it (their mass and stiffness weights times
+/// kHoleFill). Mounts are springs to ground in every direction, per metre of the end rim. Simply
+/// supported ends hold u_x = u_y = 0 (radial and arc motion) on the end faces and leave u_z free (a
+/// shear diaphragm).
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -145,6 +146,9 @@ class SolidTubeModel {
   double element_length_m_{0.0};
   int rows_{0}, layers_{0};               // axial node rows, radial node layers
   std::vector<double> column_theta_rad_;  // arc node columns
+  std::vector<double> z_edges_m_;         // axial element edges, ascending, -L/2 to L/2
+  // a bolt patch's end closer than this to an edge already placed is not made an edge
+  static constexpr double kMinEdgeGapM = 0.001;
 };
 
 }  // namespace sonicboom::solid
