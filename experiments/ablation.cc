@@ -7,6 +7,7 @@
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -116,6 +117,16 @@ class FeatureCache {
   std::vector<uint64_t> indices_;
 };
 
+// the sum of a run's epoch_seconds (metrics.jsonl: one JSON object per epoch)
+double EpochSeconds(const std::string& metrics_jsonl) {
+  std::istringstream in(ReadText(metrics_jsonl));
+  double sum = 0.0;
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty()) sum += nlohmann::json::parse(line).at("epoch_seconds").get<double>();
+  }
+  return sum;
+}
+
 std::string Join(const std::vector<std::string>& v) {
   std::string s;
   for (const std::string& x : v) s += (s.empty() ? "" : "+") + x;
@@ -153,18 +164,31 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     const std::string run_dir = (fs::path(o.out) / v.name).string();
     spdlog::info("ablation {}/{}: {} ({})", i + 1, variants.size(), v.name, v.description);
 
-    // train unless a finished run of this variant is there (model.json is written last)
+    // a finished run of this variant trained with this very config is kept (model.json is
+    // written last); a killed one resumes from its last epoch; a run of another config (a changed
+    // file or layer) is removed and trained again
     double train_s = 0.0;
     const fs::path timing = fs::path(run_dir) / "ablation_train_s.txt";
+    const fs::path config_file = fs::path(run_dir) / "config.yaml";
+    const std::string config_yaml = ConfigToYaml(config);
+    if (fs::exists(run_dir) &&
+        !(fs::exists(config_file) && ReadText(config_file.string()) == config_yaml)) {
+      spdlog::info("ablation {}: {} was trained with another config; training it again", v.name,
+                   run_dir);
+      fs::remove_all(run_dir);
+    }
     if (fs::exists(fs::path(run_dir) / "model.json") && fs::exists(timing)) {
       train_s = std::stod(ReadText(timing.string()));
     } else {
       MakeDirectories(run_dir);
-      WriteTextAtomic((fs::path(run_dir) / "config.yaml").string(), ConfigToYaml(config));
+      WriteTextAtomic(config_file.string(), config_yaml);
       const FeatureSplit& split = train_features.Split(config);
+      const bool resumed = fs::exists(fs::path(run_dir) / "checkpoint.pt");
       const auto start = std::chrono::steady_clock::now();
       TrainOnSplit(config, split, run_dir, /*resume=*/true, g.quiet);
       train_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      // resumed: the epochs' own seconds over every process that trained it
+      if (resumed) train_s = EpochSeconds((fs::path(run_dir) / "metrics.jsonl").string());
       WriteTextAtomic(timing.string(), fmt::format("{}\n", train_s));
     }
 

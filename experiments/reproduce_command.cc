@@ -435,7 +435,8 @@ class Reproduction {
                  Digest(ConfigKey(g_model_) + data_key_["train"] + data_key_["ts1"] +
                         fmt::format("{}", fmt::join(size_.ablations, ","))),
                  ablation_count_ * train_weight_, [&] {
-                   fs::remove_all(dir);
+                   // kept: ablate reuses a variant trained with the same config and resumes a
+                   // killed one (a paper-size run spans several sittings)
                    AblateOptions a;
                    a.data = Path("data/train.h5");
                    a.test = Path("data/test_ts1.h5");

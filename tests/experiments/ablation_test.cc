@@ -71,6 +71,20 @@ TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
     EXPECT_NEAR(again["ablations"][i]["test"]["med_cm"].get<double>(),
                 j["ablations"][i]["test"]["med_cm"].get<double>(), 1e-6);
   }
+
+  // a changed layer file: that variant alone is trained again, not taken from its old run
+  Write(dir / "abl/02-proprio.yaml",
+        "# proprioception only\nmodel:\n  modalities: [proprio]\ntrain:\n  learning_rate: 0.01\n");
+  const auto old_time = fs::last_write_time(dir / "A/proprio/model.json");
+  const auto kept_time = fs::last_write_time(dir / "A/all/model.json");
+  run = RunCli(cmd, dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(fs::last_write_time(dir / "A/proprio/model.json"), old_time);
+  EXPECT_EQ(fs::last_write_time(dir / "A/all/model.json"), kept_time);
+  std::ifstream config(dir / "A/proprio/config.yaml");
+  const std::string yaml((std::istreambuf_iterator<char>(config)),
+                         std::istreambuf_iterator<char>());
+  EXPECT_NE(yaml.find("learning_rate: 0.01"), std::string::npos);
 }
 
 TEST(AblateTest, BadConfigIsRefusedBeforeAnyTraining) {
