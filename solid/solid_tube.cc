@@ -377,6 +377,7 @@ void SolidTubeModel::AddSprings() {
         // soften without limit as the mesh is refined); the patch's ends are element edges
         const double lo = structure_.bolt_z_m[b] - structure_.bolt_patch_half_length_m;
         const double hi = structure_.bolt_z_m[b] + structure_.bolt_patch_half_length_m;
+        SONICBOOM_DEMAND(hi > lo && "a bolt patch has a length (shell.bolt_tie_length_m > 0)");
         const double k_per_m = structure_.bolt_stiffness_n_m[b] / (hi - lo);
         for (int ez = 0; ez < nz; ++ez) {
           const double z0 = z_edges_m_[ez], z1 = z_edges_m_[ez + 1];
