@@ -76,7 +76,10 @@ class FeatureCache {
       : path_(std::move(path)), threads_(threads), quiet_(quiet) {}
   const learning::FeatureSet& Whole(const SonicBoomConfig& config) {
     const std::string key = FeaturesKey(config);
-    if (key != key_) Compute(config, key);
+    if (key != key_) {
+      Compute(config);
+      key_ = key;
+    }
     return set_;
   }
   // the training and validation rows (SplitFeatures: in place, no second copy of the set)
@@ -85,7 +88,7 @@ class FeatureCache {
         FeaturesKey(config) + fmt::format("\nsplit: seed {}, val_fraction {:.17g}", config.seed,
                                           config.train.val_fraction);
     if (key != key_) {
-      Compute(config, "");
+      Compute(config);
       split_ = SplitFeatures(config, std::move(set_), indices_, path_);
       key_ = key;
     }
@@ -100,12 +103,12 @@ class FeatureCache {
     stripped.train = learning::TrainConfig{};
     return ConfigToYaml(stripped);
   }
-  void Compute(const SonicBoomConfig& config, const std::string& key) {
-    key_.clear();  // nothing held counts until the new set is complete
+  // the dataset's features into set_; nothing held counts (key_ "") until the caller names it
+  void Compute(const SonicBoomConfig& config) {
+    key_.clear();
     set_ = {};
     split_ = {};
     set_ = ComputeDatasetFeatures(path_, config, threads_, !quiet_, &indices_);
-    key_ = key;
   }
 
   std::string path_;

@@ -745,7 +745,6 @@ learning::Metrics TrainOnFeatures(const SonicBoomConfig& config, learning::Featu
                                   const std::string& data, const std::string& run_dir, bool resume,
                                   bool quiet, const learning::FineTune& fine_tune,
                                   const learning::DataParallel& parallel) {
-  CheckRingsTurn(config);
   return TrainOnSplit(config, SplitFeatures(config, std::move(all), sample_indices, data), run_dir,
                       resume, quiet, fine_tune, parallel);
 }

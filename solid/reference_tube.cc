@@ -105,11 +105,16 @@ void ReferenceTube::Solve() {
 }
 
 Eigen::VectorXd ReferenceTube::ModalDrive(double z_m, double theta_rad) const {
-  const Eigen::VectorXd weights = model_->RadialForceWeights(z_m, theta_rad);
+  // the point force's few nonzero weights (ascending DOFs, all on the outer surface), each
+  // times its surface DOF's row of the shapes
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> rows =
+      model_->SurfacePointRows({{z_m, theta_rad}});
   Eigen::VectorXd drive = Eigen::VectorXd::Zero(omega_rad_s_.size());
-  for (size_t r = 0; r < surface_dofs_.size(); ++r) {
-    const double w = weights(surface_dofs_[r]);
-    if (w != 0.0) drive += w * surface_shapes_.row(r).transpose();
+  for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(rows, 0); it; ++it) {
+    const auto at = std::lower_bound(surface_dofs_.begin(), surface_dofs_.end(), it.col());
+    SONICBOOM_DEMAND(at != surface_dofs_.end() && *at == it.col());
+    if (it.value() != 0.0)
+      drive += it.value() * surface_shapes_.row(at - surface_dofs_.begin()).transpose();
   }
   return drive;
 }
