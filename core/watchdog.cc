@@ -91,6 +91,10 @@ double ParseTimeout(const char* env) {
       text));
 }
 
+// the monitor's tick, and how much later than a tick it must wake to count the gap as lost time
+constexpr std::chrono::milliseconds kTick{500};
+constexpr std::chrono::milliseconds kLostAfter{1000};
+
 struct Monitor {
   std::mutex mutex;
   std::map<long long, std::pair<Clock::time_point, std::string>> open;  // id -> (deadline, what)
@@ -108,10 +112,18 @@ struct Monitor {
     sigemptyset(&action.sa_mask);
     for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL}) sigaction(sig, &action, nullptr);
     std::thread([this] {
+      Clock::time_point last = Clock::now();
       for (;;) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        std::this_thread::sleep_for(kTick);
         std::lock_guard<std::mutex> lock(mutex);
         const Clock::time_point now = Clock::now();
+        // a tick far later than asked: the process was stopped (SIGSTOP, a suspended job) or not
+        // scheduled; that time is not the read's, so every open deadline moves on by it
+        const Clock::duration lost = now - last - kTick;
+        last = now;
+        if (lost > kLostAfter) {
+          for (auto& [id, entry] : open) entry.first += lost;
+        }
         for (const auto& [id, entry] : open) {
           if (now < entry.first) continue;
           std::fprintf(stderr,

@@ -8,7 +8,9 @@
 // message is printed and the process ends with exit status 1, so a hostile file gives an error
 // instead of a hang or a core dump. A fault outside any read keeps its default action.
 // SONICBOOM_READ_TIMEOUT_S sets the time (default 120 s; 0 disables the monitor and the fault
-// handler, as the fuzzers want).
+// handler, as the fuzzers want). The time counts while the process runs: when the monitor wakes
+// more than a second late (the process was stopped by SIGSTOP or a shell's ^Z, or starved), the
+// open deadlines move on by the time lost, so pausing a long job does not read as a hung file.
 
 #include <memory>
 #include <string>
