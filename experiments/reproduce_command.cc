@@ -44,6 +44,10 @@ constexpr double kPaperMedCm[] = {0.43, 1.01, 2.01, 2.22};
 constexpr const char* kScenarios[] = {"ts1", "ts2", "ts3", "ts4"};
 constexpr int64_t kTestFirstIndex = 100000;  // held-out strikes: indices no training strike has
 constexpr int64_t kShotsFirstIndex = 120000;  // labelled target strikes for a fine-tune
+// The lightweight model of the preprocessing ablation (the latency profile: compact encoder,
+// width 64, 2 blocks), and its training time as a fraction of the scenario model's (ETA only)
+constexpr const char* kLightModelConfig = "study_fast.yaml";
+constexpr double kLightTrainFraction = 0.25;
 
 // What the transfer study (docs/transfer.md) runs at a size.
 struct TransferSize {
@@ -62,7 +66,11 @@ struct ReproduceSize {
   int64_t test{0};                     // held-out strikes per scenario
   int64_t epochs{0};                   // every training's epochs; 0: the model config's
   std::string model_config;            // file in the configs directory
-  std::vector<std::string> ablations;  // configs/ablations names; empty: every one
+  std::vector<std::string> ablations;  // configs/ablations names over the scenario model
+  // configs/ablations names trained over the lightweight model instead (the paper's
+  // preprocessing ablation, §V-D: "a lightweight CNN ... to facilitate rapid experimentation");
+  // empty: none
+  std::vector<std::string> preprocessing;
   std::vector<BaselineMethod> baselines;
   TransferSize transfer;
 };
@@ -71,6 +79,10 @@ ReproduceSize SizeNamed(const std::string& name) {
   using B = BaselineMethod;
   const std::vector<std::string> modality = {"all", "audio", "proprio", "audio_proprio",
                                              "audio_gcc"};
+  // "all" first: the lightweight model's own reference row
+  const std::vector<std::string> preprocessing = {
+      "all",      "no_gating", "no_time_shift", "no_masking", "no_normalization",
+      "gcc_crop", "gcc_short", "fast",          "fastest"};
   if (name == "quick") {
     return {name,
             1200,
@@ -78,6 +90,7 @@ ReproduceSize SizeNamed(const std::string& name) {
             30,
             "study_fast.yaml",
             modality,
+            {},
             {B::kKnn, B::kConstant},
             {1200, 100, 1, 6000.0, 0.018, {10, 25, 50}}};
   }
@@ -87,7 +100,8 @@ ReproduceSize SizeNamed(const std::string& name) {
             500,
             0,
             "study.yaml",
-            {},
+            modality,
+            preprocessing,
             {B::kKnn, B::kTdoa, B::kArrival, B::kConstant},
             {3000, 0, 0, 15000.0, 0.0135, {10, 25, 50}}};
   }
@@ -98,6 +112,7 @@ ReproduceSize SizeNamed(const std::string& name) {
             1,
             "study_fast.yaml",
             {"all", "audio"},
+            {"no_gating"},
             {B::kConstant},
             {48, 1, 1, 1500.0, 0.03, {12}}};
   }
@@ -223,6 +238,24 @@ std::string EvalCells(const json& e, bool coverage) {
   return cells;
 }
 
+// `ablate`'s rows as a table: what each varies and its held-out errors
+std::string AblationTable(const json& rows) {
+  auto on = [](const json& a, const char* key) { return a[key].get<bool>() ? "on" : "off"; };
+  std::string md =
+      "| ablation | modalities | gating | GCC span (s) | shift | masks | norm | MED (cm) | height "
+      "(cm) | angle (°) | train (s) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const json& a : rows) {
+    md += fmt::format("| {} | {} | {} | {:g} | {} | {} | {} | {} | {} | {:.1f} | {:.0f} |\n",
+                      a["name"].get<std::string>(),
+                      fmt::join(a["modalities"].get<std::vector<std::string>>(), ", "),
+                      on(a, "gating"), a["gcc_span_s"].get<double>(), on(a, "time_shift"),
+                      on(a, "masking"), on(a, "normalize"), Cm(a["test"], "med_cm"),
+                      Cm(a["test"], "height_err_cm"), a["test"]["angle_err_deg"].get<double>(),
+                      a["train_s"].get<double>());
+  }
+  return md;
+}
+
 // The transfer study's section of the report.
 std::string TransferSection(const json& t) {
   const json& rows = t["rows"];
@@ -300,16 +333,18 @@ std::string ReproduceReport(const json& r, const std::string& size) {
     }
   }
   // ablations
-  md += "## Modality and preprocessing ablations (trained on ts1, tested on ts1's held-out "
-        "strikes)\n\n| ablation | modalities | MED (cm) | height (cm) | angle (°) | train (s) "
-        "|\n|---|---|---|---|---|---|\n";
-  for (const json& a : r["ablations"]) {
-    md += fmt::format("| {} | {} | {} | {} | {:.1f} | {:.0f} |\n", a["name"].get<std::string>(),
-                      fmt::join(a["modalities"].get<std::vector<std::string>>(), ", "),
-                      Cm(a["test"], "med_cm"), Cm(a["test"], "height_err_cm"),
-                      a["test"]["angle_err_deg"].get<double>(), a["train_s"].get<double>());
-  }
+  md += fmt::format(
+      "## Modality ablation (the scenario model, configs/{}; trained on ts1, tested on ts1's "
+      "held-out strikes)\n\n",
+      size == "paper" ? "study.yaml" : "study_fast.yaml");
+  md += AblationTable(r["ablations"]);
   md += "\n![ablations](ablation.png)\n\n";
+  if (!r["preprocessing"].is_null()) {
+    md += fmt::format(
+        "## Preprocessing ablation (the lightweight model, configs/{}, as the paper ran its own "
+        "with a lightweight CNN; same strikes)\n\n{}\n",
+        kLightModelConfig, AblationTable(r["preprocessing"]));
+  }
   // the haptic map
   const json& m = r["map"];
   md += fmt::format(
@@ -335,7 +370,9 @@ std::string ReproduceReport(const json& r, const std::string& size) {
       "\nEach stage is the command of the same name on the same files: `generate --config "
       "configs/tsK.yaml --first-index {}` for the held-out sets, `train --config configs/ts1.yaml "
       "--config configs/{}` for the model, `eval --predictions`, `baseline --method M` (kNN with "
-      "k = 1 and all GCC lags), `ablate --configs configs/ablations`, `map` and `inspect --png`; "
+      "k = 1 and all GCC lags), `ablate --configs configs/ablations` (over configs/study_fast.yaml "
+      "for the "
+      "preprocessing rows), `map` and `inspect --png`; "
       "for the transfer study `generate --config configs/ts4.yaml --config "
       "configs/randomized.yaml --set scene.stationary.z_grid_m=0`, `train --config "
       "configs/transfer.yaml`, `rerender`, `train --init-from RUN --freeze none --lr 3e-4 "
@@ -364,20 +401,17 @@ class Reproduction {
     }
     if (size_.epochs > 0) epochs_.push_back(fmt::format("train.epochs={}", size_.epochs));
     g_model_ = Layered(g, {Config("ts1.yaml"), Config(size_.model_config)}, epochs_);
+    g_light_ = Layered(g, {Config("ts1.yaml"), Config(kLightModelConfig)}, epochs_);
     // the ETA's weights: strikes generated or scored, epochs x strikes trained
-    ablation_count_ = static_cast<int64_t>(size_.ablations.size());
-    if (ablation_count_ == 0 && fs::is_directory(cfg_ / "ablations")) {
-      for (const auto& entry : fs::directory_iterator(cfg_ / "ablations")) {
-        ablation_count_ += entry.path().extension() == ".yaml";
-      }
-    }
     train_weight_ = 0.05 * size_.train * std::max<int64_t>(size_.epochs, 60);
+    const double ablation_weight =
+        train_weight_ * (size_.ablations.size() + kLightTrainFraction * size_.preprocessing.size());
     const TransferSize& t = size_.transfer;
     const double transfer_weight = t.train + 0.05 * t.train * std::max<int64_t>(t.epochs, 60) +
                                    (6.0 + 3.0 * t.shots.size()) * size_.test;
     const double total = size_.train + 10.0 * size_.test + train_weight_ +
-                         size_.baselines.size() * 4.0 * size_.test +
-                         ablation_count_ * train_weight_ + size_.test + transfer_weight + 1.0;
+                         size_.baselines.size() * 4.0 * size_.test + ablation_weight + size_.test +
+                         transfer_weight + 1.0;
     MakeDirectories(Path("data"));
     MakeDirectories(Path("transfer"));
     stages_ = std::make_unique<StageRunner>(o.out, total, !g.quiet);
@@ -428,13 +462,26 @@ class Reproduction {
     return Evaluate("materials", /*with_predictions=*/false);
   }
 
-  // the modality (and at paper size preprocessing) ablations on ts1: their rows
+  // the modality ablations on ts1 over the scenario model: their rows
   json Ablations() {
-    const std::string dir = Path("ablations");
-    stages_->Run("ablations",
-                 Digest(ConfigKey(g_model_) + data_key_["train"] + data_key_["ts1"] +
-                        fmt::format("{}", fmt::join(size_.ablations, ","))),
-                 ablation_count_ * train_weight_, [&] {
+    return Ablate("ablations", g_model_, size_.ablations, size_.ablations.size() * train_weight_);
+  }
+
+  // the preprocessing ablations on ts1 over the lightweight model (none: null)
+  json Preprocessing() {
+    if (size_.preprocessing.empty()) return json();
+    return Ablate("preprocessing", g_light_, size_.preprocessing,
+                  kLightTrainFraction * size_.preprocessing.size() * train_weight_);
+  }
+
+  // `ablate` of the configs/ablations layers `names` over `g`'s model into DIR/<stage>: their rows
+  json Ablate(const std::string& stage, const GlobalOptions& g,
+              const std::vector<std::string>& names, double weight) {
+    const std::string dir = Path(stage);
+    stages_->Run(stage,
+                 Digest(ConfigKey(g) + data_key_["train"] + data_key_["ts1"] +
+                        fmt::format("{}", fmt::join(names, ","))),
+                 weight, [&] {
                    // kept: ablate reuses a variant trained with the same config and resumes a
                    // killed one (a paper-size run spans several sittings)
                    AblateOptions a;
@@ -442,8 +489,8 @@ class Reproduction {
                    a.test = Path("data/test_ts1.h5");
                    a.out = dir;
                    a.configs_dir = (cfg_ / "ablations").string();
-                   a.only = size_.ablations;
-                   RunAblate(g_model_, a);
+                   a.only = names;
+                   RunAblate(g, a);
                  });
     return json::parse(ReadText(dir + "/results.json"))["ablations"];
   }
@@ -654,8 +701,7 @@ class Reproduction {
   ReproduceSize size_;
   fs::path cfg_, out_;
   std::vector<std::string> epochs_;
-  GlobalOptions g_model_;
-  int64_t ablation_count_{0};
+  GlobalOptions g_model_, g_light_;  // the scenario model's and the lightweight model's
   double train_weight_{0.0};
   std::unique_ptr<StageRunner> stages_;
   std::map<std::string, std::string> data_key_;
@@ -672,6 +718,7 @@ CommandResult RunReproduce(const GlobalOptions& g, const ReproduceOptions& o) {
   const auto [scenarios, baselines] = r.ScoreScenarios();
   const json materials = r.Materials();
   const json ablations = r.Ablations();
+  const json preprocessing = r.Preprocessing();
   const json map = r.Map();
   const json transfer = r.Transfer();
   json results = {
@@ -685,6 +732,7 @@ CommandResult RunReproduce(const GlobalOptions& g, const ReproduceOptions& o) {
       {"scenarios", scenarios},
       {"baselines", baselines},
       {"ablations", ablations},
+      {"preprocessing", preprocessing},
       {"map", map},
       {"materials", materials},
       {"transfer", transfer}};

@@ -51,6 +51,10 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   }
   EXPECT_EQ(r["scenarios"]["ts1"]["paper_med_cm"], 0.43);
   EXPECT_EQ(r["ablations"].size(), 2u);
+  // the preprocessing ablation over the lightweight model: its switch off, its own table
+  ASSERT_EQ(r["preprocessing"].size(), 1u);
+  EXPECT_EQ(r["preprocessing"][0]["name"], "no_gating");
+  EXPECT_FALSE(r["preprocessing"][0]["gating"].get<bool>());
   EXPECT_GT(r["materials"]["n"].get<int64_t>(), 0);
   // the materials row broken down by the striker's material, which sum to it
   int64_t by_material = 0;
@@ -78,6 +82,7 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   EXPECT_THAT(text, ::testing::HasSubstr("RMS Chamfer distance"));
   EXPECT_THAT(text, ::testing::HasSubstr("| ts4 |"));
   EXPECT_THAT(text, ::testing::HasSubstr("| fine-tuned on 12 solid strikes |"));
+  EXPECT_THAT(text, ::testing::HasSubstr("## Preprocessing ablation (the lightweight model"));
 
   // the same command again: every stage reused
   run = RunCli(cmd, cwd);
@@ -95,8 +100,9 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   for (const char* stage : {"generate_train", "generate_ts1", "generate_ts3", "rerender_ts4"}) {
     EXPECT_TRUE(reused.at(stage)) << stage;
   }
-  for (const char* stage : {"train", "eval_ts1", "eval_ts4", "eval_materials", "ablations", "map",
-                            "train_transfer", "tune_shots12", "eval_tuned_shots12_ts4_solid"}) {
+  for (const char* stage :
+       {"train", "eval_ts1", "eval_ts4", "eval_materials", "ablations", "preprocessing", "map",
+        "train_transfer", "tune_shots12", "eval_tuned_shots12_ts4_solid"}) {
     EXPECT_FALSE(reused.at(stage)) << stage;
   }
 }
