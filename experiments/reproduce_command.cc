@@ -309,7 +309,7 @@ std::string ReproduceReport(const json& r, const std::string& size) {
                       Cm(s, "med_cm"), Cm(s, "reference_med_cm"), s["paper_med_cm"].get<double>(),
                       Cm(s, "height_err_cm"), s["angle_err_deg"].get<double>(),
                       s.value("z_coverage_90", 0.0), s.value("theta_coverage_90", 0.0));
-    for (const auto& [name, per] : r["baselines"].items()) md += " " + Cm(per[ts], "med_cm") + " |";
+    for (const auto& [name, per] : r["baselines"].items()) md += fmt::format(" {} |", Cm(per[ts], "med_cm"));
     md += "\n";
   }
   md += "\n![per-strike errors](errors.png)\n\n";
