@@ -51,10 +51,14 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   }
   EXPECT_EQ(r["scenarios"]["ts1"]["paper_med_cm"], 0.43);
   EXPECT_EQ(r["ablations"].size(), 2u);
-  // the preprocessing ablation over the lightweight model: its switch off, its own table
-  ASSERT_EQ(r["preprocessing"].size(), 1u);
-  EXPECT_EQ(r["preprocessing"][0]["name"], "no_gating");
-  EXPECT_FALSE(r["preprocessing"][0]["gating"].get<bool>());
+  // the preprocessing ablation: the lightweight network (configs/study_fast.yaml's) over the
+  // scenario model's features, each layer's switch on top
+  ASSERT_EQ(r["preprocessing"].size(), 2u);
+  EXPECT_EQ(r["preprocessing"][0]["name"], "all");
+  EXPECT_EQ(r["preprocessing"][0]["gating"], r["ablations"][0]["gating"]);
+  EXPECT_EQ(r["preprocessing"][0]["gcc_span_s"], r["ablations"][0]["gcc_span_s"]);
+  EXPECT_EQ(r["preprocessing"][1]["name"], "gcc_short");
+  EXPECT_DOUBLE_EQ(r["preprocessing"][1]["gcc_span_s"].get<double>(), 0.1);
   EXPECT_GT(r["materials"]["n"].get<int64_t>(), 0);
   // the materials row broken down by the striker's material, which sum to it
   int64_t by_material = 0;
@@ -97,6 +101,10 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_THAT(run.out + run.err, ::testing::HasSubstr("(reused), ETA once a stage has run"));
   const auto reused = ReusedOf(out / "results.json");
+  // the user's layers reach the lightweight model's runs too
+  std::ifstream light_config(out / "preprocessing" / "all" / "config.yaml");
+  const std::string light((std::istreambuf_iterator<char>(light_config)), {});
+  EXPECT_THAT(light, ::testing::HasSubstr("learning_rate: 0.002"));
   for (const char* stage : {"generate_train", "generate_ts1", "generate_ts3", "rerender_ts4"}) {
     EXPECT_TRUE(reused.at(stage)) << stage;
   }
