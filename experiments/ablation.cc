@@ -139,10 +139,14 @@ std::string Join(const std::vector<std::string>& v) {
 }  // namespace
 
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
+  if (o.tests.empty()) throw ConfigError("ablate: --test names no held-out dataset");
+  std::vector<ReadPath> inputs = {{o.data, "--data"}, {o.configs_dir, "--configs"}};
   if (!fs::exists(o.data)) throw IoError(fmt::format("{}: no such dataset", o.data));
-  if (!fs::exists(o.test)) throw IoError(fmt::format("{}: no such dataset", o.test));
-  RefuseWritingOverInputs(g, {o.out},
-                          {{o.data, "--data"}, {o.test, "--test"}, {o.configs_dir, "--configs"}});
+  for (const std::string& test : o.tests) {
+    if (!fs::exists(test)) throw IoError(fmt::format("{}: no such dataset", test));
+    inputs.push_back({test, "--test"});
+  }
+  RefuseWritingOverInputs(g, {o.out}, inputs);
   const std::vector<Variant> variants = ListVariants(o.configs_dir, o.only);
   // resolve every variant first: a bad file fails before any training
   std::vector<SonicBoomConfig> configs;
@@ -154,13 +158,23 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
   }
   MakeDirectories(o.out);
 
-  FeatureCache train_features(o.data, g.threads, g.quiet),
-      test_features(o.test, g.threads, g.quiet);
+  FeatureCache train_features(o.data, g.threads, g.quiet);
+  std::vector<std::unique_ptr<FeatureCache>> test_features;
+  for (const std::string& test : o.tests) {
+    test_features.push_back(std::make_unique<FeatureCache>(test, g.threads, g.quiet));
+  }
   json rows = json::array();
-  std::string table =
+  // with several test sets, a MED column for each (named by its file's stem)
+  std::string per_test_head, per_test_rule;
+  for (size_t k = 0; o.tests.size() > 1 && k < o.tests.size(); ++k) {
+    per_test_head += fmt::format(" MED {} (cm) |", fs::path(o.tests[k]).stem().string());
+    per_test_rule += "---|";
+  }
+  std::string table = fmt::format(
       "| ablation | modalities | gating | GCC span (s) | shift | masks | norm | 3-D MED (cm) | "
-      "height (cm) | angle (deg) | train (s) | description |\n"
-      "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+      "height (cm) | angle (deg) | train (s) |{} description |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|{}---|\n",
+      per_test_head, per_test_rule);
   for (size_t i = 0; i < variants.size(); ++i) {
     const Variant& v = variants[i];
     const SonicBoomConfig& config = configs[i];
@@ -195,11 +209,19 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
       WriteTextAtomic(timing.string(), fmt::format("{}\n", train_s));
     }
 
-    // held-out errors
-    const learning::FeatureSet& test = test_features.Whole(config);
+    // held-out errors on every test set; the first is the table's
     learning::Localizer localizer(run_dir);
-    const learning::Metrics m =
-        learning::ComputeMetrics(localizer.Predict(test), test, localizer.surface_radius_m());
+    json by_test = json::array();
+    std::vector<double> meds_cm;
+    learning::Metrics m;
+    for (size_t k = 0; k < o.tests.size(); ++k) {
+      const learning::FeatureSet& test = test_features[k]->Whole(config);
+      const learning::Metrics mk =
+          learning::ComputeMetrics(localizer.Predict(test), test, localizer.surface_radius_m());
+      if (k == 0) m = mk;
+      by_test.push_back({{"data", o.tests[k]}, {"test", MetricsJson(mk)}});
+      meds_cm.push_back(mk.med_cm);
+    }
     const learning::TrainConfig& t = config.train;
     const bool masks = t.augment && (t.time_mask_frames > 0 || t.freq_mask_bands > 0);
     const bool shift = t.augment && t.time_shift_frames > 0;
@@ -214,21 +236,32 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
                 {"masking", masks},
                 {"normalize", t.normalize},
                 {"train_s", train_s},
-                {"test", MetricsJson(m)}};
+                {"test", MetricsJson(m)},
+                {"tests", by_test}};
     rows.push_back(row);
     table += fmt::format(
         "| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} "
-        "| {} |\n",
+        "{}| {} |\n",
         v.name, Join(config.model.modalities), config.features.gating ? "on" : "off", gcc_span_s,
         shift ? "on" : "off", masks ? "on" : "off", t.normalize ? "on" : "off", m.med_cm,
-        m.height_err_cm, m.angle_err_deg, train_s, v.description);
+        m.height_err_cm, m.angle_err_deg, train_s,
+        meds_cm.size() > 1 ? fmt::format("{:.2f} | ", fmt::join(meds_cm, " | ")) : "",
+        v.description);
   }
 
   const std::string header = fmt::format(
-      "Ablations: trained on {}, evaluated on {} ({} strikes); configs from {}.\n\n", o.data,
-      o.test, rows.empty() ? 0 : rows[0]["test"]["n"].get<int64_t>(), o.configs_dir);
+      "Ablations: trained on {}, evaluated on {} ({} strikes){}; configs from {}.\n\n", o.data,
+      o.tests[0], rows.empty() ? 0 : rows[0]["test"]["n"].get<int64_t>(),
+      o.tests.size() > 1
+          ? fmt::format(" and on {}", fmt::join(o.tests.begin() + 1, o.tests.end(), ", "))
+          : "",
+      o.configs_dir);
   WriteTextAtomic((fs::path(o.out) / "table.md").string(), header + table);
-  const json result = {{"out", o.out}, {"data", o.data}, {"test", o.test}, {"ablations", rows}};
+  const json result = {{"out", o.out},
+                       {"data", o.data},
+                       {"test", o.tests[0]},
+                       {"tests", o.tests},
+                       {"ablations", rows}};
   WriteTextAtomic((fs::path(o.out) / "results.json").string(), result.dump(2) + "\n");
   return {result.dump(), header + table};
 }
@@ -239,7 +272,11 @@ void RegisterAblate(CLI::App& app, GlobalOptions& g, Runner* run) {
                                     "train and evaluate every ablation config (modality "
                                     "sets, preprocessing switches) and write a table");
   ablate->add_option("--data", o->data, "training dataset (.h5)")->required();
-  ablate->add_option("--test", o->test, "held-out dataset (.h5)")->required();
+  ablate
+      ->add_option("--test", o->tests,
+                   "held-out dataset (.h5); repeat for more (a MED column each; the first is "
+                   "the table's)")
+      ->required();
   ablate->add_option("--out", o->out, "output directory")->required();
   ablate->add_option("--configs", o->configs_dir, "directory of ablation YAML layers");
   ablate->add_option("--only", o->only, "ablation names to run (default all)")->delimiter(',');

@@ -10,7 +10,8 @@ usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
             (scripts/fewshot_study.sh, OUT/results.json)
   errors    per-scenario distributions of the 3-D, height and angle errors, box over violin
             (`sonicboom reproduce`, DIR/results.json and the eval CSVs it names)
-  ablation  the modality ablation's held-out MED as bars (`sonicboom reproduce`, DIR/results.json)
+  ablation  the modality ablation's held-out MED as bars, one per test set (`sonicboom
+            reproduce`, DIR/results.json)
   transfer  the transfer study: zero-shot MED on our shell and on the reference solid, and MED
             on the solid against the labelled solid strikes fine-tuned on or trained from
             scratch on (`sonicboom reproduce`, DIR/results.json)
@@ -202,13 +203,22 @@ def errors(data, src, png):
 
 
 def ablation(data, src, png):
-    """The modality ablation's MED on the held-out ts1 strikes, cm, one bar each."""
+    """The modality ablation's held-out MED, cm: one group of bars per ablation, one bar per
+    test set it was scored on (paper Fig. 6)."""
     rows = data["ablations"]
-    fig, ax = plt.subplots(figsize=(max(5, 0.8 * len(rows) + 2), 4))
-    ax.bar(range(len(rows)), [r["test"]["med_cm"] for r in rows], color="tab:blue")
+    sets = [os.path.splitext(os.path.basename(t["data"]))[0].replace("test_", "")
+            for t in rows[0].get("tests", [])] or ["held-out"]
+    width = 0.8 / len(sets)
+    fig, ax = plt.subplots(figsize=(max(5, 0.5 * len(rows) * len(sets) + 2), 4))
+    for k, name in enumerate(sets):
+        meds = [(r["tests"][k]["test"] if "tests" in r else r["test"])["med_cm"] for r in rows]
+        ax.bar([i + (k - (len(sets) - 1) / 2) * width for i in range(len(rows))], meds, width,
+               label=name)
     ax.set_xticks(range(len(rows)), [r["name"] for r in rows], rotation=30, ha="right")
-    ax.set_ylabel("MED on held-out ts1 (cm)")
-    ax.set_title("Modality ablation")
+    ax.set_ylabel("MED on held-out strikes (cm)")
+    ax.set_title("Modality ablation (trained on ts1)")
+    if len(sets) > 1:
+        ax.legend(title="test set")
     ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(png, dpi=110)

@@ -32,11 +32,17 @@ TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
       RunCli(kTiny + "generate --count 8 --first-index 100 --out T.h5 -q", dir.path().string())
           .exit_code,
       0);
+  // a second held-out set (paper Fig. 6 scores the ablations on every scenario)
+  ASSERT_EQ(
+      RunCli(kTiny + "generate --count 5 --first-index 200 --out U.h5 -q", dir.path().string())
+          .exit_code,
+      0);
   Write(dir / "abl/01-all.yaml", "# every modality\n{}\n");
   Write(dir / "abl/02-proprio.yaml", "# proprioception only\nmodel:\n  modalities: [proprio]\n");
   Write(dir / "abl/03-no_norm.yaml",
         "# no normalization\ntrain:\n  normalize: false\nfeatures:\n  gcc_window_s: 0.1\n");
-  const std::string cmd = kTiny + "ablate --data D.h5 --test T.h5 --out A --configs abl --json -q";
+  const std::string cmd =
+      kTiny + "ablate --data D.h5 --test T.h5 --test U.h5 --out A --configs abl --json -q";
   auto run = RunCli(cmd, dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
@@ -51,6 +57,11 @@ TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
   EXPECT_EQ(j["ablations"][0]["description"], "every modality");
   for (const json& row : j["ablations"]) {
     EXPECT_EQ(row["test"]["n"], 8) << row.dump();
+    // every test set scored, the first one's errors the row's own
+    ASSERT_EQ(row["tests"].size(), 2u) << row.dump();
+    EXPECT_EQ(row["tests"][0]["test"], row["test"]);
+    EXPECT_EQ(row["tests"][1]["data"], "U.h5");
+    EXPECT_EQ(row["tests"][1]["test"]["n"], 5) << row.dump();
     EXPECT_GT(row["test"]["med_cm"].get<double>(), 0.0) << row.dump();
     EXPECT_TRUE(fs::exists(dir.path() / "A" / row["name"].get<std::string>() / "model.json"));
   }
@@ -60,6 +71,7 @@ TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
   std::ifstream table(dir / "A/table.md");
   const std::string text((std::istreambuf_iterator<char>(table)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("| proprio | proprio |"), std::string::npos) << text;
+  EXPECT_NE(text.find("| MED T (cm) | MED U (cm) |"), std::string::npos) << text;
 
   // a second run reuses every finished run: identical rows, training time included
   run = RunCli(cmd, dir.path().string());

@@ -69,7 +69,7 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
 /// Options of `sonicboom ablate`.
 struct AblateOptions {
   std::string data;                              // training dataset (train/validation split)
-  std::string test;                              // held-out dataset
+  std::vector<std::string> tests;                // held-out datasets; the first is the table's
   std::string out;                               // one run directory per ablation + table.md
   std::string configs_dir{"configs/ablations"};  // one YAML layer per ablation
   std::vector<std::string> only;                 // names to run (empty = all)
