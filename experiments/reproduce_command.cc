@@ -416,8 +416,10 @@ class Reproduction {
     }
     if (size_.epochs > 0) epochs_.push_back(fmt::format("train.epochs={}", size_.epochs));
     g_model_ = Layered(g, {Config("ts1.yaml"), Config(size_.model_config)}, epochs_);
-    MakeDirectories(out_.string());
-    g_light_ = LightModel();
+    if (!size_.preprocessing.empty()) {
+      MakeDirectories(out_.string());
+      g_light_ = LightModel();
+    }
     // the ETA's weights: strikes generated or scored, epochs x strikes trained
     train_weight_ = 0.05 * size_.train * std::max<int64_t>(size_.epochs, 60);
     const double ablation_weight =
