@@ -111,8 +111,9 @@ struct Monitor {
     action.sa_flags = SA_ONSTACK;
     sigemptyset(&action.sa_mask);
     for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL}) sigaction(sig, &action, nullptr);
-    std::thread([this] {
-      Clock::time_point last = Clock::now();
+    // the first tick's reference is taken here, not in the thread: a process stopped before the
+    // thread first runs has lost that time too
+    std::thread([this, last = Clock::now()]() mutable {
       for (;;) {
         std::this_thread::sleep_for(kTick);
         std::lock_guard<std::mutex> lock(mutex);
