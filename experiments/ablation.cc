@@ -138,6 +138,37 @@ std::string Join(const std::vector<std::string>& v) {
 
 }  // namespace
 
+std::string AblationTableMarkdown(const json& rows, bool descriptions) {
+  auto on = [](const json& a, const char* key) { return a[key].get<bool>() ? "on" : "off"; };
+  const json& tests = rows.empty() ? json::array() : rows[0]["tests"];
+  std::string head = descriptions ? " description |" : "", rule = descriptions ? "---|" : "";
+  for (size_t k = tests.size(); tests.size() > 1 && k-- > 0;) {
+    std::string set = fs::path(tests[k]["data"].get<std::string>()).stem().string();
+    if (set.rfind("test_", 0) == 0) set = set.substr(5);  // reproduce's data/test_<scenario>.h5
+    head = fmt::format(" MED {} (cm) |", set) + head;
+    rule = "---|" + rule;
+  }
+  std::string md = fmt::format(
+      "| ablation | modalities | gating | GCC span (s) | shift | masks | norm | 3-D MED (cm) | "
+      "height (cm) | angle (deg) | train (s) "
+      "|{}\n|---|---|---|---|---|---|---|---|---|---|---|{}\n",
+      head, rule);
+  for (const json& a : rows) {
+    const json& m = a["test"];
+    md += fmt::format(
+        "| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} |",
+        a["name"].get<std::string>(), Join(a["modalities"].get<std::vector<std::string>>()),
+        on(a, "gating"), a["gcc_span_s"].get<double>(), on(a, "time_shift"), on(a, "masking"),
+        on(a, "normalize"), m["med_cm"].get<double>(), m["height_err_cm"].get<double>(),
+        m["angle_err_deg"].get<double>(), a["train_s"].get<double>());
+    for (size_t k = 0; tests.size() > 1 && k < a["tests"].size(); ++k) {
+      md += fmt::format(" {:.2f} |", a["tests"][k]["test"]["med_cm"].get<double>());
+    }
+    md += descriptions ? fmt::format(" {} |\n", a["description"].get<std::string>()) : "\n";
+  }
+  return md;
+}
+
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
   if (o.tests.empty()) throw ConfigError("ablate: --test names no held-out dataset");
   std::vector<ReadPath> inputs = {{o.data, "--data"}, {o.configs_dir, "--configs"}};
@@ -164,17 +195,6 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     test_features.push_back(std::make_unique<FeatureCache>(test, g.threads, g.quiet));
   }
   json rows = json::array();
-  // with several test sets, a MED column for each (named by its file's stem)
-  std::string per_test_head, per_test_rule;
-  for (size_t k = 0; o.tests.size() > 1 && k < o.tests.size(); ++k) {
-    per_test_head += fmt::format(" MED {} (cm) |", fs::path(o.tests[k]).stem().string());
-    per_test_rule += "---|";
-  }
-  std::string table = fmt::format(
-      "| ablation | modalities | gating | GCC span (s) | shift | masks | norm | 3-D MED (cm) | "
-      "height (cm) | angle (deg) | train (s) |{} description |\n"
-      "|---|---|---|---|---|---|---|---|---|---|---|{}---|\n",
-      per_test_head, per_test_rule);
   for (size_t i = 0; i < variants.size(); ++i) {
     const Variant& v = variants[i];
     const SonicBoomConfig& config = configs[i];
@@ -212,15 +232,11 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     // held-out errors on every test set; the first is the table's
     learning::Localizer localizer(run_dir);
     json by_test = json::array();
-    std::vector<double> meds_cm;
-    learning::Metrics m;
     for (size_t k = 0; k < o.tests.size(); ++k) {
       const learning::FeatureSet& test = test_features[k]->Whole(config);
-      const learning::Metrics mk =
+      const learning::Metrics m =
           learning::ComputeMetrics(localizer.Predict(test), test, localizer.surface_radius_m());
-      if (k == 0) m = mk;
-      by_test.push_back({{"data", o.tests[k]}, {"test", MetricsJson(mk)}});
-      meds_cm.push_back(mk.med_cm);
+      by_test.push_back({{"data", o.tests[k]}, {"test", MetricsJson(m)}});
     }
     const learning::TrainConfig& t = config.train;
     const bool masks = t.augment && (t.time_mask_frames > 0 || t.freq_mask_bands > 0);
@@ -236,18 +252,11 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
                 {"masking", masks},
                 {"normalize", t.normalize},
                 {"train_s", train_s},
-                {"test", MetricsJson(m)},
+                {"test", by_test[0]["test"]},
                 {"tests", by_test}};
     rows.push_back(row);
-    table += fmt::format(
-        "| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} "
-        "{}| {} |\n",
-        v.name, Join(config.model.modalities), config.features.gating ? "on" : "off", gcc_span_s,
-        shift ? "on" : "off", masks ? "on" : "off", t.normalize ? "on" : "off", m.med_cm,
-        m.height_err_cm, m.angle_err_deg, train_s,
-        meds_cm.size() > 1 ? fmt::format("{:.2f} | ", fmt::join(meds_cm, " | ")) : "",
-        v.description);
   }
+  const std::string table = AblationTableMarkdown(rows, /*descriptions=*/true);
 
   const std::string header = fmt::format(
       "Ablations: trained on {}, evaluated on {} ({} strikes){}; configs from {}.\n\n", o.data,

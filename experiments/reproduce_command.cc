@@ -239,38 +239,6 @@ std::string EvalCells(const json& e, bool coverage) {
   return cells;
 }
 
-// `ablate`'s rows as a table: what each varies and its held-out errors (on the first test set;
-// with several, then the MED on each)
-std::string AblationTable(const json& rows) {
-  auto on = [](const json& a, const char* key) { return a[key].get<bool>() ? "on" : "off"; };
-  const json& tests = rows.empty() ? json::array() : rows[0]["tests"];
-  std::string head, rule;
-  for (size_t k = 0; tests.size() > 1 && k < tests.size(); ++k) {
-    std::string set = fs::path(tests[k]["data"].get<std::string>()).stem().string();
-    if (set.rfind("test_", 0) == 0) set = set.substr(5);  // data/test_<scenario>.h5
-    head += fmt::format(" MED {} (cm) |", set);
-    rule += "---|";
-  }
-  std::string md = fmt::format(
-      "| ablation | modalities | gating | GCC span (s) | shift | masks | norm | MED (cm) | height "
-      "(cm) | angle (°) | train (s) |{}\n|---|---|---|---|---|---|---|---|---|---|---|{}\n",
-      head, rule);
-  for (const json& a : rows) {
-    std::string per_test;
-    for (size_t k = 0; tests.size() > 1 && k < a["tests"].size(); ++k) {
-      per_test += fmt::format(" {} |", Cm(a["tests"][k]["test"], "med_cm"));
-    }
-    md += fmt::format("| {} | {} | {} | {:g} | {} | {} | {} | {} | {} | {:.1f} | {:.0f} |{}\n",
-                      a["name"].get<std::string>(),
-                      fmt::join(a["modalities"].get<std::vector<std::string>>(), ", "),
-                      on(a, "gating"), a["gcc_span_s"].get<double>(), on(a, "time_shift"),
-                      on(a, "masking"), on(a, "normalize"), Cm(a["test"], "med_cm"),
-                      Cm(a["test"], "height_err_cm"), a["test"]["angle_err_deg"].get<double>(),
-                      a["train_s"].get<double>(), per_test);
-  }
-  return md;
-}
-
 // The transfer study's section of the report.
 std::string TransferSection(const json& t) {
   const json& rows = t["rows"];
@@ -324,7 +292,8 @@ std::string ReproduceReport(const json& r, const std::string& size) {
                       Cm(s, "med_cm"), Cm(s, "reference_med_cm"), s["paper_med_cm"].get<double>(),
                       Cm(s, "height_err_cm"), s["angle_err_deg"].get<double>(),
                       s.value("z_coverage_90", 0.0), s.value("theta_coverage_90", 0.0));
-    for (const auto& [name, per] : r["baselines"].items()) md += fmt::format(" {} |", Cm(per[ts], "med_cm"));
+    for (const auto& [name, per] : r["baselines"].items())
+      md += fmt::format(" {} |", Cm(per[ts], "med_cm"));
     md += "\n";
   }
   md += "\n![per-strike errors](errors.png)\n\n";
@@ -352,14 +321,14 @@ std::string ReproduceReport(const json& r, const std::string& size) {
       "## Modality ablation (paper Fig. 6: the scenario model, configs/{}, trained on ts1 and "
       "tested on every scenario's held-out strikes; errors on ts1, then the MED on each)\n\n",
       size == "paper" ? "study.yaml" : "study_fast.yaml");
-  md += AblationTable(r["ablations"]);
+  md += AblationTableMarkdown(r["ablations"], /*descriptions=*/false);
   md += "\n![ablations](ablation.png)\n\n";
   if (!r["preprocessing"].is_null()) {
     md += fmt::format(
         "## Preprocessing ablation (the lightweight model: configs/{}'s network and training over "
         "the scenario model's features, as the paper ran its own with a lightweight CNN; same "
         "strikes)\n\n{}\n",
-        kLightModelConfig, AblationTable(r["preprocessing"]));
+        kLightModelConfig, AblationTableMarkdown(r["preprocessing"], /*descriptions=*/false));
   }
   // the haptic map
   const json& m = r["map"];
@@ -387,8 +356,7 @@ std::string ReproduceReport(const json& r, const std::string& size) {
       "configs/tsK.yaml --first-index {}` for the held-out sets, `train --config configs/ts1.yaml "
       "--config configs/{}` for the model, `eval --predictions`, `baseline --method M` (kNN with "
       "k = 1 and all GCC lags), `ablate --configs configs/ablations` (over configs/study_fast.yaml "
-      "for the "
-      "preprocessing rows), `map` and `inspect --png`; "
+      "for the preprocessing rows), `map` and `inspect --png`; "
       "for the transfer study `generate --config configs/ts4.yaml --config "
       "configs/randomized.yaml --set scene.stationary.z_grid_m=0`, `train --config "
       "configs/transfer.yaml`, `rerender`, `train --init-from RUN --freeze none --lr 3e-4 "
@@ -485,7 +453,7 @@ class Reproduction {
   // (paper Fig. 6): their rows
   json Ablations() {
     return Ablate("ablations", g_model_, size_.ablations, size_.ablations.size() * train_weight_,
-                  {kScenarios[0], kScenarios[1], kScenarios[2], kScenarios[3]});
+                  {std::begin(kScenarios), std::end(kScenarios)});
   }
 
   // the preprocessing ablations on ts1 over the lightweight model (none: null)

@@ -43,10 +43,9 @@ for name in ["configured", "no_holes", "no_mounts", "seam_and_bolts_only", "idea
     j = json.load(open(f"{out}/{name}.json"))
     b = j["bands_by_shape"][0]
     # each mode's change from the coarsest to the middle mesh and from the middle to the finest
-    steps = sorted(((m["f_hz"][1] - m["f_hz"][0]) / m["f_hz"][2], (m["f_hz"][2] - m["f_hz"][1]) / m["f_hz"][2])
-                   for m in j["modes"])
-    first = sorted(s[0] for s in steps)[len(steps) // 2]
-    second = sorted(s[1] for s in steps)[len(steps) // 2]
+    f = [m["f_hz"] for m in j["modes"]]
+    first = sorted((x[1] - x[0]) / x[2] for x in f)[len(f) // 2]
+    second = sorted((x[2] - x[1]) / x[2] for x in f)[len(f) // 2]
     rows.append(f"| {name.replace('_', ' ')} | {j['followed_by_shape']} of {j['finest_modes']} | "
                 f"{100 * b['p90_relative_error']:.2f} | {100 * b['max_relative_error']:.2f} | "
                 f"{b['over_0_3_percent']} | {b['median_order']:.1f} | {b['non_monotone']} | "

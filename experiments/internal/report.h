@@ -83,6 +83,11 @@ SonicBoomConfig ResolveWithRun(const GlobalOptions& g, const std::string& run_di
 /// Metrics as the JSON object `sonicboom eval --json` prints.
 nlohmann::json MetricsJson(const learning::Metrics& m);
 
+/// `ablate`'s rows (its results.json "ablations") as a Markdown table: what each varies and its
+/// errors on the first test set, then, with several test sets, the MED on each (a column named
+/// by the file's stem, "test_" dropped), then each layer's description where `descriptions`.
+std::string AblationTableMarkdown(const nlohmann::json& rows, bool descriptions);
+
 /// One localization as `localize` and `listen` print it: z, θ, the surface point in the tube
 /// frame and, from a model with one, the predictive distribution (std, κ, 90 % intervals; null
 /// otherwise). Appends the same in words to `text`.
