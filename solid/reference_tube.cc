@@ -17,8 +17,9 @@
 namespace sonicboom::solid {
 namespace {
 
-// bump when anything the solve computes changes
-constexpr int kReferenceModelVersion = 2;  // 2: bolt patches' ends are element edges
+// bump when anything the solve computes changes (2: bolt patches' ends are element edges; 3:
+// holes are squares of their area on element edges)
+constexpr int kReferenceModelVersion = 3;
 constexpr char kMagic[8] = {'S', 'B', 'R', 'E', 'F', 'M', '0', '1'};
 
 }  // namespace

@@ -24,7 +24,45 @@ double WrapFrom(double theta_rad, double start_rad) {
   return start_rad + t;
 }
 
+// edges of elements of about `target` from `from` to `to` (one coordinate, m), with every break
+// of `breaks` (m) that lies more than `min_gap` inside the interval and from the last edge as an
+// edge of its own, each interval between cut evenly
+std::vector<double> CutInterval(double from, double to, std::vector<double> breaks, double target,
+                                double min_gap) {
+  std::sort(breaks.begin(), breaks.end());
+  std::vector<double> edges{from};
+  auto cut_to = [&](double end) {
+    const double start = edges.back(), len = end - start;
+    const int n = std::max(1, static_cast<int>(std::lround(len / target)));
+    for (int k = 1; k < n; ++k) edges.push_back(start + len * k / n);
+    edges.push_back(end);
+  };
+  for (double b : breaks) {
+    if (b - edges.back() < min_gap || b > to - min_gap) continue;
+    cut_to(b);
+  }
+  cut_to(to);
+  return edges;
+}
+
 }  // namespace
+
+std::vector<HoleSquare> HoleSquares(const TubeConfig& tube, const SolidStructure& structure) {
+  // side d sqrt(pi) / 2: the area of the round hole of diameter d; the arc at mid-surface radius
+  const double half_side = 0.25 * std::sqrt(kPi) * structure.hole_diameter_m;
+  const double half_angle = half_side / tube.mid_radius_m();
+  std::vector<HoleSquare> out;
+  for (size_t h = 0; h < structure.hole_z_m.size(); ++h) {
+    const double th = structure.hole_theta_deg[h] * kPi / 180.0;
+    out.push_back({structure.hole_z_m[h] - half_side, structure.hole_z_m[h] + half_side,
+                   th - half_angle, th + half_angle});
+  }
+  return out;
+}
+
+bool HoleSquare::Holds(double z_m, double theta_rad) const {
+  return z_m > z_lo_m && z_m < z_hi_m && WrapFrom(theta_rad, theta_lo_rad) < theta_hi_rad;
+}
 
 void SolidMeshConfig::Validate(const TubeConfig& tube) const {
   // from kMinElementM (below it the unknowns run into the millions) up to half the mid-surface
@@ -87,31 +125,21 @@ void SolidTubeModel::BuildMesh() {
   const double r_mid = tube_.mid_radius_m(), h = tube_.wall_thickness_m;
   const double r_in = tube_.outer_radius_m - h;
 
-  // axial element edges: the ends of every bolt's patch on a seam are edges, so that a patch
-  // covers whole elements on every mesh (a patch's ends inside elements, placed differently by
-  // each mesh, made the modes converge irregularly); each interval between is cut into elements
-  // of about element_axial_m
+  // axial element edges: the ends of every bolt's patch on a seam and of every hole's square
+  // are edges, so that a patch or a hole covers whole elements on every mesh (ends inside
+  // elements, placed differently by each mesh, made the modes converge irregularly); each interval
+  // between is cut into elements of about element_axial_m
   const double half = 0.5 * tube_.length_m;
-  std::vector<double> breaks{-half, half};
+  const std::vector<HoleSquare> holes = HoleSquares(tube_, structure_);
+  std::vector<double> breaks;
   if (!structure_.seam_theta_deg.empty()) {
     for (double zb : structure_.bolt_z_m) {
       for (double sign : {-1.0, 1.0})
         breaks.push_back(zb + sign * structure_.bolt_patch_half_length_m);
     }
   }
-  std::sort(breaks.begin(), breaks.end());
-  z_edges_m_ = {-half};
-  for (size_t b = 1; b < breaks.size(); ++b) {
-    // a break off the tube, or within kMinEdgeGapM of the last edge, is not an edge of its own
-    const double end = b + 1 == breaks.size() ? half : breaks[b];
-    if (end - z_edges_m_.back() < kMinEdgeGapM || end > half - kMinEdgeGapM) {
-      if (b + 1 < breaks.size()) continue;
-    }
-    const double from = z_edges_m_.back(), len = end - from;
-    const int n = std::max(1, static_cast<int>(std::lround(len / mesh_.element_axial_m)));
-    for (int k = 1; k < n; ++k) z_edges_m_.push_back(from + len * k / n);
-    z_edges_m_.push_back(end);
-  }
+  for (const HoleSquare& hole : holes) breaks.insert(breaks.end(), {hole.z_lo_m, hole.z_hi_m});
+  z_edges_m_ = CutInterval(-half, half, breaks, mesh_.element_axial_m, kMinEdgeGapM);
   const int nz = static_cast<int>(z_edges_m_.size()) - 1;
   const double dr = h / nr;
   rows_ = nz * p + 1;
@@ -125,18 +153,27 @@ void SolidTubeModel::BuildMesh() {
   seams.erase(std::unique(seams.begin(), seams.end()), seams.end());
   const bool periodic = seams.empty();
   if (periodic) seams.push_back(0.0);
+  // each sector cut at the arc edges of the holes' squares (arc lengths at mid-surface, m)
   struct Sector {
-    double theta0, span;
-    int elements, first_column;
+    std::vector<double> edges_rad;  // element edges, ascending, first at the sector's seam
+    int first_column;
   };
   std::vector<Sector> sectors;
   int columns = 0;
   for (size_t s = 0; s < seams.size(); ++s) {
     const double next = s + 1 < seams.size() ? seams[s + 1] : seams[0] + kTwoPi;
-    const double span = next - seams[s];
-    const int ne = std::max(1, static_cast<int>(std::lround(span * r_mid / mesh_.element_arc_m)));
-    sectors.push_back({seams[s], span, ne, columns});
+    std::vector<double> arc_breaks_m;
+    for (const HoleSquare& hole : holes) {
+      for (double th : {hole.theta_lo_rad, hole.theta_hi_rad})
+        arc_breaks_m.push_back(WrapFrom(th, seams[s]) * r_mid);
+    }
+    Sector sec{CutInterval(seams[s] * r_mid, next * r_mid, arc_breaks_m, mesh_.element_arc_m,
+                           kMinEdgeGapM),
+               columns};
+    for (double& edge : sec.edges_rad) edge /= r_mid;
+    const int ne = static_cast<int>(sec.edges_rad.size()) - 1;
     columns += ne * p + (periodic ? 0 : 1);
+    sectors.push_back(std::move(sec));
   }
   column_theta_rad_.assign(columns, 0.0);
   auto column_of = [&](const Sector& sec, int e, int i) {
@@ -150,13 +187,14 @@ void SolidTubeModel::BuildMesh() {
   double arc_sum = 0.0;
   int arc_count = 0;
   for (const Sector& sec : sectors) {
-    const double dth = sec.span / sec.elements;
-    arc_sum += dth * sec.elements;
-    arc_count += sec.elements;
-    for (int e = 0; e < sec.elements; ++e) {
+    const int ne = static_cast<int>(sec.edges_rad.size()) - 1;
+    arc_sum += sec.edges_rad.back() - sec.edges_rad.front();
+    arc_count += ne;
+    for (int e = 0; e < ne; ++e) {
+      const double dth = sec.edges_rad[e + 1] - sec.edges_rad[e];
       for (int ez = 0; ez < nz; ++ez) {
         for (int er = 0; er < nr; ++er) {
-          Element el{sec.theta0 + e * dth,
+          Element el{sec.edges_rad[e],
                      dth,
                      z_edges_m_[ez],
                      z_edges_m_[ez + 1] - z_edges_m_[ez],
@@ -207,44 +245,19 @@ void SolidTubeModel::Assemble() {
   const double lambda = e_mod * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
   const double mu = e_mod / (2.0 * (1.0 + nu));
   const double rho = material_.density_kg_m3;
-  const double r_out = tube_.outer_radius_m;
   const int n_local = (p + 1) * (p + 1) * (q + 1);
   const int64_t n_dofs = *std::max_element(node_dof_.begin(), node_dof_.end()) + 1;
   mass_kg_ = Eigen::VectorXd::Zero(n_dofs);
 
-  // holes: each quadrature point keeps the material of the part of its cell (the span halfway to
-  // its neighbours along the arc and the axis) that lies outside every hole, sampled on an 8 x 8
-  // sub-grid, so the removed area converges with the mesh
-  const double hole_r = 0.5 * structure_.hole_diameter_m;
-  auto in_hole = [&](double z, double th) {
-    for (size_t h = 0; h < structure_.hole_z_m.size(); ++h) {
-      const double dth =
-          WrapFrom(th - structure_.hole_theta_deg[h] * std::numbers::pi / 180.0, -std::numbers::pi);
-      const double dz = z - structure_.hole_z_m[h];
-      if (dz * dz + (r_out * dth) * (r_out * dth) < hole_r * hole_r) return true;
+  // holes: an element inside a hole's square (its edges are element edges) keeps kHoleFill of
+  // its material
+  const std::vector<HoleSquare> holes = HoleSquares(tube_, structure_);
+  auto fill = [&](const Element& el) {
+    const double z = el.z0_m + 0.5 * el.dz_m, th = el.theta0_rad + 0.5 * el.dtheta_rad;
+    for (const HoleSquare& hole : holes) {
+      if (hole.Holds(z, th)) return kHoleFill;
     }
-    return false;
-  };
-  auto cell = [&](int i, double x0, double span, double* lo, double* hi) {
-    const double a = i > 0 ? 0.5 * (wall.points(i - 1) + wall.points(i)) : -1.0;
-    const double b = i < p ? 0.5 * (wall.points(i) + wall.points(i + 1)) : 1.0;
-    *lo = x0 + 0.5 * (a + 1.0) * span;
-    *hi = x0 + 0.5 * (b + 1.0) * span;
-  };
-  auto fill = [&](const Element& el, int i, int j) {
-    if (structure_.hole_z_m.empty()) return 1.0;
-    double th0, th1, z0, z1;
-    cell(i, el.theta0_rad, el.dtheta_rad, &th0, &th1);
-    cell(j, el.z0_m, el.dz_m, &z0, &z1);
-    constexpr int kSub = 8;
-    int inside = 0;
-    for (int a = 0; a < kSub; ++a) {
-      for (int b = 0; b < kSub; ++b) {
-        inside += in_hole(z0 + (b + 0.5) / kSub * (z1 - z0), th0 + (a + 0.5) / kSub * (th1 - th0));
-      }
-    }
-    const double open = static_cast<double>(inside) / (kSub * kSub);
-    return 1.0 - open * (1.0 - kHoleFill);
+    return 1.0;
   };
   auto local = [&](int i, int j, int k) { return (k * (p + 1) + j) * (p + 1) + i; };
 
@@ -259,13 +272,10 @@ void SolidTubeModel::Assemble() {
     Eigen::VectorXd mass = Eigen::VectorXd::Zero(n_dofs);
     Eigen::MatrixXd ke(3 * n_local, 3 * n_local);
     std::vector<std::pair<int, Eigen::Vector3d>> line;  // (local node, physical gradient 1/m)
-    Eigen::MatrixXd fills(p + 1, p + 1);                // (arc x axial) hole fill of each column
     for (int64_t ei = chunk * kChunk; ei < std::min(n_elements, (chunk + 1) * kChunk); ++ei) {
       const Element& el = elements_[ei];
       ke.setZero();
-      for (int j = 0; j <= p; ++j) {
-        for (int i = 0; i <= p; ++i) fills(i, j) = fill(el, i, j);
-      }
+      const double el_fill = fill(el);
       for (int k = 0; k <= q; ++k) {
         for (int j = 0; j <= p; ++j) {
           for (int i = 0; i <= p; ++i) {
@@ -276,7 +286,7 @@ void SolidTubeModel::Assemble() {
             const Eigen::Vector3d e_z(0.0, 0.0, 1.0);
             // quadrature weight times the Jacobian r (dth/2)(dz/2)(dr/2), times the hole fill
             const double w = wall.weights(i) * wall.weights(j) * thick.weights(k) * r * 0.125 *
-                             el.dtheta_rad * el.dz_m * el.dr_m * fills(i, j);
+                             el.dtheta_rad * el.dz_m * el.dr_m * el_fill;
             const int qn = local(i, j, k);
             for (int d = 0; d < 3; ++d) {
               const int64_t dof = node_dof_[3 * el.nodes[qn] + d];

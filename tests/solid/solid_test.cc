@@ -102,6 +102,37 @@ TEST(SolidTubeTest, MassIsTheTubesAndRigidMotionsCostNoEnergy) {
   }
 }
 
+// a hole is the square of its area on element edges: it takes rho h (d^2 pi / 4) (1 - kHoleFill)
+// out of the mass on any mesh, with or without seams, wherever it lies on the arc
+TEST(SolidTubeTest, AHoleRemovesExactlyItsAreaOnEveryMesh) {
+  const TubeConfig tube;
+  const MaterialConfig pvc;
+  const double r_in = tube.outer_radius_m - tube.wall_thickness_m;
+  const double whole = pvc.density_kg_m3 * kPi *
+                       (tube.outer_radius_m * tube.outer_radius_m - r_in * r_in) * tube.length_m;
+  SolidStructure holed = Ideal(TubeEnds::kFree);
+  holed.hole_diameter_m = 0.006;
+  holed.hole_z_m = {0.05, -0.146};
+  holed.hole_theta_deg = {0.0, 120.0};
+  const double removed = 2.0 * pvc.density_kg_m3 * tube.wall_thickness_m *
+                         (0.25 * kPi * 0.006 * 0.006) * (1.0 - kHoleFill);
+  SolidStructure seamed = holed;
+  seamed.seam_theta_deg = {90.0, 270.0};
+  for (const SolidStructure& structure : {holed, seamed}) {
+    for (double factor : {1.0, 1.3, 2.1}) {
+      const SolidTubeModel model(tube, pvc, structure, Coarse().Refined(factor));
+      EXPECT_NEAR(model.mass_kg().sum() / 3.0, whole - removed, 1e-12 * whole)
+          << "refined " << factor << ", seams " << structure.seam_theta_deg.size();
+    }
+  }
+  // the square's arc edges straddle theta = 0 (wrapped) and it holds its centre, not its corner
+  const HoleSquare at_zero = HoleSquares(tube, holed)[0];
+  EXPECT_TRUE(at_zero.Holds(0.05, 2.0 * kPi - 0.01));
+  EXPECT_TRUE(at_zero.Holds(0.05, 0.01));
+  EXPECT_FALSE(at_zero.Holds(0.05, 0.2));
+  EXPECT_FALSE(at_zero.Holds(0.0, 0.0));
+}
+
 TEST(SolidTubeTest, SensorReadsUniformHoopAndAxialStrainAndTheForceRowReadsRadialMotion) {
   const TubeConfig tube;
   const SolidTubeModel model(tube, MaterialConfig{}, Ideal(TubeEnds::kFree), Coarse());

@@ -13,11 +13,12 @@
 /// Structure: a seam is a cut through the wall at a fixed theta (element boundaries are placed on
 /// it and its node columns doubled), bridged by bolts: three springs (x, y, z) of the bolt's
 /// stiffness between the two faces, spread over the patch the bolt clamps (bolt_patch_half_length_m
-/// either side of its z; its ends are axial element edges) and through the wall. A hole takes its
-/// material out of the quadrature points that lie inside it (their mass and stiffness weights times
-/// kHoleFill). Mounts are springs to ground in every direction, per metre of the end rim. Simply
-/// supported ends hold u_x = u_y = 0 (radial and arc motion) on the end faces and leave u_z free (a
-/// shear diaphragm).
+/// either side of its z; its ends are axial element edges) and through the wall. A hole is the
+/// square of its area (side d sqrt(pi) / 2, arc x axis) whose sides are element edges: the
+/// elements inside keep kHoleFill of their material, so the hole is the same shape on every mesh
+/// (a round hole cut out of quadrature points converged at first order). Mounts are springs to
+/// ground in every direction, per metre of the end rim. Simply supported ends hold u_x = u_y = 0
+/// (radial and arc motion) on the end faces and leave u_z free (a shear diaphragm).
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -66,6 +67,16 @@ struct SolidStructure {
   double flange_mount_stiffness_n_m2{0.0};  // springs to ground per metre of the z = -L/2 rim
   double tool_mount_stiffness_n_m2{0.0};    // the same at z = +L/2
 };
+
+/// A hole of the reference model: the square of the hole's area centred on it, through the wall.
+struct HoleSquare {
+  double z_lo_m, z_hi_m;              // axial span
+  double theta_lo_rad, theta_hi_rad;  // arc span at the mid-surface (theta_lo may be negative)
+  /// Whether the point (z, theta) lies strictly inside.
+  bool Holds(double z_m, double theta_rad) const;
+};
+/// The squares of the structure's holes, in its order.
+std::vector<HoleSquare> HoleSquares(const TubeConfig& tube, const SolidStructure& structure);
 
 /// Immutable mesh, K and M of the solid tube. Thread-safe to share.
 class SolidTubeModel {
@@ -147,7 +158,7 @@ class SolidTubeModel {
   int rows_{0}, layers_{0};               // axial node rows, radial node layers
   std::vector<double> column_theta_rad_;  // arc node columns
   std::vector<double> z_edges_m_;         // axial element edges, ascending, -L/2 to L/2
-  // a bolt patch's end closer than this to an edge already placed is not made an edge
+  // a bolt patch's or a hole's edge closer than this to an edge already placed is not made one
   static constexpr double kMinEdgeGapM = 0.001;
 };
 
