@@ -3,7 +3,8 @@
 # 11.25 and 9.4 mm (nominal), each level solved by its own `reference_levels` process into a
 # cache directory (a killed study resumes at the first level not yet there), then the report of
 # `sonicboom reference` over the cached levels: Richardson tables by rank and by shape, first
-# arrivals at the discs. About 70 min on 2 cores here, 4.3 GB resident at the finest level
+# arrivals at the discs. About 70 min on 2 cores here (model version 3: 905 + 1082 + 2148 s),
+# over 4 GB resident at the finest level
 # (docs/reference_model.md, "The configured tube to 20 kHz").
 # Usage: scripts/reference_20k.sh [OUTDIR=runs/reference_20k] [THREADS=2]
 set -euo pipefail

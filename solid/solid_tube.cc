@@ -61,7 +61,8 @@ std::vector<HoleSquare> HoleSquares(const TubeConfig& tube, const SolidStructure
 }
 
 bool HoleSquare::Holds(double z_m, double theta_rad) const {
-  return z_m > z_lo_m && z_m < z_hi_m && WrapFrom(theta_rad, theta_lo_rad) < theta_hi_rad;
+  const double th = WrapFrom(theta_rad, theta_lo_rad);
+  return z_m > z_lo_m && z_m < z_hi_m && th > theta_lo_rad && th < theta_hi_rad;
 }
 
 void SolidMeshConfig::Validate(const TubeConfig& tube) const {
