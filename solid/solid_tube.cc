@@ -53,7 +53,7 @@ std::vector<HoleSquare> HoleSquares(const TubeConfig& tube, const SolidStructure
   const double half_angle = half_side / tube.mid_radius_m();
   std::vector<HoleSquare> out;
   for (size_t h = 0; h < structure.hole_z_m.size(); ++h) {
-    const double th = structure.hole_theta_deg[h] * kPi / 180.0;
+    const double th = structure.hole_theta_deg[h] * kDeg;
     out.push_back({structure.hole_z_m[h] - half_side, structure.hole_z_m[h] + half_side,
                    th - half_angle, th + half_angle});
   }
