@@ -224,10 +224,13 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   // report
   std::string md = fmt::format(
       "Made by `sonicboom reference --boundary {} --max-frequency {} --element-m {} "
-      "--degree-wall {} --degree-thickness {} --levels {} --ratio {}{}{}` "
+      "--degree-wall {} --degree-thickness {} {}{}{}` "
       "(experiments/reference_command.cc).\n\n",
-      NameOf(o.ends), o.max_frequency_hz, o.element_m, o.degree_wall, o.degree_thickness, o.levels,
-      o.ratio, o.ideal ? " --ideal" : "", o.compare_shell ? " --compare-shell" : "");
+      NameOf(o.ends), o.max_frequency_hz, o.element_m, o.degree_wall, o.degree_thickness,
+      o.subdivisions.empty() ? fmt::format("--levels {} --ratio {}", o.levels, o.ratio)
+                             : fmt::format("--subdivisions {} --fixed-interval-m {}",
+                                           fmt::join(o.subdivisions, ","), o.fixed_interval_m),
+      o.ideal ? " --ideal" : "", o.compare_shell ? " --compare-shell" : "");
   md +=
       "| mesh h (mm) | DOFs | modes to f_max | build (s) | modes and projections (s) | solved |\n";
   md += "|---|---|---|---|---|---|\n";
@@ -344,13 +347,7 @@ void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run) {
       "reference",
       "the independent 3-D solid model of the tube: convergence of modes and arrivals");
   AddEnumOption(cmd, "--boundary", &o->ends, "free | simply-supported");
-  cmd->add_flag("--ideal", o->ideal, "ideal uniform tube (no seam, holes, bolts or mounts)");
-  cmd->add_option("--max-frequency", o->max_frequency_hz, "modes up to this frequency (Hz)");
-  cmd->add_option("--element-m", o->element_m, "element length of the coarsest mesh (m)");
-  cmd->add_option("--degree-wall", o->degree_wall, "GLL degree along the wall");
-  cmd->add_option("--degree-thickness", o->degree_thickness, "GLL degree through the wall");
-  cmd->add_option("--levels", o->levels, "meshes, each --ratio finer than the last");
-  cmd->add_option("--ratio", o->ratio, "refinement ratio between levels");
+  AddReferenceLevelOptions(cmd, o.get());
   cmd->add_option("--out", o->out, "markdown report (\"\" = print only)");
   cmd->add_option("--cache-dir", o->cache_dir,
                   "solved levels kept and reused here (default: the mode cache directory)");

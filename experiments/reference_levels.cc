@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "sonicboom/core/errors.h"
 
@@ -51,9 +52,16 @@ solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
 std::vector<solid::ConvergenceRequest> ReferenceLevelRequests(
     const ReferenceLevelOptions& o, const TubeConfig& tube, const MaterialConfig& material,
     const MicArrayConfig& mics, const acoustics::ShellConfig& shell, const std::string& cache_dir) {
-  if (o.levels < 3 || o.levels > 6)
-    throw ConfigError(
-        fmt::format("--levels must be in [3, 6] (Richardson needs three), got {}", o.levels));
+  const bool self_similar = !o.subdivisions.empty();
+  const int64_t levels = self_similar ? static_cast<int64_t>(o.subdivisions.size()) : o.levels;
+  if (levels < 3 || levels > 6)
+    throw ConfigError(fmt::format("--{} must give 3 to 6 levels (Richardson needs three), got {}",
+                                  self_similar ? "subdivisions" : "levels", levels));
+  for (size_t l = 0; self_similar && l < o.subdivisions.size(); ++l) {
+    if (o.subdivisions[l] < 1 || (l > 0 && o.subdivisions[l] <= o.subdivisions[l - 1]))
+      throw ConfigError(fmt::format("--subdivisions {}: must be positive and ascending",
+                                    fmt::join(o.subdivisions, ",")));
+  }
   if (!(o.ratio > 1.0 && o.ratio <= 2.0))
     throw ConfigError(fmt::format("--ratio must be in (1, 2], got {}", o.ratio));
   if (!(o.max_frequency_hz > 100.0 && o.max_frequency_hz <= 40000.0))
@@ -68,13 +76,48 @@ std::vector<solid::ConvergenceRequest> ReferenceLevelRequests(
   request.solid.structure = ReferenceStructure(shell, o.ends, o.ideal);
   request.solid.max_frequency_hz = o.max_frequency_hz;
   request.solid.cache_dir = cache_dir;
-  // level l: elements of element_m / ratio^l (the keys of the cached levels follow this exactly)
+  // level l: elements of element_m / ratio^l (the keys of the cached levels follow this exactly),
+  // or element_m's intervals cut into subdivisions[l] times as many
   std::vector<solid::ConvergenceRequest> requests;
-  for (int64_t l = 0; l < o.levels; ++l) {
-    request.solid.mesh = base.Refined(std::pow(o.ratio, l));
+  for (int64_t l = 0; l < levels; ++l) {
+    if (self_similar) {
+      request.solid.mesh = base;
+      request.solid.mesh.subdivisions = o.subdivisions[l];
+      request.solid.mesh.fixed_interval_m = o.fixed_interval_m;
+      try {
+        request.solid.mesh.Validate(tube);
+      } catch (const ConfigError& e) {
+        throw ConfigError(fmt::format("--subdivisions {} --fixed-interval-m {}: {}",
+                                      o.subdivisions[l], o.fixed_interval_m, e.what()));
+      }
+    } else {
+      request.solid.mesh = base.Refined(std::pow(o.ratio, l));
+    }
     requests.push_back(request);
   }
   return requests;
+}
+
+void AddReferenceLevelOptions(CLI::App* cmd, ReferenceLevelOptions* o) {
+  cmd->add_flag("--ideal", o->ideal, "ideal uniform tube (no seam, holes, bolts or mounts)");
+  cmd->add_option("--max-frequency", o->max_frequency_hz, "modes up to this frequency (Hz)");
+  cmd->add_option("--element-m", o->element_m, "element length of the coarsest mesh (m)");
+  cmd->add_option("--degree-wall", o->degree_wall, "GLL degree along the wall");
+  cmd->add_option("--degree-thickness", o->degree_thickness, "GLL degree through the wall");
+  auto* levels = cmd->add_option("--levels", o->levels, "meshes, each --ratio finer than the last");
+  auto* ratio = cmd->add_option("--ratio", o->ratio, "refinement ratio between levels");
+  auto* subdivisions =
+      cmd->add_option("--subdivisions", o->subdivisions,
+                      "self-similar meshes instead of --levels and --ratio: e.g. 3,4,5 cuts every "
+                      "element of --element-m into 3, 4 and 5 (intervals between forced edges "
+                      "under --fixed-interval-m stay one element)")
+          ->delimiter(',')
+          ->excludes(levels)
+          ->excludes(ratio);
+  cmd->add_option("--fixed-interval-m", o->fixed_interval_m,
+                  "with --subdivisions: intervals between forced edges (seams, bolt patches, "
+                  "holes) shorter than this stay one element on every level (m; 0: none)")
+      ->needs(subdivisions);
 }
 
 }  // namespace sonicboom::experiments

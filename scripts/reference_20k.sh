@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
-# The reference solid's convergence study to 20 kHz (issue 31's band): three meshes of 13.5,
-# 11.25 and 9.4 mm (nominal), each level solved by its own `reference_levels` process into a
-# cache directory (a killed study resumes at the first level not yet there), then the report of
-# `sonicboom reference` over the cached levels: Richardson tables by rank and by shape, first
-# arrivals at the discs. About 70 min on 2 cores here (model version 3: 905 + 1082 + 2148 s),
-# over 4 GB resident at the finest level
-# (docs/reference_model.md, "The configured tube to 20 kHz").
+# The reference solid's convergence study to 20 kHz (issue 31's band): a self-similar family of
+# three meshes, every interval between forced edges (seams, bolt patches, holes) cut into 3, 4
+# and 5 times the elements of 40.5 mm (nominal 13.5, 10.1 and 8.1 mm; intervals under 10 mm stay
+# one element), so that every refined element shrinks by the same ratio, as the Richardson fit
+# assumes. Each level is solved by its own `reference_levels` process into a cache directory (a
+# killed study resumes at the first level not yet there), then the report of `sonicboom
+# reference` over the cached levels: Richardson tables by rank and by shape, first arrivals at
+# the discs. Over 6 GB resident at the finest level (docs/reference_model.md, "The configured
+# tube to 20 kHz").
 # Usage: scripts/reference_20k.sh [OUTDIR=runs/reference_20k] [THREADS=2]
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -13,7 +15,7 @@ OUT=${1:-runs/reference_20k}
 THREADS=${2:-2}
 BIN=${SONICBOOM_BIN:-$ROOT/build/bin}
 mkdir -p "$OUT"
-STUDY=(--max-frequency 20000 --element-m 0.0135 --levels 3 --ratio 1.2 --cache-dir "$OUT/cache")
+STUDY=(--max-frequency 20000 --element-m 0.0405 --subdivisions 3,4,5 --cache-dir "$OUT/cache")
 for level in 0 1 2; do
   start=$(date +%s)
   "$BIN/reference_levels" "${STUDY[@]}" --only-level "$level" > "$OUT/level$level.log" 2>&1

@@ -24,21 +24,35 @@ double WrapFrom(double theta_rad, double start_rad) {
   return start_rad + t;
 }
 
-// edges of elements of about `target` from `from` to `to` (one coordinate, m), with every break
-// of `breaks` (m) that lies more than `min_gap` inside the interval and from the last edge as an
-// edge of its own, each interval between cut evenly
-std::vector<double> CutInterval(double from, double to, std::vector<double> breaks, double target,
-                                double min_gap) {
+// how one coordinate's intervals between forced edges are cut into elements (lengths m)
+struct IntervalCut {
+  double target_m;       // element length asked for
+  int64_t subdivisions;  // 0: graded; n >= 1: self-similar (SolidMeshConfig::subdivisions)
+  double fixed_m;        // self-similar: intervals shorter than this stay one element
+  double min_gap_m;      // a break closer than this to the last edge or the end is dropped
+  // the number of elements of an interval of length len_m
+  int Count(double len_m) const {
+    const int base = std::max(1, static_cast<int>(std::lround(len_m / target_m)));
+    if (subdivisions == 0) return base;
+    return len_m < fixed_m ? 1 : base * static_cast<int>(subdivisions);
+  }
+};
+
+// edges of elements from `from` to `to` (one coordinate, m), with every break of `breaks` (m)
+// that lies more than cut.min_gap_m inside the interval and from the last edge as an edge of its
+// own, each interval between cut evenly into cut.Count(length) elements
+std::vector<double> CutInterval(double from, double to, std::vector<double> breaks,
+                                const IntervalCut& cut) {
   std::sort(breaks.begin(), breaks.end());
   std::vector<double> edges{from};
   auto cut_to = [&](double end) {
     const double start = edges.back(), len = end - start;
-    const int n = std::max(1, static_cast<int>(std::lround(len / target)));
+    const int n = cut.Count(len);
     for (int k = 1; k < n; ++k) edges.push_back(start + len * k / n);
     edges.push_back(end);
   };
   for (double b : breaks) {
-    if (b - edges.back() < min_gap || b > to - min_gap) continue;
+    if (b - edges.back() < cut.min_gap_m || b > to - cut.min_gap_m) continue;
     cut_to(b);
   }
   cut_to(to);
@@ -48,6 +62,10 @@ std::vector<double> CutInterval(double from, double to, std::vector<double> brea
 }  // namespace
 
 std::vector<HoleSquare> HoleSquares(const TubeConfig& tube, const SolidStructure& structure) {
+  if (structure.hole_z_m.size() != structure.hole_theta_deg.size()) {
+    throw ConfigError(fmt::format("reference structure: {} hole_z_m entries but {} hole_theta_deg",
+                                  structure.hole_z_m.size(), structure.hole_theta_deg.size()));
+  }
   // side d sqrt(pi) / 2: the area of the round hole of diameter d; the arc at mid-surface radius
   const double half_side = 0.25 * std::sqrt(kPi) * structure.hole_diameter_m;
   const double half_angle = half_side / tube.mid_radius_m();
@@ -85,6 +103,21 @@ void SolidMeshConfig::Validate(const TubeConfig& tube) const {
         fmt::format("solid mesh: degree_wall = {} and degree_thickness = {} must lie in [1, 12]",
                     degree_wall, degree_thickness));
   }
+  if (subdivisions < 0 || subdivisions > 12) {
+    throw ConfigError(
+        fmt::format("solid mesh: subdivisions = {} must lie in [0, 12] (0: graded)", subdivisions));
+  }
+  const double element_min = std::min(element_arc_m, element_axial_m);
+  if (subdivisions > 0 && !(fixed_interval_m >= 0.0 && fixed_interval_m <= element_min)) {
+    throw ConfigError(fmt::format(
+        "solid mesh: fixed_interval_m = {} m must lie in [0, {}] m (the shorter element length)",
+        fixed_interval_m, element_min));
+  }
+  if (subdivisions > 0 && element_min / subdivisions < kMinElementM) {
+    throw ConfigError(fmt::format(
+        "solid mesh: subdivisions = {} cut elements of {} m below the shortest accepted, {} m",
+        subdivisions, element_min, kMinElementM));
+  }
   if (elements_through < 1 || elements_through > 8) {
     throw ConfigError(
         fmt::format("solid mesh: elements_through = {} must lie in [1, 8]", elements_through));
@@ -108,9 +141,7 @@ SolidTubeModel::SolidTubeModel(const TubeConfig& tube, const MaterialConfig& mat
                                   structure_.bolt_stiffness_n_m.size(),
                                   structure_.bolt_z_m.size()));
   }
-  if (structure_.hole_z_m.size() != structure_.hole_theta_deg.size()) {
-    throw ConfigError("reference structure: hole_z_m and hole_theta_deg differ in length");
-  }
+  holes_ = HoleSquares(tube_, structure_);
   wall_ = MakeGllRule(static_cast<int>(mesh_.degree_wall));
   thick_ = MakeGllRule(static_cast<int>(mesh_.degree_thickness));
   BuildMesh();
@@ -129,9 +160,8 @@ void SolidTubeModel::BuildMesh() {
   // axial element edges: the ends of every bolt's patch on a seam and of every hole's square
   // are edges, so that a patch or a hole covers whole elements on every mesh (ends inside
   // elements, placed differently by each mesh, made the modes converge irregularly); each interval
-  // between is cut into elements of about element_axial_m
+  // between is cut into elements of about element_axial_m (graded or self-similar, IntervalCut)
   const double half = 0.5 * tube_.length_m;
-  const std::vector<HoleSquare> holes = HoleSquares(tube_, structure_);
   std::vector<double> breaks;
   if (!structure_.seam_theta_deg.empty()) {
     for (double zb : structure_.bolt_z_m) {
@@ -139,8 +169,10 @@ void SolidTubeModel::BuildMesh() {
         breaks.push_back(zb + sign * structure_.bolt_patch_half_length_m);
     }
   }
-  for (const HoleSquare& hole : holes) breaks.insert(breaks.end(), {hole.z_lo_m, hole.z_hi_m});
-  z_edges_m_ = CutInterval(-half, half, breaks, mesh_.element_axial_m, kMinEdgeGapM);
+  for (const HoleSquare& hole : holes_) breaks.insert(breaks.end(), {hole.z_lo_m, hole.z_hi_m});
+  z_edges_m_ = CutInterval(
+      -half, half, breaks,
+      {mesh_.element_axial_m, mesh_.subdivisions, mesh_.fixed_interval_m, kMinEdgeGapM});
   const int nz = static_cast<int>(z_edges_m_.size()) - 1;
   const double dr = h / nr;
   rows_ = nz * p + 1;
@@ -164,14 +196,16 @@ void SolidTubeModel::BuildMesh() {
   for (size_t s = 0; s < seams.size(); ++s) {
     const double next = s + 1 < seams.size() ? seams[s + 1] : seams[0] + kTwoPi;
     std::vector<double> arc_breaks_m;
-    for (const HoleSquare& hole : holes) {
+    for (const HoleSquare& hole : holes_) {
       for (double th : {hole.theta_lo_rad, hole.theta_hi_rad})
         arc_breaks_m.push_back(WrapFrom(th, seams[s]) * r_mid);
     }
-    Sector sec{CutInterval(seams[s] * r_mid, next * r_mid, arc_breaks_m, mesh_.element_arc_m,
-                           kMinEdgeGapM),
+    Sector sec{CutInterval(
+                   seams[s] * r_mid, next * r_mid, arc_breaks_m,
+                   {mesh_.element_arc_m, mesh_.subdivisions, mesh_.fixed_interval_m, kMinEdgeGapM}),
                columns};
     for (double& edge : sec.edges_rad) edge /= r_mid;
+    arc_edges_rad_.insert(arc_edges_rad_.end(), sec.edges_rad.begin(), sec.edges_rad.end());
     const int ne = static_cast<int>(sec.edges_rad.size()) - 1;
     columns += ne * p + (periodic ? 0 : 1);
     sectors.push_back(std::move(sec));
@@ -223,7 +257,12 @@ void SolidTubeModel::BuildMesh() {
       }
     }
   }
-  element_length_m_ = 0.5 * (arc_sum * r_mid / arc_count + tube_.length_m / nz);
+  // h of h-refinement: graded meshes' mean element length; a self-similar family's base
+  // element over its subdivisions, which shrinks every refined element by the same ratio
+  element_length_m_ =
+      mesh_.subdivisions == 0
+          ? 0.5 * (arc_sum * r_mid / arc_count + tube_.length_m / nz)
+          : 0.5 * (mesh_.element_arc_m + mesh_.element_axial_m) / mesh_.subdivisions;
 
   // DOFs: three per node; simply supported end faces hold u_x and u_y
   node_dof_.assign(3 * nodes_total, -1);
@@ -252,10 +291,9 @@ void SolidTubeModel::Assemble() {
 
   // holes: an element inside a hole's square (its edges are element edges) keeps kHoleFill of
   // its material
-  const std::vector<HoleSquare> holes = HoleSquares(tube_, structure_);
   auto fill = [&](const Element& el) {
     const double z = el.z0_m + 0.5 * el.dz_m, th = el.theta0_rad + 0.5 * el.dtheta_rad;
-    for (const HoleSquare& hole : holes) {
+    for (const HoleSquare& hole : holes_) {
       if (hole.Holds(z, th)) return kHoleFill;
     }
     return 1.0;

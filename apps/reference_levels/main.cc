@@ -26,12 +26,12 @@ struct Options : sonicboom::experiments::ReferenceLevelOptions {
 
 int Run(const Options& o) {
   using namespace sonicboom;
-  if (o.only_level >= o.levels)
-    throw ConfigError(
-        fmt::format("--only-level {} names no level of --levels {}", o.only_level, o.levels));
   // the default config's tube, material, discs and structure, as `sonicboom reference` takes them
   const std::vector<solid::ConvergenceRequest> requests = experiments::ReferenceLevelRequests(
       o, TubeConfig{}, MaterialConfig{}, MicArrayConfig{}, acoustics::ShellConfig{}, o.cache_dir);
+  if (o.only_level >= static_cast<int64_t>(requests.size()))
+    throw ConfigError(
+        fmt::format("--only-level {} names none of the {} levels", o.only_level, requests.size()));
   for (size_t l = 0; l < requests.size(); ++l) {
     if (o.only_level >= 0 && static_cast<int64_t>(l) != o.only_level) continue;
     const solid::ConvergenceLevel level = solid::SolveConvergenceLevel(requests[l]);
@@ -50,13 +50,7 @@ int Run(const Options& o) {
 int main(int argc, char** argv) {
   Options o;
   CLI::App app{"the reference solid's convergence levels of `sonicboom reference`, default config"};
-  app.add_flag("--ideal", o.ideal, "ideal uniform tube (no seam, holes, bolts or mounts)");
-  app.add_option("--max-frequency", o.max_frequency_hz, "modes up to this frequency (Hz)");
-  app.add_option("--element-m", o.element_m, "element length of the coarsest mesh (m)");
-  app.add_option("--degree-wall", o.degree_wall, "GLL degree along the wall");
-  app.add_option("--degree-thickness", o.degree_thickness, "GLL degree through the wall");
-  app.add_option("--levels", o.levels, "meshes, each --ratio finer than the last");
-  app.add_option("--ratio", o.ratio, "refinement ratio between levels");
+  sonicboom::experiments::AddReferenceLevelOptions(&app, &o);
   app.add_option("--only-level", o.only_level,
                  "solve this level (0 = coarsest) alone, e.g. one process per level")
       ->check(CLI::Range(0, 5));

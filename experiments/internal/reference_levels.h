@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/core/tube.h"
 #include "sonicboom/solid/convergence.h"
@@ -26,7 +28,17 @@ struct ReferenceLevelOptions {
   int64_t degree_thickness = 3;
   int64_t levels = 3;
   double ratio = 1.25;  // element length of level l: element_m / ratio^l
+  // when set, a self-similar family instead of levels and ratio: level l cuts every interval
+  // between forced edges into subdivisions[l] x the elements of element_m
+  // (SolidMeshConfig::subdivisions), ascending, 3 to 6 levels
+  std::vector<int64_t> subdivisions;
+  // self-similar: intervals between forced edges shorter than this stay one element (0: none)
+  double fixed_interval_m = solid::SolidMeshConfig{}.fixed_interval_m;
 };
+
+/// The options of ReferenceLevelOptions on a command (`sonicboom reference`,
+/// apps/reference_levels), with one help text for both.
+void AddReferenceLevelOptions(CLI::App* cmd, ReferenceLevelOptions* o);
 
 /// The physics of the configured structure (the shell section's seams, bolts, holes, mounts),
 /// none of its discretization; `ideal` (or shell.ideal) leaves a uniform tube.
@@ -41,8 +53,8 @@ solid::SolidMeshConfig ReferenceMesh(double element_m, int64_t degree_wall,
 
 /// One request per level of `o` (coarse to fine) for the tube, material and discs given and the
 /// structure of `shell`, each kept in cache_dir. Refuses (ConfigError naming the option) levels
-/// outside [3, 6], a ratio outside (1, 2], a band outside (100, 40000] Hz, a mesh that cannot be
-/// built.
+/// outside [3, 6], a ratio outside (1, 2], subdivisions that do not ascend, a band outside
+/// (100, 40000] Hz, a mesh that cannot be built.
 std::vector<solid::ConvergenceRequest> ReferenceLevelRequests(
     const ReferenceLevelOptions& o, const TubeConfig& tube, const MaterialConfig& material,
     const MicArrayConfig& mics, const acoustics::ShellConfig& shell, const std::string& cache_dir);

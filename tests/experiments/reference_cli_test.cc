@@ -145,6 +145,27 @@ TEST(ReferenceCliTest, LevelsSolvedApartAreReadBackByTheReport) {
   const auto j = nlohmann::json::parse(run.out);
   ASSERT_EQ(j["levels"].size(), 3u);
   for (const auto& level : j["levels"]) EXPECT_TRUE(level["from_cache"].get<bool>());
+  // a self-similar family the same way: its h falls as 1 / subdivisions exactly
+  const std::string family = " --ideal --element-m 0.08 --max-frequency 1000 --subdivisions 2,3,4";
+  ASSERT_EQ(std::system(("cd '" + cwd + "' && '" + std::string(SONICBOOM_REFERENCE_LEVELS) + "'" +
+                         family + " --cache-dir S > /dev/null")
+                            .c_str()),
+            0);
+  const auto self_similar = RunCli("reference" + family + " --cache-dir S --json -q", cwd);
+  ASSERT_EQ(self_similar.exit_code, 0) << self_similar.err;
+  const auto js = nlohmann::json::parse(self_similar.out);
+  ASSERT_EQ(js["levels"].size(), 3u);
+  for (int l = 0; l < 3; ++l) {
+    EXPECT_TRUE(js["levels"][l]["from_cache"].get<bool>());
+    EXPECT_NEAR(js["levels"][l]["h_m"].get<double>(), 0.08 / (2 + l), 1e-15);
+  }
+  // subdivisions that do not ascend, and beside --ratio
+  auto bad = RunCli("reference --ideal --element-m 0.08 --subdivisions 2,2,3 -q", cwd);
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("--subdivisions 2,2,3"), std::string::npos) << bad.err;
+  bad = RunCli("reference --ideal --element-m 0.08 --subdivisions 2,3,4 --ratio 1.2 -q", cwd);
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--ratio"), std::string::npos) << bad.err;
 }
 
 // the convergence report on coarse meshes, with the shell model's arrivals beside the reference's:

@@ -5,12 +5,14 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <numbers>
+#include <tuple>
 
 #include "sonicboom/acoustics/cylinder_modes.h"
 #include "sonicboom/core/constants.h"
@@ -131,6 +133,17 @@ TEST(SolidTubeTest, AHoleRemovesExactlyItsAreaOnEveryMesh) {
   EXPECT_TRUE(at_zero.Holds(0.05, 0.01));
   EXPECT_FALSE(at_zero.Holds(0.05, 0.2));
   EXPECT_FALSE(at_zero.Holds(0.0, 0.0));
+  // two positions and one angle: refused by the squares and by the model, naming both keys
+  SolidStructure uneven = holed;
+  uneven.hole_theta_deg.pop_back();
+  try {
+    SolidTubeModel(tube, pvc, uneven, Coarse());
+    FAIL() << "accepted two holes with one angle";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("2 hole_z_m entries but 1 hole_theta_deg"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(SolidTubeTest, SensorReadsUniformHoopAndAxialStrainAndTheForceRowReadsRadialMotion) {
@@ -212,6 +225,57 @@ TEST(SolidTubeTest, BoltPatchEndsAreElementEdges) {
   }
 }
 
+// a self-similar family (subdivisions n) cuts every element of n = 1 longer than
+// fixed_interval_m into n equal ones and leaves the shorter ones whole, along the axis and the
+// arc, with the seams, bolt patches and holes of the configured tube as forced edges
+TEST(SolidTubeTest, SelfSimilarMeshesCutEveryRefinedElementAlike) {
+  const TubeConfig tube;
+  SolidStructure s;
+  s.seam_theta_deg = {90.0, 270.0};
+  s.bolt_z_m = {-0.1, 0.0, 0.1};
+  s.bolt_stiffness_n_m = {2e7, 2e7, 2e7};
+  s.hole_diameter_m = 0.006;
+  s.hole_z_m = {-0.146, 0.146};
+  s.hole_theta_deg = {0.0, 120.0};
+  SolidMeshConfig mesh;
+  mesh.element_arc_m = mesh.element_axial_m = 0.04;
+  mesh.degree_wall = mesh.degree_thickness = 1;
+  mesh.subdivisions = 1;
+  const SolidTubeModel base(tube, MaterialConfig{}, s, mesh);
+  mesh.subdivisions = 3;
+  const SolidTubeModel fine(tube, MaterialConfig{}, s, mesh);
+  EXPECT_DOUBLE_EQ(base.element_length_m() / fine.element_length_m(), 3.0);
+  // edges of one coordinate (ascending, sectors' shared ends once) and their length scale, m
+  auto unique = [](std::vector<double> v) {
+    v.erase(std::unique(v.begin(), v.end()), v.end());
+    return v;
+  };
+  const double r = tube.mid_radius_m();
+  int whole = 0, cut = 0;
+  for (const auto& [coarse, refined, scale] :
+       {std::tuple{base.axial_edges_m(), fine.axial_edges_m(), 1.0},
+        std::tuple{unique(base.arc_edges_rad()), unique(fine.arc_edges_rad()), r}}) {
+    size_t j = 0;  // index of the coarse element's start among the refined edges
+    for (size_t i = 0; i + 1 < coarse.size(); ++i) {
+      ASSERT_LT(j, refined.size());
+      ASSERT_NEAR(refined[j], coarse[i], 1e-12) << "element " << i;
+      const double len = coarse[i + 1] - coarse[i];
+      const int n = len * scale < mesh.fixed_interval_m ? 1 : 3;
+      (n == 1 ? whole : cut) += 1;
+      for (int k = 1; k <= n; ++k) {
+        ASSERT_LT(j + k, refined.size());
+        EXPECT_NEAR(refined[j + k], coarse[i] + len * k / n, 1e-12) << "element " << i;
+      }
+      j += n;
+    }
+    EXPECT_EQ(j + 1, refined.size());
+  }
+  // left whole: along the axis the two ends beyond the holes (3.7 mm), the holes (5.3 mm) and
+  // the three bolt patches (8 mm); along the arc the two holes
+  EXPECT_EQ(whole, 2 + 2 + 3 + 2);
+  EXPECT_GE(cut, 10);
+}
+
 TEST(SolidTubeTest, RefusesMeshesThatCannotBeBuiltNamingTheKey) {
   // too long for the circumference, zero, not a number, and below the smallest element
   for (const double arc_m : {0.5, 0.0, std::nan(""), 0.001}) {
@@ -223,6 +287,23 @@ TEST(SolidTubeTest, RefusesMeshesThatCannotBeBuiltNamingTheKey) {
     } catch (const ConfigError& e) {
       EXPECT_NE(std::string(e.what()).find("element_arc_m"), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find("0.004"), std::string::npos) << e.what();
+    }
+  }
+  // self-similar: subdivisions out of range, cutting below the smallest element, and fixed
+  // intervals as long as an element
+  SolidMeshConfig many, small, fixed;
+  many.subdivisions = 13;
+  small.subdivisions = 4;
+  fixed.subdivisions = 1;
+  fixed.fixed_interval_m = 0.02;
+  for (const auto& [mesh, key] :
+       {std::pair{many, "subdivisions = 13"}, std::pair{small, "subdivisions = 4"},
+        std::pair{fixed, "fixed_interval_m = 0.02"}}) {
+    try {
+      SolidTubeModel(TubeConfig{}, MaterialConfig{}, Ideal(TubeEnds::kFree), mesh);
+      FAIL() << "accepted " << key;
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
     }
   }
 }

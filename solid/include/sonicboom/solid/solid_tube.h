@@ -44,6 +44,14 @@ struct SolidMeshConfig {
   int64_t degree_wall{4};          // GLL degree along the arc and the axis
   int64_t degree_thickness{3};     // GLL degree through the wall
   int64_t elements_through{1};     // elements through the wall
+  // How the intervals between forced edges (seams, bolt patches' ends, holes' sides) are cut.
+  // 0, graded: each into round(length / element) elements, so two meshes of different element
+  // lengths need not refine every interval by the same ratio. n >= 1, self-similar: each into
+  // n x max(1, round(length / element)) elements, except that an interval shorter than
+  // fixed_interval_m stays one element; meshes of n and n' then differ by n' / n in every
+  // refined element, the premise of a Richardson fit (the fixed ones are an error floor).
+  int64_t subdivisions{0};
+  double fixed_interval_m{0.01};
   // the shortest element accepted: 4 mm elements of the 4" tube hold over a million unknowns
   static constexpr double kMinElementM = 0.004;
 
@@ -75,7 +83,8 @@ struct HoleSquare {
   /// Whether the point (z, theta) lies strictly inside.
   bool Holds(double z_m, double theta_rad) const;
 };
-/// The squares of the structure's holes, in its order.
+/// The squares of the structure's holes, in its order. Throws ConfigError when hole_z_m and
+/// hole_theta_deg differ in length.
 std::vector<HoleSquare> HoleSquares(const TubeConfig& tube, const SolidStructure& structure);
 
 /// Immutable mesh, K and M of the solid tube. Thread-safe to share.
@@ -115,8 +124,14 @@ class SolidTubeModel {
   /// (dofs) a displacement field u(x) (m, tube frame) sampled at the nodes (held components
   /// left out): the spectral interpolation of the field.
   Eigen::VectorXd Sample(const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& field) const;
-  /// The mean element length along the arc and the axis (the h of h-refinement), m.
+  /// The h of h-refinement, m: the mean element length along the arc and the axis; for a
+  /// self-similar mesh (mesh().subdivisions >= 1) the asked element length over the subdivisions.
   double element_length_m() const { return element_length_m_; }
+  /// Axial element edges, ascending from -L/2 to L/2, m.
+  const std::vector<double>& axial_edges_m() const { return z_edges_m_; }
+  /// Arc element edges of each sector between seams in turn (one periodic sector for an uncut
+  /// tube), each ascending from its seam to the next, rad.
+  const std::vector<double>& arc_edges_rad() const { return arc_edges_rad_; }
 
   const TubeConfig& tube() const { return tube_; }
   const MaterialConfig& material() const { return material_; }
@@ -149,6 +164,7 @@ class SolidTubeModel {
   SolidStructure structure_;
   SolidMeshConfig mesh_;
   GllRule wall_, thick_;  // the GLL rules along the wall and through it
+  std::vector<HoleSquare> holes_;  // the structure's holes: their sides are element edges
   std::vector<Element> elements_;
   std::vector<int64_t> node_dof_;  // (nodes x 3) DOF of each Cartesian component, -1 when held
   std::vector<Eigen::Vector3d> node_position_m_;
@@ -158,6 +174,7 @@ class SolidTubeModel {
   int rows_{0}, layers_{0};               // axial node rows, radial node layers
   std::vector<double> column_theta_rad_;  // arc node columns
   std::vector<double> z_edges_m_;         // axial element edges, ascending, -L/2 to L/2
+  std::vector<double> arc_edges_rad_;     // arc element edges, sector by sector
   // a bolt patch's or a hole's edge closer than this to an edge already placed is not made one
   static constexpr double kMinEdgeGapM = 0.001;
 };
