@@ -166,6 +166,9 @@ TEST(ReferenceCliTest, LevelsSolvedApartAreReadBackByTheReport) {
   bad = RunCli("reference --ideal --element-m 0.08 --subdivisions 2,3,4 --ratio 1.2 -q", cwd);
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("--ratio"), std::string::npos) << bad.err;
+  bad = RunCli("reference --ideal --element-m 0.08 --fixed-interval-m 0 -q", cwd);
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--subdivisions"), std::string::npos) << bad.err;
 }
 
 // the convergence report on coarse meshes, with the shell model's arrivals beside the reference's:
