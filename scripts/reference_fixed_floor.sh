@@ -6,7 +6,7 @@
 # refines every interval (40.5 mm cut into 1, 2 and 3, --fixed-interval-m 0; its finest level
 # cuts the short intervals into 3) and compares their extrapolated limits mode by mode (by rank):
 # the difference is the floor the short intervals leave. Writes OUT/fixed.json, OUT/all.json and
-# OUT/floor.md (docs/reference_model.md, "The configured tube to 20 kHz"). About 20 min on 2
+# OUT/floor.md (docs/reference_model.md, "The configured tube to 20 kHz"). About 25 min on 2
 # cores at 3 kHz.
 # Usage: scripts/reference_fixed_floor.sh [OUTDIR=runs/reference_floor] [MAX_FREQUENCY_HZ=3000]
 #        [THREADS=2]
