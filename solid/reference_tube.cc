@@ -34,26 +34,24 @@ static_assert(sizeof(TubeConfig) == 48 && sizeof(MaterialConfig) == 32 &&
 
 std::string ReferenceCacheKey(const ReferenceTubeConfig& c) {
   const SolidStructure& s = c.structure;
-  return fmt::format(
-             "reference v{} tube {:.17g} {:.17g} {:.17g} material {:.17g} {:.17g} {:.17g} mesh "
-             "{:.17g} "
-             "{:.17g} {} {} {} ends {} seams {:.17g} bolts {:.17g} k {:.17g} patch {:.17g} holes "
-             "{:.17g} "
-             "/ {:.17g} d "
-             "{:.17g} mounts {:.17g} {:.17g} mics {:.17g} / {:.17g} d {:.17g} band {:.17g}",
-             kReferenceModelVersion, c.tube.outer_radius_m, c.tube.wall_thickness_m,
-             c.tube.length_m, c.material.youngs_modulus_pa, c.material.poisson_ratio,
-             c.material.density_kg_m3, c.mesh.element_arc_m, c.mesh.element_axial_m,
-             c.mesh.degree_wall, c.mesh.degree_thickness, c.mesh.elements_through,
-             static_cast<int>(s.ends), fmt::join(s.seam_theta_deg, ","), fmt::join(s.bolt_z_m, ","),
-             fmt::join(s.bolt_stiffness_n_m, ","), s.bolt_patch_half_length_m,
-             fmt::join(s.hole_z_m, ","), fmt::join(s.hole_theta_deg, ","), s.hole_diameter_m,
-             s.flange_mount_stiffness_n_m2, s.tool_mount_stiffness_n_m2, fmt::join(c.mics.z_m, ","),
-             fmt::join(c.mics.theta_deg, ","), c.mics.disc_diameter_m, c.max_frequency_hz) +
-         // self-similar meshes only, so that the keys of graded meshes solved before stay
-         (c.mesh.subdivisions == 0 ? std::string()
-                                   : fmt::format(" subdivisions {} fixed {:.17g}",
-                                                 c.mesh.subdivisions, c.mesh.fixed_interval_m));
+  std::string key = fmt::format(
+      "reference v{} tube {:.17g} {:.17g} {:.17g} material {:.17g} {:.17g} {:.17g} mesh {:.17g} "
+      "{:.17g} {} {} {} ends {} seams {:.17g} bolts {:.17g} k {:.17g} patch {:.17g} holes {:.17g} "
+      "/ {:.17g} d "
+      "{:.17g} mounts {:.17g} {:.17g} mics {:.17g} / {:.17g} d {:.17g} band {:.17g}",
+      kReferenceModelVersion, c.tube.outer_radius_m, c.tube.wall_thickness_m, c.tube.length_m,
+      c.material.youngs_modulus_pa, c.material.poisson_ratio, c.material.density_kg_m3,
+      c.mesh.element_arc_m, c.mesh.element_axial_m, c.mesh.degree_wall, c.mesh.degree_thickness,
+      c.mesh.elements_through, static_cast<int>(s.ends), fmt::join(s.seam_theta_deg, ","),
+      fmt::join(s.bolt_z_m, ","), fmt::join(s.bolt_stiffness_n_m, ","), s.bolt_patch_half_length_m,
+      fmt::join(s.hole_z_m, ","), fmt::join(s.hole_theta_deg, ","), s.hole_diameter_m,
+      s.flange_mount_stiffness_n_m2, s.tool_mount_stiffness_n_m2, fmt::join(c.mics.z_m, ","),
+      fmt::join(c.mics.theta_deg, ","), c.mics.disc_diameter_m, c.max_frequency_hz);
+  // self-similar meshes only, so that the keys of graded meshes solved before stay
+  if (c.mesh.subdivisions != 0)
+    key +=
+        fmt::format(" subdivisions {} fixed {:.17g}", c.mesh.subdivisions, c.mesh.fixed_interval_m);
+  return key;
 }
 
 ReferenceTube::ReferenceTube(const ReferenceTubeConfig& config) : config_(config) {

@@ -162,6 +162,10 @@ void SolidTubeModel::BuildMesh() {
   // elements, placed differently by each mesh, made the modes converge irregularly); each interval
   // between is cut into elements of about element_axial_m (graded or self-similar, IntervalCut)
   const double half = 0.5 * tube_.length_m;
+  // one coordinate's cut: elements of about target_m, graded or self-similar as the mesh asks
+  auto cut_of = [&](double target_m) {
+    return IntervalCut{target_m, mesh_.subdivisions, mesh_.fixed_interval_m, kMinEdgeGapM};
+  };
   std::vector<double> breaks;
   if (!structure_.seam_theta_deg.empty()) {
     for (double zb : structure_.bolt_z_m) {
@@ -170,9 +174,7 @@ void SolidTubeModel::BuildMesh() {
     }
   }
   for (const HoleSquare& hole : holes_) breaks.insert(breaks.end(), {hole.z_lo_m, hole.z_hi_m});
-  z_edges_m_ = CutInterval(
-      -half, half, breaks,
-      {mesh_.element_axial_m, mesh_.subdivisions, mesh_.fixed_interval_m, kMinEdgeGapM});
+  z_edges_m_ = CutInterval(-half, half, breaks, cut_of(mesh_.element_axial_m));
   const int nz = static_cast<int>(z_edges_m_.size()) - 1;
   const double dr = h / nr;
   rows_ = nz * p + 1;
@@ -200,10 +202,9 @@ void SolidTubeModel::BuildMesh() {
       for (double th : {hole.theta_lo_rad, hole.theta_hi_rad})
         arc_breaks_m.push_back(WrapFrom(th, seams[s]) * r_mid);
     }
-    Sector sec{CutInterval(
-                   seams[s] * r_mid, next * r_mid, arc_breaks_m,
-                   {mesh_.element_arc_m, mesh_.subdivisions, mesh_.fixed_interval_m, kMinEdgeGapM}),
-               columns};
+    Sector sec{
+        CutInterval(seams[s] * r_mid, next * r_mid, arc_breaks_m, cut_of(mesh_.element_arc_m)),
+        columns};
     for (double& edge : sec.edges_rad) edge /= r_mid;
     arc_edges_rad_.insert(arc_edges_rad_.end(), sec.edges_rad.begin(), sec.edges_rad.end());
     const int ne = static_cast<int>(sec.edges_rad.size()) - 1;

@@ -136,10 +136,14 @@ TEST(ReferenceCliTest, GenerateRendersTheDrawnFractionWithTheReference) {
 TEST(ReferenceCliTest, LevelsSolvedApartAreReadBackByTheReport) {
   TempDir dir;
   const std::string cwd = dir.path().string();
+  // apps/reference_levels on the meshes of `args`, into cache directory `cache`: its exit status
+  auto solve_apart = [&](const std::string& args, const std::string& cache) {
+    const std::string tool = "'" + std::string(SONICBOOM_REFERENCE_LEVELS) + "'" + args +
+                             " --cache-dir " + cache + " > /dev/null";
+    return std::system(("cd '" + cwd + "' && " + tool).c_str());
+  };
   const std::string mesh = " --ideal --element-m 0.04 --max-frequency 1000 --levels 3 --ratio 1.2";
-  const std::string tool =
-      "'" + std::string(SONICBOOM_REFERENCE_LEVELS) + "'" + mesh + " --cache-dir L";
-  ASSERT_EQ(std::system(("cd '" + cwd + "' && " + tool + " > /dev/null").c_str()), 0) << tool;
+  ASSERT_EQ(solve_apart(mesh, "L"), 0) << mesh;
   const auto run = RunCli("reference" + mesh + " --cache-dir L --json -q", cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const auto j = nlohmann::json::parse(run.out);
@@ -147,10 +151,7 @@ TEST(ReferenceCliTest, LevelsSolvedApartAreReadBackByTheReport) {
   for (const auto& level : j["levels"]) EXPECT_TRUE(level["from_cache"].get<bool>());
   // a self-similar family the same way: its h falls as 1 / subdivisions exactly
   const std::string family = " --ideal --element-m 0.08 --max-frequency 1000 --subdivisions 2,3,4";
-  ASSERT_EQ(std::system(("cd '" + cwd + "' && '" + std::string(SONICBOOM_REFERENCE_LEVELS) + "'" +
-                         family + " --cache-dir S > /dev/null")
-                            .c_str()),
-            0);
+  ASSERT_EQ(solve_apart(family, "S"), 0) << family;
   const auto self_similar = RunCli("reference" + family + " --cache-dir S --json -q", cwd);
   ASSERT_EQ(self_similar.exit_code, 0) << self_similar.err;
   const auto js = nlohmann::json::parse(self_similar.out);
