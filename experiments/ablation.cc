@@ -130,6 +130,27 @@ double EpochSeconds(const std::string& metrics_jsonl) {
   return sum;
 }
 
+// The first of `runs` trained with exactly `config_yaml` (a finished run: model.json written
+// last), copied file by file into run_dir (model.json last); "" when none matches.
+std::string CopyIdenticalRun(const std::vector<std::string>& runs, const std::string& config_yaml,
+                             const std::string& run_dir) {
+  for (const std::string& run : runs) {
+    const fs::path from(run);
+    if (ReadText((from / "config.yaml").string()) != config_yaml) continue;
+    MakeDirectories(run_dir);
+    for (const fs::directory_entry& e : fs::directory_iterator(from)) {
+      if (e.is_regular_file() && e.path().filename() != "model.json") {
+        fs::copy_file(e.path(), fs::path(run_dir) / e.path().filename(),
+                      fs::copy_options::overwrite_existing);
+      }
+    }
+    fs::copy_file(from / "model.json", fs::path(run_dir) / "model.json",
+                  fs::copy_options::overwrite_existing);
+    return run;
+  }
+  return "";
+}
+
 std::string Join(const std::vector<std::string>& v) {
   std::string s;
   for (const std::string& x : v) s += (s.empty() ? "" : "+") + x;
@@ -153,20 +174,27 @@ std::string AblationTableMarkdown(const json& rows, bool descriptions) {
       "height (cm) | angle (deg) | train (s) "
       "|{}\n|---|---|---|---|---|---|---|---|---|---|---|{}\n",
       head, rule);
+  std::string copies;  // a footnote per row copied from a given run
   for (const json& a : rows) {
     const json& m = a["test"];
+    const json copied = a.value("copied_from", json());
+    if (copied.is_string()) {
+      copies += fmt::format("\n\\* {}: copied from {}, trained with the very same config.\n",
+                            a["name"].get<std::string>(), copied.get<std::string>());
+    }
     md += fmt::format(
-        "| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f} |",
+        "| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f}{} |",
         a["name"].get<std::string>(), Join(a["modalities"].get<std::vector<std::string>>()),
         on(a, "gating"), a["gcc_span_s"].get<double>(), on(a, "time_shift"), on(a, "masking"),
         on(a, "normalize"), m["med_cm"].get<double>(), m["height_err_cm"].get<double>(),
-        m["angle_err_deg"].get<double>(), a["train_s"].get<double>());
+        m["angle_err_deg"].get<double>(), a["train_s"].get<double>(),
+        copied.is_string() ? "\\*" : "");
     for (size_t k = 0; tests.size() > 1 && k < a["tests"].size(); ++k) {
       md += fmt::format(" {:.2f} |", a["tests"][k]["test"]["med_cm"].get<double>());
     }
     md += descriptions ? fmt::format(" {} |\n", a["description"].get<std::string>()) : "\n";
   }
-  return md;
+  return md + copies;
 }
 
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
@@ -176,6 +204,14 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
   for (const std::string& test : o.tests) {
     if (!fs::exists(test)) throw IoError(fmt::format("{}: no such dataset", test));
     inputs.push_back({test, "--test"});
+  }
+  for (const std::string& run : o.trained_runs) {
+    for (const char* file : {"config.yaml", "model.json"}) {
+      if (!fs::is_regular_file(fs::path(run) / file)) {
+        throw IoError(fmt::format("--reuse {}: not a finished run (no {})", run, file));
+      }
+    }
+    inputs.push_back({run, "--reuse"});
   }
   RefuseWritingOverInputs(g, {o.out}, inputs);
   const std::vector<Variant> variants = ListVariants(o.configs_dir, o.only);
@@ -202,9 +238,11 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
     spdlog::info("ablation {}/{}: {} ({})", i + 1, variants.size(), v.name, v.description);
 
     // a finished run of this variant trained with this very config is kept (model.json is
-    // written last); a killed one resumes from its last epoch; a run of another config (a changed
-    // file or layer) is removed and trained again
+    // written last); one of o.trained_runs with this very config is copied; a killed one resumes
+    // from its last epoch; a run of another config (a changed file or layer) is removed and
+    // trained again
     double train_s = 0.0;
+    std::string copied_from;
     const fs::path timing = fs::path(run_dir) / "ablation_train_s.txt";
     const fs::path config_file = fs::path(run_dir) / "config.yaml";
     const std::string config_yaml = ConfigToYaml(config);
@@ -214,8 +252,18 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
                    run_dir);
       fs::remove_all(run_dir);
     }
-    if (fs::exists(fs::path(run_dir) / "model.json") && fs::exists(timing)) {
+    const fs::path copied = fs::path(run_dir) / "ablation_copied_from.txt";
+    const bool finished = fs::exists(fs::path(run_dir) / "model.json") && fs::exists(timing);
+    if (!finished) copied_from = CopyIdenticalRun(o.trained_runs, config_yaml, run_dir);
+    if (finished) {
       train_s = std::stod(ReadText(timing.string()));
+      if (fs::exists(copied)) copied_from = ReadText(copied.string());
+    } else if (!copied_from.empty()) {
+      // the same network on the same strikes: the given run's model and its training time
+      spdlog::info("ablation {}: trained with the same config as {}; copied", v.name, copied_from);
+      train_s = EpochSeconds((fs::path(run_dir) / "metrics.jsonl").string());
+      WriteTextAtomic(copied.string(), copied_from);
+      WriteTextAtomic(timing.string(), fmt::format("{}\n", train_s));
     } else {
       MakeDirectories(run_dir);
       WriteTextAtomic(config_file.string(), config_yaml);
@@ -252,6 +300,7 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
                 {"masking", masks},
                 {"normalize", t.normalize},
                 {"train_s", train_s},
+                {"copied_from", copied_from.empty() ? json() : json(copied_from)},
                 {"test", by_test[0]["test"]},
                 {"tests", by_test}};
     rows.push_back(row);
@@ -289,6 +338,9 @@ void RegisterAblate(CLI::App& app, GlobalOptions& g, Runner* run) {
   ablate->add_option("--out", o->out, "output directory")->required();
   ablate->add_option("--configs", o->configs_dir, "directory of ablation YAML layers");
   ablate->add_option("--only", o->only, "ablation names to run (default all)")->delimiter(',');
+  ablate->add_option("--reuse", o->trained_runs,
+                     "a finished run trained on --data; a variant with its very config is copied "
+                     "from it, not trained again (repeat for more)");
   ablate->callback([&g, run, o] { *run = [&g, o] { return RunAblate(g, *o); }; });
 }
 

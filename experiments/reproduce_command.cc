@@ -452,22 +452,25 @@ class Reproduction {
   // the modality ablations over the scenario model, trained on ts1 and tested on every scenario
   // (paper Fig. 6): their rows
   json Ablations() {
+    // the row of every modality is the scenario model itself: copied, not trained again
     return Ablate("ablations", g_model_, size_.ablations, size_.ablations.size() * train_weight_,
-                  {std::begin(kScenarios), std::end(kScenarios)});
+                  {std::begin(kScenarios), std::end(kScenarios)}, {Path("model")});
   }
 
   // the preprocessing ablations on ts1 over the lightweight model (none: null)
   json Preprocessing() {
     if (size_.preprocessing.empty()) return json();
     return Ablate("preprocessing", g_light_, size_.preprocessing,
-                  kLightTrainFraction * size_.preprocessing.size() * train_weight_, {"ts1"});
+                  kLightTrainFraction * size_.preprocessing.size() * train_weight_, {"ts1"}, {});
   }
 
   // `ablate` of the configs/ablations layers `names` over `g`'s model into DIR/<stage>, tested on
-  // the held-out sets of `scenarios`: their rows
+  // the held-out sets of `scenarios` (a variant identical to one of `trained_runs` copied from
+  // it): their rows
   json Ablate(const std::string& stage, const GlobalOptions& g,
               const std::vector<std::string>& names, double weight,
-              const std::vector<std::string>& scenarios) {
+              const std::vector<std::string>& scenarios,
+              const std::vector<std::string>& trained_runs) {
     const std::string dir = Path(stage);
     std::string tests_key;
     for (const std::string& ts : scenarios) tests_key += data_key_[ts];
@@ -485,6 +488,7 @@ class Reproduction {
                    a.out = dir;
                    a.configs_dir = (cfg_ / "ablations").string();
                    a.only = names;
+                   a.trained_runs = trained_runs;
                    RunAblate(g, a);
                  });
     return json::parse(ReadText(dir + "/results.json"))["ablations"];

@@ -1,5 +1,6 @@
 // `sonicboom ablate`: every config of a directory trained and evaluated into one table;
-// finished runs reused; a bad config refused before any training.
+// finished runs reused, a variant identical to a given run copied; a bad config refused before
+// any training.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -97,6 +98,50 @@ TEST(AblateTest, TrainsEveryConfigIntoOneTableAndReusesFinishedRuns) {
   const std::string yaml((std::istreambuf_iterator<char>(config)),
                          std::istreambuf_iterator<char>());
   EXPECT_NE(yaml.find("learning_rate: 0.01"), std::string::npos);
+}
+
+std::string ReadAll(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+TEST(AblateTest, VariantIdenticalToAGivenRunIsCopiedNotTrained) {
+  TempDir dir;
+  ASSERT_EQ(RunCli(kTiny + "generate --count 16 --out D.h5 -q", dir.path().string()).exit_code, 0);
+  auto run = RunCli(kTiny + "train --data D.h5 --out M -q", dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  Write(dir / "abl/01-all.yaml", "# every modality\n{}\n");
+  Write(dir / "abl/02-proprio.yaml", "# proprioception only\nmodel:\n  modalities: [proprio]\n");
+  const std::string cmd =
+      kTiny + "ablate --data D.h5 --test D.h5 --out A --configs abl --reuse M --json";
+  run = RunCli(cmd, dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  json j = json::parse(run.out);
+  // `all` is M's network on M's strikes: M's files and training time, said in the row and table
+  EXPECT_EQ(ReadAll(dir / "A/all/model.pt"), ReadAll(dir / "M/model.pt"));
+  EXPECT_EQ(ReadAll(dir / "A/all/metrics.jsonl"), ReadAll(dir / "M/metrics.jsonl"));
+  EXPECT_EQ(j["ablations"][0]["copied_from"], "M");
+  double m_seconds = 0.0;
+  std::ifstream metrics(dir / "M/metrics.jsonl");
+  for (std::string line; std::getline(metrics, line);) {
+    m_seconds += json::parse(line)["epoch_seconds"].get<double>();
+  }
+  EXPECT_DOUBLE_EQ(j["ablations"][0]["train_s"].get<double>(), m_seconds);
+  EXPECT_NE(run.err.find("copied"), std::string::npos) << run.err;
+  // another config is trained: not M's network
+  EXPECT_TRUE(j["ablations"][1]["copied_from"].is_null());
+  EXPECT_NE(ReadAll(dir / "A/proprio/model.pt"), ReadAll(dir / "M/model.pt"));
+  EXPECT_NE(ReadAll(dir / "A/table.md").find("\\* all: copied from M"), std::string::npos);
+  // reused on a second run, still said to be a copy
+  run = RunCli(cmd, dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json::parse(run.out)["ablations"][0]["copied_from"], "M");
+  // a run that is not a finished one is refused, naming the option
+  run = RunCli(kTiny + "ablate --data D.h5 --test D.h5 --out B --configs abl --reuse nowhere",
+               dir.path().string());
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("--reuse nowhere"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "B/all"));
 }
 
 TEST(AblateTest, BadConfigIsRefusedBeforeAnyTraining) {

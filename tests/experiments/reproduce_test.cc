@@ -51,6 +51,10 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   }
   EXPECT_EQ(r["scenarios"]["ts1"]["paper_med_cm"], 0.43);
   EXPECT_EQ(r["ablations"].size(), 2u);
+  // the row of every modality is the scenario model's own run, copied; the others are trained
+  EXPECT_EQ(fs::path(r["ablations"][0]["copied_from"].get<std::string>()).filename(), "model");
+  EXPECT_TRUE(r["ablations"][1]["copied_from"].is_null());
+  EXPECT_TRUE(r["preprocessing"][0]["copied_from"].is_null());
   // the preprocessing ablation: the lightweight network (configs/study_fast.yaml's) over the
   // scenario model's features, each layer's switch on top
   ASSERT_EQ(r["preprocessing"].size(), 2u);

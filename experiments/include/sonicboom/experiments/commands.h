@@ -73,9 +73,13 @@ struct AblateOptions {
   std::string out;                               // one run directory per ablation + table.md
   std::string configs_dir{"configs/ablations"};  // one YAML layer per ablation
   std::vector<std::string> only;                 // names to run (empty = all)
+  // finished runs trained on `data` (e.g. the scenario model): a variant whose resolved config
+  // equals one's config.yaml copies that run instead of training the same network again
+  std::vector<std::string> trained_runs;
 };
 /// Trains and evaluates every ablation of o.configs_dir (each layered after the --config files,
-/// before the --set overrides); finished runs are reused. Writes out/table.md, out/results.json.
+/// before the --set overrides); finished runs are reused, and a variant identical to one of
+/// o.trained_runs is copied from it. Writes out/table.md, out/results.json.
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o);
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv, bool force);
