@@ -64,15 +64,16 @@ CommandResult RunBaseline(const GlobalOptions& g, const BaselineOptions& o) {
     detail = fmt::format(" (no training; median fitted speed {:.0f} m/s)", median_speed);
   } else if (o.method == BaselineMethod::kKnn) {
     // pooled log-mel (+ GCC lags) of the training strikes, k nearest by standardized distance
-    const learning::FeatureSet train = ComputeDatasetFeatures(o.train, config, g.threads, !g.quiet);
-    truth = ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet);
     learning::KnnConfig knn_config;
     knn_config.k = o.k;
     knn_config.crop_frames = config.model.crop_frames;
     knn_config.mel_is_log = config.features.log_mel;
     knn_config.gcc_lags = o.knn_gcc_lags;
     knn_config.threads = g.threads;
-    const learning::KnnBaseline knn(train, knn_config);
+    KnnFits own_fit;
+    KnnFits& fits = o.knn_fits ? *o.knn_fits : own_fit;
+    const learning::KnnBaseline& knn = fits.Get(o.train, config, knn_config, g.threads, !g.quiet);
+    truth = ComputeDatasetFeatures(o.data, config, g.threads, !g.quiet);
     predictions = knn.Predict(truth);
     extra = {{"train_n", knn.size()},
              {"k", o.k},

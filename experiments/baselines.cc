@@ -6,15 +6,19 @@
 #include <tbb/task_arena.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include <fmt/format.h>
 
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/dsp/features.h"
+#include "sonicboom/experiments/pipeline.h"
 
 namespace sonicboom::experiments {
 namespace {
+
+namespace fs = std::filesystem;
 
 // the labels of valid records
 learning::FeatureSet LabelsOf(const ValidRecords& valid) {
@@ -118,6 +122,26 @@ std::vector<learning::Prediction> LocateAll(const acoustics::TdoaLocator& locato
     });
   });
   return out;
+}
+
+const learning::KnnBaseline& KnnFits::Get(const std::string& train_path,
+                                          const SonicBoomConfig& config,
+                                          const learning::KnnConfig& knn, int threads,
+                                          bool progress) {
+  // everything the fit is made from: every KnnConfig field but the worker count, which changes
+  // nothing in it
+  const std::string key =
+      fmt::format("{}\n{}\n{}\n{}\n{} {} {} {} {} {} {} {}", train_path, fs::file_size(train_path),
+                  fs::last_write_time(train_path).time_since_epoch().count(), ConfigToYaml(config),
+                  knn.k, knn.crop_frames, knn.pooled_frames, knn.mel_is_log, knn.log_floor,
+                  knn.gcc_lags, knn.gcc_weight, knn.distance_weighted);
+  if (knn_ && key == key_) return *knn_;
+  knn_.reset();  // the last fit's rows go before the next one's features are computed
+  const learning::FeatureSet train = ComputeDatasetFeatures(train_path, config, threads, progress);
+  knn_ = std::make_unique<learning::KnnBaseline>(train, knn);
+  key_ = key;
+  ++fitted_;
+  return *knn_;
 }
 
 }  // namespace sonicboom::experiments

@@ -9,6 +9,7 @@
 #include "sonicboom/acoustics/arrival.h"
 #include "sonicboom/acoustics/tdoa.h"
 #include "sonicboom/experiments/config.h"
+#include "sonicboom/learning/baselines.h"
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::experiments {
@@ -43,5 +44,22 @@ std::vector<learning::Prediction> LocateByArrival(
     const std::string& dataset_path, const SonicBoomConfig& config,
     const acoustics::ArrivalLocator& locator, int threads, bool show_progress,
     learning::FeatureSet* labels, std::vector<acoustics::ArrivalEstimate>* estimates);
+
+/// The last kNN fitted, kept for the test sets that follow (reproduce scores four scenarios
+/// against one training set; a fit of 18 000 strikes computes their features, minutes here).
+/// The fit is keyed by the training file (path, size, modification time), the config and the
+/// kNN's settings; another key fits again and drops the last.
+class KnnFits {
+ public:
+  /// The kNN of `train_path`'s features under `config`, fitted on `threads` workers.
+  const learning::KnnBaseline& Get(const std::string& train_path, const SonicBoomConfig& config,
+                                   const learning::KnnConfig& knn, int threads, bool progress);
+  int64_t fitted() const { return fitted_; }  // fits made so far
+
+ private:
+  std::string key_;
+  std::unique_ptr<learning::KnnBaseline> knn_;
+  int64_t fitted_{0};
+};
 
 }  // namespace sonicboom::experiments

@@ -3,6 +3,7 @@
 /// and its human-readable report as text; the CLI prints one of the two on stdout.
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,8 @@
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::experiments {
+
+class KnnFits;  // experiments/baselines.h
 
 /// Options shared by every subcommand.
 struct GlobalOptions {
@@ -174,6 +177,8 @@ struct BaselineOptions {
   bool non_dispersive{false};    // tdoa: one speed for every band
   bool no_fit{false};            // tdoa: keep the analytic speeds (scale 1)
   int64_t fit_strikes{300};      // tdoa: training strikes used by the speed fit
+  // knn: fits kept across calls (reproduce's four scenarios share one); null: fit this call
+  std::shared_ptr<KnnFits> knn_fits;
 };
 /// A baseline's metrics on `data`, with the keys of `eval --json` plus "method" and the
 /// method's own fields. The config's base layer is the test dataset's own config.
