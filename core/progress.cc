@@ -14,14 +14,14 @@ namespace {
 
 std::atomic<bool> g_quiet{false};
 
-std::string FormatSeconds(double s) {
-  if (s < 0 || !std::isfinite(s)) return "?";
-  const int total = static_cast<int>(s + 0.5);
-  return total >= 60 ? fmt::format("{}m{:02d}s", total / 60, total % 60)
-                     : fmt::format("{}s", total);
-}
-
 }  // namespace
+
+std::string FormatDuration(double seconds) {
+  if (seconds < 0 || !std::isfinite(seconds)) return "?";
+  const int64_t s = std::llround(seconds);
+  if (s >= 3600) return fmt::format("{}h{:02d}m", s / 3600, (s % 3600) / 60);
+  return s >= 60 ? fmt::format("{}m{:02d}s", s / 60, s % 60) : fmt::format("{}s", s);
+}
 
 void Progress::SetQuiet(bool quiet) {
   g_quiet = quiet;
@@ -79,8 +79,8 @@ void Progress::Draw(bool final_line) {
   const double frac = total_ > 0 ? static_cast<double>(done) / total_ : 1.0;
   std::string text =
       fmt::format("{} {}/{} ({:.0f}%) {:.1f}/s elapsed {} eta {}{}{}", label_, done, total_,
-                  100 * frac, rate, FormatSeconds(elapsed), final_line ? "0s" : FormatSeconds(eta),
-                  status_.empty() ? "" : "  ", status_);
+                  100 * frac, rate, FormatDuration(elapsed),
+                  final_line ? "0s" : FormatDuration(eta), status_.empty() ? "" : "  ", status_);
   if (tty_) {
     // bar redrawn in place
     const int width = 24;

@@ -24,6 +24,7 @@
 #include "internal/train_step.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/core/progress.h"
 #include "sonicboom/core/rng.h"
 #include "sonicboom/learning/learning.h"
 
@@ -227,12 +228,6 @@ void AppendLine(const std::string& path, const std::string& line) {
   out << line << "\n";
   out.flush();
   if (!out) throw IoError(fmt::format("{}: cannot append", path));
-}
-
-std::string FormatDuration(double seconds) {
-  const int64_t s = std::llround(std::max(0.0, seconds));
-  return s >= 3600 ? fmt::format("{}h{:02}m", s / 3600, (s % 3600) / 60)
-                   : fmt::format("{}m{:02}s", s / 60, s % 60);
 }
 
 // Checks the configs and features before anything is written; returns the training records

@@ -10,6 +10,9 @@
 
 namespace sonicboom {
 
+/// A duration as a log line shows it: "42s", "3m07s", "2h05m"; "?" when negative or not finite.
+std::string FormatDuration(double seconds);
+
 class Progress {
  public:
   Progress(std::string label, int64_t total, bool enabled = true);
