@@ -9,9 +9,11 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <set>
@@ -419,21 +421,28 @@ class Reproduction {
                                                                kStudyEpochS * kLightTrainFraction);
     const TransferSize& t = size_.transfer;
     const SonicBoomConfig transfer = ResolveConfig(TransferModel().sources);
+    transfer_epochs_ = transfer.train.epochs;
     transfer_epoch_s_ = kTransferEpochS * transfer.train.ensemble_members;
-    double shots_weight = 0.0;
-    for (const int64_t n : t.shots) {
-      shots_weight += n * (kGenerateS + kSolidRenderS) + TrainSeconds(n, 40, transfer_epoch_s_) +
-                      TrainSeconds(n, transfer.train.epochs, transfer_epoch_s_) +
-                      2.0 * size_.test * kScoreS;
+    // the stages in the order they run, each weighed as its call below weighs it
+    const double n_scenarios = std::size(kScenarios);
+    const bool knn =
+        std::count(size_.baselines.begin(), size_.baselines.end(), BaselineMethod::kKnn) > 0;
+    double total = size_.train * kGenerateS + n_scenarios * TestGenerateWeight() + train_weight_ +
+                   n_scenarios * (1.0 + size_.baselines.size()) * ScoreWeight() +
+                   (knn ? KnnFitWeight() : 0.0);
+    if (fs::is_regular_file(cfg_ / "materials.yaml")) total += TestGenerateWeight() + ScoreWeight();
+    total += AblationWeight() + n_scenarios * ScoreWeight();
+    if (!size_.preprocessing.empty()) {
+      total += size_.preprocessing.size() * light_weight_ + ScoreWeight();
     }
-    const double scenarios =
-        4.0 * size_.test * (kGenerateS + kScoreS * (1 + size_.baselines.size()));
-    const double total = size_.train * (kGenerateS + kFeaturesS) + scenarios + train_weight_ +
-                         2.0 * size_.test * (kGenerateS + kScoreS) + AblationWeight() +
-                         size_.preprocessing.size() * light_weight_ + size_.test * kScoreS +
-                         t.train * kGenerateS +
-                         TrainSeconds(t.train, transfer.train.epochs, transfer_epoch_s_) +
-                         size_.test * (kSolidRenderS + 4.0 * kScoreS) + shots_weight + 1.0;
+    total += ScoreWeight();  // the map
+    total += t.train * kGenerateS + TrainSeconds(t.train, transfer_epochs_, transfer_epoch_s_) +
+             RerenderWeight(size_.test) + 4.0 * ScoreWeight();
+    for (const int64_t n : t.shots) {
+      total += n * kGenerateS + RerenderWeight(n) + FewShotWeight(n, /*fine_tune=*/true) +
+               FewShotWeight(n, /*fine_tune=*/false) + 2.0 * ScoreWeight();
+    }
+    total += 1.0;  // the figures
     MakeDirectories(Path("data"));
     MakeDirectories(Path("transfer"));
     stages_ = std::make_unique<StageRunner>(o.out, total, !g.quiet);
@@ -514,7 +523,7 @@ class Reproduction {
     stages_->Run(stage,
                  Digest(ConfigKey(g) + data_key_["train"] + tests_key +
                         fmt::format("{}", fmt::join(names, ","))),
-                 weight + scenarios.size() * size_.test * kScoreS, [&] {
+                 weight + scenarios.size() * ScoreWeight(), [&] {
                    // kept: ablate reuses a variant trained with the same config and resumes a
                    // killed one (a paper-size run spans several sittings)
                    AblateOptions a;
@@ -533,7 +542,7 @@ class Reproduction {
 
   // the haptic map of the ts3 taps: its scores
   json Map() {
-    stages_->Run("map", Digest(model_key_ + data_key_["ts3"]), size_.test * kScoreS, [&] {
+    stages_->Run("map", Digest(model_key_ + data_key_["ts3"]), ScoreWeight(), [&] {
       MapOptions m;
       m.model = Path("model");
       m.data = Path("data/test_ts3.h5");
@@ -564,7 +573,7 @@ class Reproduction {
     const GlobalOptions g_transfer = TransferModel();
     const std::string transfer_key =
         stages_->Run("train_transfer", Digest(ConfigKey(g_transfer) + data_key_["transfer_train"]),
-                     TrainSeconds(t.train, EpochsOf(g_transfer), transfer_epoch_s_), [&] {
+                     TrainSeconds(t.train, transfer_epochs_, transfer_epoch_s_), [&] {
                        TrainOptions o;
                        o.data = Path("data/transfer_train.h5");
                        o.out = Path("transfer/model");
@@ -645,6 +654,16 @@ class Reproduction {
                    sets);
   }
 
+  // the cost model's seconds of a stage: the size's held-out strikes scored; the kNN's fit on
+  // the training strikes; `strikes` rendered by the solid; a few-shot training on n strikes
+  double ScoreWeight() const { return size_.test * kScoreS; }
+  double TestGenerateWeight() const { return size_.test * kGenerateS; }
+  double KnnFitWeight() const { return size_.train * kFeaturesS; }
+  static double RerenderWeight(int64_t strikes) { return strikes * kSolidRenderS; }
+  double FewShotWeight(int64_t n, bool fine_tune) const {
+    return TrainSeconds(n, fine_tune ? kFineTuneEpochs : transfer_epochs_, transfer_epoch_s_);
+  }
+
   // the modality ablations' seconds: every variant trained but `all`, which is the model copied
   double AblationWeight() const {
     const auto copied = std::count(size_.ablations.begin(), size_.ablations.end(), "all");
@@ -673,7 +692,7 @@ class Reproduction {
     const GlobalOptions gt = Layered(g_, {Config(config)});
     return stages_->Run(
         "generate_" + name, Digest(size_.name + DataKey(gt) + std::to_string(size_.test)),
-        size_.test * kGenerateS, [&] {
+        TestGenerateWeight(), [&] {
           RunGenerate(gt, Path(fmt::format("data/test_{}.h5", name)), size_.test,
                       kTestFirstIndex, "0", 1, true);
         });
@@ -688,7 +707,7 @@ class Reproduction {
   json EvaluateRun(const std::string& name, const std::string& run, const std::string& run_key,
                    const std::string& data, bool with_predictions = false) {
     const std::string result = Path(fmt::format("eval/{}.json", name));
-    stages_->Run("eval_" + name, Digest(run_key + data_key_[data]), size_.test * kScoreS, [&] {
+    stages_->Run("eval_" + name, Digest(run_key + data_key_[data]), ScoreWeight(), [&] {
       MakeDirectories(Path("eval"));
       EvalOptions e;
       if (with_predictions) e.predictions_csv = Path(fmt::format("eval/{}.csv", name));
@@ -709,8 +728,7 @@ class Reproduction {
     const std::string key = stages_->Run(
         fmt::format("{}_{}", fine_tune ? "tune" : "scratch", shots),
         Digest((fine_tune ? transfer_key : ConfigKey(g_transfer)) + data_key_[data]),
-        TrainSeconds(n, fine_tune ? kFineTuneEpochs : EpochsOf(g_transfer), transfer_epoch_s_),
-        [&] {
+        FewShotWeight(n, fine_tune), [&] {
           TrainOptions o;
           o.data = Path(fmt::format("data/test_{}.h5", data));
           o.out = Path(run);
@@ -736,7 +754,7 @@ class Reproduction {
     const TransferSize& t = size_.transfer;
     return stages_->Run("rerender_" + name,
                         Digest(data_key + fmt::format("{} {}", t.solid_band_hz, t.solid_element_m)),
-                        strikes * kSolidRenderS, [&] {
+                        RerenderWeight(strikes), [&] {
                           RerenderOptions o;
                           o.in = Path(fmt::format("data/test_{}.h5", name));
                           o.out = Path(fmt::format("data/test_{}_solid.h5", name));
@@ -754,11 +772,10 @@ class Reproduction {
     // asked twice in one run (the scenarios' and the transfer study's arrival locator): once
     if (!scored_.insert(file).second) return json::parse(ReadText(file));
     // the kNN's fit (the training strikes' features) falls to its first scenario
-    const double fit_s =
-        m == BaselineMethod::kKnn && ts == kScenarios[0] ? size_.train * kFeaturesS : 0.0;
+    const double fit_s = m == BaselineMethod::kKnn && ts == kScenarios[0] ? KnnFitWeight() : 0.0;
     stages_->Run(fmt::format("baseline_{}_{}", name, ts),
                  Digest(name + data_key_["train"] + data_key_[ts] + ConfigKey(g_)),
-                 size_.test * kScoreS + fit_s, [&] {
+                 ScoreWeight() + fit_s, [&] {
                    MakeDirectories(Path("baselines"));
                    BaselineOptions b;
                    b.method = m;
@@ -780,6 +797,7 @@ class Reproduction {
   GlobalOptions g_model_, g_light_;  // the scenario model's and the lightweight model's
   double train_weight_{0.0};         // the scenario model's training, cost-model seconds
   double light_weight_{0.0};         // one preprocessing row's training
+  int64_t transfer_epochs_{0};       // the transfer network's epochs at this size
   double transfer_epoch_s_{0.0};     // one strike through an epoch of the transfer ensemble
   std::unique_ptr<StageRunner> stages_;
   std::map<std::string, std::string> data_key_;
