@@ -128,18 +128,19 @@ const learning::KnnBaseline& KnnFits::Get(const std::string& train_path,
                                           const SonicBoomConfig& config,
                                           const learning::KnnConfig& knn, int threads,
                                           bool progress) {
-  // everything the fit is made from: every KnnConfig field but the worker count, which changes
-  // nothing in it
-  const std::string key =
-      fmt::format("{}\n{}\n{}\n{}\n{} {} {} {} {} {} {} {}", train_path, fs::file_size(train_path),
-                  fs::last_write_time(train_path).time_since_epoch().count(), ConfigToYaml(config),
-                  knn.k, knn.crop_frames, knn.pooled_frames, knn.mel_is_log, knn.log_floor,
-                  knn.gcc_lags, knn.gcc_weight, knn.distance_weighted);
-  if (knn_ && key == key_) return *knn_;
+  // everything the fit is made from: the training file, the config and every KnnConfig field
+  // but the worker count, which changes nothing in it
+  const std::string file_key =
+      fmt::format("{}\n{}\n{}\n{}", train_path, fs::file_size(train_path),
+                  fs::last_write_time(train_path).time_since_epoch().count(), ConfigToYaml(config));
+  learning::KnnConfig settings = knn;
+  settings.threads = 0;
+  if (knn_ && file_key == file_key_ && settings == settings_) return *knn_;
   knn_.reset();  // the last fit's rows go before the next one's features are computed
   const learning::FeatureSet train = ComputeDatasetFeatures(train_path, config, threads, progress);
   knn_ = std::make_unique<learning::KnnBaseline>(train, knn);
-  key_ = key;
+  file_key_ = file_key;
+  settings_ = settings;
   ++fitted_;
   return *knn_;
 }

@@ -1,5 +1,5 @@
 // The baselines on dataset files: one kNN fit shared by several test sets scores them exactly as
-// a fit of its own would, and a changed setting fits again.
+// a fit of its own would, a changed setting fits again and the worker count is no setting.
 #include <gtest/gtest.h>
 
 #include <memory>
@@ -52,6 +52,13 @@ TEST(KnnFitsTest, OneFitScoresEveryTestSetAsItsOwnFitWould) {
   const json k3 = json::parse(experiments::RunBaseline(g, o).json);
   EXPECT_EQ(fits->fitted(), 2);
   EXPECT_EQ(k3["k"], 3);
+  // another worker count changes nothing in the fit; other GCC lags do
+  g.threads = 2;
+  EXPECT_EQ(json::parse(experiments::RunBaseline(g, o).json).dump(), k3.dump());
+  EXPECT_EQ(fits->fitted(), 2);
+  o.knn_gcc_lags = 10;
+  experiments::RunBaseline(g, o);
+  EXPECT_EQ(fits->fitted(), 3);
 }
 
 }  // namespace

@@ -57,7 +57,8 @@ class KnnFits {
   int64_t fitted() const { return fitted_; }  // fits made so far
 
  private:
-  std::string key_;
+  std::string file_key_;          // the training file and the config
+  learning::KnnConfig settings_;  // the kNN's, worker count zeroed
   std::unique_ptr<learning::KnnBaseline> knn_;
   int64_t fitted_{0};
 };

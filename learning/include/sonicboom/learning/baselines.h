@@ -25,6 +25,7 @@ struct KnnConfig {
 
   /// Throws ConfigError naming the field as "knn.<field>".
   void Validate() const;
+  bool operator==(const KnnConfig&) const = default;  // every field, a field added later too
 };
 
 /// Brute-force kNN on standardized features: every dimension centred and scaled by the training
