@@ -1,6 +1,6 @@
 // `reproduce --size smoke`: every stage runs into one report with its figures, a second run
-// reuses every stage, and a changed training key reruns the training and what reads it, not the
-// data.
+// reuses every stage, a stage a stopped run left unfinished is run again and marked resumed, and a
+// changed training key reruns the training and what reads it, not the data.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -27,6 +27,16 @@ std::map<std::string, bool> ReusedOf(const fs::path& results) {
   std::map<std::string, bool> reused;
   for (const json& s : r["wall_s"]) reused[s["stage"]] = s["reused"];
   return reused;
+}
+
+// the wall_s entry of one stage in results.json
+json StageOf(const fs::path& results, const std::string& name) {
+  json r;
+  std::ifstream(results) >> r;
+  for (const json& s : r["wall_s"]) {
+    if (s["stage"] == name) return s;
+  }
+  return json();
 }
 
 TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
@@ -97,6 +107,21 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   for (const auto& [stage, reused] : ReusedOf(out / "results.json")) EXPECT_TRUE(reused) << stage;
 
+  // the map's stage as a stopped process leaves it (begun, not stamped): run again and marked
+  // resumed, since its wall time is the finishing process's share
+  const fs::path stamps = out / "stamps";
+  fs::copy_file(stamps / "map.key", stamps / "map.started");
+  fs::remove(stamps / "map.key");
+  run = RunCli(cmd, cwd);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_FALSE(StageOf(out / "results.json", "map")["reused"].get<bool>());
+  EXPECT_TRUE(StageOf(out / "results.json", "map")["resumed"].get<bool>());
+  EXPECT_FALSE(StageOf(out / "results.json", "train")["resumed"].get<bool>());
+  EXPECT_FALSE(fs::exists(stamps / "map.started"));
+  std::ifstream resumed_report(out / "report.md");
+  EXPECT_THAT(std::string((std::istreambuf_iterator<char>(resumed_report)), {}),
+              ::testing::ContainsRegex("\\| map \\| [0-9.]+\\* \\| ran \\|"));
+
   // another learning rate: the data stay, the model and everything that reads it run again;
   // progress shown, the ETA from the cost model until enough has run to pace it (reused stages
   // take no time)
@@ -120,6 +145,8 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
         "train_transfer", "tune_shots12", "eval_tuned_shots12_ts4_solid"}) {
     EXPECT_FALSE(reused.at(stage)) << stage;
   }
+  // rerun for a new key, the map is no longer a resumed stage
+  EXPECT_FALSE(StageOf(out / "results.json", "map")["resumed"].get<bool>());
 }
 
 TEST(ReproduceTest, AnUnknownSizeOrMissingConfigsAreRefused) {
