@@ -167,14 +167,14 @@ class StageRunner {
                    fresh ? ": reused" : (resuming ? ": resumed" : ""));
     }
     // the stage's wall time when it ran, kept beside its stamp
+    double s = 0.0;
     if (!fresh) {
       fs::remove(stamp);
       fs::remove(resumed_mark);
       WriteTextAtomic(started.string(), key);
       const auto t0 = std::chrono::steady_clock::now();
       body();
-      const double s =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       WriteTextAtomic(wall.string(), fmt::format("{}", s));
       if (resuming) WriteTextAtomic(resumed_mark.string(), key);
       WriteTextAtomic(stamp.string(), key);
@@ -185,16 +185,20 @@ class StageRunner {
                        {"reused", fresh},
                        {"resumed", fs::exists(resumed_mark)}});
     done_ += weight;
-    if (!fresh) ran_ += weight;
+    // a resumed stage ran only its rest here: its weight and seconds would overstate the pace
+    if (!fresh && !resuming) {
+      ran_ += weight;
+      ran_s_ += s;
+    }
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     // the ETA: the cost model's seconds left, rescaled by the pace of the stages this run
-    // computed once they are long enough to tell (reused ones took no time)
+    // computed whole once they are long enough to tell (reused ones took no time)
     if (progress_ && done_ < total_) {
       const bool paced = ran_ >= kPacedAfterS;
       spdlog::info("reproduce: {:.0f} % of the work done, {:.0f} s elapsed, ETA {}{}",
                    100.0 * done_ / total_, elapsed,
-                   FormatDuration((paced ? elapsed / ran_ : 1.0) * (total_ - done_)),
+                   FormatDuration((paced ? ran_s_ / ran_ : 1.0) * (total_ - done_)),
                    paced ? "" : " (this project's 2-core machine's pace)");
     }
     return key;
@@ -204,7 +208,8 @@ class StageRunner {
  private:
   std::string dir_;
   static constexpr double kPacedAfterS = 300.0;  // cost-model seconds run before the pace counts
-  double total_, done_{0.0}, ran_{0.0};  // weights: all, done, done by this run
+  double total_, done_{0.0}, ran_{0.0};          // weights: all, done, run whole by this process
+  double ran_s_{0.0};                            // wall seconds of the stages run whole here
   bool progress_;
   int stage_{0};
   std::chrono::steady_clock::time_point start_;
