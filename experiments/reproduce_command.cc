@@ -173,7 +173,9 @@ class StageRunner {
       fs::remove(resumed_mark);
       WriteTextAtomic(started.string(), key);
       const auto t0 = std::chrono::steady_clock::now();
+      resuming_ = resuming;
       body();
+      resuming_ = false;
       s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       WriteTextAtomic(wall.string(), fmt::format("{}", s));
       if (resuming) WriteTextAtomic(resumed_mark.string(), key);
@@ -204,6 +206,8 @@ class StageRunner {
     return key;
   }
   const json& wall_s() const { return wall_s_; }
+  // inside a stage's body: whether a stopped process had begun this stage with the same key
+  bool resuming() const { return resuming_; }
 
  private:
   std::string dir_;
@@ -212,6 +216,7 @@ class StageRunner {
   double ran_s_{0.0};                            // wall seconds of the stages run whole here
   bool progress_;
   int stage_{0};
+  bool resuming_{false};
   std::chrono::steady_clock::time_point start_;
   json wall_s_ = json::array();  // in the order run
 };
@@ -328,14 +333,9 @@ class Reproduction {
 
   // the scenario model on ts1
   void TrainModel() {
-    model_key_ = stages_->Run("train", Digest(ConfigKey(g_model_) + data_key_["train"]),
-                              train_weight_, [&] {
-                                TrainOptions t;
-                                t.data = Path("data/train.h5");
-                                t.out = Path("model");
-                                t.force = true;
-                                RunTrain(g_model_, t);
-                              });
+    model_key_ =
+        stages_->Run("train", Digest(ConfigKey(g_model_) + data_key_["train"]), train_weight_,
+                     [&] { RunTrain(g_model_, StageTrain("data/train.h5", "model")); });
   }
 
   // the model and the baselines on every scenario: (scenarios, baselines)
@@ -439,15 +439,10 @@ class Reproduction {
         t.train * kGenerateS,
         [&] { RunGenerate(g_rand, Path("data/transfer_train.h5"), t.train, 0, "0", 1, true); });
     const GlobalOptions g_transfer = TransferModel();
-    const std::string transfer_key =
-        stages_->Run("train_transfer", Digest(ConfigKey(g_transfer) + data_key_["transfer_train"]),
-                     TrainSeconds(t.train, transfer_epochs_, transfer_epoch_s_), [&] {
-                       TrainOptions o;
-                       o.data = Path("data/transfer_train.h5");
-                       o.out = Path("transfer/model");
-                       o.force = true;
-                       RunTrain(g_transfer, o);
-                     });
+    const std::string transfer_key = stages_->Run(
+        "train_transfer", Digest(ConfigKey(g_transfer) + data_key_["transfer_train"]),
+        TrainSeconds(t.train, transfer_epochs_, transfer_epoch_s_),
+        [&] { RunTrain(g_transfer, StageTrain("data/transfer_train.h5", "transfer/model")); });
     // the held-out ts4 strikes, rendered by the solid: zero-shot, beside the arrival locator
     data_key_["ts4_solid"] = Rerender("ts4", data_key_["ts4"], size_.test);
     json rows = json::object();
@@ -502,6 +497,18 @@ class Reproduction {
   }
 
   std::string Path(const std::string& rel) const { return (out_ / rel).string(); }
+
+  // A training stage's options: a run begun by a stopped process (the stage's key, which holds
+  // the config and data, is the same) resumes from the last epoch's checkpoint in OUT.partial;
+  // otherwise the run is trained afresh over any earlier one.
+  TrainOptions StageTrain(const std::string& data, const std::string& out) const {
+    TrainOptions o;
+    o.data = Path(data);
+    o.out = Path(out);
+    o.resume = stages_->resuming() && fs::exists(o.out + ".partial");
+    o.force = !o.resume;
+    return o;
+  }
   const ReproduceSize& size() const { return size_; }
   uint64_t seed() const { return ResolveConfig(g_model_.sources).seed; }
   const json& wall_s() const { return stages_->wall_s(); }
