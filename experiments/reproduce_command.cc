@@ -153,13 +153,16 @@ class StageRunner {
   // Runs `body` unless stage `name` finished with `key`; returns the key.
   std::string Run(const std::string& name, const std::string& key, double weight,
                   const std::function<void()>& body) {
-    const fs::path stamp = fs::path(dir_) / "stamps" / (name + ".key");
-    const fs::path wall = fs::path(dir_) / "stamps" / (name + ".wall_s");
+    const auto stamp_file = [&](const char* suffix) {
+      return fs::path(dir_) / "stamps" / (name + suffix);
+    };
+    const fs::path stamp = stamp_file(".key");
+    const fs::path wall = stamp_file(".wall_s");
     // holds the key of a run of the stage that began and has not finished (a killed process's)
-    const fs::path started = fs::path(dir_) / "stamps" / (name + ".started");
+    const fs::path started = stamp_file(".started");
     // present when the stage finished in a process that resumed it: its wall time is that
     // process's share
-    const fs::path resumed_mark = fs::path(dir_) / "stamps" / (name + ".resumed");
+    const fs::path resumed_mark = stamp_file(".resumed");
     const bool fresh = fs::exists(stamp) && fs::exists(wall) && ReadText(stamp.string()) == key;
     const bool resuming = !fresh && fs::exists(started) && ReadText(started.string()) == key;
     if (progress_) {

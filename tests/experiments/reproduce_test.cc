@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "sonicboom/core/files.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -118,26 +119,21 @@ TEST(ReproduceTest, SmokeWritesTheReportAndRerunsOnlyWhatAChangeTouches) {
   EXPECT_TRUE(StageOf(out / "results.json", "map")["resumed"].get<bool>());
   EXPECT_FALSE(StageOf(out / "results.json", "train")["resumed"].get<bool>());
   EXPECT_FALSE(fs::exists(stamps / "map.started"));
-  std::ifstream resumed_report(out / "report.md");
-  EXPECT_THAT(std::string((std::istreambuf_iterator<char>(resumed_report)), {}),
+  EXPECT_THAT(ReadText((out / "report.md").string()),
               ::testing::ContainsRegex("\\| map \\| [0-9.]+\\* \\| ran \\|"));
 
   // the model's stage as a process stopped in training leaves it: begun, not stamped, its run in
   // model.partial with a checkpoint (here after the last epoch). Run again, it resumes from the
   // checkpoint, so no epoch trains again and the epochs' log is the same to the byte (a fresh
   // training logs new epoch seconds); the model's key is the same, so what reads it is reused
-  const auto text_of = [](const fs::path& path) {
-    std::ifstream in(path);
-    return std::string((std::istreambuf_iterator<char>(in)), {});
-  };
-  const std::string epochs_log = text_of(out / "model" / "metrics.jsonl");
+  const std::string epochs_log = ReadText((out / "model" / "metrics.jsonl").string());
   fs::copy(out / "model", out / "model.partial", fs::copy_options::recursive);
   fs::copy_file(stamps / "train.key", stamps / "train.started");
   fs::remove(stamps / "train.key");
   run = RunCli(cmd, cwd);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_TRUE(StageOf(out / "results.json", "train")["resumed"].get<bool>());
-  EXPECT_EQ(text_of(out / "model" / "metrics.jsonl"), epochs_log);
+  EXPECT_EQ(ReadText((out / "model" / "metrics.jsonl").string()), epochs_log);
   EXPECT_FALSE(fs::exists(out / "model.partial"));
   EXPECT_TRUE(StageOf(out / "results.json", "eval_ts1")["reused"].get<bool>());
 
