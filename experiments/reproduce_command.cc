@@ -176,9 +176,15 @@ class StageRunner {
       fs::remove(resumed_mark);
       WriteTextAtomic(started.string(), key);
       const auto t0 = std::chrono::steady_clock::now();
-      resuming_ = resuming;
-      body();
-      resuming_ = false;
+      {
+        // the body sees whether it resumes; cleared however the body ends
+        struct ResumeFlag {
+          bool& flag;
+          ~ResumeFlag() { flag = false; }
+        } guard{resuming_};
+        resuming_ = resuming;
+        body();
+      }
       s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       WriteTextAtomic(wall.string(), fmt::format("{}", s));
       if (resuming) WriteTextAtomic(resumed_mark.string(), key);
