@@ -174,27 +174,36 @@ std::string AblationTableMarkdown(const json& rows, bool descriptions) {
       "height (cm) | angle (deg) | train (s) "
       "|{}\n|---|---|---|---|---|---|---|---|---|---|---|{}\n",
       head, rule);
-  std::string copies;  // a footnote per row copied from a given run
+  std::string notes;  // a footnote per row copied from a given run or diverged
   for (const json& a : rows) {
     const json& m = a["test"];
     const json copied = a.value("copied_from", json());
+    const json diverged = a.value("diverged", json());
+    const std::string name = a["name"].get<std::string>();
     if (copied.is_string()) {
-      copies += fmt::format("\n\\* {}: copied from {}, trained with the very same config.\n",
-                            a["name"].get<std::string>(), copied.get<std::string>());
+      notes += fmt::format("\n\\* {}: copied from {}, trained with the very same config.\n", name,
+                           copied.get<std::string>());
     }
-    md += fmt::format(
-        "| {} | {} | {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:.1f} | {:.0f}{} |",
-        a["name"].get<std::string>(), Join(a["modalities"].get<std::vector<std::string>>()),
-        on(a, "gating"), a["gcc_span_s"].get<double>(), on(a, "time_shift"), on(a, "masking"),
-        on(a, "normalize"), m["med_cm"].get<double>(), m["height_err_cm"].get<double>(),
-        m["angle_err_deg"].get<double>(), a["train_s"].get<double>(),
-        copied.is_string() ? "\\*" : "");
+    if (diverged.is_string()) {
+      notes += fmt::format("\n† {}: not scored; {}\n", name, diverged.get<std::string>());
+    }
+    // a diverged row has no errors: its cells say so
+    auto cell = [&](const json& e, const char* key, const char* spec) {
+      return e.is_null() ? std::string("diverged†")
+                         : fmt::format(fmt::runtime(spec), e[key].get<double>());
+    };
+    md += fmt::format("| {} | {} | {} | {:g} | {} | {} | {} | {} | {} | {} | {:.0f}{} |", name,
+                      Join(a["modalities"].get<std::vector<std::string>>()), on(a, "gating"),
+                      a["gcc_span_s"].get<double>(), on(a, "time_shift"), on(a, "masking"),
+                      on(a, "normalize"), cell(m, "med_cm", "{:.2f}"),
+                      cell(m, "height_err_cm", "{:.2f}"), cell(m, "angle_err_deg", "{:.1f}"),
+                      a["train_s"].get<double>(), copied.is_string() ? "\\*" : "");
     for (size_t k = 0; tests.size() > 1 && k < a["tests"].size(); ++k) {
-      md += fmt::format(" {:.2f} |", a["tests"][k]["test"]["med_cm"].get<double>());
+      md += fmt::format(" {} |", cell(a["tests"][k]["test"], "med_cm", "{:.2f}"));
     }
     md += descriptions ? fmt::format(" {} |\n", a["description"].get<std::string>()) : "\n";
   }
-  return md + copies;
+  return md + notes;
 }
 
 CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
@@ -253,7 +262,11 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
       fs::remove_all(run_dir);
     }
     const fs::path copied = fs::path(run_dir) / "ablation_copied_from.txt";
-    const bool finished = fs::exists(fs::path(run_dir) / "model.json") && fs::exists(timing);
+    // holds the error of a variant whose training diverged (no model.json)
+    const fs::path diverged_file = fs::path(run_dir) / "ablation_diverged.txt";
+    const bool finished =
+        (fs::exists(fs::path(run_dir) / "model.json") || fs::exists(diverged_file)) &&
+        fs::exists(timing);
     if (!finished) copied_from = CopyIdenticalRun(o.trained_runs, config_yaml, run_dir);
     if (finished) {
       train_s = std::stod(ReadText(timing.string()));
@@ -270,21 +283,35 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
       const FeatureSplit& split = train_features.Split(config);
       const bool resumed = fs::exists(fs::path(run_dir) / "checkpoint.pt");
       const auto start = std::chrono::steady_clock::now();
-      TrainOnSplit(config, split, run_dir, /*resume=*/true, g.quiet);
+      try {
+        TrainOnSplit(config, split, run_dir, /*resume=*/true, g.quiet);
+      } catch (const NumericalError& e) {
+        // a variant whose training diverges is a finding of the ablation, not the end of the
+        // others: its row says so, and a rerun does not train it again
+        spdlog::warn("ablation {}: {}", v.name, e.what());
+        WriteTextAtomic(diverged_file.string(), e.what());
+      }
       train_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       // resumed: the epochs' own seconds over every process that trained it
       if (resumed) train_s = EpochSeconds((fs::path(run_dir) / "metrics.jsonl").string());
       WriteTextAtomic(timing.string(), fmt::format("{}\n", train_s));
     }
 
-    // held-out errors on every test set; the first is the table's
-    learning::Localizer localizer(run_dir);
+    // held-out errors on every test set (null when the training diverged); the first is the
+    // table's
+    const json diverged =
+        fs::exists(diverged_file) ? json(ReadText(diverged_file.string())) : json();
     json by_test = json::array();
+    std::unique_ptr<learning::Localizer> localizer;
+    if (diverged.is_null()) localizer = std::make_unique<learning::Localizer>(run_dir);
     for (size_t k = 0; k < o.tests.size(); ++k) {
-      const learning::FeatureSet& test = test_features[k]->Whole(config);
-      const learning::Metrics m =
-          learning::ComputeMetrics(localizer.Predict(test), test, localizer.surface_radius_m());
-      by_test.push_back({{"data", o.tests[k]}, {"test", MetricsJson(m)}});
+      json errors;
+      if (localizer) {
+        const learning::FeatureSet& test = test_features[k]->Whole(config);
+        errors = MetricsJson(learning::ComputeMetrics(localizer->Predict(test), test,
+                                                      localizer->surface_radius_m()));
+      }
+      by_test.push_back({{"data", o.tests[k]}, {"test", errors}});
     }
     const learning::TrainConfig& t = config.train;
     const bool masks = t.augment && (t.time_mask_frames > 0 || t.freq_mask_bands > 0);
@@ -301,15 +328,21 @@ CommandResult RunAblate(const GlobalOptions& g, const AblateOptions& o) {
                 {"normalize", t.normalize},
                 {"train_s", train_s},
                 {"copied_from", copied_from.empty() ? json() : json(copied_from)},
+                {"diverged", diverged},
                 {"test", by_test[0]["test"]},
                 {"tests", by_test}};
     rows.push_back(row);
   }
   const std::string table = AblationTableMarkdown(rows, /*descriptions=*/true);
 
+  // the first test set's size, from a row that was scored
+  int64_t n_test = 0;
+  for (auto row = rows.begin(); row != rows.end() && n_test == 0; ++row) {
+    if (!(*row)["test"].is_null()) n_test = (*row)["test"]["n"].get<int64_t>();
+  }
   const std::string header = fmt::format(
       "Ablations: trained on {}, evaluated on {} ({} strikes){}; configs from {}.\n\n", o.data,
-      o.tests[0], rows.empty() ? 0 : rows[0]["test"]["n"].get<int64_t>(),
+      o.tests[0], n_test,
       o.tests.size() > 1
           ? fmt::format(" and on {}", fmt::join(o.tests.begin() + 1, o.tests.end(), ", "))
           : "",

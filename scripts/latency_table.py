@@ -72,7 +72,9 @@ def main():
     med = {}
     if args.results:
         with open(args.results) as f:
-            med = {row["name"]: row["test"]["med_cm"] for row in json.load(f)["ablations"]}
+            # a diverged row (test null) has no MED
+            med = {row["name"]: row["test"]["med_cm"] for row in json.load(f)["ablations"]
+                   if row["test"] is not None}
 
     env = dict(os.environ, OMP_NUM_THREADS="1")
     timings = {(run, b): [] for run in args.runs for b in bins}

@@ -211,10 +211,14 @@ def ablation(data, src, png):
     width = 0.8 / len(sets)
     fig, ax = plt.subplots(figsize=(max(5, 0.5 * len(rows) * len(sets) + 2), 4))
     for k, name in enumerate(sets):
-        meds = [(r["tests"][k]["test"] if "tests" in r else r["test"])["med_cm"] for r in rows]
+        # a variant whose training diverged has no errors (null): no bar, its name marked
+        errs = [r["tests"][k]["test"] if "tests" in r else r["test"] for r in rows]
+        meds = [float("nan") if e is None else e["med_cm"] for e in errs]
         ax.bar([i + (k - (len(sets) - 1) / 2) * width for i in range(len(rows))], meds, width,
                label=name)
-    ax.set_xticks(range(len(rows)), [r["name"] for r in rows], rotation=30, ha="right")
+    ax.set_xticks(range(len(rows)),
+                  [r["name"] + (" (diverged)" if r.get("diverged") else "") for r in rows],
+                  rotation=30, ha="right")
     ax.set_ylabel("MED on held-out strikes (cm)")
     ax.set_title("Modality ablation (trained on ts1)")
     if len(sets) > 1:

@@ -86,6 +86,8 @@ nlohmann::json MetricsJson(const learning::Metrics& m);
 /// `ablate`'s rows (its results.json "ablations") as a Markdown table: what each varies and its
 /// errors on the first test set, then, with several test sets, the MED on each (a column named
 /// by the file's stem, "test_" dropped), then each layer's description where `descriptions`.
+/// A row whose training diverged ("diverged": its error; "test" null) reads "diverged†" in its
+/// error cells, with the error as a footnote.
 std::string AblationTableMarkdown(const nlohmann::json& rows, bool descriptions);
 
 /// One localization as `localize` and `listen` print it: z, θ, the surface point in the tube

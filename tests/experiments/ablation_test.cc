@@ -1,6 +1,6 @@
 // `sonicboom ablate`: every config of a directory trained and evaluated into one table;
-// finished runs reused, a variant identical to a given run copied; a bad config refused before
-// any training.
+// finished runs reused, a variant identical to a given run copied, a diverged one reported; a bad
+// config refused before any training.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -142,6 +142,40 @@ TEST(AblateTest, VariantIdenticalToAGivenRunIsCopiedNotTrained) {
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("--reuse nowhere"), std::string::npos) << run.err;
   EXPECT_FALSE(fs::exists(dir / "B/all"));
+}
+
+TEST(AblateTest, AVariantWhoseTrainingDivergesIsARowNotTheEndOfTheOthers) {
+  TempDir dir;
+  ASSERT_EQ(RunCli(kTiny + "generate --count 16 --out D.h5 -q", dir.path().string()).exit_code, 0);
+  // the blown-up rate makes the loss non-finite within its epochs; the variant after it still runs
+  Write(dir / "abl/01-blowup.yaml",
+        "# a rate no network survives\ntrain:\n  learning_rate: 1.0e+30\n  epochs: 3\n");
+  Write(dir / "abl/02-all.yaml", "# every modality\n{}\n");
+  const std::string cmd = kTiny + "ablate --data D.h5 --test D.h5 --out A --configs abl --json -q";
+  auto run = RunCli(cmd, dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json j = json::parse(run.out);
+  ASSERT_EQ(j["ablations"].size(), 2u);
+  const json& blowup = j["ablations"][0];
+  ASSERT_TRUE(blowup["diverged"].is_string()) << blowup.dump();
+  EXPECT_NE(blowup["diverged"].get<std::string>().find("training loss became"), std::string::npos)
+      << blowup.dump();
+  EXPECT_TRUE(blowup["test"].is_null()) << blowup.dump();
+  EXPECT_TRUE(blowup["tests"][0]["test"].is_null()) << blowup.dump();
+  EXPECT_FALSE(fs::exists(dir / "A/blowup/model.json"));
+  // the next variant trained and scored as usual
+  EXPECT_TRUE(j["ablations"][1]["diverged"].is_null());
+  EXPECT_EQ(j["ablations"][1]["test"]["n"], 16);
+  const std::string table = ReadAll(dir / "A/table.md");
+  EXPECT_NE(table.find("(16 strikes)"), std::string::npos) << table;
+  EXPECT_NE(table.find("| diverged† | diverged† | diverged† |"), std::string::npos) << table;
+  EXPECT_NE(table.find("† blowup: not scored; training loss became"), std::string::npos) << table;
+  // a rerun keeps the finding: not trained again
+  const auto mark = fs::last_write_time(dir / "A/blowup/ablation_diverged.txt");
+  run = RunCli(cmd, dir.path().string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json::parse(run.out)["ablations"][0]["diverged"], blowup["diverged"]);
+  EXPECT_EQ(fs::last_write_time(dir / "A/blowup/ablation_diverged.txt"), mark);
 }
 
 TEST(AblateTest, BadConfigIsRefusedBeforeAnyTraining) {
