@@ -2,7 +2,7 @@
 """Writes README.md's status block (between its status markers) from the JSON that commands wrote.
 
 Usage: /usr/bin/python3 scripts/readme_status.py --demo runs/demo-X/metrics.json \
-           [--fidelity docs/fidelity.json] [--reproduce DIR/results.json] [--readme README.md]
+           [--fidelity docs/fidelity.json] [--reproduce DIR/results.json ...] [--readme README.md]
            [--check]
 --check exits 1 when the README's block differs from what the files give (nothing written).
 Every line names the command that made its figures; nothing in the block is typed by hand.
@@ -58,11 +58,16 @@ def reproduce_lines(r, path):
     meds = " / ".join(f"{s[ts]['med_cm']:.2f}" for ts in ["ts1", "ts2", "ts3", "ts4"])
     paper = " / ".join(f"{s[ts]['paper_med_cm']:.2f}" for ts in ["ts1", "ts2", "ts3", "ts4"])
     minutes = sum(w["s"] for w in r["wall_s"]) / 60.0
+    resumed = sum(1 for w in r["wall_s"] if w.get("resumed"))
+    # a resumed stage's seconds are its last process's only: say so rather than sum them as a run
+    took = (f"{minutes:.1f} min of stages" if not resumed else
+            f"{minutes / 60.0:.1f} h of stages in its last process, {resumed} of them resumed "
+            f"after a stop (whole time in docs/reproduce.md)")
     return [
         f"- `sonicboom reproduce --size {r['size']}` ({path}): trained on {r['train_strikes']} ts1 "
         f"strikes, MED on ts1 / ts2 / ts3 / ts4 {meds} cm (the paper, 18 000 real strikes: {paper}); "
         f"the ts3 haptic map's RMS Chamfer distance {r['map']['chamfer_cm']:.2f} cm over "
-        f"{r['map']['taps']} taps; {minutes:.1f} min of stages (report.md beside it)."
+        f"{r['map']['taps']} taps; {took} (report.md beside it)."
     ] + transfer_lines(r.get("transfer"), path)
 
 
@@ -86,7 +91,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--demo", required=True, help="metrics.json of a `sonicboom demo` run")
     ap.add_argument("--fidelity", default="docs/fidelity.json")
-    ap.add_argument("--reproduce", help="results.json of a `sonicboom reproduce` run")
+    ap.add_argument("--reproduce", action="append", default=[],
+                    help="results.json of a `sonicboom reproduce` run (repeatable)")
     ap.add_argument("--readme", default="README.md")
     ap.add_argument("--check", action="store_true")
     a = ap.parse_args()
@@ -96,8 +102,8 @@ def main():
              f"Measured figures, written at {commit} by `scripts/readme_status.py` from the files named:"]
     lines += demo_lines(load(a.demo, "--demo"), os.path.relpath(a.demo))
     lines += fidelity_lines(load(a.fidelity, "--fidelity"), os.path.relpath(a.fidelity))
-    if a.reproduce:
-        lines += reproduce_lines(load(a.reproduce, "--reproduce"), os.path.relpath(a.reproduce))
+    for path in a.reproduce:
+        lines += reproduce_lines(load(path, "--reproduce"), os.path.relpath(path))
     lines.append(END)
     with open(a.readme) as f:
         text = f.read()
