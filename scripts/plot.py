@@ -235,15 +235,19 @@ def transfer(data, src, png):
     fig, (bars, curve) = plt.subplots(1, 2, figsize=(10, 4))
     # left: the transfer model and the arrival locator on each theory's render of one set
     width = 0.38
+    top = 0.0
     for k, (name, key, colour) in enumerate([("transfer, zero-shot", "zero_shot", "tab:blue"),
                                              ("arrival locator", "arrival", "tab:gray")]):
         meds = [rows[f"{key}_{theory}"]["med_cm"] for theory in ("shell", "solid")]
         bars.bar([x + (k - 0.5) * width for x in range(2)], meds, width, label=name,
                  color=colour)
+        top = max([top] + meds)
+    # headroom above the tallest bar for the legend
+    bars.set_ylim(0, 1.35 * top)
     bars.set_xticks(range(2), ["our shell", "reference solid"])
     bars.set_ylabel("MED on held-out ts4 strikes (cm)")
     bars.set_title(f"Zero-shot ({t['train_strikes']} randomized training strikes)")
-    bars.legend()
+    bars.legend(loc="upper center", ncol=2, fontsize=8)
     bars.grid(True, axis="y", alpha=0.3)
     # right: MED on the solid against the labelled solid strikes
     points = rows["fewshot"]
