@@ -61,13 +61,13 @@ def reproduce_lines(r, path):
     resumed = sum(1 for w in r["wall_s"] if w.get("resumed"))
     # a resumed stage's seconds are its last process's only: say so rather than sum them as a run
     took = (f"{minutes:.1f} min of stages" if not resumed else
-            f"{minutes / 60.0:.1f} h of stages in its last process, {resumed} of them resumed "
-            f"after a stop (whole time in docs/reproduce.md)")
+            f"{minutes / 60.0:.1f} h of stage times, {resumed} resumed stages counting only "
+            f"their last sitting (the whole run: docs/reproduce.md)")
     return [
         f"- `sonicboom reproduce --size {r['size']}` ({path}): trained on {r['train_strikes']} ts1 "
         f"strikes, MED on ts1 / ts2 / ts3 / ts4 {meds} cm (the paper, 18 000 real strikes: {paper}); "
         f"the ts3 haptic map's RMS Chamfer distance {r['map']['chamfer_cm']:.2f} cm over "
-        f"{r['map']['taps']} taps; {took} (report.md beside it)."
+        f"{r['map']['taps']} taps; report.md beside it; {took}."
     ] + transfer_lines(r.get("transfer"), path)
 
 
