@@ -17,6 +17,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <utility>
@@ -257,21 +258,34 @@ std::string DataKey(const GlobalOptions& g) {
   return ConfigToYaml(c);
 }
 
-// The checkout's commit, when run from one ("unknown" otherwise).
-std::string CommitOf(const fs::path& root) {
+}  // namespace
+
+std::string CheckoutCommit(const fs::path& root) {
   try {
     std::string head = ReadText((root / ".git" / "HEAD").string());
     while (!head.empty() && std::isspace(static_cast<unsigned char>(head.back()))) head.pop_back();
-    if (head.rfind("ref: ", 0) != 0) return head;
-    const fs::path ref = root / ".git" / head.substr(5);
-    if (fs::exists(ref)) {
-      std::string hash = ReadText(ref.string());
+    if (head.rfind("ref: ", 0) != 0) return head;  // a detached HEAD holds the hash itself
+    const std::string ref = head.substr(5);
+    // a loose ref file, else its line in packed-refs ("<hash> <ref>"), as `git gc` leaves it
+    if (fs::exists(root / ".git" / ref)) {
+      const std::string hash = ReadText((root / ".git" / ref).string());
       return hash.substr(0, hash.find_first_of(" \n"));
+    }
+    if (fs::exists(root / ".git" / "packed-refs")) {
+      std::istringstream packed(ReadText((root / ".git" / "packed-refs").string()));
+      for (std::string line; std::getline(packed, line);) {
+        const size_t space = line.find(' ');
+        if (space != std::string::npos && line.substr(space + 1) == ref) {
+          return line.substr(0, space);
+        }
+      }
     }
   } catch (const Error&) {
   }
   return "unknown";
 }
+
+namespace {
 
 // One reproduction: its options, sizes, paths and stages; each method is one part of the report.
 class Reproduction {
@@ -709,7 +723,7 @@ CommandResult RunReproduce(const GlobalOptions& g, const ReproduceOptions& o) {
       {"train_strikes", r.size().train},
       {"test_strikes_per_scenario", r.size().test},
       {"seed", r.seed()},
-      {"commit", CommitOf(fs::current_path())},
+      {"commit", CheckoutCommit(fs::current_path())},
       {"machine",
        {{"hardware_threads", std::thread::hardware_concurrency()}, {"threads", g.threads}}},
       {"scenarios", scenarios},

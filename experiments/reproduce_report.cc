@@ -66,7 +66,8 @@ std::string TransferSection(const json& t) {
 std::string ReproduceReport(const json& r, const std::string& size) {
   std::string md = fmt::format(
       "# SonicBoom: the paper's evaluation reproduced (`sonicboom reproduce --size {}`)\n\n"
-      "Commit {}; seed {}; {} ts1 training strikes, {} held-out strikes per scenario (sample "
+      "Checkout {} (the repository's HEAD when this report was written); seed {}; {} ts1 training "
+      "strikes, {} held-out strikes per scenario (sample "
       "indices from {}); {} hardware threads. Every figure below comes from results.json beside "
       "this file (scripts/plot.py draws them).\n\n",
       size, r["commit"].get<std::string>(), r["seed"].get<uint64_t>(),

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <filesystem>
 #include <string>
 
 namespace sonicboom::experiments {
@@ -16,6 +17,11 @@ inline constexpr int64_t kTestFirstIndex = 100000;
 /// The lightweight model of the preprocessing ablation (the latency profile: compact encoder,
 /// width 64, 2 blocks).
 inline constexpr const char* kLightModelConfig = "study_fast.yaml";
+
+/// The commit checked out at `root` (its .git/HEAD, a loose ref or packed-refs): the checkout a
+/// run's commands came from, not necessarily the commit the binary was built from; "unknown"
+/// outside a git checkout.
+std::string CheckoutCommit(const std::filesystem::path& root);
 
 /// DIR/report.md from results.json's content, for a run of `--size size`.
 std::string ReproduceReport(const nlohmann::json& results, const std::string& size);

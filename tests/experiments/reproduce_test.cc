@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "internal/reproduce.h"
 #include "sonicboom/core/files.h"
 
 namespace sonicboom::experiments {
@@ -173,6 +174,28 @@ TEST(ReproduceTest, AnUnknownSizeOrMissingConfigsAreRefused) {
   EXPECT_NE(run.exit_code, 0);
   EXPECT_THAT(run.err, ::testing::HasSubstr("--configs nowhere"));
   EXPECT_FALSE(fs::exists(dir.path() / "R"));
+}
+
+TEST(ReproduceTest, CheckoutCommitReadsADetachedHeadALooseRefAndPackedRefs) {
+  TempDir dir;
+  const fs::path git = dir.path() / ".git";
+  EXPECT_EQ(CheckoutCommit(dir.path()), "unknown");  // no checkout
+  fs::create_directories(git / "refs" / "heads");
+  const std::string a(40, 'a'), b(40, 'b');
+  // a detached HEAD
+  std::ofstream(git / "HEAD") << a << "\n";
+  EXPECT_EQ(CheckoutCommit(dir.path()), a);
+  // a branch whose ref is packed (after `git gc`), then one with a loose ref beside it
+  std::ofstream(git / "HEAD") << "ref: refs/heads/main\n";
+  std::ofstream(git / "packed-refs") << "# pack-refs with: peeled fully-peeled sorted\n"
+                                     << b << " refs/heads/mainline\n"
+                                     << a << " refs/heads/main\n";
+  EXPECT_EQ(CheckoutCommit(dir.path()), a);
+  std::ofstream(git / "refs" / "heads" / "main") << b << "\n";
+  EXPECT_EQ(CheckoutCommit(dir.path()), b);
+  // a branch with no commit yet
+  std::ofstream(git / "HEAD") << "ref: refs/heads/other\n";
+  EXPECT_EQ(CheckoutCommit(dir.path()), "unknown");
 }
 
 }  // namespace
