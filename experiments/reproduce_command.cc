@@ -261,18 +261,19 @@ std::string DataKey(const GlobalOptions& g) {
 }  // namespace
 
 std::string CheckoutCommit(const fs::path& root) {
+  const fs::path git = root / ".git";
   try {
-    std::string head = ReadText((root / ".git" / "HEAD").string());
+    std::string head = ReadText((git / "HEAD").string());
     while (!head.empty() && std::isspace(static_cast<unsigned char>(head.back()))) head.pop_back();
     if (head.rfind("ref: ", 0) != 0) return head;  // a detached HEAD holds the hash itself
     const std::string ref = head.substr(5);
     // a loose ref file, else its line in packed-refs ("<hash> <ref>"), as `git gc` leaves it
-    if (fs::exists(root / ".git" / ref)) {
-      const std::string hash = ReadText((root / ".git" / ref).string());
+    if (fs::exists(git / ref)) {
+      const std::string hash = ReadText((git / ref).string());
       return hash.substr(0, hash.find_first_of(" \n"));
     }
-    if (fs::exists(root / ".git" / "packed-refs")) {
-      std::istringstream packed(ReadText((root / ".git" / "packed-refs").string()));
+    if (fs::exists(git / "packed-refs")) {
+      std::istringstream packed(ReadText((git / "packed-refs").string()));
       for (std::string line; std::getline(packed, line);) {
         const size_t space = line.find(' ');
         if (space != std::string::npos && line.substr(space + 1) == ref) {

@@ -67,9 +67,9 @@ std::string ReproduceReport(const json& r, const std::string& size) {
   std::string md = fmt::format(
       "# SonicBoom: the paper's evaluation reproduced (`sonicboom reproduce --size {}`)\n\n"
       "Checkout {} (the repository's HEAD when this report was written); seed {}; {} ts1 training "
-      "strikes, {} held-out strikes per scenario (sample "
-      "indices from {}); {} hardware threads. Every figure below comes from results.json beside "
-      "this file (scripts/plot.py draws them).\n\n",
+      "strikes, {} held-out strikes per scenario (sample indices from {}); {} hardware threads. "
+      "Every figure below comes from results.json beside this file (scripts/plot.py draws "
+      "them).\n\n",
       size, r["commit"].get<std::string>(), r["seed"].get<uint64_t>(),
       r["train_strikes"].get<int64_t>(), r["test_strikes_per_scenario"].get<int64_t>(),
       kTestFirstIndex, r["machine"]["hardware_threads"].get<unsigned>());
