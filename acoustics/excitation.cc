@@ -136,7 +136,7 @@ double BandRule::operator()(double contact_duration_s, double frequency_scale) c
   const double widest =
       mode_band_hz > 0 ? std::min(limit_hz, mode_band_hz * frequency_scale) : limit_hz;
   if (fixed) return widest;
-  return std::min(widest, ContactBandHz(band_factor, contact_duration_s));
+  return std::min(widest, std::max(kLowestBandHz, ContactBandHz(band_factor, contact_duration_s)));
 }
 
 Excitation Excite(const AcousticModelConfig& config, const SampleView& view,

@@ -466,7 +466,7 @@ Eigen::MatrixXd ShellModalBank::Render(std::span<const ForceInput> forces, int64
     }
     // impulse per newton of sample force; drives 120 dB below the strongest are dropped (a mode
     // with a nodal line through the point would otherwise decay into subnormal floats)
-    const double drive_floor = 1e-6 * b.cwiseAbs().maxCoeff();
+    const double drive_floor = n > 0 ? 1e-6 * b.cwiseAbs().maxCoeff() : 0.0;
     input[e] = (b.array().abs() < drive_floor)
                    .select(0.0, b.array() * (T * tab.shape_scale))
                    .cast<float>();

@@ -2,6 +2,7 @@
 // makes the rung acoustics.model names: the closed-form tube, the shell's numerical modes (with
 // the structure pool), and the FD grid of the same shell.
 #include <algorithm>
+#include <cmath>
 #include <mutex>
 
 #include <fmt/format.h>
@@ -294,12 +295,48 @@ class FdRenderer final : public VibrationRenderer {
   Eigen::MatrixXd sensor_rows_;  // (mics x dofs)
 };
 
+// The most modes a modal rung solves for: about 7x the default tube's 715 plate-estimated
+// bending modes below 20 kHz; the solve's cost grows faster than the count.
+constexpr double kMostModes = 5000.0;
+
+// A fixed band (max_frequency_hz, mode_band_hz) is 0 (derived) or at least kLowestBandHz.
+void RequireAudibleBand(const char* key, double band_hz) {
+  if (band_hz > 0.0 && band_hz < kLowestBandHz) {
+    throw ConfigError(fmt::format(
+        "acoustics.{} = {} Hz lies below {} Hz: a band that low holds at most the tube's lowest "
+        "ring modes and no wavefront (0 derives the band from the contact)",
+        key, band_hz, kLowestBandHz));
+  }
+}
+
+// Bending modes of the wall below band_hz, by the thin plate's asymptotic count
+// N = A f sqrt(rho h / D) / 2 over the wall's mid surface A: a modal solve refuses a tube that
+// would hold more than kMostModes (a wall too thin for its band) instead of running for hours.
+void RequireSolvableModeCount(const AcousticModelConfig& c, double band_hz) {
+  const TubeConfig& t = c.tube;
+  const MaterialConfig& m = c.material;
+  const double area_m2 = 2.0 * kPi * t.mid_radius_m() * t.length_m;
+  const double rigidity = m.youngs_modulus_pa * std::pow(t.wall_thickness_m, 3) /
+                          (12.0 * (1.0 - m.poisson_ratio * m.poisson_ratio));
+  const double modes =
+      0.5 * area_m2 * band_hz * std::sqrt(m.density_kg_m3 * t.wall_thickness_m / rigidity);
+  if (modes > kMostModes) {
+    throw ConfigError(fmt::format(
+        "tube.wall_thickness_m = {} m: this wall holds about {:.0f} bending modes below {:.0f} Hz "
+        "(the modes solved), more than the {:.0f} a modal solve takes; thicken the wall, lower "
+        "acoustics.max_frequency_hz or use acoustics.model = fd",
+        t.wall_thickness_m, modes, band_hz, kMostModes));
+  }
+}
+
 }  // namespace
 
 std::unique_ptr<VibrationRenderer> MakeVibrationRenderer(const AcousticModelConfig& config) {
   const SynthConfig& synth = config.synth;
   const double nyquist = 0.5 * config.audio.sample_rate_hz;
   // the widest band: the configured limit, never above 0.95 Nyquist
+  RequireAudibleBand("max_frequency_hz", synth.max_frequency_hz);
+  RequireAudibleBand("mode_band_hz", synth.mode_band_hz);
   BandRule band;
   band.limit_hz = synth.max_frequency_hz > 0 ? synth.max_frequency_hz : 0.95 * nyquist;
   band.fixed = synth.max_frequency_hz > 0;
@@ -316,6 +353,7 @@ std::unique_ptr<VibrationRenderer> MakeVibrationRenderer(const AcousticModelConf
         "features.window_s by the pipeline: generate, rerender, fidelity)");
   }
   if (synth.model == VibrationModel::kModalClosedForm) {
+    RequireSolvableModeCount(config, band.limit_hz);
     return std::make_unique<ClosedFormRenderer>(config, band);
   }
   // the discretized shell's rungs
@@ -335,6 +373,7 @@ std::unique_ptr<VibrationRenderer> MakeVibrationRenderer(const AcousticModelConf
         "acoustics.mode_band_hz = {} must be below the Nyquist frequency {} Hz",
         synth.mode_band_hz, nyquist));
   }
+  RequireSolvableModeCount(config, band.mode_band_hz);
   return std::make_unique<ModalRenderer>(config, band);
 }
 

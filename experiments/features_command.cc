@@ -39,6 +39,7 @@ std::string MelLayout(const dsp::FeatureConfig& f) {
 CommandResult RunFeatures(const GlobalOptions& g, const std::string& in, const std::string& out,
                           const std::string& proprio_csv, bool force) {
   CheckOutput(g, {out, "--out", force}, {{in, "--in"}, {proprio_csv, "--proprio"}});
+  CheckConfigSidecar({out, "--out", force});
   const SonicBoomConfig config = Resolve(g);
   std::vector<NamedArray> arrays;
   int64_t n = 1;

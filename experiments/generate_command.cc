@@ -77,6 +77,7 @@ CommandResult RunGenerate(const GlobalOptions& g, const std::string& out_pattern
   const std::string out = ShardOutputPath(out_pattern, shard);
   RequireParentDir(out);
   RefuseWritingOverInputs(g, {out, "--out", force}, {});
+  CheckConfigSidecar({out, "--out", force});
   const int64_t n = count == kUnset ? config.dataset.count : count;
   const int64_t first = first_index == kUnset ? config.dataset.first_index : first_index;
 

@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -16,6 +17,7 @@
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/dsp/features.h"
 #include "sonicboom/hardware/capture.h"
 #include "sonicboom/learning/learning.h"
 
@@ -29,9 +31,74 @@ using nlohmann::json;
 
 namespace {
 
-// The figure's data: every valid strike's label, and one strike's channels ((C x T) full scale).
+// Figure-sized data (docs/cli.md, inspect): at most this many columns per waveform panel and
+// time frames per spectrogram, whatever the record's length
+constexpr int64_t kEnvelopeColumns = 1500;
+constexpr int64_t kSpectrogramFrames = 300;
+constexpr int64_t kSpectrogramMels = 64;
+constexpr double kSpectrogramFloorDb = -80.0;  // below the strike's loudest bin: drawn as floor
+
+// Envelope values are whole counts of full scale / kEnvelopeCounts (16-bit resolution).
+constexpr double kEnvelopeCounts = 32767.0;
+
+// One channel's min and max over each of `columns` equal stretches of x (the waveform as drawn),
+// in counts of full scale / kEnvelopeCounts.
+json Envelope(const std::vector<float>& x, int64_t columns) {
+  const auto n = static_cast<int64_t>(x.size());
+  columns = std::max<int64_t>(1, std::min(columns, n));
+  std::vector<int> lo(columns), hi(columns);
+  for (int64_t c = 0; c < columns; ++c) {
+    const auto first = x.begin() + c * n / columns, last = x.begin() + (c + 1) * n / columns;
+    const auto [mn, mx] = std::minmax_element(first, std::max(last, first + 1));
+    lo[c] = static_cast<int>(std::lround(kEnvelopeCounts * *mn));
+    hi[c] = static_cast<int>(std::lround(kEnvelopeCounts * *mx));
+  }
+  return {{"min", lo},
+          {"max", hi},
+          {"full_scale", kEnvelopeCounts},
+          {"frames_per_column", static_cast<double>(n) / columns}};
+}
+
+// Power mel spectrograms of every channel in whole dB against the strike's loudest bin, floored
+// at kSpectrogramFloorDb, max-pooled in time to at most kSpectrogramFrames: (mels x frames) each.
+json Spectrograms(const std::vector<std::vector<float>>& channels, double sample_rate_hz) {
+  const dsp::MelSpectrogram mel(512, 128, kSpectrogramMels, 0.0, 0.5 * sample_rate_hz,
+                                sample_rate_hz);
+  std::vector<Eigen::MatrixXf> power(channels.size());
+  float peak = 0.0f;
+  for (size_t c = 0; c < channels.size(); ++c) {
+    mel.Compute(channels[c].data(), static_cast<int64_t>(channels[c].size()), &power[c]);
+    peak = std::max(peak, power[c].maxCoeff());
+  }
+  const int64_t frames = power.empty() ? 0 : power[0].cols();
+  const int64_t pool = std::max<int64_t>(1, (frames + kSpectrogramFrames - 1) / kSpectrogramFrames);
+  json out = json::array();
+  for (const Eigen::MatrixXf& p : power) {
+    json rows = json::array();
+    for (Eigen::Index m = 0; m < p.rows(); ++m) {
+      std::vector<int> row;
+      for (int64_t f = 0; f < frames; f += pool) {
+        const float v = p.row(m).segment(f, std::min(pool, frames - f)).maxCoeff();
+        const double db = 10.0 * std::log10(std::max(v, 1e-30f) / std::max(peak, 1e-30f));
+        row.push_back(static_cast<int>(std::lround(std::max(db, kSpectrogramFloorDb))));
+      }
+      rows.push_back(row);
+    }
+    out.push_back(rows);
+  }
+  return {{"db", out},
+          {"floor_db", kSpectrogramFloorDb},
+          {"seconds_per_frame", 128.0 * pool / sample_rate_hz},
+          {"f_max_hz", 0.5 * sample_rate_hz}};
+}
+
+// The figure's data: every valid strike's label, and one strike's channels as drawn: waveform
+// envelopes ((C) x columns, full scale) and mel spectrograms ((C) x mels x frames, dB).
 json DatasetFigureJson(const std::string& path, int64_t strike_row) {
   const DatasetReader reader(path);
+  if (reader.size() == 0) {
+    throw IoError(fmt::format("{}: holds no strikes; there is none to draw", path));
+  }
   if (strike_row < 0 || strike_row >= reader.size()) {
     throw ConfigError(fmt::format("--strike {}: {} holds rows 0 to {}", strike_row, path,
                                   reader.size() - 1));
@@ -44,9 +111,12 @@ json DatasetFigureJson(const std::string& path, int64_t strike_row) {
     theta.push_back(meta.label.theta_rad);
   }
   const StrikeSample strike = reader.Read(strike_row);
-  json channels = json::array();
+  const double rate_hz = reader.info().sample_rate_hz;
+  std::vector<std::vector<float>> channels;
+  json envelopes = json::array();
   for (int c = 0; c < strike.audio.rows(); ++c) {
-    channels.push_back(std::vector<float>(strike.audio.row(c).begin(), strike.audio.row(c).end()));
+    channels.emplace_back(strike.audio.row(c).begin(), strike.audio.row(c).end());
+    envelopes.push_back(Envelope(channels.back(), kEnvelopeColumns));
   }
   return {{"kind", "inspect"},
           {"path", path},
@@ -57,24 +127,38 @@ json DatasetFigureJson(const std::string& path, int64_t strike_row) {
             {"valid", strike.valid},
             {"z_m", strike.label.z_m},
             {"theta_rad", strike.label.theta_rad},
-            {"sample_rate_hz", reader.info().sample_rate_hz},
-            {"channels", channels}}}};
+            {"sample_rate_hz", rate_hz},
+            {"frames", strike.audio.cols()},
+            {"envelopes", envelopes},
+            {"spectrograms", Spectrograms(channels, rate_hz)}}}};
 }
 
-// PNG.json, then the plot script draws PNG from it
+// PNG.json, then the plot script draws PNG from it; both obey --force, and a figure that could
+// not be drawn takes its data with it
 void DrawDatasetFigure(const GlobalOptions& g, const std::string& path, const InspectOptions& o) {
   if (fs::path(o.png).extension() != ".png") {
     throw ConfigError(fmt::format("--png {}: the figure is a .png file", o.png));
   }
+  const std::string data = o.png + ".json";
+  CheckOutput(g, {o.png, "--png", o.force}, {{path, "inspect's path"}, {o.plot_script, "--plot"}});
+  CheckOutput(g, {data, "the figure's data beside --png", o.force},
+              {{path, "inspect's path"}, {o.plot_script, "--plot"}});
   if (!fs::is_regular_file(o.plot_script)) {
     throw IoError(fmt::format("--plot {}: no such script", o.plot_script));
   }
-  const std::string data = o.png + ".json";
-  CheckOutput(g, {o.png, "--png", true}, {{path, "inspect's path"}});
-  CheckOutput(g, {data, "the figure's data beside --png", true}, {{path, "inspect's path"}});
-  WriteTextAtomic(data, DatasetFigureJson(path, o.strike_row).dump() + "\n");
-  DrawFigure(o.plot_script, "inspect", data, o.png,
-             "needs /usr/bin/python3 with python3-matplotlib");
+  const json figure = DatasetFigureJson(path, o.strike_row);
+  // the figure is drawn to a name of its own and renamed once complete
+  const std::string partial = o.png + ".partial.png";
+  WriteTextAtomic(data, figure.dump() + "\n");
+  try {
+    DrawFigure(o.plot_script, "inspect", data, partial, "--plot names another script");
+    fs::rename(partial, o.png);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(partial, ec);
+    fs::remove(data, ec);
+    throw;
+  }
 }
 
 }  // namespace
@@ -235,6 +319,7 @@ void RegisterInspect(CLI::App& app, GlobalOptions& g, Runner* run) {
                       "spectrograms (data beside it as PNG.json)");
   inspect->add_option("--strike", o->strike_row, "row of the strike drawn by --png (default 0)");
   inspect->add_option("--plot", o->plot_script, "the plotting script (/usr/bin/python3)");
+  inspect->add_flag("--force", o->force, "replace an existing --png figure and its data");
   inspect->callback(
       [&g, run, path, o] { *run = [&g, path, o] { return RunInspect(g, *path, *o); }; });
 }

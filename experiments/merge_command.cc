@@ -22,6 +22,7 @@ CommandResult RunMerge(const GlobalOptions& g, const std::string& out,
   std::vector<ReadPath> reads;
   for (const std::string& shard : shards) reads.push_back({shard, "shard"});
   CheckOutput(g, {out, "--out", force}, reads);
+  CheckConfigSidecar({out, "--out", force});
   MergeDatasets(shards, out, virtual_audio);
   DatasetReader reader(out);
   WriteTextAtomic(out + ".config.yaml", reader.info().config_yaml);

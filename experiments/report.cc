@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdlib>
 #include <filesystem>
 #include <iterator>
 
@@ -14,6 +13,7 @@
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/core/process.h"
 #include "sonicboom/core/tube.h"
 #include "sonicboom/dsp/features.h"
 #include "sonicboom/experiments/pipeline.h"
@@ -32,6 +32,16 @@ SonicBoomConfig Resolve(const GlobalOptions& g) {
 // the resolved config beside an output file
 void WriteConfigBeside(const std::string& output, const SonicBoomConfig& config) {
   WriteTextAtomic(output + ".config.yaml", ConfigToYaml(config));
+}
+
+// a sidecar is replaced with the output it describes: one beside no output is another run's file
+void CheckConfigSidecar(const Output& out) {
+  const std::string sidecar = out.path + ".config.yaml";
+  if (!out.force && !fs::exists(out.path) && fs::exists(sidecar)) {
+    throw IoError(fmt::format(
+        "{}: exists (a config sidecar beside no {} {}); --force replaces it", sidecar,
+        out.option, out.path));
+  }
 }
 
 // the parent directory of an output must exist
@@ -90,12 +100,27 @@ void RefuseWritingOverInputs(const GlobalOptions& g, const Output& out,
 
 void DrawFigure(const std::string& script, const std::string& kind, const std::string& data,
                 const std::string& png, const std::string& advice) {
-  const std::string cmd =
-      fmt::format("/usr/bin/python3 '{}' {} '{}' '{}'", script, kind, data, png);
-  if (std::system(cmd.c_str()) != 0) {
-    throw IoError(
-        fmt::format("{}: the plot script {} failed on {} ({})", png, script, data, advice));
+  // an argument vector: the paths reach the script as bytes, never through a shell
+  ProcessRequest request;
+  request.argv = {std::string(kPlotPython), script, kind, data, png};
+  ProcessResult result;
+  try {
+    result = RunProcess(request);
+  } catch (const IoError& e) {
+    throw IoError(fmt::format("{}: the plot script {} could not run ({}; it needs {} with "
+                              "python3-matplotlib; {})",
+                              png, script, e.what(), kPlotPython, advice));
   }
+  if (result.exited_zero() && fs::is_regular_file(png)) return;
+  const std::string last = result.LastErrLine();
+  const bool no_matplotlib = result.err.find("No module named 'matplotlib'") != std::string::npos;
+  const std::string why =
+      no_matplotlib ? fmt::format("{} has no matplotlib: install python3-matplotlib", kPlotPython)
+      : result.exited_zero() ? "it exited 0 but wrote no figure"
+      : last.empty()         ? result.Ending()
+                             : fmt::format("{}: {}", result.Ending(), last);
+  throw IoError(
+      fmt::format("{}: the plot script {} failed on {} ({}; {})", png, script, data, why, advice));
 }
 
 void CheckOutput(const GlobalOptions& g, const Output& out, std::vector<ReadPath> reads) {

@@ -504,13 +504,14 @@ class Reproduction {
   void Figures(const json& results) {
     stages_->Run("figures", Digest(results.dump()), 1.0, [&] {
       WriteTextAtomic(Path("results.json"), results.dump(1) + "\n");
-      const std::string advice = "needs /usr/bin/python3 with python3-matplotlib";
+      const std::string advice = "results.json is written";
       DrawFigure(o_.plot_script, "errors", Path("results.json"), Path("errors.png"), advice);
       DrawFigure(o_.plot_script, "ablation", Path("results.json"), Path("ablation.png"), advice);
       DrawFigure(o_.plot_script, "transfer", Path("results.json"), Path("transfer.png"), advice);
       InspectOptions inspect;
       inspect.png = Path("coverage_ts3.png");
       inspect.plot_script = o_.plot_script;
+      inspect.force = true;  // the stage owns its run directory's figures
       RunInspect(Layered(g_, {}), Path("data/test_ts3.h5"), inspect);
       // the figure of a study this command does not run, as docs/ holds it
       const fs::path pareto = cfg_.parent_path() / "docs" / "fidelity_pareto.png";

@@ -29,6 +29,7 @@ CommandResult RunSynth(const GlobalOptions& g, const std::string& out_wav, int64
   }
   const std::string stem = (fs::path(out_wav).parent_path() / fs::path(out_wav).stem()).string();
   CheckOutput(g, {out_wav, "--out", force}, {});
+  CheckConfigSidecar({out_wav, "--out", force});
   CheckOutput(g, {stem + ".json", "the label beside --out", force}, {});
   if (index < 0) throw ConfigError(fmt::format("--index must be >= 0, got {}", index));
   StrikePipeline pipeline(config);

@@ -2,8 +2,8 @@
 
 usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
   fidelity  the fidelity ladder's Pareto figure (`sonicboom fidelity`, FIDELITY.json)
-  inspect   a dataset's (z, theta) coverage and one strike's six channels with their
-            spectrograms (`sonicboom inspect D.h5 --png OUT.png`, OUT.png.json)
+  inspect   a dataset's (z, theta) coverage and one strike's six channels: waveform envelopes
+            and mel spectrograms in dB with a colour scale (`sonicboom inspect D.h5 --png OUT.png`, OUT.png.json)
   map       a haptic map: predicted and true contact points in 3-D, each pair joined, over the
             mapped branch's skeleton where known (`sonicboom map`, DIR/map.json)
   fewshot   MED against the number of target strikes, fine-tuned and from scratch, per family
@@ -83,15 +83,19 @@ def fidelity(data, src, png):
 
 
 def inspect(data, src, png):
-    """Coverage of (z, theta) over the valid strikes, then one strike: waveform and spectrogram
-    of each channel (time in ms from the record start, frequency in kHz)."""
+    """Coverage of (z, theta) over the valid strikes, then one strike: waveform envelope and mel
+    spectrogram of each channel (time in ms from the record start, frequency in kHz on the mel
+    axis, dB against the strike's loudest bin with the floor `sonicboom inspect` chose)."""
     import math
     strike = data["strike"]
-    channels = strike["channels"]  # (C, T) full scale
+    envelopes = strike["envelopes"]  # per channel: min and max per column, counts of full scale
+    spec = strike["spectrograms"]  # db: (C, mels, frames)
     fs = strike["sample_rate_hz"]
-    fig = plt.figure(figsize=(13, 3 + 1.6 * len(channels)))
-    grid = fig.add_gridspec(1 + len(channels), 2, height_ratios=[2.2] + [1] * len(channels))
-    ax = fig.add_subplot(grid[0, :])
+    duration_ms = 1000.0 * strike["frames"] / fs
+    fig = plt.figure(figsize=(13, 3 + 1.6 * len(envelopes)))
+    grid = fig.add_gridspec(1 + len(envelopes), 3, height_ratios=[2.2] + [1] * len(envelopes),
+                            width_ratios=[1, 1, 0.03])
+    ax = fig.add_subplot(grid[0, :2])
     cov = data["coverage"]
     ax.scatter([math.degrees(t) for t in cov["theta_rad"]], [100 * z for z in cov["z_m"]], s=6,
                alpha=0.5, label=f"{len(cov['z_m'])} valid strikes")
@@ -102,18 +106,36 @@ def inspect(data, src, png):
     ax.set_ylabel("z (cm)")
     ax.legend(fontsize=8, loc="upper right")
     ax.set_title("(z, theta) of the valid strikes", fontsize=9)
-    for c, x in enumerate(channels):
-        t_ms = [1000.0 * k / fs for k in range(len(x))]
+    # HTK mel of a frequency, for the spectrograms' kHz ticks
+    def mel(f_hz):
+        return 2595.0 * math.log10(1.0 + f_hz / 700.0)
+    mel_top = mel(spec["f_max_hz"])
+    ticks_khz = [k for k in (0.5, 1, 2, 5, 10, 20) if 1000 * k < spec["f_max_hz"]]
+    image = None
+    for c, env in enumerate(envelopes):
+        cols = len(env["min"])
+        t_ms = [duration_ms * (k + 0.5) / cols for k in range(cols)]
         wave = fig.add_subplot(grid[1 + c, 0])
-        wave.plot(t_ms, x, lw=0.4)
+        wave.fill_between(t_ms, [v / env["full_scale"] for v in env["min"]],
+                          [v / env["full_scale"] for v in env["max"]], lw=0.3, color="tab:blue")
+        wave.set_xlim(0, duration_ms)
         wave.set_ylabel(f"mic {c}", fontsize=8)
-        spec = fig.add_subplot(grid[1 + c, 1])
-        # Fs in samples per ms: the time axis reads in ms, the frequency axis in kHz
-        spec.specgram(x, NFFT=512, Fs=fs / 1000.0, noverlap=384, cmap="magma")
-        spec.set_ylabel("kHz", fontsize=8)
-        if c + 1 == len(channels):
+        ax_s = fig.add_subplot(grid[1 + c, 1])
+        db = spec["db"][c]
+        frames = len(db[0]) if db else 0
+        image = ax_s.imshow(db, origin="lower", aspect="auto", cmap="magma",
+                            vmin=spec["floor_db"], vmax=0,
+                            extent=[0, 1000.0 * frames * spec["seconds_per_frame"], 0, len(db)])
+        ax_s.set_xlim(0, duration_ms)
+        ax_s.set_yticks([len(db) * mel(1000 * k) / mel_top for k in ticks_khz])
+        ax_s.set_yticklabels([f"{k:g}" for k in ticks_khz], fontsize=7)
+        ax_s.set_ylabel("kHz (mel)", fontsize=8)
+        if c + 1 == len(envelopes):
             wave.set_xlabel("ms from the record start")
-            spec.set_xlabel("ms from the record start")
+            ax_s.set_xlabel("ms from the record start")
+    if image is not None:
+        bar = fig.colorbar(image, cax=fig.add_subplot(grid[1:, 2]))
+        bar.set_label("dB against the strike's loudest bin", fontsize=8)
     fig.suptitle(f"{data['path']}: strike index {strike['index']} at z = {100 * strike['z_m']:.1f} cm, "
                  f"theta = {math.degrees(strike['theta_rad']):.0f} deg", fontsize=9)
     fig.tight_layout()

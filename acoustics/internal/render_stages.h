@@ -38,7 +38,14 @@ struct SampleView {
                        const AcousticModelConfig& config);
 };
 
-/// The band a rung plays for a first closure (ContactBandHz, clipped to what the rung has).
+/// The lowest band a rung plays, Hz: a band below it holds no more than the tube's lowest ring
+/// modes and no wavefront to time (on the default tube Rayleigh's n = 2, 3 rings lie near 0.22
+/// and 0.62 kHz, n = 4 at 1.19 kHz; docs/robustness.md, "Bounds from physics"). A fixed band
+/// below it is refused; a band derived from a long contact is raised to it.
+inline constexpr double kLowestBandHz = 1000.0;
+
+/// The band a rung plays for a first closure (ContactBandHz, clipped to what the rung has, and
+/// at least kLowestBandHz).
 struct BandRule {
   double limit_hz{0.0};      // max_frequency_hz, or 0.95 Nyquist
   double mode_band_hz{0.0};  // modes solved to here (modal); 0: none solved (closed form, fd)

@@ -39,6 +39,10 @@ struct Output {
   bool force{false};  // an existing output is replaced once the new one is complete
 };
 
+/// IoError when OUT.config.yaml exists beside no OUT and `out` is not forced: a sidecar obeys
+/// --force as its output does (CheckOutput covers it where OUT exists).
+void CheckConfigSidecar(const Output& out);
+
 /// The one rule for every command's outputs: the output (and its OUT.config.yaml sidecar) may not
 /// be an input, an input's config sidecar, or lie inside an input directory, and may not hold an
 /// input (a directory the command would replace), with or without --force; `reads` are the
@@ -46,9 +50,13 @@ struct Output {
 /// existing output is replaced only with force. IoError naming both paths otherwise.
 void CheckOutput(const GlobalOptions& g, const Output& out, std::vector<ReadPath> reads);
 
-/// Draws `png` from `data` (JSON) with `script` (scripts/plot.py) of `kind` under
-/// /usr/bin/python3; IoError naming both files when it fails (`advice`: what the caller's user
-/// can do about it).
+/// The interpreter of the plotting script: Debian's, which sees python3-matplotlib.
+inline constexpr const char* kPlotPython = "/usr/bin/python3";
+
+/// Draws `png` from `data` (JSON) with `script` (scripts/plot.py) of `kind` under kPlotPython,
+/// started from an argument vector (no shell); IoError naming both files and what failed (the
+/// exit status or signal and the script's last stderr line, or a missing matplotlib) when it
+/// fails (`advice`: what the caller's user can do about it).
 void DrawFigure(const std::string& script, const std::string& kind, const std::string& data,
                 const std::string& png, const std::string& advice);
 

@@ -256,6 +256,17 @@ TEST(StrikeRenderTest, ExtremesStayFiniteAndFlagClipping) {
       EXPECT_GT(r.modes_used, 0);
     }
   }
+  // acoustics.band_factor at its smallest values derives a band of a few Hz from the contact (it
+  // left the bank no mode and crashed with SIGSEGV): the band is raised to 1 kHz and plays
+  for (const double factor : {1e-3, 1e-2}) {
+    AcousticModelConfig c = Coarse();
+    c.synth.band_factor = factor;
+    c.audio.record_duration_s = 0.3;
+    const RenderedStrike r = StrikeSynthesizer(c).Render(Dowel(0.05, -1.0, 1.0), {}, 0.0, 9);
+    ASSERT_TRUE(r.audio.allFinite()) << factor;
+    EXPECT_GT(r.modes_used, 0) << factor;
+    EXPECT_GT(r.audio.cwiseAbs().maxCoeff(), 0.0f) << factor;
+  }
 }
 
 TEST(DaqChainTest, PerChannelGainAndHighPass) {

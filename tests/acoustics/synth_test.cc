@@ -1,8 +1,12 @@
 // Strike rendering: Hertz contact, arrival-time and level cues, DAQ chain, determinism, limits.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <numbers>
+
+#include "common/test_util.h"
 
 #include "sonicboom/acoustics/synth.h"
 #include "sonicboom/core/errors.h"
@@ -129,6 +133,46 @@ TEST(SynthTest, RefusesBandAboveNyquist) {
     EXPECT_NE(std::string(e.what()).find("Nyquist"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("22050"), std::string::npos);
   }
+}
+
+// A band below 1 kHz (it crashed the renderer at 10, 50 and 200 Hz) and a wall too thin for the
+// solved band (1 um: the solve ran for minutes without a line) are refused at once, naming the
+// key, its value and the limit; the closed form and the shell's modal rung alike.
+TEST(ExtremesTest, DegenerateBandsAndWallsAreRefusedNamingTheKeyAndTheLimit) {
+  for (const VibrationModel model : {VibrationModel::kModalClosedForm, VibrationModel::kModal}) {
+    for (const double hz : {10.0, 50.0, 200.0}) {
+      AcousticModelConfig c = ClosedForm();
+      c.synth.model = model;
+      c.synth.max_frequency_hz = hz;
+      const std::string message =
+          sonicboom::testing::ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(c); });
+      EXPECT_NE(message.find("acoustics.max_frequency_hz = " + fmt::format("{}", hz)),
+                std::string::npos)
+          << message;
+      EXPECT_NE(message.find("below 1000 Hz"), std::string::npos) << message;
+    }
+    AcousticModelConfig c = ClosedForm();
+    c.synth.model = model;
+    c.synth.mode_band_hz = 100.0;
+    EXPECT_NE(sonicboom::testing::ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(c); })
+                  .find("acoustics.mode_band_hz = 100 Hz"),
+              std::string::npos);
+    c = ClosedForm();
+    c.synth.model = model;
+    c.tube.wall_thickness_m = 1e-6;
+    const auto start = std::chrono::steady_clock::now();
+    const std::string thin =
+        sonicboom::testing::ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(c); });
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+              1.0);
+    EXPECT_NE(thin.find("tube.wall_thickness_m = 1e-06 m"), std::string::npos) << thin;
+    EXPECT_NE(thin.find("more than the 5000 a modal solve takes"), std::string::npos) << thin;
+  }
+  // the default wall at the default band, and the lowest band allowed, still render
+  AcousticModelConfig c = ClosedForm();
+  c.synth.max_frequency_hz = 1000.0;
+  const StrikeSynthesizer low(c);
+  EXPECT_TRUE(low.Render(DowelContact(0.05, 0.3, 0.5), {}, 100.0, 5).audio.allFinite());
 }
 
 TEST(DaqTest, HighPassCornerFromDiscAndInput) {

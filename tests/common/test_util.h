@@ -3,11 +3,14 @@
 
 #include <gtest/gtest.h>
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
+
+#include "sonicboom/core/process.h"
 
 namespace sonicboom::testing {
 
@@ -45,25 +48,87 @@ struct CliRun {
   std::string err;
 };
 
-// Runs the built `sonicboom` with `args` (shell-quoted by the caller) in `cwd`.
-inline CliRun RunCli(const std::string& args, const std::string& cwd) {
-  const std::string err_file = cwd + "/.stderr.txt";
-  const std::string cmd =
-      "cd '" + cwd + "' && '" + std::string(SONICBOOM_CLI) + "' " + args + " 2>'" + err_file + "'";
-  CliRun run;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return run;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (FILE* f = fopen(err_file.c_str(), "r")) {
-    while ((n = fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
-    fclose(f);
+// `args` split into words as a shell would split plain words: blanks separate, '...' is literal,
+// "..." keeps blanks and takes \" \\ escapes, a backslash escapes the next character. No shell
+// runs them, so an unquoted ; | & < > ( ) $ or ` (a shell feature) fails the test.
+inline std::vector<std::string> SplitArgs(const std::string& args) {
+  std::vector<std::string> words;
+  std::string word;
+  bool in_word = false;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const char c = args[i];
+    if (c == ' ' || c == '\t' || c == '\n') {
+      if (in_word) words.push_back(word);
+      word.clear();
+      in_word = false;
+    } else if (c == '\'') {
+      const size_t end = args.find('\'', i + 1);
+      if (end == std::string::npos) ADD_FAILURE() << "unclosed ' in: " << args;
+      word += args.substr(i + 1, end - i - 1);
+      i = end == std::string::npos ? args.size() : end;
+      in_word = true;
+    } else if (c == '"') {
+      for (++i; i < args.size() && args[i] != '"'; ++i) {
+        if (args[i] == '\\' && i + 1 < args.size()) ++i;
+        word += args[i];
+      }
+      if (i >= args.size()) ADD_FAILURE() << "unclosed \" in: " << args;
+      in_word = true;
+    } else if (c == '\\' && i + 1 < args.size()) {
+      word += args[++i];
+      in_word = true;
+    } else {
+      if (std::string(";|&<>()$`").find(c) != std::string::npos) {
+        ADD_FAILURE() << "a shell feature ('" << c << "') in CLI arguments, which no shell runs: "
+                      << args;
+      }
+      word += c;
+      in_word = true;
+    }
   }
-  std::filesystem::remove(err_file);
+  if (in_word) words.push_back(word);
+  return words;
+}
+
+// Environment changes for RunCliEnv: a value sets the variable, "" removes it.
+using EnvChanges = std::vector<std::pair<std::string, std::string>>;
+// Environment changes for RunProgram: a value (possibly empty) sets the variable, nullopt
+// removes it.
+using ProcessEnv = std::vector<std::pair<std::string, std::optional<std::string>>>;
+
+// Runs `argv` in `cwd` (empty: this process's) from an argument vector (no shell), with `env`.
+inline CliRun RunProgram(const std::vector<std::string>& argv, const std::string& cwd,
+                         const ProcessEnv& env = {}) {
+  ProcessRequest request;
+  request.argv = argv;
+  request.cwd = cwd;
+  request.env = env;
+  CliRun run;
+  try {
+    const ProcessResult r = RunProcess(request);
+    run.exit_code = r.exit_code;
+    run.out = r.out;
+    run.err = r.err;
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << e.what();
+  }
   return run;
+}
+
+// Runs the built `sonicboom` with `args` (shell-style words, SplitArgs) in `cwd`, with `env`.
+inline CliRun RunCliEnv(const std::string& args, const std::string& cwd, const EnvChanges& env) {
+  std::vector<std::string> argv = {std::string(SONICBOOM_CLI)};
+  for (std::string& word : SplitArgs(args)) argv.push_back(std::move(word));
+  ProcessEnv changes;
+  for (const auto& [name, value] : env) {
+    changes.emplace_back(name, value.empty() ? std::nullopt : std::optional(value));
+  }
+  return RunProgram(argv, cwd, changes);
+}
+
+// Runs the built `sonicboom` with `args` (shell-style words, SplitArgs) in `cwd`.
+inline CliRun RunCli(const std::string& args, const std::string& cwd) {
+  return RunCliEnv(args, cwd, {});
 }
 
 // Message of the E thrown by f, or a test failure.

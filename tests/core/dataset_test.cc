@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/test_util.h"
 #include "sonicboom/core/array_file.h"
 #include "sonicboom/core/errors.h"
 
@@ -901,16 +902,11 @@ TEST(ArrayFileTest, RefusesBadInputAndIncompleteFiles) {
   EXPECT_EQ(summary["schema"], kDatasetSchema);
 }
 
-// Runs a shell command and returns its standard output and error.
-std::string RunCommand(const std::string& command, int* status) {
-  std::string output;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return output;
-  char buffer[4096];
-  size_t n = 0;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) output.append(buffer, n);
-  *status = pclose(pipe);
-  return output;
+// Runs `argv` (no shell) and returns its standard output and error, the exit status in *status.
+std::string RunCommand(const std::vector<std::string>& argv, int* status) {
+  const sonicboom::testing::CliRun run = sonicboom::testing::RunProgram(argv, "");
+  *status = run.exit_code;
+  return run.out + run.err;
 }
 
 std::string ReadText(const std::string& path) {
@@ -1034,9 +1030,8 @@ TEST(H5pyTest, EncodedChunksMatchHdf5FilterPipeline) {
     const std::string script = dir.File("compare_chunks.py");
     std::ofstream(script) << kCompareChunksPy;
     int status = -1;
-    const std::string output = RunCommand(
-        "/usr/bin/python3 " + script + " " + path + " " + dir.File("ref.h5") + " " + expected_path,
-        &status);
+    const std::string output =
+        RunCommand({"/usr/bin/python3", script, path, dir.File("ref.h5"), expected_path}, &status);
     ASSERT_EQ(status, 0) << output;
     const std::string dtype = audio_int16 ? "int16" : "float32";
     EXPECT_NE(output.find("dtype=" + dtype +
@@ -1082,7 +1077,7 @@ void EditDataset(const TempDir& dir, const std::string& mode, const std::string&
   std::ofstream(script) << kEditDatasetPy;
   int status = -1;
   const std::string output =
-      RunCommand("/usr/bin/python3 " + script + " " + mode + " " + path, &status);
+      RunCommand({"/usr/bin/python3", script, mode, path}, &status);
   ASSERT_EQ(status, 0) << output;
   ASSERT_NE(output.find("edited " + mode), std::string::npos) << output;
 }
@@ -1236,7 +1231,7 @@ TEST(H5pyTest, ContactTableLayout) {
   const std::string script = dir.File("layout.py");
   std::ofstream(script) << kContactLayoutPy;
   int status = -1;
-  const std::string output = RunCommand("/usr/bin/python3 " + script + " " + path, &status);
+  const std::string output = RunCommand({"/usr/bin/python3", script, path}, &status);
   ASSERT_EQ(status, 0) << output;
   const std::vector<std::string> want = {
       "version 1.1\n",
@@ -1278,7 +1273,7 @@ TEST(H5pyTest, DocumentedExampleReadsDataset) {
   const DatasetInfo info = MakeInfo(true);
   WriteDataset(path, info, {0, 1, 2}, {1});
   int status = -1;
-  const std::string output = RunCommand("/usr/bin/python3 " + script + " " + path, &status);
+  const std::string output = RunCommand({"/usr/bin/python3", script, path}, &status);
   ASSERT_EQ(status, 0) << output;
   EXPECT_NE(output.find("samples: 3 valid: 2 channels: 2 frames: 64 sample_rate_hz: 48000 "
                         "proprio_rows: 3"),
@@ -1303,7 +1298,7 @@ TEST(H5pyTest, DocumentedExampleReadsDataset) {
 
   // A 1.0 file has no contacts to print.
   EditDataset(dir, "downgrade", path);
-  const std::string old_output = RunCommand("/usr/bin/python3 " + script + " " + path, &status);
+  const std::string old_output = RunCommand({"/usr/bin/python3", script, path}, &status);
   ASSERT_EQ(status, 0) << old_output;
   EXPECT_NE(old_output.find("first: index=0 z_m=-0.050000"), std::string::npos) << old_output;
   EXPECT_NE(old_output.find("contacts: not recorded (schema_version 1.0)"), std::string::npos)
@@ -1311,7 +1306,7 @@ TEST(H5pyTest, DocumentedExampleReadsDataset) {
 
   // The script refuses an unfinished file.
   { DatasetWriter writer(dir.File("partial.h5"), info); }
-  RunCommand("/usr/bin/python3 " + script + " " + dir.File("partial.h5.partial"), &status);
+  RunCommand({"/usr/bin/python3", script, dir.File("partial.h5.partial")}, &status);
   EXPECT_NE(status, 0);
 }
 

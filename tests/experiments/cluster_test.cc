@@ -23,6 +23,7 @@ namespace sonicboom::experiments {
 namespace {
 
 namespace fs = std::filesystem;
+using sonicboom::testing::CliRun;
 using sonicboom::testing::RunCli;
 using sonicboom::testing::TempDir;
 using sonicboom::testing::ThrownMessage;
@@ -231,12 +232,18 @@ TEST(ClusterTest, MpirunShardsMergeToTheSingleProcessDataset) {
   const std::string cwd = dir.path().string();
   const std::string args = sonicboom::testing::kShortRecordArgs + "-q --threads 1 --seed 11 ";
   ASSERT_EQ(RunCli(args + "generate --count 12 --out single.h5", cwd).exit_code, 0);
-  const std::string mpirun =
-      "cd '" + cwd +
-      "' && OMPI_MCA_plm_rsh_agent= mpirun --allow-run-as-root --oversubscribe -np 3 '" +
-      std::string(SONICBOOM_CLI) + "' " + args +
-      "generate --count 12 --shard auto --out 'm-{shard}.h5' 2>mpirun.err";
-  ASSERT_EQ(std::system(mpirun.c_str()), 0) << mpirun;
+  std::vector<std::string> mpirun = {"mpirun", "--allow-run-as-root", "--oversubscribe", "-np",
+                                     "3", SONICBOOM_CLI};
+  for (std::string& word : sonicboom::testing::SplitArgs(args)) mpirun.push_back(word);
+  mpirun.insert(mpirun.end(), {"generate", "--count", "12", "--shard", "auto", "--out",
+                               "m-{shard}.h5"});
+  // an empty rsh agent: Open MPI starts the ranks on this machine without ssh
+  const sonicboom::testing::ProcessEnv env = {{"OMPI_MCA_plm_rsh_agent", std::string()}};
+  auto run_mpirun = [&] {
+    const CliRun run = sonicboom::testing::RunProgram(mpirun, cwd, env);
+    return run.exit_code == 0 ? std::string() : run.err;
+  };
+  ASSERT_EQ(run_mpirun(), "");
   for (int s = 0; s < 3; ++s) {
     const DatasetReader shard(dir / ("m-" + std::to_string(s) + ".h5"));
     EXPECT_EQ(shard.info().shard, s);
@@ -247,7 +254,7 @@ TEST(ClusterTest, MpirunShardsMergeToTheSingleProcessDataset) {
   ExpectSameSamples(dir / "single.h5", dir / "merged.h5");
   // a rerun of the finished job changes nothing: every shard is skipped
   const auto before = fs::last_write_time(dir / "m-1.h5");
-  ASSERT_EQ(std::system(mpirun.c_str()), 0) << mpirun;
+  ASSERT_EQ(run_mpirun(), "");
   EXPECT_EQ(fs::last_write_time(dir / "m-1.h5"), before);
 }
 
@@ -277,11 +284,16 @@ TEST(ClusterTest, TwoProcessTrainingFollowsTheOneProcessLossCurve) {
       "-q --set model.width=16 --set model.blocks=1 --set model.heads=2 --set model.dropout=0 "
       "--set model.modalities=[gcc] --set train.batch_size=16 --set train.epochs=4 ";
   ASSERT_EQ(RunCli("--threads 1 " + model + "train --data D.h5 --out ONE", cwd).exit_code, 0);
-  const std::string ddp = "cd '" + cwd + "' && SONICBOOM_BIN='" + std::string(SONICBOOM_CLI) +
-                          "' MASTER_PORT=" + std::to_string(29500 + getpid() % 2000) +
-                          " THREADS=1 bash '" + std::string(SONICBOOM_SOURCE_DIR) +
-                          "/scripts/cluster/train_ddp.sh' 2 D.h5 TWO " + model + " 2>ddp.err";
-  ASSERT_EQ(std::system(ddp.c_str()), 0) << ddp;
+  std::vector<std::string> ddp = {
+      "bash", std::string(SONICBOOM_SOURCE_DIR) + "/scripts/cluster/train_ddp.sh", "2", "D.h5",
+      "TWO"};
+  for (std::string& word : sonicboom::testing::SplitArgs(model)) ddp.push_back(word);
+  const CliRun two_process = sonicboom::testing::RunProgram(
+      ddp, cwd,
+      {{"SONICBOOM_BIN", SONICBOOM_CLI},
+       {"MASTER_PORT", std::to_string(29500 + getpid() % 2000)},
+       {"THREADS", "1"}});
+  ASSERT_EQ(two_process.exit_code, 0) << two_process.err;
   const std::vector<double> one = TrainLosses(dir.path() / "ONE"),
                             two = TrainLosses(dir.path() / "TWO");
   ASSERT_EQ(one.size(), 4u);

@@ -137,8 +137,9 @@ for name, fn in [('ZINT.h5', z_int_mm), ('ZMM.h5', z_float_mm), ('NANP.h5', nan_
                  ('PART.h5', incomplete)]:
     variant(name, fn)
 )";
-    const std::string cmd = "cd '" + dir_->path().string() + "' && /usr/bin/python3 damage.py";
-    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    const CliRun run =
+        sonicboom::testing::RunProgram({"/usr/bin/python3", "damage.py"}, dir_->path().string());
+    ASSERT_EQ(run.exit_code, 0) << run.err;
   }
 
   // Runs `args`; expects exit `exit_code` (any non-zero when 0 is passed), every substring in
@@ -358,6 +359,26 @@ TEST_F(HostileInputTest, OutputsNeverOverwriteInputsOrFinishedWork) {
                 {"RUN: exists; --force"}, 1);
   ExpectRefused(kShortRecordArgs + "features --in D.h5 --out nowhere/F.h5",
                 {"nowhere", "does not exist"}, 1);
+  // a sidecar obeys --force as its output does: one beside no output is someone else's
+  std::ofstream(Path("side.h5.config.yaml")) << "# another run's\n";
+  std::ofstream(Path("s2.wav.config.yaml")) << "# another run's\n";
+  std::ofstream(Path("F.h5.config.yaml")) << "# another run's\n";
+  ExpectRefused(kShortRecordArgs + "generate --count 2 --out side.h5",
+                {"side.h5.config.yaml: exists (a config sidecar beside no --out side.h5)"}, 1);
+  ExpectRefused(kShortRecordArgs + "synth --out s2.wav",
+                {"s2.wav.config.yaml: exists", "--force replaces it"}, 1);
+  ExpectRefused(kShortRecordArgs + "features --in D.h5 --out F.h5",
+                {"F.h5.config.yaml: exists"}, 1);
+  ExpectRefused("merge --out side.h5 S0.h5 S1.h5", {"side.h5.config.yaml: exists"}, 1);
+  // inspect --png replaces neither a figure nor its data without --force
+  std::ofstream(Path("mine.png")) << "a figure of the user's\n";
+  std::ofstream(Path("theirs.png.json")) << "{}\n";
+  ExpectRefused("inspect D.h5 --png mine.png", {"mine.png: exists; --force"}, 1);
+  ExpectRefused("inspect D.h5 --png theirs.png", {"theirs.png.json: exists; --force"}, 1);
+  for (const char* name : {"side.h5.config.yaml", "s2.wav.config.yaml", "F.h5.config.yaml",
+                           "mine.png", "theirs.png.json"}) {
+    fs::remove(Path(name));
+  }
   // shard sets: incomplete, or generated over different ranges
   ExpectRefused("merge --out M.h5 S0.h5", {"1 of 2 shards given; missing shard 1"}, 1);
   ExpectRefused("merge --out M.h5 S0.h5 T1.h5", {"T1.h5 was generated over indices [0, 6)"}, 1);

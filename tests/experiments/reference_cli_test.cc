@@ -138,9 +138,10 @@ TEST(ReferenceCliTest, LevelsSolvedApartAreReadBackByTheReport) {
   const std::string cwd = dir.path().string();
   // apps/reference_levels on the meshes of `args`, into cache directory `cache`: its exit status
   auto solve_apart = [&](const std::string& args, const std::string& cache) {
-    const std::string tool = "'" + std::string(SONICBOOM_REFERENCE_LEVELS) + "'" + args +
-                             " --cache-dir " + cache + " > /dev/null";
-    return std::system(("cd '" + cwd + "' && " + tool).c_str());
+    std::vector<std::string> argv = {SONICBOOM_REFERENCE_LEVELS};
+    for (std::string& word : sonicboom::testing::SplitArgs(args)) argv.push_back(word);
+    argv.insert(argv.end(), {"--cache-dir", cache});
+    return sonicboom::testing::RunProgram(argv, cwd).exit_code;
   };
   const std::string mesh = " --ideal --element-m 0.04 --max-frequency 1000 --levels 3 --ratio 1.2";
   ASSERT_EQ(solve_apart(mesh, "L"), 0) << mesh;

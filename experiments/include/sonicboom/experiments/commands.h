@@ -241,6 +241,7 @@ struct InspectOptions {
   std::string png;
   int64_t strike_row{0};
   std::string plot_script{"scripts/plot.py"};
+  bool force{false};  // replace an existing figure and its data (PNG, PNG.json)
 };
 CommandResult RunInspect(const GlobalOptions& g, const std::string& path,
                          const InspectOptions& o = {});
