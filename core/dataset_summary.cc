@@ -9,6 +9,7 @@
 #include <map>
 #include <numbers>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "internal/dataset_file.h"
@@ -223,10 +224,12 @@ std::string SummarizeDatasetJson(const std::string& path) {
       continue;
     }
     ++valid_count;
-    valid_z.push_back(z[i]);
-    valid_theta.push_back(theta[i]);
-    valid_impulse.push_back(impulse[i]);
-    valid_speed.push_back(speed[i]);
+    // ranges over the values known (NaN: not known, e.g. a capture's impulse)
+    for (auto [column, value] :
+         {std::pair{&valid_z, z[i]}, std::pair{&valid_theta, theta[i]},
+          std::pair{&valid_impulse, impulse[i]}, std::pair{&valid_speed, speed[i]}}) {
+      if (!std::isnan(value)) column->push_back(value);
+    }
     audio_peak.push_back(dataset.ReadAudio(i).cwiseAbs().maxCoeff());
   }
 

@@ -3,12 +3,14 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
 #include "sonicboom/core/dataset.h"
@@ -96,6 +98,34 @@ json ByMaterial(const std::vector<std::string>& materials,
   return by;
 }
 
+// Valid strikes whose label is not known (NaN z or θ), named by row and column: eval scores the
+// labelled ones only, and says which it left out.
+std::vector<std::string> UnlabelledStrikes(const std::string& data) {
+  const DatasetReader reader(data);
+  std::vector<std::string> unlabelled;
+  for (int64_t r = 0; r < reader.size(); ++r) {
+    const StrikeSample meta = reader.ReadMeta(r);
+    if (!meta.valid) continue;
+    const char* column = std::isnan(meta.label.z_m)         ? "label/z_m"
+                         : std::isnan(meta.label.theta_rad) ? "label/theta_rad"
+                                                            : nullptr;
+    if (column != nullptr) {
+      unlabelled.push_back(
+          fmt::format("sample row {} (index {}): {} is NaN", r, meta.index, column));
+    }
+  }
+  return unlabelled;
+}
+
+// The first few entries of a list, "; "-separated, and how many more.
+std::string FirstFew(const std::vector<std::string>& items) {
+  constexpr size_t kShown = 5;
+  std::string text;
+  for (size_t i = 0; i < std::min(items.size(), kShown); ++i) text += (i ? "; " : "") + items[i];
+  if (items.size() > kShown) text += fmt::format("; and {} more", items.size() - kShown);
+  return text;
+}
+
 }  // namespace
 
 CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
@@ -113,6 +143,18 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
   std::vector<uint64_t> indices;
   const learning::FeatureSet set =
       ComputeDatasetFeatures(data, config, g.threads, !g.quiet, &indices);
+  // strikes without a label (NaN) are not scored: all of them refused, some skipped and named
+  const std::vector<std::string> unlabelled = UnlabelledStrikes(data);
+  if (static_cast<int64_t>(unlabelled.size()) == set.size()) {
+    throw SchemaError(fmt::format(
+        "{}: no valid strike has a known label ({}): eval scores answers against labels; "
+        "`localize` answers unlabelled strikes",
+        data, FirstFew(unlabelled)));
+  }
+  if (!unlabelled.empty()) {
+    spdlog::warn("{}: {} of {} valid strikes not scored, their label is not known: {}", data,
+                 unlabelled.size(), set.size(), FirstFew(unlabelled));
+  }
   const std::vector<learning::Prediction> predictions = localizer.Predict(set);
   const learning::Metrics m =
       learning::ComputeMetrics(predictions, set, localizer.surface_radius_m());
@@ -132,6 +174,7 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir,
   }
   // per struck material, when the strikes hit several
   json result = MetricsJson(m);
+  if (!unlabelled.empty()) result["unlabelled"] = unlabelled.size();
   const json by = ByMaterial(StrikeMaterials(data, indices), predictions, set,
                              localizer.surface_radius_m(), &text);
   if (!by.is_null()) result["by_material"] = by;

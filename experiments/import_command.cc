@@ -2,11 +2,13 @@
 // (docs/captures.md).
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
 #include "internal/report.h"
@@ -58,6 +60,24 @@ hardware::ImportSettings SettingsFor(const SonicBoomConfig& config, const Import
   return s;
 }
 
+// Captures longer than the record are imported as their first record: said, with both lengths.
+void WarnTrimmed(const std::vector<hardware::TrimmedCapture>& trimmed, double record_s) {
+  if (trimmed.size() == 1) {
+    spdlog::warn(
+        "{}: {:.3f} s long, longer than the record (audio.record_duration_s = {:.3f} s): imported "
+        "as its first {:.3f} s",
+        trimmed[0].file, trimmed[0].captured_s, record_s, record_s);
+  } else if (!trimmed.empty()) {
+    const auto longest =
+        std::max_element(trimmed.begin(), trimmed.end(),
+                         [](const auto& a, const auto& b) { return a.captured_s < b.captured_s; });
+    spdlog::warn(
+        "{} captures are longer than the record (audio.record_duration_s = {:.3f} s) and were "
+        "imported as their first {:.3f} s; the longest, {}, is {:.3f} s",
+        trimmed.size(), record_s, record_s, longest->file, longest->captured_s);
+  }
+}
+
 }  // namespace
 
 CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
@@ -100,6 +120,7 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
   info.config_yaml = ConfigToYaml(config);
   const hardware::ImportReport report = hardware::ImportCaptures(o.in, o.out, settings, info);
   WriteTextAtomic(o.out + ".config.yaml", info.config_yaml);
+  WarnTrimmed(report.trimmed, config.audio.record_duration_s);
 
   // the result, bad captures listed
   json bad = json::array();
@@ -115,8 +136,15 @@ CommandResult RunImport(const GlobalOptions& g, const ImportOptions& o) {
         fmt::format("no-contact clip copied to {} (features.gating_noise_wav in {}.config.yaml)\n",
                     report.noise_wav, o.out);
   }
-  const json j = {
-      {"out", o.out}, {"imported", report.imported}, {"bad", bad}, {"noise_wav", report.noise_wav}};
+  json trimmed = json::array();
+  for (const hardware::TrimmedCapture& t : report.trimmed) {
+    trimmed.push_back({{"file", t.file}, {"captured_s", t.captured_s}});
+  }
+  const json j = {{"out", o.out},
+                  {"imported", report.imported},
+                  {"bad", bad},
+                  {"trimmed", trimmed},
+                  {"noise_wav", report.noise_wav}};
   return {j.dump(), text};
 }
 

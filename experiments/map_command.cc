@@ -29,6 +29,7 @@
 
 #include "internal/report.h"
 #include "internal/subcommands.h"
+#include "internal/unknown_fields.h"
 
 namespace sonicboom::experiments {
 
@@ -102,6 +103,43 @@ Eigen::Isometry3d LoggedTubePose(const Eigen::MatrixXf& proprio, double rate_hz,
   return pose;
 }
 
+// A valid tap the map can place: a known contact time within the arm's log, a rotation logged
+// there, a known true point (no tap is placed at t = 0 or scored against NaN). SchemaError naming
+// the file, the sample row and the column otherwise.
+void CheckMappableTap(const std::string& file, int64_t row, const StrikeSample& meta,
+                      double rate_hz, bool imported) {
+  const std::string at = SampleRowOf(file, row, meta);
+  const double t = KnownValue(meta.label.time_s, file, row, meta, "label/time_s",
+                              "a map places each tap with the tube's pose logged at its contact "
+                              "(a capture's contact time is labels.csv's time_s column)",
+                              imported);
+  const double log_end_s = static_cast<double>(meta.proprio.rows()) / rate_hz;
+  if (t < 0.0) {
+    throw SchemaError(fmt::format("{}: label/time_s is {} s, before the record starts", at, t));
+  }
+  if (t >= log_end_s) {
+    throw SchemaError(fmt::format(
+        "{} touches at {:.3f} s, after its proprioception log ends ({} rows at {} Hz = {:.3f} "
+        "s): a map places each tap with the tube's pose at its contact; generate the taps with "
+        "strike.proprio_rows covering the record (as configs/ts3.yaml does) or log the arm longer",
+        at, t, meta.proprio.rows(), rate_hz, log_end_s));
+  }
+  const auto k = static_cast<Eigen::Index>(std::floor(t * rate_hz));
+  const Eigen::Vector4f q = meta.proprio.row(k).segment<4>(3).transpose();
+  if (!(std::abs(q.norm() - 1.0f) <= 0.1f)) {
+    throw SchemaError(fmt::format(
+        "{}: /proprio row {} holds the quaternion (w, x, y, z) = ({}, {}, {}, {}) of norm {:.3g}, "
+        "not a rotation (within 10 % of 1): a map turns each tap by the tube's logged orientation",
+        at, k, q[0], q[1], q[2], q[3], q.norm()));
+  }
+  const std::string need = "a map scores each tap against its true contact point";
+  KnownValue(meta.label.z_m, file, row, meta, "label/z_m", need);
+  KnownValue(meta.label.theta_rad, file, row, meta, "label/theta_rad", need);
+  for (int j = 0; j < 3; ++j) {
+    KnownValue(meta.label.point_m[j], file, row, meta, "label/point_m", need);
+  }
+}
+
 }  // namespace
 
 CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
@@ -120,17 +158,10 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
   }
   const double rate_hz = reader.info().proprio_rate_hz;
   std::map<uint64_t, StrikeSample> meta_of;
+  const bool imported = reader.info().source == "hardware";
   for (int64_t r = 0; r < reader.size(); ++r) {
     StrikeSample meta = reader.ReadMeta(r);
-    const double log_end_s = static_cast<double>(meta.proprio.rows()) / rate_hz;
-    if (meta.valid && meta.label.time_s >= log_end_s) {
-      throw SchemaError(fmt::format(
-          "{}: sample {} touches at {:.3f} s, after its proprioception log ends ({} rows at {} Hz "
-          "= {:.3f} s): a map places each tap with the tube's pose at its contact; generate the "
-          "taps with strike.proprio_rows covering the record (as configs/ts3.yaml does) or log "
-          "the arm longer",
-          o.data, meta.index, meta.label.time_s, meta.proprio.rows(), rate_hz, log_end_s));
-    }
+    if (meta.valid) CheckMappableTap(o.data, r, meta, rate_hz, imported);
     meta_of.emplace(meta.index, std::move(meta));
   }
 
@@ -187,7 +218,7 @@ CommandResult RunMap(const GlobalOptions& g, const MapOptions& o) {
   WriteTextAtomic(json_path, result.dump(1) + "\n");
   if (!o.plot_script.empty()) {
     DrawFigure(o.plot_script, "map", json_path, (fs::path(o.out) / "map.png").string(),
-               "needs /usr/bin/python3 with python3-matplotlib; --plot \"\" skips the figure");
+               "map.json is written; --plot \"\" skips the figure");
   }
   json summary = result;
   summary.erase("points");

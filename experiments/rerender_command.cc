@@ -28,18 +28,46 @@
 #include "internal/reference.h"
 #include "internal/report.h"
 #include "internal/subcommands.h"
+#include "internal/unknown_fields.h"
 
 namespace sonicboom::experiments {
 using nlohmann::json;
 
+namespace {
+
+// Every valid strike of the first n has what the reference render takes from it (contact,
+// time, approach speed, striker mass), checked before the tube is solved: an imported capture
+// has none of the last three (NaN). SchemaError naming the file, the sample row and the column.
+void CheckRenderable(const DatasetReader& reader, const std::string& file, int64_t n) {
+  const bool imported = reader.info().source == "hardware";
+  const std::string need =
+      "rerender strikes the tube again where, when, how fast and with what mass the label says";
+  for (int64_t r = 0; r < n; ++r) {
+    const StrikeSample m = reader.ReadMeta(r);
+    if (!m.valid) continue;
+    KnownValue(m.label.z_m, file, r, m, "label/z_m", need);
+    KnownValue(m.label.theta_rad, file, r, m, "label/theta_rad", need);
+    KnownValue(m.label.time_s, file, r, m, "label/time_s", need, imported);
+    KnownValue(m.label.normal_speed_m_s, file, r, m, "label/normal_speed_m_s", need, imported);
+    if (!m.contacts.empty()) {
+      KnownValue(m.contacts.front().effective_mass_kg, file, r, m, "contacts/effective_mass_kg",
+                 need, imported);
+    }
+  }
+}
+
+}  // namespace
+
 CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
   CheckOutput(g, {o.out, "--out", o.force}, {{o.in, "--in"}});
+  CheckConfigSidecar({o.out, "--out", o.force});
   if (o.count < 0) throw ConfigError(fmt::format("--count must be >= 0, got {}", o.count));
   const SonicBoomConfig config = ResolveWithDataset(g, o.in);
   DatasetReader reader(o.in);
   DatasetInfo info = reader.info();
   CheckReferenceBand(o.max_frequency_hz, info.sample_rate_hz, "--max-frequency", o.in);
   const int64_t n = o.count > 0 ? std::min(o.count, reader.size()) : reader.size();
+  CheckRenderable(reader, o.in, n);
 
   // the reference tube: solved once (or read from the mode cache)
   const auto t0 = std::chrono::steady_clock::now();

@@ -1,5 +1,6 @@
 // Our capture layout: WAVs, labels.csv, optional robot logs and noise.wav (docs/captures.md).
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -19,7 +20,7 @@ namespace sonicboom::hardware::internal {
 namespace {
 
 constexpr const char* kRequired[] = {"file", "z_m", "theta_rad"};
-constexpr const char* kOptional[] = {"object", "material", "robot_log"};
+constexpr const char* kOptional[] = {"object", "material", "robot_log", "time_s"};
 
 std::vector<std::string> SplitCsv(std::string line) {
   if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -30,14 +31,43 @@ std::vector<std::string> SplitCsv(std::string line) {
   return cells;
 }
 
-double Number(const std::string& cell, const std::string& where, const std::string& column) {
-  try {
-    size_t used = 0;
-    const double v = std::stod(cell, &used);
-    if (used == cell.size()) return v;
-  } catch (const std::exception&) {
+// A plain decimal number: [+-] digits [. digits] [e [+-] digits], blanks around it allowed.
+bool IsDecimal(const std::string& s) {
+  size_t i = s.find_first_not_of(" \t"), digits = 0;
+  const size_t end = s.find_last_not_of(" \t") + 1;
+  if (i == std::string::npos) return false;
+  auto run = [&] {
+    const size_t from = i;
+    while (i < end && std::isdigit(static_cast<unsigned char>(s[i]))) ++i;
+    return i - from;
+  };
+  if (s[i] == '+' || s[i] == '-') ++i;
+  digits = run();
+  if (i < end && s[i] == '.') {
+    ++i;
+    digits += run();
   }
-  throw IoError(fmt::format("{}: {} '{}' is not a number", where, column, cell));
+  if (digits == 0) return false;
+  if (i < end && (s[i] == 'e' || s[i] == 'E')) {
+    ++i;
+    if (i < end && (s[i] == '+' || s[i] == '-')) ++i;
+    if (run() == 0) return false;
+  }
+  return i == end;
+}
+
+// A cell's number in decimal notation: strtod would also read hexadecimal (0x10 is 16) and hex
+// floats (0x1p-4 is 0.0625), which no one writes for metres on purpose.
+double Number(const std::string& cell, const std::string& where, const std::string& column) {
+  if (IsDecimal(cell)) {
+    try {
+      return std::stod(cell);
+    } catch (const std::exception&) {
+    }
+  }
+  const bool hex = cell.find_first_of("xX") != std::string::npos;
+  throw IoError(fmt::format("{}: {} '{}' is not a number{}", where, column, cell,
+                            hex ? " (decimal notation only: hexadecimal is refused)" : ""));
 }
 
 }  // namespace
@@ -59,14 +89,32 @@ fs::path InsideCapture(const fs::path& dir, const std::string& name, const std::
 
 namespace {
 
+// The optional time_s cell: the contact's time from the record's start, s (NaN, not known, when
+// absent or empty); it must lie within the record.
+void SetContactTime(const std::map<std::string, std::string>& row, const std::string& where,
+                    const ImportSettings& s, StrikeSample* sample) {
+  const auto cell = row.find("time_s");
+  if (cell == row.end() || cell->second.empty()) return;
+  const double t = Number(cell->second, where, "time_s");
+  const double record_s = static_cast<double>(s.record_frames) / s.sample_rate_hz;
+  if (!(t >= 0.0 && t < record_s)) {
+    throw IoError(
+        fmt::format("{}: time_s {} s lies outside the record [0, {} s)", where, t, record_s));
+  }
+  sample->label.time_s = t;
+  sample->contacts[0].time_s = t;
+}
+
 // One labels.csv row as a capture: its WAV, label, contact names and optional robot log, every
 // path confined to the capture directory (a capture may come from anyone).
 StrikeSample LoadCapture(const fs::path& dir, const std::map<std::string, std::string>& row,
-                         const std::string& where, const ImportSettings& s) {
+                         const std::string& where, const ImportSettings& s, LoadNotes* notes) {
   StrikeSample sample;
-  sample.audio = CheckedRecord(InsideCapture(dir, row.at("file"), where, "file").string(), s);
+  sample.audio =
+      CheckedRecord(InsideCapture(dir, row.at("file"), where, "file").string(), s, notes);
   SetLabel(Number(row.at("z_m"), where, "z_m"), Number(row.at("theta_rad"), where, "theta_rad"), s,
            where, &sample);
+  SetContactTime(row, where, s, &sample);
   if (row.count("object")) sample.contacts[0].object = row.at("object");
   if (row.count("material")) sample.contacts[0].material = row.at("material");
   const auto log = row.find("robot_log");
@@ -97,12 +145,13 @@ std::vector<ImportEntry> ListCaptures(const std::string& dir_name) {
   // header: the required columns, then any optional ones, nothing else
   std::string line;
   std::getline(in, line);
+  if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte order mark
   const std::vector<std::string> header = SplitCsv(line);
   for (const char* name : kRequired) {
     if (std::find(header.begin(), header.end(), name) == header.end()) {
       throw IoError(
           fmt::format("{}:1: header lacks the column '{}' (file,z_m,theta_rad required; "
-                      "object,material,robot_log optional)",
+                      "object,material,robot_log,time_s optional)",
                       labels.string(), name));
     }
   }
@@ -132,11 +181,11 @@ std::vector<ImportEntry> ListCaptures(const std::string& dir_name) {
       problem = fmt::format("{}: '{}' is labelled twice", where, file);
     }
     const auto index = static_cast<uint64_t>(entries.size());
-    entries.push_back(
-        {(dir / file).string(), index, [dir, row, where, problem](const ImportSettings& s) {
-           if (!problem.empty()) throw IoError(problem);
-           return LoadCapture(dir, row, where, s);
-         }});
+    entries.push_back({(dir / file).string(), index,
+                       [dir, row, where, problem](const ImportSettings& s, LoadNotes* notes) {
+                         if (!problem.empty()) throw IoError(problem);
+                         return LoadCapture(dir, row, where, s, notes);
+                       }});
   }
 
   // WAVs without a label are bad captures too
@@ -151,7 +200,7 @@ std::vector<ImportEntry> ListCaptures(const std::string& dir_name) {
   for (const std::string& name : unlabelled) {
     const std::string file = (dir / name).string();
     entries.push_back({file, static_cast<uint64_t>(entries.size()),
-                       [file](const ImportSettings&) -> StrikeSample {
+                       [file](const ImportSettings&, LoadNotes*) -> StrikeSample {
                          throw IoError(fmt::format("{}: no row in labels.csv", file));
                        }});
   }

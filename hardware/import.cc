@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <optional>
 
@@ -21,6 +22,12 @@ namespace fs = std::filesystem;
 namespace sonicboom::hardware {
 namespace {
 
+// A capture longer than the record is imported as its first record_frames: noted for a warning.
+void NoteIfTrimmed(const std::string& file, const internal::LoadNotes& notes,
+                   ImportReport* report) {
+  if (notes.trimmed) report->trimmed.push_back({file, notes.captured_s});
+}
+
 constexpr double kJ7OffsetRad = 50.0 * kPi / 180.0;  // θ_tube = −θ_j7 − 50°
 // An int16 converter's positive full scale as libsndfile reads it (32767 / 32768).
 constexpr float kFullScale = 32767.0f / 32768.0f;
@@ -29,13 +36,14 @@ constexpr float kFullScale = 32767.0f / 32768.0f;
 struct Loaded {
   std::optional<DatasetWriter::EncodedSample> sample;
   std::string reason;
+  internal::LoadNotes notes;
 };
 
 Loaded LoadOne(const internal::ImportEntry& entry, const ImportSettings& settings,
                const DatasetWriter& writer) {
   Loaded out;
   try {
-    StrikeSample s = entry.load(settings);
+    StrikeSample s = entry.load(settings, &out.notes);
     s.index = entry.index;
     s.provenance = entry.file;
     out.sample = writer.Encode(s);
@@ -46,10 +54,14 @@ Loaded LoadOne(const internal::ImportEntry& entry, const ImportSettings& setting
 }
 
 // A capture directory's no-contact clip (noise.wav), checked like a capture; empty when absent.
-Eigen::MatrixXf ReadNoiseClip(const std::string& in_dir, const ImportSettings& settings) {
+Eigen::MatrixXf ReadNoiseClip(const std::string& in_dir, const ImportSettings& settings,
+                              ImportReport* report) {
   const fs::path noise = fs::path(in_dir) / "noise.wav";
   if (settings.layout != Layout::kCapture || !fs::exists(noise)) return {};
-  return internal::CheckedRecord(noise.string(), settings);
+  internal::LoadNotes notes;
+  Eigen::MatrixXf clip = internal::CheckedRecord(noise.string(), settings, &notes);
+  NoteIfTrimmed(noise.string(), notes, report);
+  return clip;
 }
 
 }  // namespace
@@ -64,8 +76,13 @@ double StoredAngleFrom(double tube_rad, AngleConvention convention) {
 
 namespace internal {
 
-Eigen::MatrixXf CheckedRecord(const std::string& wav, const ImportSettings& settings) {
+Eigen::MatrixXf CheckedRecord(const std::string& wav, const ImportSettings& settings,
+                              LoadNotes* notes) {
   const AudioClip clip = ReadWav(wav);
+  if (notes != nullptr) {
+    notes->captured_s = static_cast<double>(clip.frames()) / clip.sample_rate_hz;
+    notes->trimmed = clip.frames() > settings.record_frames;
+  }
   if (std::abs(clip.sample_rate_hz - settings.sample_rate_hz) > 1e-6) {
     throw IoError(fmt::format("{}: sample rate {} Hz, the rig's is {} Hz (audio.sample_rate_hz)",
                               wav, clip.sample_rate_hz, settings.sample_rate_hz));
@@ -125,7 +142,10 @@ void SetLabel(double z_m, double theta_rad, const ImportSettings& settings,
   if (std::abs(theta_rad) > kPi + 1e-6) {
     throw IoError(fmt::format("{}: label angle {} rad is outside [-pi, pi]", where, theta_rad));
   }
+  // what a capture does not record is NaN, not known (docs/dataset.md); 0 read as a measurement
+  constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
   ContactLabel& l = sample->label;
+  l.impulse_Ns = l.time_s = l.normal_speed_m_s = l.duration_s = kUnknown;
   l.z_m = z_m;
   l.theta_rad = WrapAngle(theta_rad);
   l.normal = SurfaceNormal(l.theta_rad);
@@ -136,6 +156,8 @@ void SetLabel(double z_m, double theta_rad, const ImportSettings& settings,
   episode.point_m = l.point_m;
   episode.normal = l.normal;
   episode.kind = ContactEpisode::Kind::kImpact;
+  episode.time_s = episode.duration_s = episode.normal_speed_m_s = kUnknown;
+  episode.effective_mass_kg = episode.impulse_Ns = episode.peak_force_N = kUnknown;
   sample->contacts.assign(1, episode);
 }
 
@@ -161,10 +183,9 @@ ImportReport ImportCaptures(const std::string& in_dir, const std::string& out_pa
   info.proprio_rows = settings.proprio_rows;
   info.audio_int16 = true;
 
-  const Eigen::MatrixXf noise = ReadNoiseClip(in_dir, settings);
-
   // Load and encode in parallel, append in input order; bad captures are collected.
   ImportReport report;
+  const Eigen::MatrixXf noise = ReadNoiseClip(in_dir, settings, &report);
   auto writer = std::make_unique<DatasetWriter>(out_path, info);
   size_t next = 0;
   tbb::task_arena arena(settings.threads > 0 ? settings.threads : tbb::task_arena::automatic);
@@ -189,6 +210,7 @@ ImportReport ImportCaptures(const std::string& in_dir, const std::string& out_pa
                                      } else if (report.bad.empty() || settings.skip_bad) {
                                        writer->AppendEncoded(*loaded.sample);
                                        ++report.imported;
+                                       NoteIfTrimmed(entries[i].file, loaded.notes, &report);
                                      }
                                    }));
   });

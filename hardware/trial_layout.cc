@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <optional>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -98,9 +99,9 @@ void LabelFromGeometry(const fs::path& dir, const ImportSettings& s, StrikeSampl
   }
 }
 
-StrikeSample LoadTrial(const fs::path& dir, const ImportSettings& s) {
+StrikeSample LoadTrial(const fs::path& dir, const ImportSettings& s, internal::LoadNotes* notes) {
   StrikeSample sample;
-  sample.audio = internal::CheckedRecord((dir / "mic2.wav").string(), s);
+  sample.audio = internal::CheckedRecord((dir / "mic2.wav").string(), s, notes);
   sample.proprio = TrialProprio(dir, s);
   if (s.labeler) {
     LabelFromGeometry(dir, s, &sample);
@@ -131,6 +132,28 @@ std::vector<Eigen::Isometry3d> TubePosesFromJointLog(const std::string& path,
   return poses;
 }
 
+namespace {
+
+// Every valid sample's (z, θ) known: a NaN would be written as gt_label.npy = [nan, nan], which
+// no import reads back (SchemaError naming the file, the row and the column).
+void RequireKnownLabels(const DatasetReader& reader, const std::string& path) {
+  for (int64_t i = 0; i < reader.size(); ++i) {
+    const StrikeSample meta = reader.ReadMeta(i);
+    if (!meta.valid) continue;
+    for (const auto& [name, value] : {std::pair{"label/z_m", meta.label.z_m},
+                                      std::pair{"label/theta_rad", meta.label.theta_rad}}) {
+      if (std::isnan(value)) {
+        throw SchemaError(fmt::format(
+            "{}: sample row {} (index {}): {} is NaN (not known), and a trial's gt_label.npy "
+            "holds two finite numbers: nothing exported",
+            path, i, meta.index, name));
+      }
+    }
+  }
+}
+
+}  // namespace
+
 namespace internal {
 
 std::vector<ImportEntry> ListTrials(const std::string& dir) {
@@ -144,10 +167,20 @@ std::vector<ImportEntry> ListTrials(const std::string& dir) {
     trials.emplace_back(std::stoull(name.substr(5)), e.path());
   }
   std::sort(trials.begin(), trials.end());
+  // trial0 and trial00 would both be sample 0: refused before anything is written
+  for (size_t k = 1; k < trials.size(); ++k) {
+    if (trials[k].first == trials[k - 1].first) {
+      throw IoError(
+          fmt::format("{} and {}: both are trial {} (the number is the sample index; rename one)",
+                      trials[k - 1].second.string(), trials[k].second.string(), trials[k].first));
+    }
+  }
   std::vector<ImportEntry> entries;
   for (const auto& [n, path] : trials) {
-    entries.push_back({(path / "mic2.wav").string(), n,
-                       [path = path](const ImportSettings& s) { return LoadTrial(path, s); }});
+    entries.push_back(
+        {(path / "mic2.wav").string(), n, [path = path](const ImportSettings& s, LoadNotes* notes) {
+           return LoadTrial(path, s, notes);
+         }});
   }
   return entries;
 }
@@ -161,6 +194,7 @@ int64_t ExportTrials(const std::string& dataset_path, const std::string& out_dir
   }
   DatasetReader reader(dataset_path);
   const DatasetInfo& info = reader.info();
+  RequireKnownLabels(reader, dataset_path);
   const std::string partial = out_dir + ".partial";
   std::error_code ignored;
   fs::remove_all(partial, ignored);

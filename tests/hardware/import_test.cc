@@ -248,5 +248,43 @@ TEST(ImportTest, CaptureLayoutReadsLabelsLogsAndNoiseAndFlagsUnlabelledFiles) {
       HasSubstr("column 'height' is unknown"));
 }
 
+// labels.csv numbers are decimal (strtod would read 0x10 as 16 and 0x1p-4 as 0.0625); a UTF-8
+// byte order mark before the header is dropped; time_s, when given, is the contact's time (else
+// NaN, like everything else a capture does not record)
+TEST(ImportTest, CaptureLabelsAreDecimalNumbersAndMayFollowAByteOrderMark) {
+  TempDir dir;
+  fs::create_directory(dir / "cap");
+  AudioClip clip{StrikeAudio(1), 44100.0};
+  for (const char* name : {"a.wav", "b.wav", "c.wav", "d.wav", "e.wav"})
+    WriteWav(dir / (std::string("cap/") + name), clip);
+  std::ofstream(dir / "cap/labels.csv") << "\xEF\xBB\xBF"
+                                        << "file,z_m,theta_rad,time_s\r\n"
+                                        << "a.wav,0.05,1.0,0.5\r\n"
+                                        << "b.wav,0x10,0.0,\r\n"
+                                        << "c.wav,0.01,0x1p-4,\r\n"
+                                        << "d.wav,0.01,0.0,2.5\r\n"
+                                        << "e.wav, -2e-2 ,-3.0e0,\r\n";
+  ImportSettings s = Trials();
+  s.layout = Layout::kCapture;
+  s.skip_bad = true;
+  const ImportReport report = ImportCaptures(dir / "cap", dir / "cap.h5", s, DatasetInfo{});
+  EXPECT_EQ(report.imported, 2);
+  ASSERT_EQ(report.bad.size(), 3u);
+  EXPECT_THAT(report.bad[0].reason,
+              HasSubstr("labels.csv:3: z_m '0x10' is not a number (decimal notation only: "
+                        "hexadecimal is refused)"));
+  EXPECT_THAT(report.bad[1].reason, HasSubstr("labels.csv:4: theta_rad '0x1p-4' is not a number"));
+  EXPECT_THAT(report.bad[2].reason,
+              HasSubstr("labels.csv:5: time_s 2.5 s lies outside the record [0, 2 s)"));
+  const DatasetReader reader(dir / "cap.h5");
+  const StrikeSample a = reader.ReadMeta(0), e = reader.ReadMeta(1);
+  EXPECT_EQ(a.label.time_s, 0.5);
+  EXPECT_EQ(a.contacts[0].time_s, 0.5);
+  EXPECT_TRUE(std::isnan(a.label.normal_speed_m_s));
+  EXPECT_TRUE(std::isnan(a.contacts[0].effective_mass_kg));
+  EXPECT_EQ(e.label.z_m, -0.02);  // blanks around a decimal number are fine
+  EXPECT_TRUE(std::isnan(e.label.time_s));
+}
+
 }  // namespace
 }  // namespace sonicboom::hardware

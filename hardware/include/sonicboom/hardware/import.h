@@ -79,10 +79,17 @@ struct BadCapture {
   std::string reason;
 };
 
+/// A capture longer than the record, imported as its first record_frames: its file and length.
+struct TrimmedCapture {
+  std::string file;
+  double captured_s{0.0};
+};
+
 struct ImportReport {
   int64_t imported{0};
-  std::vector<BadCapture> bad;  // listed in input order
-  std::string noise_wav;        // the copied no-contact clip, "" when the layout had none
+  std::vector<BadCapture> bad;          // listed in input order
+  std::vector<TrimmedCapture> trimmed;  // imported captures longer than the record, in order
+  std::string noise_wav;                // the copied no-contact clip, "" when the layout had none
 };
 
 /// Imports `in_dir` into `out_path` with `info` as the file's metadata (config_yaml, rates; its
@@ -96,7 +103,9 @@ ImportReport ImportCaptures(const std::string& in_dir, const std::string& out_pa
 /// Writes every valid sample of `dataset_path` in the published trial layout under `out_dir`
 /// (trial0 ... trial{M-1} in sample-index order; mic2.wav 16-bit PCM; gt_label.npy [z_m, angle];
 /// x_t.npy (K, 7) position + quaternion x y z w; xdot_t.npy (K, 3)). The directory is built as
-/// "<out_dir>.partial" and renamed when whole. Returns the number of trials written.
+/// "<out_dir>.partial" and renamed when whole. Returns the number of trials written. A valid
+/// sample whose label is not known (NaN z or angle) is refused before anything is written
+/// (SchemaError naming the file, the row and the column): gt_label.npy holds two finite numbers.
 int64_t ExportTrials(const std::string& dataset_path, const std::string& out_dir,
                      AngleConvention angle);
 
