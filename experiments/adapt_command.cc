@@ -32,11 +32,19 @@ CommandResult RunAdapt(const GlobalOptions& g, const std::string& model_dir,
         "adapt: --keep-batch-norm with --keep-mel-statistics leaves nothing to adapt");
   }
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
+  // the output rule of every command: not inside the run it reads, nor over the data
+  RefuseWritingOverInputs(g, {out_dir}, {{model_dir, "--model"}, {data, "--data"}});
   if (fs::exists(out_dir) && !fs::is_empty(out_dir)) {
     throw ConfigError(fmt::format("{}: exists and is not empty; adapt writes a new run", out_dir));
   }
   // the dataset's features with the run's own settings; labels are not read
   const learning::FeatureSet target = ComputeDatasetFeatures(data, config, g.threads, !g.quiet);
+  if (target.size() < learning::kMinFitRecords) {
+    throw ConfigError(fmt::format(
+        "{}: {} valid strike(s); adapt re-estimates the input and BatchNorm statistics on at "
+        "least {}",
+        data, target.size(), learning::kMinFitRecords));
+  }
   const learning::AdaptReport r = learning::AdaptToUnlabelled(model_dir, target, out_dir, options);
   // the run's config travels with it: eval and localize read it from the run directory
   WriteTextAtomic((fs::path(out_dir) / "config.yaml").string(),

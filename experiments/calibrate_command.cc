@@ -4,22 +4,80 @@
 
 #include <CLI/CLI.hpp>
 
+#include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "sonicboom/core/cache_file.h"
+#include "sonicboom/core/dataset.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/experiments/pipeline.h"
 #include "sonicboom/learning/learning.h"
 
+#include "internal/records.h"
 #include "internal/report.h"
 #include "internal/subcommands.h"
 
 namespace sonicboom::experiments {
 
+namespace fs = std::filesystem;
 using nlohmann::json;
+
+namespace {
+
+// Where a strike was read: the file, its row and sample index.
+struct StrikePlace {
+  std::string path;
+  int64_t row{0};
+  uint64_t index{0};
+};
+
+// What makes a strike that strike: its audio, arm and label, as read (a digest).
+uint64_t StrikeDigest(const StrikeSample& s) {
+  uint64_t h = internal::Fnv1a(s.audio.data(), sizeof(float) * s.audio.size());
+  h = internal::Fnv1a(s.proprio.data(), sizeof(float) * s.proprio.size(), h);
+  const double label[2] = {s.label.z_m, s.label.theta_rad};
+  return internal::Fnv1a(label, sizeof(label), h);
+}
+
+// Every strike counts once: a dataset given twice, a renamed copy, a merge beside its shards or
+// one strike under two indices would pass the minimum with the same strikes twice.
+void RefuseRepeatedStrikes(const GlobalOptions& g, const SonicBoomConfig& config,
+                           const std::vector<std::string>& data) {
+  std::map<uint64_t, StrikePlace> seen;
+  for (size_t k = 0; k < data.size(); ++k) {
+    for (size_t j = 0; j < k; ++j) {
+      std::error_code ec;
+      if (data[j] == data[k] || fs::equivalent(data[j], data[k], ec)) {
+        throw ConfigError(fmt::format(
+            "--data {} is given twice (the same file as --data {}): each strike counts once "
+            "toward the {} a fit needs",
+            data[k], data[j], learning::kMinFitRecords));
+      }
+    }
+    const DatasetReader reader(data[k]);
+    const ValidRecords valid = ReadValidRecords(reader, data[k], config);
+    std::vector<uint64_t> digests(valid.rows.size());
+    ForEachRecord(reader, valid.rows, g.threads, "strikes", false,
+                  [&](int64_t i, const StrikeSample& s) { digests[i] = StrikeDigest(s); });
+    for (size_t i = 0; i < digests.size(); ++i) {
+      const StrikePlace here{data[k], valid.rows[i], valid.metas[i].index};
+      const auto [it, fresh] = seen.emplace(digests[i], here);
+      if (fresh) continue;
+      throw ConfigError(fmt::format(
+          "{} row {} (index {}) is the strike of {} row {} (index {}): the same audio, arm and "
+          "label; each strike counts once toward the {} a fit needs",
+          here.path, here.row, here.index, it->second.path, it->second.row, it->second.index,
+          learning::kMinFitRecords));
+    }
+  }
+}
+
+}  // namespace
 
 CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
                            const std::vector<std::string>& data) {
@@ -31,6 +89,7 @@ CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
         "there are no intervals to calibrate",
         model_dir));
   }
+  RefuseRepeatedStrikes(g, config, data);
   // the run's calibrated predictions of every dataset, and their labels, in order
   std::vector<learning::Prediction> predictions;
   learning::FeatureSet labels;

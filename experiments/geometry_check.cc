@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -64,14 +65,31 @@ double KinematicsGap(const Eigen::MatrixXf& proprio, const std::vector<Eigen::Is
   return gap;
 }
 
+// The system's temporary directory where std::filesystem looks for it (TMPDIR, TMP, TEMP,
+// TEMPDIR, else /tmp), refused naming the variable and its value when it is not a directory.
+std::filesystem::path TemporaryDirectory() {
+  for (const char* name : {"TMPDIR", "TMP", "TEMP", "TEMPDIR"}) {
+    const char* value = std::getenv(name);
+    if (value == nullptr || *value == '\0') continue;
+    std::error_code ec;
+    if (!std::filesystem::is_directory(value, ec)) {
+      throw IoError(fmt::format(
+          "{}={}: not a directory (the temporary directory for the scenes); set {} to one, or "
+          "give --scenes DIR",
+          name, value, name));
+    }
+    return value;
+  }
+  return "/tmp";
+}
+
 // The scenes' directory: the user's, kept; or a temporary one, removed on the way out.
 class SceneDirectory {
  public:
   explicit SceneDirectory(const std::string& user) : keep_(!user.empty()) {
     namespace fs = std::filesystem;
-    path_ = keep_
-                ? fs::path(user)
-                : fs::temp_directory_path() / fmt::format("sonicboom-geometry-check-{}", getpid());
+    path_ = keep_ ? fs::path(user)
+                  : TemporaryDirectory() / fmt::format("sonicboom-geometry-check-{}", getpid());
     if (fs::exists(path_) && !(fs::is_directory(path_) && fs::is_empty(path_))) {
       throw IoError(
           fmt::format("{}: exists and is not an empty directory (--scenes)", path_.string()));

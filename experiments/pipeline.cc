@@ -455,9 +455,9 @@ Eigen::MatrixXf GatingClipFor(const SonicBoomConfig& config, double sample_rate_
   if (std::abs(sample_rate_hz - config.audio.sample_rate_hz) > 1e-6 ||
       channels != config.mics.count()) {
     throw ConfigError(fmt::format(
-        "{}: records at {} Hz with {} channels, but features.gating "
-        "gates against a reference noise clip at audio.sample_rate_hz = "
-        "{} Hz with one channel per mic ({}); match the config or set "
+        "{}: records at {} Hz with {} channels, but this command's config gates "
+        "(features.gating) against a reference noise clip at audio.sample_rate_hz = {} Hz with "
+        "one channel per mic ({}); give the records' own rate and mics (--config, --set) or set "
         "features.gating=false",
         what, sample_rate_hz, channels, config.audio.sample_rate_hz, config.mics.count()));
   }
@@ -502,6 +502,16 @@ void CheckRenderedSpan(const DatasetInfo& info, const SonicBoomConfig& config,
         "acoustics.render_span = record",
         path, made.features.window_s, 1e3 * rendered, config.features.window_s, 1e3 * read));
   }
+}
+
+// A simulated dataset's own record length and rate, as a message adds them: " (its own config:
+// ...)", or nothing when unknown (an import, an earlier version).
+std::string OwnAudioConfig(const DatasetInfo& info, const std::string& path) {
+  const std::optional<SonicBoomConfig> own = SimulatedWith(info, path);
+  if (!own) return "";
+  return fmt::format(
+      " (its own config: audio.record_duration_s = {} s at audio.sample_rate_hz = {} Hz)",
+      own->audio.record_duration_s, own->audio.sample_rate_hz);
 }
 
 }  // namespace
@@ -558,10 +568,10 @@ ValidRecords ReadValidRecords(const DatasetReader& reader, const std::string& pa
   const DatasetInfo& info = reader.info();
   if (info.audio_frames != config.audio.num_samples()) {
     throw SchemaError(fmt::format(
-        "{}: records of {} frames, but its config's audio.record_duration_s = {} s at {} Hz "
-        "makes {}",
-        path, info.audio_frames, config.audio.record_duration_s, config.audio.sample_rate_hz,
-        config.audio.num_samples()));
+        "{}: records of {} frames at {} Hz{}, but this command's config reads "
+        "audio.record_duration_s = {} s at audio.sample_rate_hz = {} Hz, {} frames",
+        path, info.audio_frames, info.sample_rate_hz, OwnAudioConfig(info, path),
+        config.audio.record_duration_s, config.audio.sample_rate_hz, config.audio.num_samples()));
   }
   // labels on the tube: a height beyond its ends is in other units (millimetres?) or damage
   const double half_length_m = 0.5 * config.tube.length_m;

@@ -61,6 +61,21 @@ json ApplyPseudoLabels(const std::string& init_from, double keep_fraction,
   return j;
 }
 
+// The run's own files beside what training writes: its config, and how it was fine-tuned and
+// pseudo-labelled.
+void WriteRunSidecars(const std::string& work, const SonicBoomConfig& config, const TrainOptions& o,
+                      const json& pseudo) {
+  WriteTextAtomic((fs::path(work) / "config.yaml").string(), ConfigToYaml(config));
+  if (!o.init_from.empty()) {
+    const json init{
+        {"init_from", o.init_from}, {"freeze", NameOf(o.freeze)}, {"norm", NameOf(o.norm)}};
+    WriteTextAtomic((fs::path(work) / "fine_tune.json").string(), init.dump(2) + "\n");
+  }
+  if (!pseudo.is_null()) {
+    WriteTextAtomic((fs::path(work) / "pseudo_labels.json").string(), pseudo.dump(2) + "\n");
+  }
+}
+
 }  // namespace
 
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
@@ -118,34 +133,32 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   // (taken once the data is read: a file that crashes libhdf5 leaves no lock file behind)
   const OutputLock lock(o.out);
   std::error_code ec;
-  if (o.resume && !fs::exists(work)) {
+  // what this command makes goes again if it is refused: a fresh run, or the copy of a finished
+  // run trained further; an interrupted run resumed keeps its checkpoint and files as they were
+  const bool made_work = !o.resume || !fs::exists(work);
+  if (o.resume && made_work) {
     // more epochs for a finished run: in a copy, which replaces it once done
     fs::copy(o.out, work, fs::copy_options::recursive, ec);
     if (ec) {
-      throw IoError(fmt::format("{}: cannot copy {} to resume it: {}", work, o.out, ec.message()));
+      const std::string why = ec.message();
+      fs::remove_all(work, ec);
+      throw IoError(fmt::format("{}: cannot copy {} to resume it: {}", work, o.out, why));
     }
   } else if (!o.resume) {
     fs::remove_all(work, ec);  // a killed run's leftovers, not resumed
   }
   MakeDirectories(work);
-  WriteTextAtomic((fs::path(work) / "config.yaml").string(), ConfigToYaml(config));
-  if (!o.init_from.empty()) {
-    const json init{
-        {"init_from", o.init_from}, {"freeze", NameOf(o.freeze)}, {"norm", NameOf(o.norm)}};
-    WriteTextAtomic((fs::path(work) / "fine_tune.json").string(), init.dump(2) + "\n");
-  }
-  if (!pseudo.is_null()) {
-    WriteTextAtomic((fs::path(work) / "pseudo_labels.json").string(), pseudo.dump(2) + "\n");
-  }
+  // a fresh run says what it is before it trains; a resumed one once it has trained
+  if (made_work) WriteRunSidecars(work, config, o, pseudo);
   learning::Metrics m;
   try {
     m = TrainOnFeatures(config, std::move(features), indices, o.data, work, o.resume, g.quiet,
                         fine_tune, parallel);
   } catch (const Error&) {
-    // refused input: a fresh run leaves nothing behind (a resumed one keeps its checkpoint)
-    if (!o.resume) fs::remove_all(work, ec);
+    if (made_work) fs::remove_all(work, ec);
     throw;
   }
+  if (!made_work) WriteRunSidecars(work, config, o, pseudo);
   // each member of an ensemble is a run of its own too (eval, localize, a fine-tune from it)
   for (const std::string& member : learning::EnsembleMembers(work)) {
     WriteTextAtomic((fs::path(member) / "config.yaml").string(), ConfigToYaml(config));

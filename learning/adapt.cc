@@ -94,8 +94,11 @@ int64_t AdaptOne(const std::string& run_dir, const FeatureSet& target, const std
 
 AdaptReport AdaptToUnlabelled(const std::string& run_dir, const FeatureSet& target,
                               const std::string& out_dir, const AdaptOptions& options) {
-  if (target.size() == 0) {
-    throw ConfigError("adapt: the target holds no strikes; there is nothing to adapt to");
+  if (target.size() < kMinFitRecords) {
+    throw ConfigError(fmt::format(
+        "adapt: the target holds {} strike(s); re-estimating the input and BatchNorm statistics "
+        "needs at least {}",
+        target.size(), kMinFitRecords));
   }
   if (fs::exists(out_dir) && !fs::is_empty(out_dir)) {
     throw ConfigError(fmt::format("{}: exists and is not empty; adapt writes a new run", out_dir));

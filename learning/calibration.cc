@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include "internal/data.h"
 #include "sonicboom/core/errors.h"
@@ -19,17 +20,38 @@ namespace sonicboom::learning {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-// Labelled records with a predictive distribution: the ones a fit can use.
-int64_t UsableRecords(const std::vector<Prediction>& predictions, const FeatureSet& truth) {
+int64_t CalibrationRecords(const std::vector<Prediction>& predictions, const FeatureSet& truth) {
   int64_t n = 0;
-  for (size_t i = 0; i < predictions.size(); ++i) {
+  for (size_t i = 0; i < predictions.size() && i < truth.z_m.size(); ++i) {
     n += predictions[i].has_uncertainty() && std::isfinite(truth.z_m[i]) &&
          std::isfinite(truth.theta_rad[i]);
   }
   return n;
 }
+
+CalibrationFit FitOrKeepCalibration(const std::vector<Prediction>& predictions,
+                                    const FeatureSet& truth, const UncertaintyCalibration& kept,
+                                    const std::string& kept_what) {
+  CalibrationFit fit;
+  fit.records = CalibrationRecords(predictions, truth);
+  fit.fitted = fit.records >= kMinFitRecords;
+  if (fit.fitted) {
+    fit.scales = FitUncertaintyCalibration(predictions, truth);
+    fit.method = "scales minimizing the mean NLL of the validation split";
+    return fit;
+  }
+  fit.scales = kept;
+  fit.method = fmt::format(
+      "not fitted: {} validation strikes with a predictive distribution, fewer than the {} a fit "
+      "needs; {} kept",
+      fit.records, kMinFitRecords, kept_what);
+  spdlog::warn("interval scales {} (sigma_z x {:.3g}, kappa x {:.3g}); sonicboom calibrate "
+               "refits them on labelled strikes",
+               fit.method, kept.z_std_scale, kept.kappa_scale);
+  return fit;
+}
+
+namespace {
 
 // The "uncertainty" object of model.json or ensemble.json with `after` and its provenance.
 void StoreScales(nlohmann::json* u, const UncertaintyCalibration& after, const std::string& source,
@@ -54,12 +76,12 @@ Recalibration Recalibrate(const std::string& run_dir, const std::vector<Predicti
     throw SchemaError(fmt::format("{}: {} predictions for {} labelled records", path,
                                   predictions.size(), truth.size()));
   }
-  const int64_t records = UsableRecords(predictions, truth);
-  if (records < kMinRecalibrationRecords) {
+  const int64_t records = CalibrationRecords(predictions, truth);
+  if (records < kMinFitRecords) {
     throw SchemaError(fmt::format(
         "{}: {} labelled records with a predictive distribution in {}; a refit of the two "
         "scales needs at least {}",
-        path, records, source, kMinRecalibrationRecords));
+        path, records, source, kMinFitRecords));
   }
   nlohmann::json j = internal::ReadJsonFile(path);
   if (!j.is_object()) throw SchemaError(fmt::format("{}: not a JSON object", path));

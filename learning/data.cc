@@ -99,6 +99,16 @@ void CheckSameShapes(const FeatureSet& expected, const FeatureSet& actual, const
   }
 }
 
+std::string ShapesText(const FeatureSet& f, const ModalitySet& use) {
+  std::vector<std::string> parts;
+  if (use.audio) parts.push_back(fmt::format("audio {} x {} x {}", f.channels, f.mels, f.frames));
+  if (use.gcc) parts.push_back(fmt::format("GCC {} x {}", f.gcc_pairs, f.gcc_lags));
+  if (use.proprio) {
+    parts.push_back(fmt::format("proprio {} x {}", f.proprio_rows, f.proprio_features));
+  }
+  return fmt::format("{}", fmt::join(parts, ", "));
+}
+
 MelStats ComputeMelStats(const FeatureSet& f, const std::vector<int64_t>& records) {
   const int64_t c_count = f.channels, plane = f.mels * f.frames;
   MelStats stats{std::vector<float>(c_count, 0.0f), std::vector<float>(c_count, 1.0f)};
@@ -439,7 +449,7 @@ json ModelFileToJson(const ModelFile& file, const TrainConfig& train_config,
     j["uncertainty"] =
         json{{"z_std_scale", file.calibration.z_std_scale},
              {"kappa_scale", file.calibration.kappa_scale},
-             {"method", "scales minimizing the mean NLL of the validation split"},
+             {"method", file.calibration_method},
              {"records", file.uncalibrated_val_metrics.n},
              {"uncalibrated_val_metrics", MetricsToJson(file.uncalibrated_val_metrics)}};
   }

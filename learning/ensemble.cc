@@ -21,14 +21,34 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// ensemble.json: the member directories and the mixture's calibration
+// ensemble.json: the member directories and the mixture's calibration (how it came about)
 void WriteEnsembleFile(const std::string& run_dir, const nlohmann::json& names,
-                       const UncertaintyCalibration& calibration) {
-  const nlohmann::json j = {{"members", names},
-                            {"uncertainty",
-                             {{"z_std_scale", calibration.z_std_scale},
-                              {"kappa_scale", calibration.kappa_scale}}}};
+                       const CalibrationFit& calibration) {
+  nlohmann::json u = {{"z_std_scale", calibration.scales.z_std_scale},
+                      {"kappa_scale", calibration.scales.kappa_scale}};
+  if (!calibration.method.empty()) {
+    u["method"] = calibration.method;
+    u["records"] = calibration.records;
+  }
+  const nlohmann::json j = {{"members", names}, {"uncertainty", u}};
   WriteTextAtomic((fs::path(run_dir) / "ensemble.json").string(), j.dump(2) + "\n");
+}
+
+// Each member once: one named twice, or a link to another, would count twice in the mixture
+// (its spread and its calibration).
+void RefuseRepeatedMember(const std::string& path, const std::vector<std::string>& members) {
+  const std::string& last = members.back();
+  for (size_t k = 0; k + 1 < members.size(); ++k) {
+    std::error_code ec;
+    if (members[k] != last && !fs::equivalent(members[k], last, ec)) continue;
+    const std::string name = fs::path(last).filename().string();
+    const std::string first = fs::path(members[k]).filename().string();
+    throw SchemaError(fmt::format(
+        "{}: member \"{}\" {} (entries {} and {}); each network counts once in the mixture",
+        path, name,
+        name == first ? "is named twice" : fmt::format("is the directory of member \"{}\"", first),
+        k + 1, members.size()));
+  }
 }
 
 }  // namespace
@@ -59,6 +79,7 @@ std::vector<std::string> EnsembleMembers(const std::string& run_dir) {
                                     path.string(), m.dump(), run_dir));
     }
     members.push_back((fs::path(run_dir) / m.get<std::string>()).string());
+    RefuseRepeatedMember(path.string(), members);
   }
   return members;
 }
@@ -99,14 +120,21 @@ Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
   if (parallel.rank != 0) return {};
   // the mixture of calibrated members is wider than any member where they disagree: its own two
   // scales are fitted on the validation split, as a single network's are
-  WriteEnsembleFile(run_dir, names, UncertaintyCalibration{});
+  WriteEnsembleFile(run_dir, names, CalibrationFit{});
   std::vector<Prediction> predictions = Localizer(run_dir).Predict(val);
-  UncertaintyCalibration calibration;
+  CalibrationFit calibration;
   if (predictions.front().has_uncertainty()) {
-    calibration = FitUncertaintyCalibration(predictions, val);
+    // too few validation strikes: a fine-tune keeps the pretrained mixture's scales
+    const bool tuned = !fine_tune.init_from.empty();
+    const UncertaintyCalibration kept =
+        tuned ? EnsembleCalibration(fine_tune.init_from) : UncertaintyCalibration{};
+    calibration = FitOrKeepCalibration(
+        predictions, val, kept,
+        tuned ? fmt::format("the pretrained scales of {}/ensemble.json", fine_tune.init_from)
+              : "scales 1");
   }
   WriteEnsembleFile(run_dir, names, calibration);
-  for (Prediction& p : predictions) p = ApplyCalibration(p, calibration);
+  for (Prediction& p : predictions) p = ApplyCalibration(p, calibration.scales);
   return ComputeMetrics(predictions, val, surface_radius_m);
 }
 

@@ -15,6 +15,7 @@
 #include "internal/loaded_run.h"
 #include "internal/network.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/core/files.h"
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::learning {
@@ -29,6 +30,7 @@ internal::LoadedRun internal::LoadRun(const std::string& run_dir) {
   // model.json: config and shapes the weights were trained with.
   const std::string json_path = (fs::path(run_dir) / "model.json").string();
   member.file = internal::ModelFileFromJson(internal::ReadJsonFile(json_path), json_path);
+  member.origin = json_path;
   const ModelConfig& config = member.file.model_config;
   const FeatureSet& shapes = member.file.shapes;
   if (internal::SelectedModalities(config).audio && config.crop_frames > shapes.frames) {
@@ -37,9 +39,7 @@ internal::LoadedRun internal::LoadRun(const std::string& run_dir) {
   }
   // model.pt: weights and normalization buffers.
   const std::string weights_path = (fs::path(run_dir) / "model.pt").string();
-  if (!fs::is_regular_file(weights_path)) {
-    throw IoError(fmt::format("{}: file not found", weights_path));
-  }
+  RequireReadableFile(weights_path);
   torch::serialize::InputArchive archive;
   bool uncertainty_head = false;
   try {
@@ -75,7 +75,12 @@ void internal::CheckFeaturesFor(const LoadedRun& run, const FeatureSet& features
   const int64_t crop = run.file.model_config.crop_frames;
   FeatureSet expected = run.file.shapes.ShapesOnly();
   if (use.audio && features.frames == crop) expected.frames = crop;
-  CheckSameShapes(expected, features, use, what);
+  try {
+    CheckSameShapes(expected, features, use, what);
+  } catch (const SchemaError& e) {
+    throw SchemaError(fmt::format("{}: {} (the features: {}; the model's: {})", run.origin,
+                                  e.what(), ShapesText(features, use), ShapesText(expected, use)));
+  }
 }
 
 namespace {

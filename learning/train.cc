@@ -10,6 +10,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <utility>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -105,29 +106,53 @@ void SetLearningRate(torch::optim::Adam* optimizer, double lr) {
   }
 }
 
-// Saves weights, optimizer state and the completed epoch count in one archive.
-void SaveCheckpoint(internal::NetworkImpl& network, torch::optim::Adam& optimizer,
+// Saves the optimizer state, the completed epoch count and, with `network`, the weights in one
+// archive. A finished run's checkpoint holds no weights: they are its model.pt's.
+void SaveCheckpoint(internal::NetworkImpl* network, torch::optim::Adam& optimizer,
                     int64_t epochs_done, const std::string& path) {
   torch::serialize::OutputArchive root, model, optim;
-  network.save(model);
+  if (network) {
+    network->save(model);
+    root.write("model", model);
+  }
   optimizer.save(optim);
-  root.write("model", model);
   root.write("optimizer", optim);
   root.write("epochs_done", torch::tensor(epochs_done, torch::kInt64));
   internal::WriteArchiveAtomically(root, path);
 }
 
-// Loads a checkpoint; returns the number of completed epochs.
+// Weights saved by SaveModuleAtomically (model.pt, best.pt) into `network`, shapes checked.
+void LoadWeights(internal::NetworkImpl* network, const std::string& path) {
+  RequireReadableFile(path);
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const c10::Error& e) {
+    throw SchemaError(fmt::format("{}: unreadable: {}", path, e.what_without_backtrace()));
+  }
+  internal::LoadModuleChecked(*network, archive, path);
+}
+
+// Loads a checkpoint, the weights from `model_pt` when it holds none (a finished run's); returns
+// the number of completed epochs.
 int64_t LoadCheckpoint(internal::NetworkImpl* network, torch::optim::Adam* optimizer,
-                       const std::string& path) {
+                       const std::string& path, const std::string& model_pt) {
+  RequireReadableFile(path);
+  bool weights_inside = false;
   try {
     torch::serialize::InputArchive root, model, optim;
     root.load_from(path);
-    root.read("model", model);
+    weights_inside = root.try_read("model", model);
     root.read("optimizer", optim);
     torch::Tensor epochs_done;
     root.read("epochs_done", epochs_done);
-    internal::LoadModuleChecked(*network, model, path);
+    if (weights_inside) internal::LoadModuleChecked(*network, model, path);
+    if (!weights_inside && !fs::exists(model_pt)) {
+      throw SchemaError(fmt::format(
+          "{}: a finished run's checkpoint (the weights are its model.pt), but {} is missing",
+          path, model_pt));
+    }
+    if (!weights_inside) LoadWeights(network, model_pt);
     optimizer->load(optim);
     return epochs_done.item<int64_t>();
   } catch (const c10::Error& e) {
@@ -163,17 +188,6 @@ bool IsFrozen(const std::string& part, FineTune::Freeze freeze) {
       return part != "head" && part != "uncertainty_head";
   }
   return false;
-}
-
-// Weights saved by SaveModuleAtomically (model.pt, best.pt) into `network`, shapes checked.
-void LoadWeights(internal::NetworkImpl* network, const std::string& path) {
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path);
-  } catch (const c10::Error& e) {
-    throw SchemaError(fmt::format("{}: unreadable: {}", path, e.what_without_backtrace()));
-  }
-  internal::LoadModuleChecked(*network, archive, path);
 }
 
 // Loads the pretrained weights of `fine_tune.init_from` into `network` and fixes the frozen
@@ -333,7 +347,8 @@ int64_t ResumeOrClear(const RunFiles& files, const json& identity, bool resume, 
         "seed; train without resume or use another run directory",
         files.checkpoint_json));
   }
-  const int64_t epochs_done = LoadCheckpoint(network, optimizer, files.checkpoint_pt);
+  const int64_t epochs_done =
+      LoadCheckpoint(network, optimizer, files.checkpoint_pt, files.model_pt);
   if (writes) TrimMetrics(files.metrics, epochs_done);
   if (train_config.keep_best && epochs_done > 0 && fs::exists(files.best_json)) {
     const json saved_best = internal::ReadJsonFile(files.best_json);
@@ -419,16 +434,42 @@ void RecordEpoch(const RunFiles& files, internal::NetworkImpl& network,
   }
   WriteTextAtomic(files.checkpoint_json,
                                 json{{"epoch", epoch + 1}, {"run", identity}}.dump(2) + "\n");
-  SaveCheckpoint(network, optimizer, epoch + 1, files.checkpoint_pt);
+  SaveCheckpoint(&network, optimizer, epoch + 1, files.checkpoint_pt);
+}
+
+// The scales a run keeps when its validation split is too small to fit them (with the words
+// model.json says them in): a fine-tune's pretrained ones, 1 and 1 from scratch.
+std::pair<UncertaintyCalibration, std::string> KeptCalibration(const FineTune& fine_tune) {
+  if (fine_tune.init_from.empty()) return {UncertaintyCalibration{}, "scales 1"};
+  const std::string path = (fs::path(fine_tune.init_from) / "model.json").string();
+  const internal::ModelFile pretrained =
+      internal::ModelFileFromJson(internal::ReadJsonFile(path), path);
+  return {pretrained.calibration, fmt::format("the pretrained scales of {}", path)};
+}
+
+// A finished run keeps what `train --resume` and a fine-tune need and no more: checkpoint.pt
+// keeps the optimizer state and epoch count (a resume continues exactly), not the weights, which
+// are model.pt's; with a best epoch kept, model.pt is best.pt (removed) and the checkpoint keeps
+// the last epoch's weights, which a resume continues from.
+void KeepWhatResumeNeeds(const RunFiles& files, torch::optim::Adam& optimizer, int64_t epochs,
+                         bool model_is_best) {
+  std::error_code ec;
+  if (model_is_best) {
+    fs::remove(files.best_pt, ec);
+  } else {
+    SaveCheckpoint(nullptr, optimizer, epochs, files.checkpoint_pt);
+  }
 }
 
 // The model files of a finished run: post-hoc calibration of the predictive distribution on the
 // validation split (one scale for sigma_z, one for kappa, each minimizing the mean validation
-// NLL), model.pt and model.json. Returns the validation metrics of the final model.
+// NLL; `kept` when it is too small, FitOrKeepCalibration), model.pt and model.json. Returns the
+// validation metrics of the final model.
 Metrics FinishRun(const RunFiles& files, internal::NetworkImpl& network, const FeatureSet& train,
                   const FeatureSet& val, const ModelConfig& model_config,
                   const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
-                  bool uncertainty_head, int64_t epochs, bool show_progress) {
+                  bool uncertainty_head, int64_t epochs, bool show_progress,
+                  const std::pair<UncertaintyCalibration, std::string>& kept) {
   internal::ModelFile model_file;
   model_file.model_config = model_config;
   model_file.shapes = train.ShapesOnly();
@@ -436,14 +477,18 @@ Metrics FinishRun(const RunFiles& files, internal::NetworkImpl& network, const F
   model_file.seed = seed;
   std::vector<Prediction> predictions =
       internal::PredictAll(network, val, model_config.crop_frames);
+  bool fitted = false;
   if (uncertainty_head) {
     model_file.has_calibration = true;
     model_file.uncalibrated_val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
-    model_file.calibration = FitUncertaintyCalibration(predictions, val);
+    const CalibrationFit fit = FitOrKeepCalibration(predictions, val, kept.first, kept.second);
+    model_file.calibration = fit.scales;
+    model_file.calibration_method = fit.method;
+    fitted = fit.fitted;
     for (Prediction& p : predictions) p = ApplyCalibration(p, model_file.calibration);
   }
   const Metrics val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
-  if (show_progress && uncertainty_head) {
+  if (show_progress && fitted) {
     const Metrics& raw = model_file.uncalibrated_val_metrics;
     spdlog::info(
         "calibrated on {} validation strikes: sigma_z x {:.3g}, kappa x {:.3g}; 90 % coverage "
@@ -548,14 +593,20 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
     }
   }
   if (!writes) return Metrics{};
-  // train.keep_best: the best epoch's weights are the model
-  if (train_config.keep_best && best.epoch > 0) {
-    LoadWeights(network.get(), files.best_pt);
+  // train.keep_best: the best epoch's weights are the model (a finished run's best.pt is its
+  // model.pt)
+  const bool model_is_best = train_config.keep_best && best.epoch > 0;
+  if (model_is_best) {
+    LoadWeights(network.get(), fs::exists(files.best_pt) ? files.best_pt : files.model_pt);
     if (show_progress)
       spdlog::info("keeping epoch {} (lowest validation loss {:.4g})", best.epoch, best.loss);
   }
-  return FinishRun(files, *network, train, val, model_config, train_config, surface_radius_m, seed,
-                   uncertainty_head, std::max(epochs_done, train_config.epochs), show_progress);
+  const int64_t epochs = std::max(epochs_done, train_config.epochs);
+  const Metrics m = FinishRun(files, *network, train, val, model_config, train_config,
+                              surface_radius_m, seed, uncertainty_head, epochs, show_progress,
+                              KeptCalibration(fine_tune));
+  KeepWhatResumeNeeds(files, optimizer, epochs, model_is_best);
+  return m;
 }
 
 }  // namespace sonicboom::learning

@@ -3,7 +3,8 @@
 usage: /usr/bin/python3 scripts/plot.py KIND DATA.json OUT.png
   fidelity  the fidelity ladder's Pareto figure (`sonicboom fidelity`, FIDELITY.json)
   inspect   a dataset's (z, theta) coverage and one strike's six channels: waveform envelopes
-            and mel spectrograms in dB with a colour scale (`sonicboom inspect D.h5 --png OUT.png`, OUT.png.json)
+            and mel spectrograms in dB with a colour scale (`sonicboom inspect D.h5 --png
+            OUT.png`, OUT.png.json)
   map       a haptic map: predicted and true contact points in 3-D, each pair joined, over the
             mapped branch's skeleton where known (`sonicboom map`, DIR/map.json)
   fewshot   MED against the number of target strikes, fine-tuned and from scratch, per family

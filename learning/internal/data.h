@@ -29,6 +29,8 @@ void CheckFeatureSet(const FeatureSet& f, const ModalitySet& use, const std::str
 /// SchemaError names the first dimension that differs.
 void CheckSameShapes(const FeatureSet& expected, const FeatureSet& actual, const ModalitySet& use,
                      const std::string& what);
+/// The shapes of the selected modalities in words: "mel 6 x 50 x 517, GCC 15 x 883, ...".
+std::string ShapesText(const FeatureSet& f, const ModalitySet& use);
 
 /// Per-mic mean and standard deviation over (N, mels, frames) of the listed records.
 struct MelStats {
@@ -127,6 +129,7 @@ struct ModelFile {
   bool has_calibration{false};
   UncertaintyCalibration calibration;  // scales 1 without "uncertainty"
   Metrics uncalibrated_val_metrics;    // written with the calibration, not read back
+  std::string calibration_method;      // written as "method" (CalibrationFit), not read back
 };
 nlohmann::json ModelFileToJson(const ModelFile& file, const TrainConfig& train_config,
                                const Metrics& val_metrics, int64_t epochs_trained);

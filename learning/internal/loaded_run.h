@@ -12,6 +12,7 @@ namespace sonicboom::learning::internal {
 struct LoadedRun {
   ModelFile file;
   Network network{nullptr};  // in eval mode
+  std::string origin;        // its model.json, for messages
 };
 
 /// One run directory (not an ensemble's). Throws IoError for a missing directory or file and
@@ -19,7 +20,8 @@ struct LoadedRun {
 LoadedRun LoadRun(const std::string& run_dir);
 
 /// Checks that `features` hold what the run reads, in its shapes: the whole-window spectrogram
-/// as trained or exactly its centre crop. SchemaError naming `what` and the first difference.
+/// as trained or exactly its centre crop. SchemaError naming the run's model.json, `what`, the
+/// first difference and both shapes.
 void CheckFeaturesFor(const LoadedRun& run, const FeatureSet& features, const std::string& what);
 
 }  // namespace sonicboom::learning::internal

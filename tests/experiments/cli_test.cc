@@ -147,9 +147,14 @@ TEST(CliTest, InspectDrawsADatasetFigure) {
   const json figure = json::parse(data);
   EXPECT_EQ(figure["coverage"]["z_m"].size(), 4u);
   EXPECT_EQ(figure["strike"]["row"], 2);
-  ASSERT_EQ(figure["strike"]["channels"].size(), 6u);
-  EXPECT_EQ(figure["strike"]["channels"][0].size(), 26460u);  // 0.6 s at 44.1 kHz
-  run = RunCli("inspect D.h5 --png I.png --strike 4" + plot, cwd);
+  ASSERT_EQ(figure["strike"]["envelopes"].size(), 6u);
+  EXPECT_EQ(figure["strike"]["frames"], 26460);  // 0.6 s at 44.1 kHz
+  EXPECT_EQ(figure["strike"]["envelopes"][0]["max"].size(), 1500u);
+  // an existing figure is replaced only with --force
+  run = RunCli("inspect D.h5 --png I.png --strike 1" + plot, cwd);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("I.png: exists; --force"), std::string::npos) << run.err;
+  run = RunCli("inspect D.h5 --png I.png --strike 4 --force" + plot, cwd);
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.err.find("--strike 4: D.h5 holds rows 0 to 3"), std::string::npos) << run.err;
   run = RunCli("inspect D.h5.config.yaml --png C.png" + plot, cwd);

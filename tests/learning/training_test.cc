@@ -8,6 +8,7 @@
 #include <iostream>
 #include <map>
 #include <numbers>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -240,6 +241,11 @@ TEST_F(TrainingTest, ResumeMatchesStraightRun) {
   first_half.epochs = 2;
   Train(train, val, model, first_half, kRadius, 11, resumed, false, false);
   ASSERT_EQ(ReadMetricsLines(resumed).size(), 2u);
+  // the finished run's checkpoint keeps Adam's state and the epoch count, not a second copy of
+  // the weights: they are its model.pt's, and training further continues from them exactly
+  torch::serialize::InputArchive checkpoint, weights;
+  checkpoint.load_from(resumed + "/checkpoint.pt");
+  EXPECT_FALSE(checkpoint.try_read("model", weights));
   // A line of an epoch whose checkpoint never got written (as after a crash) is dropped.
   std::ofstream(fs::path(resumed) / "metrics.jsonl", std::ios::app)
       << R"({"epoch": 3, "train_loss": 999.0})"
@@ -297,9 +303,9 @@ TEST_F(TrainingTest, LocalizerReportsMissingAndCorruptFiles) {
   Train(train, val, TinyModel(), TinyTraining(1), kRadius, 1, run, false, false);
 
   // Features of another shape.
-  FeatureSet other = MakeFeatures(2, 9);
+  FeatureSet other = MakeFeatures(kMinFitRecords, 9);
   other.mels = 10;
-  other.mel.resize(2 * other.channels * other.mels * other.frames);
+  other.mel.resize(kMinFitRecords * other.channels * other.mels * other.frames);
   try {
     Localizer(run).Predict(other);
     FAIL() << "expected SchemaError";
@@ -629,16 +635,17 @@ TEST_F(TrainingTest, AdaptRefitsStatisticsOnTheTargetWithoutReadingItsLabels) {
   const std::string run = Dir("run");
   Train(MakeFeatures(8, 5), MakeFeatures(4, 6), TinyModel(), TinyTraining(1), kRadius, 1, run,
         false, false);
-  FeatureSet target = MakeFeatures(6, 11);
+  FeatureSet target = MakeFeatures(kMinFitRecords, 11);
   for (int64_t i = 0; i < target.size(); ++i) {  // channel 0 louder and offset on the target
     float* c0 = target.mel.data() + i * target.channels * target.mels * target.frames;
     for (int64_t k = 0; k < target.mels * target.frames; ++k) c0[k] = 3.0f * c0[k] + 2.0f;
   }
   const AdaptReport report = AdaptToUnlabelled(run, target, Dir("adapted"), AdaptOptions{});
   EXPECT_EQ(report.members, 1);
-  EXPECT_EQ(report.records, 6);
+  EXPECT_EQ(report.records, kMinFitRecords);
   EXPECT_EQ(report.batch_norm_layers, 4 + 4);  // compact CNN and proprioception encoder
-  std::vector<int64_t> all{0, 1, 2, 3, 4, 5};
+  std::vector<int64_t> all(kMinFitRecords);
+  std::iota(all.begin(), all.end(), 0);
   const std::vector<float> mean = internal::ComputeMelStats(target, all).mean;
   internal::LoadedRun adapted = internal::LoadRun(Dir("adapted"));
   EXPECT_EQ(adapted.network->MelMean(), mean);
@@ -646,7 +653,7 @@ TEST_F(TrainingTest, AdaptRefitsStatisticsOnTheTargetWithoutReadingItsLabels) {
   nlohmann::json j;
   std::ifstream(fs::path(Dir("adapted")) / "model.json") >> j;
   EXPECT_EQ(j["adapted"]["labels"], "not read");
-  EXPECT_EQ(j["adapted"]["records"], 6);
+  EXPECT_EQ(j["adapted"]["records"], kMinFitRecords);
   // the same strikes without labels: the same statistics, buffer for buffer
   FeatureSet unlabelled = target;
   std::fill(unlabelled.z_m.begin(), unlabelled.z_m.end(), std::nan(""));
@@ -668,10 +675,14 @@ TEST_F(TrainingTest, AdaptRefitsStatisticsOnTheTargetWithoutReadingItsLabels) {
     return "no ConfigError";
   };
   EXPECT_THAT(config_error(Dir("adapted"), target), HasSubstr("not empty"));
-  EXPECT_THAT(config_error(Dir("empty_target"), FeatureSet{}), HasSubstr("no strikes"));
-  FeatureSet other = MakeFeatures(2, 9);
+  EXPECT_THAT(config_error(Dir("empty_target"), FeatureSet{}), HasSubstr("holds 0 strike(s)"));
+  // statistics of fewer strikes than any fit rests on are refused
+  EXPECT_THAT(config_error(Dir("few"), MakeFeatures(kMinFitRecords - 1, 12)),
+              HasSubstr("holds 29 strike(s); re-estimating the input and BatchNorm statistics "
+                        "needs at least 30"));
+  FeatureSet other = MakeFeatures(kMinFitRecords, 9);
   other.mels = 10;
-  other.mel.resize(2 * other.channels * other.mels * other.frames);
+  other.mel.resize(kMinFitRecords * other.channels * other.mels * other.frames);
   try {
     AdaptToUnlabelled(run, other, Dir("other"), AdaptOptions{});
     ADD_FAILURE() << "expected SchemaError";
@@ -680,6 +691,7 @@ TEST_F(TrainingTest, AdaptRefitsStatisticsOnTheTargetWithoutReadingItsLabels) {
   }
   EXPECT_FALSE(fs::exists(Dir("other")));
   EXPECT_FALSE(fs::exists(Dir("empty_target")));
+  EXPECT_FALSE(fs::exists(Dir("few")));
 }
 
 namespace {
@@ -897,7 +909,7 @@ void WriteModelJson(const std::string& run_dir, const nlohmann::json& j) {
 
 TEST_F(TrainingTest, UncertaintyIsFiniteAndCalibratedOnValidation) {
   const FeatureSet train = MakeFeatures(32, 21);
-  const FeatureSet val = MakeFeatures(24, 22);
+  const FeatureSet val = MakeFeatures(kMinFitRecords, 22);  // enough strikes to fit the scales
   const std::string run = Dir("uncertainty");
   const Metrics m = Train(train, val, TinyModel(), TinyTraining(12), kRadius, 5, run, false, false);
 
@@ -923,6 +935,7 @@ TEST_F(TrainingTest, UncertaintyIsFiniteAndCalibratedOnValidation) {
   // validation NLL worse (it minimizes it).
   const nlohmann::json j = ReadModelJson(run);
   ASSERT_TRUE(j.contains("uncertainty")) << j.dump(2);
+  EXPECT_EQ(j["uncertainty"]["method"], "scales minimizing the mean NLL of the validation split");
   const double z_scale = j["uncertainty"]["z_std_scale"].get<double>();
   const double kappa_scale = j["uncertainty"]["kappa_scale"].get<double>();
   std::cout << "scales: sigma_z x " << z_scale << ", kappa x " << kappa_scale << "; uncalibrated "
@@ -955,9 +968,34 @@ TEST_F(TrainingTest, UncertaintyIsFiniteAndCalibratedOnValidation) {
   EXPECT_GT(bad.nll, m.nll);
 }
 
+// Scales are fitted on as many validation strikes as calibrate needs, or not at all: a fresh run
+// keeps 1 and 1, a fine-tune its pretrained ones, and model.json says which.
+TEST_F(TrainingTest, TooFewValidationStrikesKeepTheScalesAndModelJsonSaysSo) {
+  const FeatureSet train = MakeFeatures(16, 41), few = MakeFeatures(kMinFitRecords - 1, 42);
+  Train(train, few, TinyModel(), TinyTraining(1), kRadius, 3, Dir("fresh"), false, false);
+  nlohmann::json j = ReadModelJson(Dir("fresh"));
+  EXPECT_EQ(j["uncertainty"]["z_std_scale"], 1.0);
+  EXPECT_EQ(j["uncertainty"]["kappa_scale"], 1.0);
+  EXPECT_THAT(j["uncertainty"]["method"].get<std::string>(),
+              HasSubstr("not fitted: 29 validation strikes with a predictive distribution, fewer "
+                        "than the 30 a fit needs; scales 1 kept"));
+  // the scales a calibrate gave it carry over into a fine-tune on as few strikes
+  j["uncertainty"]["z_std_scale"] = 2.5;
+  j["uncertainty"]["kappa_scale"] = 0.25;
+  WriteModelJson(Dir("fresh"), j);
+  Train(train, few, TinyModel(), TinyTraining(1), kRadius, 3, Dir("tuned"), false, false,
+        FineTune{Dir("fresh"), FineTune::Freeze::kNone, false});
+  const nlohmann::json tuned = ReadModelJson(Dir("tuned"));
+  EXPECT_EQ(tuned["uncertainty"]["z_std_scale"], 2.5);
+  EXPECT_EQ(tuned["uncertainty"]["kappa_scale"], 0.25);
+  EXPECT_THAT(tuned["uncertainty"]["method"].get<std::string>(),
+              HasSubstr("the pretrained scales of " + Dir("fresh") + "/model.json kept"));
+  EXPECT_EQ(Localizer(Dir("tuned")).calibration().z_std_scale, 2.5);
+}
+
 TEST_F(TrainingTest, UncertaintyHeadLeavesPointsUnchangedAndOldModelFilesLoad) {
   const FeatureSet train = MakeFeatures(16, 31);
-  const FeatureSet val = MakeFeatures(8, 32);
+  const FeatureSet val = MakeFeatures(kMinFitRecords, 32);
   ModelConfig model = TinyModel();
   model.dropout = 0.1;  // dropout draws must not depend on the head either
   const TrainConfig with_head = TinyTraining(3);
@@ -1110,7 +1148,7 @@ TEST_F(TrainingTest, FineTuneTrainsOnlyWhatIsNotFrozen) {
 
 TEST_F(TrainingTest, EnsembleTrainsItsMembersAndPredictsTheirMixture) {
   const FeatureSet train = MakeFeatures(16, 5);
-  const FeatureSet val = MakeFeatures(8, 6);
+  const FeatureSet val = MakeFeatures(kMinFitRecords, 6);
   TrainConfig config = TinyTraining(2);
   config.ensemble_members = 3;
   const std::string run = Dir("ensemble");
@@ -1213,15 +1251,35 @@ TEST_F(TrainingTest, KeepBestSavesTheEpochWithTheLowestValidationLoss) {
   EXPECT_EQ(best["epoch"].get<int64_t>(), lowest_epoch);
   EXPECT_LT(lowest_epoch, 6) << "this check needs a best epoch before the last";
   EXPECT_DOUBLE_EQ(best["val_loss"].get<double>(), lowest);
-  // the model is that epoch's network
-  internal::Network network(TinyModel(), internal::ShapesOf(train, TinyModel()), true);
-  torch::serialize::InputArchive archive;
-  archive.load_from(Dir("best") + "/best.pt");
-  internal::LoadModuleChecked(*network, archive, "best.pt");
-  std::map<std::string, torch::Tensor> at_best;
-  for (const auto& p : network->named_parameters()) at_best[p.key()] = p.value();
-  for (const auto& b : network->named_buffers()) at_best[b.key()] = b.value();
+  // the model is that epoch's network: a run of that many epochs ends there (training is
+  // deterministic)
+  TrainConfig shorter = config;
+  shorter.keep_best = false;
+  shorter.epochs = lowest_epoch;
+  Train(train, val, TinyModel(), shorter, kRadius, 9, Dir("shorter"), false, false);
+  const auto at_best = RunWeights(Dir("shorter"), train, TinyModel());
   EXPECT_TRUE(Changed(at_best, RunWeights(Dir("best"), train, TinyModel())).empty());
+  // the finished run keeps no best.pt beside it (it is model.pt), and its checkpoint the last
+  // epoch's weights, which a resume continues from
+  EXPECT_FALSE(fs::exists(fs::path(Dir("best")) / "best.pt"));
+  internal::Network last(TinyModel(), internal::ShapesOf(train, TinyModel()), true);
+  torch::serialize::InputArchive checkpoint, weights;
+  checkpoint.load_from(Dir("best") + "/checkpoint.pt");
+  ASSERT_TRUE(checkpoint.try_read("model", weights));
+  internal::LoadModuleChecked(*last, weights, "checkpoint.pt");
+  std::map<std::string, torch::Tensor> at_last;
+  for (const auto& p : last->named_parameters()) at_last[p.key()] = p.value();
+  EXPECT_FALSE(Changed(at_last, RunWeights(Dir("best"), train, TinyModel())).empty());
+  // trained one epoch further (hardly moving), the model stays the best epoch's unless the new
+  // one is better
+  TrainConfig longer = config;
+  longer.epochs = 7;
+  longer.learning_rate = 1e-9;
+  Train(train, val, TinyModel(), longer, kRadius, 9, Dir("best"), true, false);
+  std::ifstream again(fs::path(Dir("best")) / "best.json");
+  if (nlohmann::json::parse(again)["epoch"].get<int64_t>() == lowest_epoch) {
+    EXPECT_TRUE(Changed(at_best, RunWeights(Dir("best"), train, TinyModel())).empty());
+  }
 }
 
 }  // namespace

@@ -370,6 +370,28 @@ TEST(UncertaintyCalibrationTest, RecalibrateRefusesWhatItCannotFitAndStartsFromS
   EXPECT_EQ(EnsembleCalibration(run).kappa_scale, r.relative.kappa_scale);
 }
 
+// A training's calibration has calibrate's minimum: below it the given scales stay, said so.
+TEST(UncertaintyCalibrationTest, FitOrKeepCalibrationFitsOnlyOnTheMinimumOfStrikes) {
+  const Synthetic s = MakeSynthetic(kMinFitRecords, 47);
+  const std::vector<Prediction> wrong = Scaled(s.predictions, 1.0 / 3.0, 4.0);
+  const CalibrationFit fit = FitOrKeepCalibration(wrong, s.truth, {2.0, 0.5}, "the pretrained");
+  EXPECT_TRUE(fit.fitted);
+  EXPECT_EQ(fit.records, kMinFitRecords);
+  EXPECT_EQ(fit.scales.z_std_scale, FitUncertaintyCalibration(wrong, s.truth).z_std_scale);
+  // one record fewer (or a label unknown): the kept scales, and the method says why
+  FeatureSet one_unknown = s.truth;
+  one_unknown.z_m[3] = std::numeric_limits<double>::quiet_NaN();
+  const CalibrationFit kept =
+      FitOrKeepCalibration(wrong, one_unknown, {2.0, 0.5}, "the pretrained scales of RUN");
+  EXPECT_FALSE(kept.fitted);
+  EXPECT_EQ(kept.records, kMinFitRecords - 1);
+  EXPECT_EQ(kept.scales.z_std_scale, 2.0);
+  EXPECT_EQ(kept.scales.kappa_scale, 0.5);
+  EXPECT_EQ(kept.method,
+            "not fitted: 29 validation strikes with a predictive distribution, fewer than the 30 "
+            "a fit needs; the pretrained scales of RUN kept");
+}
+
 TEST(UncertaintyCalibrationTest, RecalibrateNeedsThirtyRecordsAndKeepsItsScalesBounded) {
   testing::TempDir dir;
   const std::string file = dir / "ensemble.json";

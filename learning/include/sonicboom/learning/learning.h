@@ -276,13 +276,16 @@ inline std::span<const EnumName<FineTune::Freeze>> EnumNames(FineTune::Freeze) {
 /// Trains on `train`, validates on `val` each epoch, writes into run_dir:
 /// model.pt (weights + normalization), model.json (ModelConfig + shapes + tube radius +
 /// uncertainty calibration), metrics.jsonl (one line per epoch, uncalibrated uncertainty),
-/// checkpoint.pt (resume). Resumes from run_dir/checkpoint.pt when it exists and `resume` is
-/// set. After the last epoch the predictive distribution is calibrated on `val`
-/// (FitUncertaintyCalibration). `surface_radius_m` is used for the 3-D metrics.
+/// checkpoint.pt (resume: weights, Adam's state and the epoch count after every epoch; once the
+/// run is finished, without the weights, which are model.pt's). Resumes from
+/// run_dir/checkpoint.pt when it exists and `resume` is set. After the last epoch the predictive
+/// distribution is calibrated on `val` (FitOrKeepCalibration: with fewer than kMinFitRecords
+/// usable strikes, a fine-tune keeps its pretrained scales and a fresh run scales 1).
+/// `surface_radius_m` is used for the 3-D metrics.
 /// Returns the validation metrics of the final, calibrated model. With `fine_tune.init_from`
 /// the network starts from that run's model.pt (same model config and feature shapes, else
 /// SchemaError naming the file), frozen and normalized as `fine_tune` says; the calibration is
-/// refitted on `val` as always.
+/// refitted on `val` as always (or the pretrained scales kept, as above).
 /// Process-wide side effects, kept after it returns: torch's intra-op thread count
 /// (train_config.threads) and, with glibc, malloc settings that keep freed memory for reuse
 /// (resident memory stays near its peak; see PrepareTrainingProcess in internal/train_step.h).
@@ -321,6 +324,28 @@ std::vector<std::string> EnsembleMembers(const std::string& run_dir);
 /// the file for a scale that is not a positive number.
 UncertaintyCalibration EnsembleCalibration(const std::string& run_dir);
 
+/// The fewest strikes any statistic fitted from data rests on: the interval scales (calibrate,
+/// and the calibration inside train, fine-tunes and pseudo-label runs) and adapted statistics
+/// (adapt). A scale fitted on n strikes has a relative standard error near 1 / sqrt(2 n): 13 %
+/// at 30, 41 % at 3 (train fitted sigma_z x 0.04 and kappa x 0.0001 on 1-2 strikes).
+inline constexpr int64_t kMinFitRecords = 30;
+
+/// Labelled records with a predictive distribution: those a calibration fit can use.
+int64_t CalibrationRecords(const std::vector<Prediction>& predictions, const FeatureSet& truth);
+
+/// The scales a training stores: fitted on its validation split (FitUncertaintyCalibration)
+/// when at least kMinFitRecords records can be used; otherwise `kept` (the pretrained run's
+/// scales in a fine-tune, 1 and 1 from scratch), with a warning naming `kept_what`.
+struct CalibrationFit {
+  UncertaintyCalibration scales;
+  int64_t records{0};  // usable records (CalibrationRecords)
+  bool fitted{false};
+  std::string method;  // how the scales came about, as model.json's "uncertainty" says it
+};
+CalibrationFit FitOrKeepCalibration(const std::vector<Prediction>& predictions,
+                                    const FeatureSet& truth, const UncertaintyCalibration& kept,
+                                    const std::string& kept_what);
+
 /// A finished run's calibration refitted on other labelled records (`sonicboom calibrate`).
 struct Recalibration {
   UncertaintyCalibration before;    // stored in the run until now
@@ -335,9 +360,8 @@ struct Recalibration {
 /// before calibration existed, counts as scales 1). Later `train --resume` of the run refits on
 /// its validation split again. The stored scales stay within UncertaintyCalibration's bounds
 /// (repeated refits on few strikes drove kappa to 1e-32). SchemaError naming the file when fewer
-/// than kMinRecalibrationRecords labelled records carry a predictive distribution, or
-/// predictions and labels differ in number.
-inline constexpr int64_t kMinRecalibrationRecords = 30;
+/// than kMinFitRecords labelled records carry a predictive distribution, or predictions and
+/// labels differ in number.
 Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
                           const FeatureSet& truth, const std::string& source);
 
@@ -359,8 +383,8 @@ struct AdaptReport {
 /// Adapts run_dir (a run or an ensemble directory) to `target` and writes the result to out_dir
 /// as a run of the same layout (model.json gains "adapted": source, records, options); out_dir
 /// must not exist or be empty (so it is never run_dir). The files that mark a run complete
-/// (model.json, ensemble.json) are written last. Throws ConfigError for an empty target or
-/// out_dir in use, SchemaError for features of other shapes.
+/// (model.json, ensemble.json) are written last. Throws ConfigError for a target of fewer than
+/// kMinFitRecords strikes or out_dir in use, SchemaError for features of other shapes.
 AdaptReport AdaptToUnlabelled(const std::string& run_dir, const FeatureSet& target,
                               const std::string& out_dir, const AdaptOptions& options);
 
