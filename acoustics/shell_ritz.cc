@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "sonicboom/core/cache_dir.h"
 #include "sonicboom/core/cache_file.h"
 #include "sonicboom/core/errors.h"
 
@@ -333,12 +334,18 @@ ModeRows CachedRitzModes(const std::function<const ShellRitzProjector&()>& proje
   const std::string path =
       (std::filesystem::path(cache_dir) / fmt::format("ritz-{:016x}.bin", CacheKeyHash(key)))
           .string();
+  // a variant's use is its base's too: the base's modes (the costliest entry, which every pool
+  // reads first) stay more recently used than the pool's variants while these are read and
+  // written, so that a budget smaller than the pool prunes variants, not the base
+  const std::string base_path = ShellModesCachePath(base, max_frequency_hz, 0, true, cache_dir);
+  internal::TouchCacheEntry(base_path);
   ModeRows modes;
   if (ReadRitz(path, key, rows, &modes)) {
     if (hit != nullptr) *hit = true;
     return modes;
   }
   modes = projector().Project(varied, max_frequency_hz, rows);
+  internal::TouchCacheEntry(base_path);
   WriteRitz(cache_dir, path, key, modes);
   return modes;
 }

@@ -32,6 +32,9 @@ function(sonicboom_add_test name)
   # the tests (and the CLI runs they start) solve and cache modes under the build tree, never in
   # the user's home directory
   set(environment "SONICBOOM_CACHE_DIR=${CMAKE_BINARY_DIR}/test-cache/modes")
+  # the suite's solves (the reproduce test's structure pool alone is about 2.3 GB) stay cached
+  # between tests under a cap of their own instead of the user's default 1 GB budget
+  set(budget "SONICBOOM_CACHE_MAX_BYTES=set:8G")
   set(grouped "")
   foreach(group IN LISTS ARG_GROUPS)
     string(FIND "${group}" "=" eq)
@@ -40,6 +43,7 @@ function(sonicboom_add_test name)
     string(SUBSTRING "${group}" ${first} -1 filter)
     gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120 TEST_FILTER "${filter}"
       PROPERTIES LABELS "${label}" ENVIRONMENT "${environment}"
+                 ENVIRONMENT_MODIFICATION "${budget}"
       WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR})
     list(APPEND grouped "${filter}")
   endforeach()
@@ -49,6 +53,6 @@ function(sonicboom_add_test name)
     set(rest "-${negative}")
   endif()
   gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120 TEST_FILTER "${rest}"
-    PROPERTIES LABELS unit ENVIRONMENT "${environment}"
+    PROPERTIES LABELS unit ENVIRONMENT "${environment}" ENVIRONMENT_MODIFICATION "${budget}"
     WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR})
 endfunction()

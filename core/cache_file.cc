@@ -1,16 +1,35 @@
 #include "sonicboom/core/cache_file.h"
 
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 #include <thread>
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "sonicboom/core/cache_dir.h"
+
 namespace sonicboom::internal {
+namespace {
+
+const char* FileKindName(mode_t mode) {
+  return S_ISDIR(mode)    ? "a directory"
+         : S_ISFIFO(mode) ? "a FIFO"
+         : S_ISCHR(mode)  ? "a character device"
+         : S_ISBLK(mode)  ? "a block device"
+         : S_ISSOCK(mode) ? "a socket"
+                          : "something else";
+}
+
+}  // namespace
 
 uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h) {
   const auto* p = static_cast<const unsigned char*>(data);
@@ -18,30 +37,83 @@ uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h) {
   return h;
 }
 
+CacheFileReader::~CacheFileReader() {
+  Close();
+}
+
+void CacheFileReader::Close() {
+  if (file_ != nullptr) std::fclose(file_);  // releases the shared lock
+  file_ = nullptr;
+}
+
+// opens path_ when it is a regular file, locked shared and touched; a FIFO, device, socket or
+// directory under an entry's name is damaged: warned about and never opened for reading
+bool CacheFileReader::OpenRegular() {
+  struct stat st {};
+  if (::stat(path_.c_str(), &st) != 0) {
+    if (errno != ENOENT)
+      spdlog::warn("mode cache: cannot read {}: {}; solving again", path_, std::strerror(errno));
+    return false;
+  }
+  // O_NONBLOCK: a FIFO put there between the stat and the open does not block it either
+  int fd = S_ISREG(st.st_mode) ? ::open(path_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC) : -1;
+  const int open_errno = errno;
+  if (fd >= 0 && (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode))) {
+    ::close(fd);
+    fd = -1;
+  }
+  if (!S_ISREG(st.st_mode)) {
+    spdlog::warn("mode cache: {} is {}, not a regular file; solving again", path_,
+                 FileKindName(st.st_mode));
+    return false;
+  }
+  if (fd < 0) {
+    spdlog::warn("mode cache: cannot read {}: {}; solving again", path_, std::strerror(open_errno));
+    return false;
+  }
+  // an exclusive lock is a pruner removing the file: a miss, as if it were gone
+  if (::flock(fd, LOCK_SH | LOCK_NB) != 0) {
+    ::close(fd);
+    return false;
+  }
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  ::futimens(fd, nullptr);  // its last use; a read-only cache keeps its old time
+  file_ = ::fdopen(fd, "rb");
+  if (file_ == nullptr) ::close(fd);
+  return file_ != nullptr;
+}
+
+bool CacheFileReader::ReadRaw(void* data, size_t bytes) {
+  return file_ != nullptr && std::fread(data, 1, bytes, file_) == bytes;
+}
+
 bool CacheFileReader::Open(const std::string& path, const char (&magic)[8], const std::string& key,
                            int64_t* header, size_t header_count) {
+  Close();
   path_ = path;
-  in_.open(path, std::ios::binary);
-  if (!in_) return false;
+  failed_ = false;
+  if (!OpenRegular()) return false;
   // magic and key length, then the key itself
   char stored_magic[8];
   uint64_t key_size = 0;
-  in_.read(stored_magic, 8);
-  in_.read(reinterpret_cast<char*>(&key_size), sizeof key_size);
-  if (!in_ || std::memcmp(stored_magic, magic, 8) != 0 || key_size != key.size()) return false;
+  if (!ReadRaw(stored_magic, 8) || !ReadRaw(&key_size, sizeof key_size) ||
+      std::memcmp(stored_magic, magic, 8) != 0 || key_size != key.size()) {
+    Close();
+    return false;
+  }
   std::string stored(key_size, '\0');
-  in_.read(stored.data(), static_cast<std::streamsize>(key_size));
   const size_t header_bytes = sizeof(int64_t) * header_count;
-  in_.read(reinterpret_cast<char*>(header), static_cast<std::streamsize>(header_bytes));
-  if (!in_ || stored != key) return false;
+  if (!ReadRaw(stored.data(), key_size) || !ReadRaw(header, header_bytes) || stored != key) {
+    Close();
+    return false;
+  }
   hash_ = Fnv1a(header, header_bytes);
   return true;
 }
 
 bool CacheFileReader::Read(void* data, size_t bytes) {
   if (failed_) return false;
-  in_.read(static_cast<char*>(data), static_cast<std::streamsize>(bytes));
-  failed_ = !in_;
+  failed_ = !ReadRaw(data, bytes);
   if (!failed_) hash_ = Fnv1a(data, bytes, hash_);
   return !failed_;
 }
@@ -49,8 +121,9 @@ bool CacheFileReader::Read(void* data, size_t bytes) {
 bool CacheFileReader::Finish() {
   // the checksum itself is not part of what it sums
   uint64_t stored = 0;
-  if (!failed_) in_.read(reinterpret_cast<char*>(&stored), sizeof stored);
-  const bool ok = !failed_ && in_ && stored == hash_ && in_.peek() == std::char_traits<char>::eof();
+  const bool ok =
+      !failed_ && ReadRaw(&stored, sizeof stored) && stored == hash_ && std::fgetc(file_) == EOF;
+  Close();
   if (!ok) spdlog::warn("mode cache: {} is damaged or incomplete; solving again", path_);
   return ok;
 }
@@ -90,7 +163,12 @@ void WriteCacheFile(const std::string& cache_dir, const std::string& path, const
     }
   }
   std::filesystem::rename(partial, path, ec);
-  if (ec) spdlog::warn("mode cache: cannot rename {} to {}: {}", partial, path, ec.message());
+  if (ec) {
+    spdlog::warn("mode cache: cannot rename {} to {}: {}", partial, path, ec.message());
+    std::filesystem::remove(partial, ec);
+    return;
+  }
+  KeepCacheWithinBudget(cache_dir, path);
 }
 
 }  // namespace sonicboom::internal

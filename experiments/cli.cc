@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "internal/subcommands.h"
+#include "sonicboom/core/cache_dir.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/log.h"
 #include "sonicboom/core/progress.h"
@@ -47,7 +48,7 @@ int RunCli(int argc, char** argv) {
         RegisterCalibrate, RegisterBaseline, RegisterAblate,    RegisterLocalize,
         RegisterImport,    RegisterExport,   RegisterListen,    RegisterGeometryCheck,
         RegisterMap,       RegisterFk,       RegisterInspect,   RegisterConfig,
-        RegisterAdapt,     RegisterReproduce}) {
+        RegisterAdapt,     RegisterReproduce, RegisterCache}) {
     register_subcommand(app, g, &run);
   }
 
@@ -72,6 +73,7 @@ int RunCli(int argc, char** argv) {
   SetUpLogging(g.quiet ? -1 : verbose);
   Progress::SetQuiet(g.quiet);
   try {
+    internal::CacheBudgetBytes();  // a bad SONICBOOM_CACHE_MAX_BYTES is refused before any work
     const CommandResult result = run();
     std::cout << (g.json ? result.json + "\n" : result.text);
     std::cout.flush();

@@ -31,9 +31,9 @@ CommandResult RunModes(const GlobalOptions& g, TubeEnds ends, bool ideal, int64_
   const acoustics::ShellModel model(config.tube, config.material, config.shell);
   bool cached = false;
   const acoustics::ShellModes modes = acoustics::CachedShellModes(
-      model, 0.0, count, false, acoustics::DefaultModeCacheDir(), &cached);
+      model, 0.0, count, false, config.acoustics.ModeCacheDir(), &cached);
   spdlog::info("modes {} the cache ({})", cached ? "read from" : "computed and stored in",
-               acoustics::DefaultModeCacheDir());
+               config.acoustics.ModeCacheDir());
   std::vector<double> f(static_cast<size_t>(modes.omega_rad_s.size()));
   for (size_t k = 0; k < f.size(); ++k)
     f[k] = modes.omega_rad_s[static_cast<Eigen::Index>(k)] / (2.0 * std::numbers::pi);

@@ -51,7 +51,7 @@ std::vector<std::vector<double>> ShellArrivals(const SonicBoomConfig& config, Tu
   shell.axial_spacing_m = axial_m;
   const acoustics::ShellModel model(config.tube, config.material, shell);
   const acoustics::ShellModes modes = acoustics::CachedShellModes(model, max_frequency_hz, 0, true,
-                                                                  acoustics::DefaultModeCacheDir());
+                                                                  config.acoustics.ModeCacheDir());
   *modes_out = modes.omega_rad_s.size();
   const std::vector<solid::ConvergenceProbe> probes = solid::DefaultConvergenceProbes();
   Eigen::MatrixXd drive(probes.size(), model.dofs());  // (probes x dofs)
@@ -68,7 +68,9 @@ double Quantile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
   return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
 }
-double Median(const std::vector<double>& v) {
+// the median by rank (Quantile 0.5; not internal/statistics.h's Median, which a unity batch may
+// hold too)
+double RankMedian(const std::vector<double>& v) {
   return Quantile(v, 0.5);
 }
 
@@ -102,17 +104,17 @@ std::string BandRows(const std::vector<ModeSeries>& modes, json* bands_json) {
     const auto over = std::count_if(bands[b].error.begin(), bands[b].error.end(),
                                     [](double e) { return e > 0.003; });
     md += fmt::format("| {:.0f}-{:.0f} Hz | {} | {:.4f} | {:.4f} | {:.4f} | {} | {:.1f} | {} |\n",
-                      edges[b], edges[b + 1], bands[b].error.size(), 100.0 * Median(bands[b].error),
-                      100.0 * Quantile(bands[b].error, 0.9), 100.0 * max_err, over,
-                      Median(bands[b].order), bands[b].non_monotone);
+                      edges[b], edges[b + 1], bands[b].error.size(),
+                      100.0 * RankMedian(bands[b].error), 100.0 * Quantile(bands[b].error, 0.9),
+                      100.0 * max_err, over, RankMedian(bands[b].order), bands[b].non_monotone);
     bands_json->push_back({{"lo_hz", edges[b]},
                            {"hi_hz", edges[b + 1]},
                            {"modes", bands[b].error.size()},
-                           {"median_relative_error", Median(bands[b].error)},
+                           {"median_relative_error", RankMedian(bands[b].error)},
                            {"p90_relative_error", Quantile(bands[b].error, 0.9)},
                            {"max_relative_error", max_err},
                            {"over_0_3_percent", over},
-                           {"median_order", Median(bands[b].order)},
+                           {"median_order", RankMedian(bands[b].order)},
                            {"non_monotone", bands[b].non_monotone}});
   }
   return md;
@@ -171,7 +173,7 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
   // left it), coarse to fine
   const std::vector<solid::ConvergenceRequest> requests =
       ReferenceLevelRequests(o, config.tube, config.material, config.mics, config.shell,
-                             o.cache_dir.empty() ? acoustics::DefaultModeCacheDir() : o.cache_dir);
+                             o.cache_dir.empty() ? config.acoustics.ModeCacheDir() : o.cache_dir);
   std::vector<solid::ConvergenceLevel> levels;
   for (const solid::ConvergenceRequest& request : requests) {
     levels.push_back(solid::SolveConvergenceLevel(request));
@@ -278,10 +280,10 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
       "median {:.2f} us, 90th percentile {:.2f} us, max {:.2f} us ({} of {} jump by over 50 us "
       "between meshes); inter-disc delays median {:.2f} us, 90th percentile {:.2f} us, max {:.2f} "
       "us ({} of {} jump).\n",
-      probes, config.material.loss_factor, discs, 1e6 * Median(arrival_err),
+      probes, config.material.loss_factor, discs, 1e6 * RankMedian(arrival_err),
       1e6 * Quantile(arrival_err, 0.9), 1e6 * arrival_max, jumps(arrival_err), arrival_err.size(),
-      1e6 * Median(delay_err), 1e6 * Quantile(delay_err, 0.9), 1e6 * delay_max, jumps(delay_err),
-      delay_err.size());
+      1e6 * RankMedian(delay_err), 1e6 * Quantile(delay_err, 0.9), 1e6 * delay_max,
+      jumps(delay_err), delay_err.size());
   // rungs against the finest mesh: arrival and inter-disc delay errors over the probes
   auto errors = [&](const std::vector<std::vector<double>>& t, std::vector<double>* arrival,
                     std::vector<double>* delay) {
@@ -304,13 +306,13 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
     std::vector<double> arrival, delay;
     errors(t, &arrival, &delay);
     md += fmt::format("| {} | {} | {:.1f} / {:.1f} / {:.1f} | {:.1f} / {:.1f} / {:.1f} |\n", name,
-                      modes, 1e6 * Median(arrival), 1e6 * Quantile(arrival, 0.9),
-                      1e6 * Quantile(arrival, 1.0), 1e6 * Median(delay), 1e6 * Quantile(delay, 0.9),
-                      1e6 * Quantile(delay, 1.0));
+                      modes, 1e6 * RankMedian(arrival), 1e6 * Quantile(arrival, 0.9),
+                      1e6 * Quantile(arrival, 1.0), 1e6 * RankMedian(delay),
+                      1e6 * Quantile(delay, 0.9), 1e6 * Quantile(delay, 1.0));
     rungs_json.push_back({{"rung", name},
                           {"modes", modes},
-                          {"arrival_error_s", {Median(arrival), Quantile(arrival, 0.9)}},
-                          {"delay_error_s", {Median(delay), Quantile(delay, 0.9)}}});
+                          {"arrival_error_s", {RankMedian(arrival), Quantile(arrival, 0.9)}},
+                          {"delay_error_s", {RankMedian(delay), Quantile(delay, 0.9)}}});
   };
   for (size_t l = 0; l + 1 < levels.size(); ++l) {
     add_rung(fmt::format("reference, h = {:.1f} mm", 1e3 * levels[l].h_m),
@@ -336,8 +338,8 @@ CommandResult RunReference(const GlobalOptions& g, const ReferenceOptions& o) {
             {"finest_modes", finest_modes},
             {"modes", modes_json},
             {"rungs", rungs_json},
-            {"arrival_error_s", {{"median", Median(arrival_err)}, {"max", arrival_max}}},
-            {"delay_error_s", {{"median", Median(delay_err)}, {"max", delay_max}}}};
+            {"arrival_error_s", {{"median", RankMedian(arrival_err)}, {"max", arrival_max}}},
+            {"delay_error_s", {{"median", RankMedian(delay_err)}, {"max", delay_max}}}};
   return {j.dump(), md};
 }
 

@@ -76,7 +76,7 @@ CommandResult RunRerender(const GlobalOptions& g, const RerenderOptions& o) {
       ReferenceTubeOf(config,
                       ReferenceMesh(o.element_m, defaults.degree_wall, defaults.degree_thickness,
                                     config.tube, "--element-m"),
-                      o.max_frequency_hz, o.ideal, acoustics::DefaultModeCacheDir()));
+                      o.max_frequency_hz, o.ideal, config.acoustics.ModeCacheDir()));
   const double solve_s = MillisecondsSince(t0) / 1e3;
   spdlog::info("reference tube: {} modes to {} Hz, {} ({:.1f} s)", tube.omega_rad_s().size(),
                o.max_frequency_hz, tube.from_cache() ? "from the cache" : "solved", solve_s);

@@ -80,5 +80,6 @@ void RegisterFk(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterInspect(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterMap(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterConfig(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterCache(CLI::App& app, GlobalOptions& g, Runner* run);
 
 }  // namespace sonicboom::experiments

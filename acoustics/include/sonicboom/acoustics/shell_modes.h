@@ -37,7 +37,29 @@ ShellModes SolveShellModes(const ShellModel& model, double max_frequency_hz, int
 ShellModes CachedShellModes(const ShellModel& model, double max_frequency_hz, int64_t max_count,
                             bool with_shapes, const std::string& cache_dir, bool* hit = nullptr);
 
-/// The default mode cache: $SONICBOOM_CACHE_DIR, else $HOME/.cache/sonicboom/modes, else "".
+/// The file CachedShellModes keeps this request in, under cache_dir.
+std::string ShellModesCachePath(const ShellModel& model, double max_frequency_hz,
+                                int64_t max_count, bool with_shapes, const std::string& cache_dir);
+
+/// What the default mode cache directory is chosen from (empty = unset).
+struct ModeCacheEnvironment {
+  std::string cache_dir;       // $SONICBOOM_CACHE_DIR
+  std::string xdg_cache_home;  // $XDG_CACHE_HOME (only an absolute path counts)
+  std::string home;            // $HOME
+  std::string passwd_home;     // the user's home directory in the passwd database
+};
+/// The directory, and a warning when the choice is one the user should hear of ("" = none).
+struct ModeCacheChoice {
+  std::string dir;  // "" = no cache
+  std::string warning;
+};
+/// $SONICBOOM_CACHE_DIR, else $XDG_CACHE_HOME/sonicboom/modes, else $HOME/.cache/sonicboom/modes;
+/// with HOME unset the passwd home's .cache/sonicboom/modes (warned), else none (warned: every
+/// run solves its modes again). Both warnings name HOME, SONICBOOM_CACHE_DIR and
+/// acoustics.mode_cache_dir.
+ModeCacheChoice ChooseModeCacheDir(const ModeCacheEnvironment& env);
+
+/// ChooseModeCacheDir of this process's environment; its warning is logged once per process.
 std::string DefaultModeCacheDir();
 
 /// The hash that names a cache file (FNV-1a of its full key; the file stores the key too).

@@ -57,7 +57,9 @@ class ShellRitzProjector {
 /// Project(varied, max_frequency_hz, rows) through an on-disk cache in cache_dir ("" = none):
 /// the modes are stored in single precision under a hash of the base's and the variant's keys,
 /// the band, the enrichment and the rows, and read back as they were computed. `projector` is
-/// called (once, from any thread) only when the file is missing or does not match.
+/// called (once, from any thread) only when the file is missing or does not match. Each call
+/// marks the base's entry (CachedShellModes(base, max_frequency_hz, 0, true)) used too, so that a
+/// cache budget prunes a pool's variants before the base they are projected from.
 ModeRows CachedRitzModes(const std::function<const ShellRitzProjector&()>& projector,
                          const ShellModel& base, const ShellModel& varied, double max_frequency_hz,
                          const std::vector<int64_t>& rows, const std::string& cache_dir,

@@ -4,10 +4,11 @@
 // a checksum of the header and the arrays. A file is written to a temp file of its writer's own
 // (PATH.partial.<pid>.<thread>) and renamed into place, so a reader never sees half a file, nor
 // one writer another's; a failed write only warns (the cache saves time, it is never needed).
+// Each write keeps the directory within its budget (sonicboom/core/cache_dir.h).
 
 #include <cstddef>
 #include <cstdint>
-#include <fstream>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -19,22 +20,35 @@ uint64_t Fnv1a(const void* data, size_t bytes, uint64_t h = 1469598103934665603u
 
 /// A cache file being read. Every header value and block read joins a running FNV-1a, which
 /// Finish compares with the checksum the writer put last: a damaged file is found, not used.
+/// While open it holds a shared lock on the file (a pruner keeps an entry being read) and it has
+/// touched the file's modification time (its last use, for least-recently-used pruning).
 class CacheFileReader {
  public:
+  CacheFileReader() = default;
+  ~CacheFileReader();
+  CacheFileReader(const CacheFileReader&) = delete;
+  CacheFileReader& operator=(const CacheFileReader&) = delete;
+
   /// Opens `path` and reads its magic, key and `header_count` header values into `header`; false
   /// when the file is absent, truncated, of another kind or made for another key (nothing to
-  /// warn about: the caller solves and writes it).
+  /// warn about: the caller solves and writes it). Something other than a regular file under the
+  /// name (a FIFO blocked the read forever, a device fed it endlessly) or a file it may not read
+  /// is named in a warning and never opened for reading: false, solved again and replaced.
   bool Open(const std::string& path, const char (&magic)[8], const std::string& key,
             int64_t* header, size_t header_count);
   /// Reads `bytes` raw bytes into `data`; false (and remembered) past the end of the file.
   bool Read(void* data, size_t bytes);
   /// True when every read held, the checksum matches and the file ends there. Otherwise warns
-  /// that the file (named) is damaged and will be solved again, and returns false.
+  /// that the file (named) is damaged and will be solved again, and returns false. Closes it.
   bool Finish();
 
  private:
+  bool OpenRegular();
+  bool ReadRaw(void* data, size_t bytes);
+  void Close();
+
   std::string path_;
-  std::ifstream in_;
+  std::FILE* file_{nullptr};
   uint64_t hash_{0};
   bool failed_{false};
 };
