@@ -24,7 +24,9 @@ namespace fs = std::filesystem;
 using sonicboom::testing::CliRun;
 using sonicboom::testing::kShortRecordArgs;
 using sonicboom::testing::kTinyModelArgs;
+using sonicboom::testing::ReadBytes;
 using sonicboom::testing::RunCli;
+using sonicboom::testing::Snapshot;
 using sonicboom::testing::TempDir;
 
 // A float WAV of (frames x channels) values, written byte by byte (the project's writer refuses
@@ -62,22 +64,6 @@ std::vector<float> StrikeLikeRecord(int frames = 26460, int channels = 6) {
     for (int c = 0; c < channels; ++c) x[static_cast<size_t>(t) * channels + c] += 0.5f;
   }
   return x;
-}
-
-std::string ReadBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// The bytes of every file under `root` (a snapshot to compare after a refused run).
-std::map<std::string, std::string> Snapshot(const fs::path& root) {
-  std::map<std::string, std::string> files;
-  for (const auto& entry : fs::recursive_directory_iterator(root)) {
-    if (entry.is_regular_file()) files[entry.path().string()] = ReadBytes(entry.path());
-  }
-  return files;
 }
 
 // One shared workspace: a short-record dataset, a tiny trained run, a strike WAV, a robot log,

@@ -25,26 +25,12 @@ using nlohmann::json;
 using sonicboom::testing::CliRun;
 using sonicboom::testing::kShortRecordArgs;
 using sonicboom::testing::kTinyModelArgs;
+using sonicboom::testing::ReadBytes;
 using sonicboom::testing::RunCli;
 using sonicboom::testing::RunCliEnv;
+using sonicboom::testing::Snapshot;
 using sonicboom::testing::TempDir;
 using ::testing::HasSubstr;
-
-std::string ReadBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// The bytes of every file under `root`, to compare after a refused run.
-std::map<std::string, std::string> Snapshot(const fs::path& root) {
-  std::map<std::string, std::string> files;
-  for (const auto& entry : fs::recursive_directory_iterator(root)) {
-    if (entry.is_regular_file()) files[entry.path().string()] = ReadBytes(entry.path());
-  }
-  return files;
-}
 
 json ReadJson(const fs::path& path) {
   return json::parse(ReadBytes(path));
