@@ -209,7 +209,8 @@ TEST(GatedFeaturesTest, RecordsThatDoNotMatchTheClipAreRejected) {
   EXPECT_THAT(ThrownMessage<ConfigError>([&] {
                 ComputeRecordFeatures(four, config.audio.sample_rate_hz, Eigen::MatrixXf(), config);
               }),
-              HasSubstr("records at 44100 Hz with 4 channels, but features.gating"));
+              HasSubstr("records at 44100 Hz with 4 channels, but this command's config gates "
+                        "(features.gating)"));
   SonicBoomConfig off = config;
   off.features.gating = false;
   EXPECT_NO_THROW(ComputeRecordFeatures(four, config.audio.sample_rate_hz, Eigen::MatrixXf(), off));
