@@ -83,8 +83,12 @@ int RunCli(int argc, char** argv) {
     return 1;
   } catch (const std::filesystem::filesystem_error& e) {
     // the file system refused a path the user gave (permissions, a name too long, a link loop)
-    const std::string path = e.path1().empty() ? std::string("a path") : e.path1().string();
-    std::fprintf(stderr, "error: %s: %s\n", path.c_str(), e.code().message().c_str());
+    // (one without a path, e.g. a temporary directory the environment names, says its operation)
+    if (e.path1().empty()) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+    } else {
+      std::fprintf(stderr, "error: %s: %s\n", e.path1().c_str(), e.code().message().c_str());
+    }
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "internal error: %s\n", e.what());
