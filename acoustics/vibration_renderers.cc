@@ -322,10 +322,13 @@ void RequireSolvableModeCount(const AcousticModelConfig& c, double band_hz) {
       0.5 * area_m2 * band_hz * std::sqrt(m.density_kg_m3 * t.wall_thickness_m / rigidity);
   if (modes > kMostModes) {
     throw ConfigError(fmt::format(
-        "tube.wall_thickness_m = {} m: this wall holds about {:.0f} bending modes below {:.0f} Hz "
-        "(the modes solved), more than the {:.0f} a modal solve takes; thicken the wall, lower "
-        "acoustics.max_frequency_hz or use acoustics.model = fd",
-        t.wall_thickness_m, modes, band_hz, kMostModes));
+        "this tube holds about {:.0f} bending modes below {:.0f} Hz (the modes solved), more than "
+        "the {:.0f} a modal solve takes (tube.wall_thickness_m = {} m, tube.length_m = {} m, "
+        "tube.outer_radius_m = {} m, material.youngs_modulus_pa = {} Pa, material.density_kg_m3 "
+        "= {}); thicken the wall, shorten the tube, lower acoustics.max_frequency_hz or use "
+        "acoustics.model = fd",
+        modes, band_hz, kMostModes, t.wall_thickness_m, t.length_m, t.outer_radius_m,
+        m.youngs_modulus_pa, m.density_kg_m3));
   }
 }
 

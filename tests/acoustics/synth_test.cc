@@ -167,6 +167,19 @@ TEST(ExtremesTest, DegenerateBandsAndWallsAreRefusedNamingTheKeyAndTheLimit) {
               1.0);
     EXPECT_NE(thin.find("tube.wall_thickness_m = 1e-06 m"), std::string::npos) << thin;
     EXPECT_NE(thin.find("more than the 5000 a modal solve takes"), std::string::npos) << thin;
+    // the same count bounds the other axes that grow it: a 9 m tube, a 10 MPa wall
+    c = ClosedForm();
+    c.synth.model = model;
+    c.tube.length_m = 9.0;
+    EXPECT_NE(sonicboom::testing::ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(c); })
+                  .find("tube.length_m = 9 m"),
+              std::string::npos);
+    c = ClosedForm();
+    c.synth.model = model;
+    c.material.youngs_modulus_pa = 1e7;
+    EXPECT_NE(sonicboom::testing::ThrownMessage<ConfigError>([&] { StrikeSynthesizer s(c); })
+                  .find("material.youngs_modulus_pa = 10000000 Pa"),
+              std::string::npos);
   }
   // the default wall at the default band, and the lowest band allowed, still render
   AcousticModelConfig c = ClosedForm();
