@@ -21,6 +21,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "sonicboom/core/cache_use.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::internal {
@@ -171,7 +172,9 @@ CachePruned PruneCache(const std::string& dir, uint64_t max_bytes, const std::st
     // counted: a cache file (not a temp file, not a damaged name)
     const bool counted = e.regular && !e.partial;
     const bool over = counted && (max_bytes == 0 || total > max_bytes);
-    if (e.name == keep_name || (!over && e.regular && !e.stale)) {
+    // the running command's working set stays until its end (cache_use.h)
+    const bool spared = counted && IsSparedCacheEntry(e.path);
+    if (e.name == keep_name || spared || (!over && e.regular && !e.stale)) {
       if (counted) ++r.kept, r.kept_bytes += e.bytes;
       continue;
     }
@@ -190,6 +193,7 @@ CachePruned PruneCache(const std::string& dir, uint64_t max_bytes, const std::st
 
 void TouchCacheEntry(const std::string& path) {
   ::utimensat(AT_FDCWD, path.c_str(), nullptr, 0);
+  NoteCacheEntryUse(path);
 }
 
 void KeepCacheWithinBudget(const std::string& dir, const std::string& written) {
@@ -201,6 +205,10 @@ void KeepCacheWithinBudget(const std::string& dir, const std::string& written) {
                  FormatBytes(budget));
   }
   if (budget == 0) return;
+  if (!written.empty()) {
+    NoteCacheEntryUse(written);
+    NoteCacheDirWritten(dir);
+  }
   const CachePruned p = PruneCache(dir, budget, written);
   if (p.removed > 0) {
     spdlog::info(
@@ -208,7 +216,7 @@ void KeepCacheWithinBudget(const std::string& dir, const std::string& written) {
         "budget of {} ({})",
         p.removed, FormatBytes(p.removed_bytes), dir, FormatBytes(budget), kCacheBudgetVariable);
   }
-  if (p.kept_bytes > budget) {
+  if (p.kept_bytes > budget && !IsSparedCacheEntry(written)) {
     spdlog::info(
         "mode cache: {} holds {}, over its budget of {} ({}): the entry just written{} "
         "kept",

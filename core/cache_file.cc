@@ -16,6 +16,7 @@
 #include <spdlog/spdlog.h>
 
 #include "sonicboom/core/cache_dir.h"
+#include "sonicboom/core/cache_use.h"
 
 namespace sonicboom::internal {
 namespace {
@@ -78,6 +79,7 @@ bool CacheFileReader::OpenRegular() {
   }
   ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   ::futimens(fd, nullptr);  // its last use; a read-only cache keeps its old time
+  NoteCacheEntryUse(path_);  // in the running command's working set
   file_ = ::fdopen(fd, "rb");
   if (file_ == nullptr) ::close(fd);
   return file_ != nullptr;

@@ -10,6 +10,7 @@
 
 #include "internal/subcommands.h"
 #include "sonicboom/core/cache_dir.h"
+#include "sonicboom/core/cache_use.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/log.h"
 #include "sonicboom/core/progress.h"
@@ -72,6 +73,11 @@ int RunCli(int argc, char** argv) {
   // run; bad input exits 1 with a message naming the culprit
   SetUpLogging(g.quiet ? -1 : verbose);
   Progress::SetQuiet(g.quiet);
+  // the command's working set in the mode cache stays while it runs; its end prunes to the budget
+  internal::SpareThisProcessesCacheEntries();
+  struct PruneAtEnd {
+    ~PruneAtEnd() { internal::PruneSparedCachesToBudget(); }
+  } prune_at_end;
   try {
     internal::CacheBudgetBytes();  // a bad SONICBOOM_CACHE_MAX_BYTES is refused before any work
     const CommandResult result = run();

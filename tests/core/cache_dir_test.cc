@@ -1,6 +1,7 @@
 // The mode cache's directory: entries that are not regular files, the budget and its
 // least-recently-used pruning (sonicboom/core/cache_dir.h, cache_file.h).
 #include "sonicboom/core/cache_dir.h"
+#include "sonicboom/core/cache_use.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -218,6 +219,29 @@ TEST(CacheBudgetTest, AWriteKeepsTheDirectoryWithinTheBudgetButKeepsWhatItWrote)
   budget.Set("0");
   for (char n : {'6', '7'}) WriteEntry(dir, EntryPath(dir, n), 100, 0);
   EXPECT_EQ(internal::ListCacheEntries(dir.path().string()).size(), 3u);
+}
+
+// A command's working set stays while it runs (the demo built its randomized pool twice under a
+// 1 GB budget, 402 s against 291 s): with sparing on, a write prunes only entries the process
+// neither wrote nor read, and the command's end prunes what it wrote to down to the budget.
+TEST(CacheBudgetTest, ACommandsWorkingSetStaysUntilItsEndThenTheBudgetHolds) {
+  BudgetVariable budget("");
+  const testing::TempDir dir;
+  WriteEntry(dir, EntryPath(dir, '1'), 100, 300);  // another command's, oldest
+  const uint64_t each = fs::file_size(EntryPath(dir, '1'));
+  budget.Set(std::to_string(2 * each + each / 2));
+  internal::SpareThisProcessesCacheEntries();
+  for (char n : {'2', '3', '4'}) WriteEntry(dir, EntryPath(dir, n), 100, 200 - (n - '0'));
+  // the other command's entry went; this one's three stay, over the budget, while it runs
+  EXPECT_THAT(Names(internal::ListCacheEntries(dir.path().string())),
+              ElementsAre(Name(EntryPath(dir, '2')), Name(EntryPath(dir, '3')),
+                          Name(EntryPath(dir, '4'))));
+  internal::PruneSparedCachesToBudget();
+  EXPECT_THAT(Names(internal::ListCacheEntries(dir.path().string())),
+              ElementsAre(Name(EntryPath(dir, '3')), Name(EntryPath(dir, '4'))));
+  // sparing is off again: a write prunes as before
+  WriteEntry(dir, EntryPath(dir, '5'), 100, 0);
+  EXPECT_EQ(internal::ListCacheEntries(dir.path().string()).size(), 2u);
 }
 
 // A reader holds its entry's lock from Open to Finish: pruning keeps it meanwhile.
