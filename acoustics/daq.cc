@@ -179,7 +179,52 @@ Eigen::ArrayXd HumSignal(int64_t n, double fs, double f0_hz, double rms_v,
   return hum;
 }
 
+// One second-order section (direct form I): y = b0 x + b1 x1 + b2 x2 - a1 y1 - a2 y2.
+struct Section {
+  double b0, b1, b2, a1, a2;
+  void Run(Eigen::Ref<Eigen::ArrayXd> x) const {
+    double x1 = 0, x2 = 0, y1 = 0, y2 = 0;
+    for (Eigen::Index k = 0; k < x.size(); ++k) {
+      const double y = b0 * x[k] + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
+      x2 = x1;
+      x1 = x[k];
+      y2 = y1;
+      y1 = y;
+      x[k] = y;
+    }
+  }
+};
+
+// bilinear sections at corner fc: first order (the RC) or second-order Butterworth
+Section HighPass(double fc, double fs, int order) {
+  const double kk = std::tan(kPi * fc / fs);
+  if (order == 1) return {1 / (1 + kk), -1 / (1 + kk), 0, (kk - 1) / (kk + 1), 0};
+  const double n = 1 / (1 + std::numbers::sqrt2 * kk + kk * kk);
+  return {n, -2 * n, n, 2 * (kk * kk - 1) * n, (1 - std::numbers::sqrt2 * kk + kk * kk) * n};
+}
+Section LowPass(double fc, double fs, int order) {
+  const double kk = std::tan(kPi * fc / fs);
+  if (order == 1) return {kk / (1 + kk), kk / (1 + kk), 0, (kk - 1) / (kk + 1), 0};
+  const double n = 1 / (1 + std::numbers::sqrt2 * kk + kk * kk);
+  return {kk * kk * n, 2 * kk * kk * n, kk * kk * n, 2 * (kk * kk - 1) * n,
+          (1 - std::numbers::sqrt2 * kk + kk * kk) * n};
+}
+
 }  // namespace
+
+void ApplyChainFilters(double highpass_hz, const ChainDraw& chain, double fs,
+                       Eigen::Ref<Eigen::ArrayXd> v) {
+  for (const double fc : {highpass_hz, chain.lowpass_hz}) {
+    if (fc > 0.0 && !(fc < 0.5 * fs)) {
+      throw ConfigError(fmt::format("the sensor chain's filter corner {} Hz (randomize.highpass_hz "
+                                    "or randomize.lowpass_hz) is not below the Nyquist frequency "
+                                    "{} Hz",
+                                    fc, 0.5 * fs));
+    }
+  }
+  HighPass(highpass_hz, fs, chain.highpass_order).Run(v);
+  if (chain.lowpass_hz > 0.0) LowPass(chain.lowpass_hz, fs, chain.lowpass_order).Run(v);
+}
 
 bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> joint_speed_rad_s,
                        double joint_speed_rate_hz, uint64_t sample_seed, Eigen::MatrixXf* audio,
@@ -250,7 +295,8 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
   const double out_step = 1.0 / (std::ldexp(1.0, static_cast<int>(m.daq.output_bits) - 1) - 1);
   audio->resize(m.channels, num_frames);
   bool clipped = false;
-  Eigen::ArrayXd v(num_frames);  // one channel's volts, contiguous
+  // the piezo volts of every channel through its input filters (T x C, a channel a column)
+  Eigen::ArrayXXd filtered(num_frames, m.channels);
   for (int i = 0; i < m.channels; ++i) {
     // piezo volts with the channel's gain (a fixed offset, or a mismatch drawn per strike)
     const size_t ci = static_cast<size_t>(i);
@@ -262,18 +308,20 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
                                               : m.daq.channel_gain_db[ci];
     }
     const double bonding = chain.sensitivity_scale.empty() ? 1.0 : chain.sensitivity_scale[ci];
+    auto v = filtered.col(i);
     v = strain.row(i).transpose().array() *
             (m.daq.sensitivity_v_per_strain * bonding * std::pow(10.0, gain_db / 20.0)) +
         channel_gain[ci] * motor;
-    // high-pass of disc capacitance into the preamp input (bilinear); the ambient floor and the
-    // preamp noise are white, so they join after it as one draw (the 10 Hz corner removes a
-    // negligible part of white noise)
-    const double noise_v = chain.noise_floor_v >= 0.0
-                               ? chain.noise_floor_v
-                               : std::hypot(m.noise.ambient_rms_v, m.preamp_noise_v[i]);
+    const double corner_hz = chain.highpass_hz.empty() ? m.daq.highpass_hz(i)
+                                                        : chain.highpass_hz[ci];
+    if (chain.highpass_order != 1 || chain.lowpass_hz > 0.0) {
+      ApplyChainFilters(corner_hz, chain, m.fs, v);
+      continue;
+    }
+    // high-pass of disc capacitance into the preamp input (bilinear, first order)
     double b0 = m.b0[i], a1 = m.a1[i];
     if (!chain.highpass_hz.empty()) {
-      const double kk = std::tan(kPi * chain.highpass_hz[ci] / m.fs);
+      const double kk = std::tan(kPi * corner_hz / m.fs);
       b0 = 1.0 / (1.0 + kk);
       a1 = (kk - 1.0) / (kk + 1.0);
     }
@@ -283,7 +331,24 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
       const double y = b0 * (x - x_prev) - a1 * y_prev;
       x_prev = x;
       y_prev = y;
-      v[k] = y + noise_v * noise_rng.NoiseSample();
+      v[k] = y;
+    }
+  }
+  // a floor set by the strike's level: its peak over all channels, this many dB above the rms
+  const double floor_by_peak_v =
+      chain.peak_to_noise_db >= 0.0
+          ? filtered.abs().maxCoeff() * std::pow(10.0, -chain.peak_to_noise_db / 20.0)
+          : -1.0;
+  Eigen::ArrayXd v(num_frames);  // one channel's volts, contiguous
+  for (int i = 0; i < m.channels; ++i) {
+    const size_t ci = static_cast<size_t>(i);
+    // the ambient floor and the preamp noise are white, so they join after the input filters as
+    // one draw (the 10 Hz corner removes a negligible part of white noise)
+    const double noise_v = floor_by_peak_v >= 0.0       ? floor_by_peak_v
+                           : chain.noise_floor_v >= 0.0 ? chain.noise_floor_v
+                               : std::hypot(m.noise.ambient_rms_v, m.preamp_noise_v[i]);
+    for (int64_t k = 0; k < num_frames; ++k) {
+      v[k] = filtered(k, i) + noise_v * noise_rng.NoiseSample();
     }
     // mains hum picked up by the channel's cable, then the record level of the whole channel
     if (hum.size() > 0) v += chain.hum_channel_scale[ci] * hum;

@@ -111,6 +111,13 @@ void RandomizeConfig::Serialize(Archive* a) {
   a->Visit("reference_max_frequency_hz", &reference_max_frequency_hz,
            {100.0, 40000.0, true, false});
   a->Visit("reference_element_m", &reference_element_m, {0.0, 0.1, true, false});
+  a->Visit("soft_striker_fraction", &soft_striker_fraction, Bounds::Closed(0.0, 1.0));
+  a->Visit("soft_striker_youngs_modulus_pa", &soft_striker_youngs_modulus_pa,
+           {1e4, 1e12, false, false});
+  a->Visit("peak_to_noise_db", &peak_to_noise_db, Bounds::Closed(0.0, 120.0));
+  a->Visit("highpass_order", &highpass_order, Bounds::Closed(1.0, 2.0));
+  a->Visit("lowpass_hz", &lowpass_hz, {0.0, 2e4, true, false});
+  a->Visit("lowpass_order", &lowpass_order, Bounds::Closed(1.0, 2.0));
 }
 
 namespace {
@@ -147,6 +154,44 @@ void CheckRange(const char* name, const std::vector<double>& r) {
   }
 }
 
+// the as-built ranges: drawn after the others, in this order (BuildRanges' names are stored)
+std::vector<NamedRange> BuildRanges(const RandomizeConfig& c) {
+  return {{"soft_striker_youngs_modulus_pa", &c.soft_striker_youngs_modulus_pa},
+          {"peak_to_noise_db", &c.peak_to_noise_db},
+          {"highpass_order", &c.highpass_order},
+          {"lowpass_hz", &c.lowpass_hz},
+          {"lowpass_order", &c.lowpass_order}};
+}
+
+void RequireWhole(const char* name, const std::vector<double>& r) {
+  for (const double x : r) {
+    if (x != std::floor(x)) {
+      throw ConfigError(fmt::format("randomize.{} = {}: a filter order is a whole number", name, x));
+    }
+  }
+}
+
+void ValidateBuild(const RandomizeConfig& c) {
+  for (const NamedRange& r : BuildRanges(c)) CheckRange(r.name, *r.range);
+  RequireWhole("highpass_order", c.highpass_order);
+  RequireWhole("lowpass_order", c.lowpass_order);
+  if (c.soft_striker_fraction > 0.0 && c.soft_striker_youngs_modulus_pa.empty()) {
+    throw ConfigError(
+        fmt::format("randomize.soft_striker_fraction = {} needs "
+                    "randomize.soft_striker_youngs_modulus_pa, the soft tips' modulus range",
+                    c.soft_striker_fraction));
+  }
+  if (!c.peak_to_noise_db.empty() && !c.noise_floor_v.empty()) {
+    throw ConfigError(
+        "randomize.peak_to_noise_db and randomize.noise_floor_v both set the white floor: give "
+        "one of them");
+  }
+  if (!c.lowpass_order.empty() && c.lowpass_hz.empty()) {
+    throw ConfigError("randomize.lowpass_order is set but randomize.lowpass_hz is not: the "
+                      "order belongs to the anti-alias low-pass");
+  }
+}
+
 }  // namespace
 
 void RandomizeConfig::Validate() const {
@@ -167,6 +212,7 @@ void RandomizeConfig::Validate() const {
           fmt::format("randomize.bolt_count = {}: a count of bolts is a whole number", n));
     }
   }
+  ValidateBuild(*this);
   // the modulus must stay positive over the temperature range
   if (temperature_c.size() == 2) {
     for (const double t : temperature_c) {
@@ -210,7 +256,10 @@ bool RandomizeConfig::any() const {
   for (const Field& f : Fields(*this)) {
     if (!f.range->empty()) return true;
   }
-  return mic_placement() || structure();
+  for (const NamedRange& r : BuildRanges(*this)) {
+    if (!r.range->empty()) return true;
+  }
+  return mic_placement() || structure() || soft_striker_fraction > 0.0;
 }
 
 bool RandomizeConfig::mic_placement() const {
@@ -323,9 +372,50 @@ std::vector<std::string> VariationNames(const RandomizeConfig& config, int chann
     if (r.range->empty()) continue;
     for (int c = 0; c < channels; ++c) names.push_back(fmt::format("{}_{}", r.name, c));
   }
+  if (config.soft_striker_fraction > 0.0) names.emplace_back("soft_striker");
+  for (const NamedRange& r : BuildRanges(config)) {
+    if (!r.range->empty()) names.emplace_back(r.name);
+  }
   for (std::string& name : StructureValueNames(config)) names.push_back(std::move(name));
   return names;
 }
+
+namespace {
+
+// a whole number uniform in [r[0], r[1]] from u in [0, 1)
+int WholeDraw(const std::vector<double>& r, double u) {
+  const double n = std::floor(r[0] + u * (r[1] - r[0] + 1.0));
+  return static_cast<int>(std::min(n, r[1]));
+}
+
+// the as-built draws, after every other draw of the sample (their numbers stay as they were)
+void DrawBuild(const RandomizeConfig& config, Rng* rng, Variation* v) {
+  const double u_soft = rng->Uniform();
+  if (config.soft_striker_fraction > 0.0) {
+    v->values.push_back(u_soft < config.soft_striker_fraction ? 1.0 : 0.0);
+  }
+  std::vector<double> x;  // one draw per BuildRanges entry, NaN where not set
+  for (const NamedRange& r : BuildRanges(config)) {
+    const double u = rng->Uniform();  // drawn whether the range is set or not
+    const bool whole = std::string(r.name).ends_with("_order");
+    x.push_back(r.range->empty() ? std::nan("")
+                : whole          ? WholeDraw(*r.range, u)
+                                 : Draw(*r.range, std::string(r.name) == "peak_to_noise_db"
+                                                      ? Law::kUniform
+                                                      : Law::kLogUniform,
+                                        u));
+    if (!r.range->empty()) v->values.push_back(x.back());
+  }
+  if (config.soft_striker_fraction > 0.0 && u_soft < config.soft_striker_fraction) {
+    v->striker.youngs_modulus_pa = x[0];
+  }
+  if (!std::isnan(x[1])) v->chain.peak_to_noise_db = x[1];
+  if (!std::isnan(x[2])) v->chain.highpass_order = static_cast<int>(x[2]);
+  if (!std::isnan(x[3])) v->chain.lowpass_hz = x[3];
+  if (!std::isnan(x[4])) v->chain.lowpass_order = static_cast<int>(x[4]);
+}
+
+}  // namespace
 
 Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, int channels,
                         uint64_t sample_seed) {
@@ -379,6 +469,7 @@ Variation DrawVariation(const RandomizeConfig& config, double base_loss_factor, 
         std::min<int64_t>(static_cast<int64_t>(u * static_cast<double>(config.structure_variants)),
                           config.structure_variants - 1);
   }
+  DrawBuild(config, &rng, &v);
   return v;
 }
 

@@ -45,7 +45,8 @@ int RunCli(int argc, char** argv) {
   for (auto* register_subcommand :
        {RegisterDemo,      RegisterGenerate, RegisterMerge,     RegisterSynth,
         RegisterModes,     RegisterFidelity, RegisterReference, RegisterRerender,
-        RegisterVariants,  RegisterFeatures, RegisterTrain,     RegisterEval,
+        RegisterVariants,  RegisterFeatures, RegisterTrain,     RegisterPretrain,
+        RegisterEval,
         RegisterCalibrate, RegisterBaseline, RegisterAblate,    RegisterLocalize,
         RegisterImport,    RegisterExport,   RegisterListen,    RegisterGeometryCheck,
         RegisterMap,       RegisterFk,       RegisterInspect,   RegisterConfig,

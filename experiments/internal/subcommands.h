@@ -65,6 +65,7 @@ void RegisterRerender(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterVariants(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterFeatures(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterPretrain(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterEval(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterCalibrate(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterAdapt(CLI::App& app, GlobalOptions& g, Runner* run);

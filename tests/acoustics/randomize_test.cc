@@ -261,6 +261,135 @@ TEST(RandomizeDaqTest, LevelHighPassAndHumAsDrawn) {
   EXPECT_LT((out.array() == 0.0f).cast<double>().mean(), 0.02);
 }
 
+// The as-built ranges: a share of soft strikers, a floor set by the strike's peak, filter orders.
+// They are drawn after everything else, so turning them on leaves every other number alone.
+TEST(RandomizeBuildTest, SoftStrikersShareAndOrdersAsDrawnOtherDrawsKept) {
+  RandomizeConfig c;
+  c.striker_youngs_modulus_pa = {5e8, 2e11};
+  c.noise_floor_v = {5e-4, 3e-3};
+  c.mic_z_offset_m = {-0.002, 0.002};
+  const Variation before = DrawVariation(c, 0.02, 6, 77);
+  c.soft_striker_fraction = 0.25;
+  c.soft_striker_youngs_modulus_pa = {3e6, 1e8};
+  c.highpass_order = {1, 2};
+  c.lowpass_hz = {5000, 18000};
+  c.lowpass_order = {1, 2};
+  EXPECT_NO_THROW(c.Validate());
+  const Variation after = DrawVariation(c, 0.02, 6, 77);
+  ASSERT_GE(after.values.size(), before.values.size());
+  EXPECT_TRUE(std::equal(before.values.begin(), before.values.end(), after.values.begin()));
+  EXPECT_EQ(before.structure.mic_z_offset_m, after.structure.mic_z_offset_m);
+  // names line up with values: soft flag, soft modulus, then the filter draws
+  const std::vector<std::string> names = VariationNames(c, 6);
+  ASSERT_EQ(names.size(), after.values.size());
+  const size_t at = before.values.size();
+  EXPECT_EQ(names[at], "soft_striker");
+  EXPECT_EQ(names[at + 1], "soft_striker_youngs_modulus_pa");
+  EXPECT_EQ(names[at + 4], "lowpass_order");
+  // over many seeds: about a quarter soft, the soft modulus in its range; orders 1 and 2 both
+  int soft = 0, order2 = 0, low2 = 0;
+  for (uint64_t s = 0; s < 2000; ++s) {
+    const Variation v = DrawVariation(c, 0.02, 6, s);
+    const bool is_soft = v.values[at] == 1.0;
+    soft += is_soft;
+    const double e = v.striker.youngs_modulus_pa;
+    ASSERT_TRUE(is_soft ? (e >= 3e6 && e <= 1e8) : (e >= 5e8 && e <= 2e11)) << e;
+    ASSERT_TRUE(v.chain.highpass_order == 1 || v.chain.highpass_order == 2);
+    ASSERT_GE(v.chain.lowpass_hz, 5000.0);
+    ASSERT_LE(v.chain.lowpass_hz, 18000.0);
+    order2 += v.chain.highpass_order == 2;
+    low2 += v.chain.lowpass_order == 2;
+  }
+  EXPECT_NEAR(soft / 2000.0, 0.25, 0.03);
+  EXPECT_NEAR(order2 / 2000.0, 0.5, 0.04);
+  EXPECT_NEAR(low2 / 2000.0, 0.5, 0.04);
+}
+
+TEST(RandomizeBuildTest, BadBuildRangesAreRefusedNamingTheKeys) {
+  RandomizeConfig c;
+  c.soft_striker_fraction = 0.2;
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }),
+                    "randomize.soft_striker_youngs_modulus_pa"));
+  c = {};
+  c.peak_to_noise_db = {20, 45};
+  c.noise_floor_v = {1e-4, 1e-3};
+  const std::string both = ThrownMessage<ConfigError>([&] { c.Validate(); });
+  EXPECT_TRUE(Names(both, "randomize.peak_to_noise_db") && Names(both, "randomize.noise_floor_v"))
+      << both;
+  c = {};
+  c.highpass_order = {1, 1.5};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.highpass_order"));
+  c = {};
+  c.lowpass_order = {1, 2};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { c.Validate(); }), "randomize.lowpass_hz"));
+}
+
+// steady-state gain of the chain's filters for a sine at f (the second half of 1 s)
+double FilterGain(double f_hz, double highpass_hz, const ChainDraw& chain) {
+  const int n = 44100;
+  Eigen::ArrayXd x(n);
+  for (int k = 0; k < n; ++k) x[k] = std::sin(2 * kPi * f_hz * k / 44100.0);
+  Eigen::ArrayXd y = x;
+  ApplyChainFilters(highpass_hz, chain, 44100.0, y);
+  return std::sqrt(y.tail(n / 2).square().mean() / x.tail(n / 2).square().mean());
+}
+
+// First-order and Butterworth sections: -3 dB at the corner; a decade below the high-pass corner
+// -20 dB for one order and -40 dB for two; an octave above a low-pass corner -7 / -12.3 dB.
+TEST(RandomizeBuildTest, ChainFiltersHaveTheirOrdersSlopes) {
+  ChainDraw one, two;
+  two.highpass_order = 2;
+  const double db = 20 * std::log10(1.0);
+  EXPECT_NEAR(20 * std::log10(FilterGain(1000, 1000, one)), db - 3.01, 0.05);
+  EXPECT_NEAR(20 * std::log10(FilterGain(1000, 1000, two)), db - 3.01, 0.05);
+  EXPECT_NEAR(20 * std::log10(FilterGain(100, 1000, one)), -20.04, 0.1);
+  EXPECT_NEAR(20 * std::log10(FilterGain(100, 1000, two)), -40.0, 0.1);
+  ChainDraw low1, low2;
+  low1.lowpass_hz = low2.lowpass_hz = 4000;
+  low2.lowpass_order = 2;
+  // the bilinear map puts digital f at the analog tan(pi f / fs) / tan(pi fc / fs) of the corner
+  // (-7.63 and -13.79 dB an octave above 4 kHz); the high-pass at 1 Hz is flat there
+  const double w = std::tan(kPi * 8000 / 44100.0) / std::tan(kPi * 4000 / 44100.0);
+  EXPECT_NEAR(20 * std::log10(FilterGain(4000, 1, low1)), -3.01, 0.05);
+  EXPECT_NEAR(20 * std::log10(FilterGain(8000, 1, low1)), -10 * std::log10(1 + w * w), 0.05);
+  EXPECT_NEAR(20 * std::log10(FilterGain(8000, 1, low2)), -10 * std::log10(1 + w * w * w * w),
+              0.05);
+  ChainDraw nyquist;
+  nyquist.lowpass_hz = 30000;
+  Eigen::ArrayXd y = Eigen::ArrayXd::Zero(16);
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>(
+                        [&] { ApplyChainFilters(10, nyquist, 44100.0, y); }),
+                    "randomize.lowpass_hz"));
+}
+
+// A floor set by the strike: the loudest channel's peak stands the drawn dB above the noise rms.
+TEST(RandomizeBuildTest, PeakToNoiseSetsTheFloorFromTheStrike) {
+  AcousticModelConfig c = Coarse();
+  const DaqChain chain(c.daq, c.noise, 6, 44100, 44100);
+  // a decaying 2 kHz burst from 0.5 s, ten times stronger on channel 3
+  Eigen::MatrixXd strain = Eigen::MatrixXd::Zero(6, 44100);
+  for (int k = 22050; k < 44100; ++k) {
+    const double t = (k - 22050) / 44100.0;
+    for (int ch = 0; ch < 6; ++ch) {
+      strain(ch, k) = (ch == 3 ? 1e-5 : 1e-6) * std::exp(-t / 0.02) * std::sin(2 * kPi * 2000 * t);
+    }
+  }
+  ChainDraw draw;
+  draw.sensitivity_scale.assign(6, 1.0);
+  draw.channel_gain_db.assign(6, 0.0);
+  draw.peak_to_noise_db = 120;  // the strike's own peak, nearly clean
+  Eigen::MatrixXf out;
+  chain.Convert(strain, {}, 0.0, 3, &out, draw);
+  const double peak = out.cwiseAbs().maxCoeff();
+  for (const double target_db : {20.0, 35.0}) {
+    draw.peak_to_noise_db = target_db;
+    chain.Convert(strain, {}, 0.0, 3, &out, draw);
+    // the noise before the strike, every channel
+    const double rms = std::sqrt(out.leftCols(22000).cast<double>().squaredNorm() / (6.0 * 22000));
+    EXPECT_NEAR(20 * std::log10(peak / rms), target_db, 0.5) << target_db;
+  }
+}
+
 }  // namespace
 }  // namespace sonicboom::acoustics
 

@@ -92,6 +92,13 @@ class DaqChain {
 /// has seed SampleSeed(seed, kReferenceNoiseIndex - r), r < kReferenceNoiseRecords. No dataset
 /// sample has them (indices are stored as int64 >= 0, and dataset.first_index <= 1e15).
 inline constexpr uint64_t kReferenceNoiseIndex = ~uint64_t{0};
+/// The input high-pass at highpass_hz of chain.highpass_order, then chain's anti-alias low-pass
+/// (none when chain.lowpass_hz is 0), in place on one channel's samples at fs (bilinear
+/// sections: first order, or second-order Butterworth). Throws ConfigError naming the keys when a
+/// corner is not below Nyquist.
+void ApplyChainFilters(double highpass_hz, const ChainDraw& chain, double fs,
+                       Eigen::Ref<Eigen::ArrayXd> v);
+
 inline constexpr int64_t kReferenceNoiseRecords = 8;
 
 /// The noise model's no-contact recording, (channels x kReferenceNoiseRecords * frames): each

@@ -74,6 +74,22 @@ struct RandomizeConfig {
   double reference_fraction{0.0};
   double reference_max_frequency_hz{15000.0};
   double reference_element_m{0.0135};
+  // what a tube as built adds (docs/randomization.md, "As built"); drawn after everything above,
+  // so that setting them leaves every other draw of a sample as it was
+  // a share of soft strikers (rubber tips, fingertips, fruit, leaves): the tip modulus drawn from
+  // soft_striker_youngs_modulus_pa (log-uniform) instead; contacts of milliseconds
+  double soft_striker_fraction{0.0};
+  std::vector<double> soft_striker_youngs_modulus_pa;
+  // the white floor set per sample so that the strike's peak (the loudest channel after the
+  // chain's gains and filters, before hum) stands this many dB above its rms; uniform; replaces
+  // noise_floor_v
+  std::vector<double> peak_to_noise_db;
+  // filter orders of the chain: the input high-pass as the disc's first-order RC or a
+  // second-order Butterworth (an AC-coupled preamp stage), and an anti-alias low-pass in front
+  // of the converter (corner log-uniform, order 1 or 2); orders are whole numbers, uniform
+  std::vector<double> highpass_order;
+  std::vector<double> lowpass_hz;
+  std::vector<double> lowpass_order;
 
   void Serialize(Archive* a);
   /// Ranges have 0 or 2 entries with min <= max, inside physical limits; throws ConfigError
@@ -159,6 +175,12 @@ struct ChainDraw {
   std::vector<double> hum_channel_scale;  // (channels) pickup of each cable, not stored
   double record_level_db{0.0};
   double full_scale_scale{1.0};
+  double peak_to_noise_db{-1.0};  // < 0 = the floor is noise_floor_v (or as configured)
+  int highpass_order{1};          // 1: the RC corner; 2: a Butterworth pair at the same corner
+  double lowpass_hz{0.0};         // 0 = no anti-alias low-pass
+  int lowpass_order{1};
+  /// Whether the chain filters or sets its floor in a way the first-order default does not.
+  bool shaped() const { return highpass_order != 1 || lowpass_hz > 0.0 || peak_to_noise_db >= 0; }
 };
 
 /// The draws of one sample, by the stage that reads them. Fields hold the configured value
