@@ -15,6 +15,7 @@
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/experiments/pipeline.h"
+#include "sonicboom/learning/fine_tune.h"
 #include "sonicboom/learning/learning.h"
 
 #include "internal/pseudo_labels.h"
@@ -61,19 +62,171 @@ json ApplyPseudoLabels(const std::string& init_from, double keep_fraction,
   return j;
 }
 
-// The run's own files beside what training writes: its config, and how it was fine-tuned and
-// pseudo-labelled.
-void WriteRunSidecars(const std::string& work, const SonicBoomConfig& config, const TrainOptions& o,
+// fine_tune.json of a fixed recipe (null: no fine-tune)
+json FixedTuneRecord(const TrainOptions& o) {
+  if (o.init_from.empty()) return nullptr;
+  return {{"init_from", o.init_from}, {"freeze", NameOf(o.freeze)}, {"norm", NameOf(o.norm)}};
+}
+
+// The run's own files beside what training writes: its config, and how it was fine-tuned
+// (`fine_tune`, fine_tune.json) and pseudo-labelled.
+void WriteRunSidecars(const std::string& work, const SonicBoomConfig& config, const json& fine_tune,
                       const json& pseudo) {
   WriteTextAtomic((fs::path(work) / "config.yaml").string(), ConfigToYaml(config));
-  if (!o.init_from.empty()) {
-    const json init{
-        {"init_from", o.init_from}, {"freeze", NameOf(o.freeze)}, {"norm", NameOf(o.norm)}};
-    WriteTextAtomic((fs::path(work) / "fine_tune.json").string(), init.dump(2) + "\n");
+  if (!fine_tune.is_null()) {
+    WriteTextAtomic((fs::path(work) / "fine_tune.json").string(), fine_tune.dump(2) + "\n");
   }
   if (!pseudo.is_null()) {
     WriteTextAtomic((fs::path(work) / "pseudo_labels.json").string(), pseudo.dump(2) + "\n");
   }
+}
+
+// Each member of an ensemble is a run of its own too (eval, localize, a fine-tune from it).
+void WriteMemberConfigs(const std::string& work, const SonicBoomConfig& config) {
+  for (const std::string& member : learning::EnsembleMembers(work)) {
+    WriteTextAtomic((fs::path(member) / "config.yaml").string(), ConfigToYaml(config));
+  }
+}
+
+// --tune auto's refusals, before anything is read: what it cannot judge or run.
+void CheckAutoTune(const TrainOptions& o, const learning::DataParallel& parallel) {
+  if (o.init_from.empty()) {
+    throw ConfigError("--tune auto chooses how to fine-tune a pretrained run: give --init-from RUN");
+  }
+  if (o.pseudo_labels > 0.0) {
+    throw ConfigError("--tune auto judges candidates by the data's labels, which --pseudo-labels "
+                      "replaces: give a fixed recipe (--freeze F --lr LR)");
+  }
+  if (o.resume) {
+    throw ConfigError("--tune auto does not resume: give the recipe its fine_tune.json chose "
+                      "(--freeze F --lr LR)");
+  }
+  if (parallel.world_size > 1) throw ConfigError("--tune auto runs in one process (WORLD_SIZE 1)");
+}
+
+json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+// One candidate of fine_tune.json: its recipe, per-fold held-out MEDs and test against the
+// pretrained weights.
+json CandidateRecord(const learning::AutoFineTuneResult& r, size_t c) {
+  json j{{"name", r.candidates[c].name},
+         {"fold_med_cm", r.fold_med_cm[c]},
+         {"mean_med_cm", r.choice.mean_med_cm[c]}};
+  if (const auto& recipe = r.candidates[c].recipe) {
+    j["freeze"] = NameOf(recipe->freeze);
+    j["learning_rate"] = recipe->learning_rate;
+    j["folds_better"] = r.choice.folds_better[c];
+    j["paired_t"] = Number(r.choice.t_statistic[c]);
+  }
+  return j;
+}
+
+// fine_tune.json of --tune auto: the candidates' folds, the choice, why, and the calibration.
+json AutoTuneRecord(const TrainOptions& o, const learning::AutoFineTuneOptions& a,
+                    const learning::AutoFineTuneResult& r, const std::string& calibration) {
+  json candidates = json::array();
+  for (size_t c = 0; c < r.candidates.size(); ++c) candidates.push_back(CandidateRecord(r, c));
+  const learning::FineTuneCandidate& chosen = r.candidates[static_cast<size_t>(r.choice.chosen)];
+  json j{{"init_from", o.init_from},
+         {"tune", "auto"},
+         {"norm", NameOf(o.norm)},
+         {"strikes", r.fold_of_row.size()},
+         {"folds", r.fold_med_cm.front().size()},
+         {"epochs", a.train.epochs},
+         {"selection",
+          {{"rule", "a tuned candidate replaces the pretrained weights only when a one-sided "
+                    "paired t-test over the folds' held-out MED says it is lower"},
+           {"alpha", a.selection.alpha},
+           {"t_critical", r.choice.t_critical}}},
+         {"candidates", candidates},
+         {"chosen", chosen.name},
+         {"why", r.choice.why},
+         {"calibration", calibration}};
+  if (chosen.recipe) {
+    j["freeze"] = NameOf(chosen.recipe->freeze);
+    j["learning_rate"] = chosen.recipe->learning_rate;
+  }
+  return j;
+}
+
+// The chosen recipe trained on every labelled strike (the per-epoch log reads them too; the
+// cross-validation judged it), with the pretrained scales, refitted on the recipe's out-of-fold
+// answers where there are kMinFitRecords of them. Returns the calibration in words.
+std::string TrainChosen(const SonicBoomConfig& config, const learning::FeatureSet& labelled,
+                        const learning::AutoFineTuneResult& r, const TrainOptions& o,
+                        const std::string& work, bool quiet) {
+  learning::FineTune tune;
+  tune.init_from = o.init_from;
+  tune.freeze = r.candidates[static_cast<size_t>(r.choice.chosen)].recipe->freeze;
+  tune.refit_normalization = o.norm == NormPolicy::kRefit;
+  tune.calibration = learning::FineTune::Calibration::kKeepPretrained;
+  TrainOnSplit(config, FeatureSplit{labelled, labelled}, work, /*resume=*/false, quiet, tune);
+  const int64_t usable = learning::CalibrationRecords(r.held_out, labelled);
+  if (usable < learning::kMinFitRecords) {
+    return fmt::format("the pretrained run's scales, kept: {} out-of-fold answers, fewer than the "
+                       "{} a fit needs",
+                       usable, learning::kMinFitRecords);
+  }
+  const learning::Recalibration rc = learning::Recalibrate(
+      work, r.held_out, labelled, "out-of-fold answers of the --tune auto cross-validation");
+  return fmt::format("the pretrained run's scales refitted on the chosen recipe's {} out-of-fold "
+                     "answers (sigma_z x {:.3g}, kappa x {:.3g})",
+                     usable, rc.relative.z_std_scale, rc.relative.kappa_scale);
+}
+
+// The pretrained run, files and all (weights, members, calibration), as the result.
+void CopyPretrained(const std::string& from, const std::string& work) {
+  for (const auto& e : fs::directory_iterator(from)) {
+    fs::copy(e.path(), fs::path(work) / e.path().filename(),
+             fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  }
+}
+
+// --tune auto into `work` (made, empty): cross-validation on the labelled strikes, then the
+// chosen recipe trained on all of them or the pretrained run copied; `work` becomes o.out.
+CommandResult RunAutoTune(SonicBoomConfig config, const learning::FeatureSet& features,
+                          const std::vector<uint64_t>& indices, const TrainOptions& o,
+                          const std::string& work, bool quiet) {
+  std::vector<int64_t> rows;
+  std::vector<uint64_t> labelled_indices;
+  for (size_t r = 0; r < indices.size(); ++r) {
+    if (!std::isfinite(features.z_m[r]) || !std::isfinite(features.theta_rad[r])) continue;
+    rows.push_back(static_cast<int64_t>(r));
+    labelled_indices.push_back(indices[r]);
+  }
+  const learning::FeatureSet labelled = features.SelectRows(rows);
+  learning::AutoFineTuneOptions a;
+  a.init_from = o.init_from;
+  a.model = config.model;
+  a.train = config.train;
+  a.refit_normalization = o.norm == NormPolicy::kRefit;
+  a.surface_radius_m = config.tube.outer_radius_m;
+  a.seed = config.seed;
+  a.work_dir = (fs::path(work) / "cross_validation").string();
+  a.show_progress = !quiet;
+  const learning::AutoFineTuneResult r = learning::CrossValidateFineTune(labelled, labelled_indices, a);
+  fs::remove_all(a.work_dir);
+  const learning::FineTuneCandidate& chosen = r.candidates[static_cast<size_t>(r.choice.chosen)];
+  std::string calibration = "the pretrained run's, kept with its weights";
+  if (chosen.recipe) {
+    config.train.learning_rate = chosen.recipe->learning_rate;
+    config.train.keep_best = false;
+    calibration = TrainChosen(config, labelled, r, o, work, quiet);
+  } else {
+    CopyPretrained(o.init_from, work);
+  }
+  const json record = AutoTuneRecord(o, a, r, calibration);
+  WriteRunSidecars(work, config, record, nullptr);
+  WriteMemberConfigs(work, config);
+  ReplaceDirectory(work, o.out);
+  const learning::Metrics held = learning::ComputeMetrics(r.held_out, labelled, a.surface_radius_m);
+  const json j{{"run_dir", o.out}, {"fine_tune", record}, {"held_out", MetricsJson(held)}};
+  return {j.dump(),
+          fmt::format("fine-tuned {} (--tune auto, {}-fold cross-validation on {} strikes): {}\n"
+                      "chosen: {}; over its {} out-of-fold answers MED {:.2f} cm, height {:.2f} cm, "
+                      "angle {:.1f} deg\n",
+                      o.out, r.fold_med_cm.front().size(), labelled.size(), r.choice.why,
+                      chosen.name, held.n, held.med_cm, held.height_err_cm, held.angle_err_deg)};
 }
 
 }  // namespace
@@ -101,6 +254,7 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
   // data parallel (RANK/WORLD_SIZE set by a launcher): every process trains its part of each
   // batch; rank 0 alone writes the run (docs/cluster.md)
   const learning::DataParallel parallel = learning::DataParallel::FromEnvironment();
+  if (o.tune == TuneMode::kAuto) CheckAutoTune(o, parallel);
   // the run is written whole in OUT.partial, which replaces OUT once training is done: a killed
   // run never leaves a directory that looks complete, nor harms the run it was replacing
   const std::string work = o.out + ".partial";
@@ -148,8 +302,16 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
     fs::remove_all(work, ec);  // a killed run's leftovers, not resumed
   }
   MakeDirectories(work);
+  if (o.tune == TuneMode::kAuto) {
+    try {
+      return RunAutoTune(config, features, indices, o, work, g.quiet);
+    } catch (const Error&) {
+      fs::remove_all(work, ec);
+      throw;
+    }
+  }
   // a fresh run says what it is before it trains; a resumed one once it has trained
-  if (made_work) WriteRunSidecars(work, config, o, pseudo);
+  if (made_work) WriteRunSidecars(work, config, FixedTuneRecord(o), pseudo);
   learning::Metrics m;
   try {
     m = TrainOnFeatures(config, std::move(features), indices, o.data, work, o.resume, g.quiet,
@@ -158,11 +320,8 @@ CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o) {
     if (made_work) fs::remove_all(work, ec);
     throw;
   }
-  if (!made_work) WriteRunSidecars(work, config, o, pseudo);
-  // each member of an ensemble is a run of its own too (eval, localize, a fine-tune from it)
-  for (const std::string& member : learning::EnsembleMembers(work)) {
-    WriteTextAtomic((fs::path(member) / "config.yaml").string(), ConfigToYaml(config));
-  }
+  if (!made_work) WriteRunSidecars(work, config, FixedTuneRecord(o), pseudo);
+  WriteMemberConfigs(work, config);
   ReplaceDirectory(work, o.out);
   json j = MetricsJson(m);
   j["run_dir"] = o.out;
@@ -192,8 +351,14 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
                   "replace an existing run directory (once the new run is complete)");
   train->add_option("--init-from", o->train.init_from,
                     "pretrained run directory: start from its weights and config");
-  AddEnumOption(train, "--freeze", &o->train.freeze,
-                "none | encoders | all-but-head (with --init-from)");
+  CLI::Option* freeze = AddEnumOption(train, "--freeze", &o->train.freeze,
+                                      "none | encoders | all-but-head (with --init-from; a "
+                                      "fixed recipe)");
+  CLI::Option* tune = AddEnumOption(
+      train, "--tune", &o->train.tune,
+      "auto | fixed (with --init-from): auto, the default unless --freeze, --lr, --pseudo-labels "
+      "or --resume is given, cross-validates the pretrained weights against two fine-tunes on "
+      "the data's strikes and keeps the weights unless a tune is better (docs/captures.md)");
   AddEnumOption(train, "--norm", &o->train.norm,
                 "keep | refit the per-mic mel statistics (with --init-from; default keep)");
   train
@@ -206,10 +371,22 @@ void RegisterTrain(CLI::App& app, GlobalOptions& g, Runner* run) {
       ->check(NumberIn(0.0, 1.0, true));
   train->add_option("--epochs", o->epochs, "epochs (sets train.epochs)")
       ->check(NumberIn(1, 100000, false, true));
-  train->callback([&g, run, o] {
+  train->callback([&g, run, o, freeze, tune] {
     if (o->lr > 0.0) g.sources.overrides.push_back(fmt::format("train.learning_rate={}", o->lr));
     if (o->epochs > 0) g.sources.overrides.push_back(fmt::format("train.epochs={}", o->epochs));
-    *run = [&g, o] { return RunTrain(g, o->train); };
+    const bool recipe = freeze->count() > 0 || o->lr > 0.0;
+    const bool fixed = recipe || o->train.pseudo_labels > 0.0 || o->train.resume;
+    if (tune->count() == 0) {
+      o->train.tune = !o->train.init_from.empty() && !fixed ? TuneMode::kAuto : TuneMode::kFixed;
+    }
+    const bool conflict = o->train.tune == TuneMode::kAuto && recipe;
+    *run = [&g, o, conflict] {
+      if (conflict) {
+        throw ConfigError("--tune auto chooses the freeze mode and learning rate itself: drop "
+                          "--freeze and --lr, or give --tune fixed");
+      }
+      return RunTrain(g, o->train);
+    };
   });
 }
 

@@ -51,6 +51,13 @@ CalibrationFit FitOrKeepCalibration(const std::vector<Prediction>& predictions,
   return fit;
 }
 
+CalibrationFit KeptCalibrationFit(const UncertaintyCalibration& kept, const std::string& kept_what) {
+  CalibrationFit fit;
+  fit.scales = kept;
+  fit.method = fmt::format("not fitted (the fine-tune keeps its calibration): {}", kept_what);
+  return fit;
+}
+
 namespace {
 
 // The "uncertainty" object of model.json or ensemble.json with `after` and its provenance.

@@ -128,10 +128,12 @@ Metrics TrainEnsemble(const FeatureSet& train, const FeatureSet& val,
     const bool tuned = !fine_tune.init_from.empty();
     const UncertaintyCalibration kept =
         tuned ? EnsembleCalibration(fine_tune.init_from) : UncertaintyCalibration{};
-    calibration = FitOrKeepCalibration(
-        predictions, val, kept,
+    const std::string kept_what =
         tuned ? fmt::format("the pretrained scales of {}/ensemble.json", fine_tune.init_from)
-              : "scales 1");
+              : "scales 1";
+    calibration = fine_tune.calibration == FineTune::Calibration::kKeepPretrained
+                      ? KeptCalibrationFit(kept, kept_what)
+                      : FitOrKeepCalibration(predictions, val, kept, kept_what);
   }
   WriteEnsembleFile(run_dir, names, calibration);
   for (Prediction& p : predictions) p = ApplyCalibration(p, calibration.scales);

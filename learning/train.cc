@@ -469,7 +469,8 @@ Metrics FinishRun(const RunFiles& files, internal::NetworkImpl& network, const F
                   const FeatureSet& val, const ModelConfig& model_config,
                   const TrainConfig& train_config, double surface_radius_m, uint64_t seed,
                   bool uncertainty_head, int64_t epochs, bool show_progress,
-                  const std::pair<UncertaintyCalibration, std::string>& kept) {
+                  const std::pair<UncertaintyCalibration, std::string>& kept,
+                  FineTune::Calibration calibration) {
   internal::ModelFile model_file;
   model_file.model_config = model_config;
   model_file.shapes = train.ShapesOnly();
@@ -481,7 +482,10 @@ Metrics FinishRun(const RunFiles& files, internal::NetworkImpl& network, const F
   if (uncertainty_head) {
     model_file.has_calibration = true;
     model_file.uncalibrated_val_metrics = ComputeMetrics(predictions, val, surface_radius_m);
-    const CalibrationFit fit = FitOrKeepCalibration(predictions, val, kept.first, kept.second);
+    const CalibrationFit fit =
+        calibration == FineTune::Calibration::kKeepPretrained
+            ? KeptCalibrationFit(kept.first, kept.second)
+            : FitOrKeepCalibration(predictions, val, kept.first, kept.second);
     model_file.calibration = fit.scales;
     model_file.calibration_method = fit.method;
     fitted = fit.fitted;
@@ -604,7 +608,7 @@ Metrics Train(const FeatureSet& train, const FeatureSet& val, const ModelConfig&
   const int64_t epochs = std::max(epochs_done, train_config.epochs);
   const Metrics m = FinishRun(files, *network, train, val, model_config, train_config,
                               surface_radius_m, seed, uncertainty_head, epochs, show_progress,
-                              KeptCalibration(fine_tune));
+                              KeptCalibration(fine_tune), fine_tune.calibration);
   KeepWhatResumeNeeds(files, optimizer, epochs, model_is_best);
   return m;
 }

@@ -126,7 +126,7 @@ TEST_F(StatisticsRulesTest, TrainingCalibratesOnTheMinimumOrKeepsItsScalesAndSay
   for (const std::string extra : {"", " --pseudo-labels 1"}) {
     const std::string out = extra.empty() ? "TUNED" : "SELF";
     const CliRun run =
-        Cli("train --init-from PRE --data d16.h5 --epochs 1 -q --out " + out + extra);
+        Cli("train --init-from PRE --data d16.h5 --tune fixed --epochs 1 -q --out " + out + extra);
     ASSERT_EQ(run.exit_code, 0) << run.err;
     EXPECT_THAT(run.err, HasSubstr("interval scales not fitted"));
     const json u = ReadJson(At(out) / "model.json")["uncertainty"];

@@ -16,6 +16,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
@@ -1208,6 +1209,32 @@ TEST_F(TrainingTest, EnsembleTrainsItsMembersAndPredictsTheirMixture) {
     FAIL() << "expected SchemaError";
   } catch (const SchemaError& e) {
     EXPECT_THAT(e.what(), HasSubstr("ensemble.json"));
+  }
+}
+
+// FineTune::Calibration::kKeepPretrained (--tune auto's folds and final run): the pretrained
+// scales stay although the validation split could fit them, in a run and in an ensemble.
+TEST_F(TrainingTest, FineTuneCanKeepThePretrainedCalibration) {
+  const FeatureSet train = MakeFeatures(32, 61), val = MakeFeatures(32, 62);
+  auto scales = [](const std::string& file) {
+    const nlohmann::json u = nlohmann::json::parse(sonicboom::testing::ReadBytes(file))["uncertainty"];
+    return std::make_pair(u["z_std_scale"].get<double>(), u["kappa_scale"].get<double>());
+  };
+  TrainConfig config = TinyTraining(1);
+  for (const int64_t members : {1, 2}) {
+    config.ensemble_members = members;
+    const std::string pre = Dir(fmt::format("pre{}", members));
+    const std::string file = members == 1 ? "/model.json" : "/ensemble.json";
+    TrainEnsemble(train, val, TinyModel(), config, kRadius, 3, pre, false, false);
+    ASSERT_NE(scales(pre + file).first, 1.0);  // fitted on 32 strikes
+    FineTune tune;
+    tune.init_from = pre;
+    tune.calibration = FineTune::Calibration::kKeepPretrained;
+    const std::string tuned = Dir(fmt::format("tuned{}", members));
+    TrainEnsemble(MakeFeatures(24, 63), MakeFeatures(32, 64), TinyModel(), config, kRadius, 5,
+                  tuned, false, false, tune);
+    EXPECT_EQ(scales(tuned + file), scales(pre + file)) << members;
+    EXPECT_THAT(sonicboom::testing::ReadBytes(tuned + file), HasSubstr("keeps its calibration"));
   }
 }
 

@@ -94,6 +94,14 @@ inline std::span<const EnumName<NormPolicy>> EnumNames(NormPolicy) {
   return kNormPolicyNames;
 }
 
+/// How a fine-tune picks its recipe: the one given (--freeze, --lr), or auto: candidates
+/// cross-validated on the data's strikes, the pretrained weights kept unless a tuned one is
+/// better beyond the folds' spread (learning::CrossValidateFineTune).
+enum class TuneMode { kFixed, kAuto };
+inline constexpr EnumName<TuneMode> kTuneModeNames[] = {{TuneMode::kAuto, "auto"},
+                                                        {TuneMode::kFixed, "fixed"}};
+inline std::span<const EnumName<TuneMode>> EnumNames(TuneMode) { return kTuneModeNames; }
+
 /// `train`: a fresh run, or a fine-tune of a pretrained run (--init-from).
 struct TrainOptions {
   std::string data;  // dataset (.h5)
@@ -106,6 +114,8 @@ struct TrainOptions {
   // self-training (with init_from): the fraction in (0, 1] of the data's strikes that the
   // pretrained run is surest of, labelled by its answers (the data's labels unread); 0: off
   double pseudo_labels{0.0};
+  // with init_from; the CLI's default is auto unless a recipe, pseudo-labels or --resume is given
+  TuneMode tune{TuneMode::kFixed};
 };
 CommandResult RunTrain(const GlobalOptions& g, const TrainOptions& o);
 /// `eval`: metrics of a run on a dataset.

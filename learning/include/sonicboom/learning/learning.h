@@ -264,6 +264,10 @@ struct FineTune {
   Freeze freeze{Freeze::kNone};
   bool refit_normalization{false};  // false: keep the pretrained per-mic mel statistics;
                                     // true: recompute them on the target's training split
+  // The interval scales after training: fitted on the validation split (FitOrKeepCalibration), or
+  // the pretrained run's kept whatever its size (the validation split then informs nothing).
+  enum class Calibration { kFitOnValidation, kKeepPretrained };
+  Calibration calibration{Calibration::kFitOnValidation};
 };
 inline constexpr EnumName<FineTune::Freeze> kFreezeNames[] = {
     {FineTune::Freeze::kNone, "none"},
@@ -345,6 +349,9 @@ struct CalibrationFit {
 CalibrationFit FitOrKeepCalibration(const std::vector<Prediction>& predictions,
                                     const FeatureSet& truth, const UncertaintyCalibration& kept,
                                     const std::string& kept_what);
+
+/// `kept` unfitted (FineTune::Calibration::kKeepPretrained), its method naming `kept_what`.
+CalibrationFit KeptCalibrationFit(const UncertaintyCalibration& kept, const std::string& kept_what);
 
 /// A finished run's calibration refitted on other labelled records (`sonicboom calibrate`).
 struct Recalibration {
