@@ -11,6 +11,7 @@
 #include "internal/uncertainty.h"
 #include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
+#include "sonicboom/learning/conformal.h"
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::learning {
@@ -303,6 +304,64 @@ UncertaintyCalibration FitUncertaintyCalibration(const std::vector<Prediction>& 
       (derivative(std::exp(mid)) < 0.0 ? lo : hi) = mid;
     }
     calibration.kappa_scale = std::exp(0.5 * (lo + hi));
+  }
+  return calibration;
+}
+
+}  // namespace sonicboom::learning
+
+namespace sonicboom::learning {
+
+UncertaintyCalibration FitCoverageCalibration(const std::vector<Prediction>& predictions,
+                                              const FeatureSet& truth, double level) {
+  if (static_cast<int64_t>(predictions.size()) != truth.size() ||
+      truth.theta_rad.size() != truth.z_m.size()) {
+    throw SchemaError("FitCoverageCalibration: predictions and labels differ in number");
+  }
+  SONICBOOM_DEMAND(level > 0.0 && level < 1.0);
+  constexpr double kMinScale = UncertaintyCalibration::kMinScale;
+  constexpr double kMaxScale = UncertaintyCalibration::kMaxScale;
+  // standardized height errors |u|, and (kappa, |angle error|) of the usable records
+  std::vector<double> z_scores, kappas, angles;
+  for (size_t i = 0; i < predictions.size(); ++i) {
+    const Prediction& p = predictions[i];
+    if (!p.has_uncertainty() || !std::isfinite(truth.z_m[i]) ||
+        !std::isfinite(truth.theta_rad[i])) {
+      continue;
+    }
+    z_scores.push_back(std::abs(truth.z_m[i] - p.z_m) / p.z_std_m);
+    kappas.push_back(p.theta_kappa);
+    angles.push_back(std::abs(std::remainder(truth.theta_rad[i] - p.theta_rad, 2.0 * kPi)));
+  }
+  UncertaintyCalibration calibration;
+  const size_t n = z_scores.size();
+  if (n == 0) return calibration;
+  // the conformal quantile: the ceil(level (n + 1))-th smallest score (the largest when n is
+  // small), so that a new record of the same family is covered with probability >= level
+  const size_t rank = std::min(n, static_cast<size_t>(std::ceil(level * double(n + 1)))) - 1;
+  std::nth_element(z_scores.begin(), z_scores.begin() + static_cast<std::ptrdiff_t>(rank),
+                   z_scores.end());
+  calibration.z_std_scale =
+      std::clamp(z_scores[rank] / GaussianIntervalHalfWidth(level), kMinScale, kMaxScale);
+  // theta: the share covered at concentration scale c, a falling step function of c
+  const auto covered = [&](double c) {
+    size_t inside = 0;
+    for (size_t i = 0; i < n; ++i) inside += VonMisesCentralProbability(c * kappas[i], angles[i]) <= level;
+    return double(inside) / double(n);
+  };
+  const double target = double(rank + 1) / double(n);
+  double lo = std::log(kMinScale), hi = std::log(kMaxScale);
+  if (covered(std::exp(hi)) >= target) {
+    calibration.kappa_scale = kMaxScale;
+  } else if (covered(std::exp(lo)) < target) {
+    calibration.kappa_scale = kMinScale;
+  } else {
+    // the largest c that still covers the target share: the narrowest honest intervals
+    for (int iteration = 0; iteration < 60; ++iteration) {
+      const double mid = 0.5 * (lo + hi);
+      (covered(std::exp(mid)) >= target ? lo : hi) = mid;
+    }
+    calibration.kappa_scale = std::exp(lo);
   }
   return calibration;
 }

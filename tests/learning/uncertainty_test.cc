@@ -19,6 +19,7 @@
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
 #include "sonicboom/core/rng.h"
+#include "sonicboom/learning/conformal.h"
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::learning {
@@ -262,6 +263,57 @@ TEST(UncertaintyMetricsTest, PredictionsWithoutUncertaintyHaveNoCoverage) {
   EXPECT_TRUE(std::isnan(ComputeMetrics(mixed, s.truth, 0.05).z_coverage_90));
   EXPECT_FALSE(points[0].has_uncertainty());
   EXPECT_TRUE(s.predictions[0].has_uncertainty());
+}
+
+// Coverage calibration: on Gaussian errors it finds the same mis-scaling as the likelihood; on
+// heavy-tailed ones (a tenth of the strikes ten times further off, as off-distribution strikes
+// are) the likelihood's rms scale is pulled by the far misses and over-covers, while the coverage
+// fit holds 90 % on the strikes it was fitted on and on fresh ones of the same family.
+TEST(UncertaintyCalibrationTest, CoverageFitHoldsTheLevelWhereTheLikelihoodDoesNot) {
+  const Synthetic s = MakeSynthetic(3000, 31);
+  const std::vector<Prediction> wrong = Scaled(s.predictions, 1.0 / 3.0, 4.0);
+  const UncertaintyCalibration c = FitCoverageCalibration(wrong, s.truth);
+  EXPECT_NEAR(c.z_std_scale, 3.0, 0.2);
+  EXPECT_NEAR(c.kappa_scale, 0.25, 0.03);
+  // heavy tails: every tenth record's error x10, a fresh set of the same family beside it
+  const auto heavy = [](Synthetic set) {
+    for (size_t i = 0; i < set.predictions.size(); i += 10) {
+      const Prediction& p = set.predictions[i];
+      set.truth.z_m[i] = p.z_m + 10.0 * (set.truth.z_m[i] - p.z_m);
+      set.truth.theta_rad[i] = std::remainder(
+          p.theta_rad + 10.0 * std::remainder(set.truth.theta_rad[i] - p.theta_rad, 2 * kPi),
+          2 * kPi);
+    }
+    return set;
+  };
+  const Synthetic fit_set = heavy(MakeSynthetic(3000, 32)), fresh = heavy(MakeSynthetic(3000, 33));
+  const auto coverage = [](const std::vector<Prediction>& predictions, const Synthetic& set,
+                           const UncertaintyCalibration& scales) {
+    std::vector<Prediction> scaled;
+    for (const Prediction& p : predictions) scaled.push_back(ApplyCalibration(p, scales));
+    return ComputeMetrics(scaled, set.truth, 0.05);
+  };
+  const UncertaintyCalibration by_coverage = FitCoverageCalibration(fit_set.predictions,
+                                                                    fit_set.truth);
+  const UncertaintyCalibration by_likelihood = FitUncertaintyCalibration(fit_set.predictions,
+                                                                         fit_set.truth);
+  const Metrics on_fit = coverage(fit_set.predictions, fit_set, by_coverage);
+  const Metrics on_fresh = coverage(fresh.predictions, fresh, by_coverage);
+  EXPECT_GE(on_fit.z_coverage_90, 0.9);
+  EXPECT_LT(on_fit.z_coverage_90, 0.905);
+  EXPECT_GE(on_fit.theta_coverage_90, 0.9);
+  EXPECT_LT(on_fit.theta_coverage_90, 0.905);
+  EXPECT_NEAR(on_fresh.z_coverage_90, 0.9, 0.02);
+  EXPECT_NEAR(on_fresh.theta_coverage_90, 0.9, 0.02);
+  EXPECT_GT(coverage(fresh.predictions, fresh, by_likelihood).z_coverage_90, 0.93);
+  // nothing usable leaves the scales alone; mismatched counts are refused
+  FeatureSet one;
+  one.z_m = {0.0};
+  one.theta_rad = {0.0};
+  const UncertaintyCalibration none = FitCoverageCalibration({Prediction{}}, one);
+  EXPECT_EQ(none.z_std_scale, 1.0);
+  EXPECT_EQ(none.kappa_scale, 1.0);
+  EXPECT_THROW(FitCoverageCalibration({}, one), SchemaError);
 }
 
 TEST(UncertaintyCalibrationTest, RecoversAKnownMisScaling) {
