@@ -408,44 +408,147 @@ void GccPhat::Compute(const Eigen::Ref<const RowMatrixXf>& window, Eigen::Matrix
 // ---------------------------------------------------------------------------------------------
 // Onset
 
-StrikeCheck CheckStrike(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
-                        double threshold, double min_peak_to_floor_db, double min_after_s) {
+namespace {
+
+// One channel's strike evidence, as ratios of amplitudes
+struct ChannelStrike {
+  double peak_to_noise{0.0};  // its peak over its noise RMS
+  double best_rise{0.0};      // the best window's peak over the RMS before it (0: none near)
+  double rise{0.0};           // the same of the first window that passes the rule
+  int64_t onset{-1};          // first sample of that window reaching half its peak (-1: none)
+};
+
+// A ratio of amplitudes in dB; a zero denominator reads 300 dB (a record without noise)
+double AmplitudeDb(double num, double den) {
+  if (!(num > 0.0)) return 0.0;
+  return 20.0 * std::log10(num / std::max(den, 1e-15 * num));
+}
+
+// Noise RMS of one channel (T, about its mean): the median of its frame-sample frames' RMS
+// values, so that a strike's frames (a few of the record's) do not count
+double NoiseRms(const Eigen::ArrayXd& x, int64_t frame) {
+  const int64_t frames = std::max<int64_t>(1, x.size() / frame);
+  const int64_t len = std::min<int64_t>(frame, x.size());
+  std::vector<double> rms(static_cast<size_t>(frames));
+  for (int64_t f = 0; f < frames; ++f)
+    rms[static_cast<size_t>(f)] = std::sqrt(x.segment(f * len, len).square().mean());
+  const auto mid = rms.begin() + static_cast<std::ptrdiff_t>(rms.size() / 2);
+  std::nth_element(rms.begin(), mid, rms.end());
+  return *mid;
+}
+
+// The rule on one channel (T, about its mean); windows in samples: onsets tried every hop, each
+// with the peak of the rise window after it and the RMS of the pre window before it
+ChannelStrike ChannelEvidence(const Eigen::ArrayXd& x, const StrikeRule& rule, int64_t hop,
+                              int64_t rise_blocks, int64_t pre_blocks, int64_t noise_frame) {
+  const int64_t total = x.size();
+  const int64_t blocks = (total + hop - 1) / hop;
+  // per hop block: peak |x| and the sum of squares before it (blocks + 1)
+  std::vector<double> block_peak(static_cast<size_t>(blocks));
+  std::vector<double> energy_before(static_cast<size_t>(blocks + 1), 0.0);
+  for (int64_t b = 0; b < blocks; ++b) {
+    const auto seg = x.segment(b * hop, std::min(hop, total - b * hop));
+    block_peak[static_cast<size_t>(b)] = seg.abs().maxCoeff();
+    energy_before[static_cast<size_t>(b + 1)] = energy_before[static_cast<size_t>(b)] +
+                                                seg.square().sum();
+  }
+  const double peak = *std::max_element(block_peak.begin(), block_peak.end());
+  ChannelStrike out;
+  out.peak_to_noise = AmplitudeDb(peak, NoiseRms(x, noise_frame));
+  // onsets whose window comes near the peak: the best rise, and the first that passes (the
+  // strike; a later swell, such as a press at the record's end, is not its onset)
+  const double near = peak * std::pow(10.0, -rule.near_peak_db / 20.0);
+  for (int64_t b = pre_blocks; b < blocks; ++b) {
+    const auto first = block_peak.begin() + b;
+    const double level = *std::max_element(first, first + std::min(rise_blocks, blocks - b));
+    if (!(level > 0.0) || level < near) continue;
+    const double pre_energy = energy_before[static_cast<size_t>(b)] -
+                              energy_before[static_cast<size_t>(b - pre_blocks)];
+    const double rise =
+        AmplitudeDb(level, std::sqrt(std::max(pre_energy, 0.0) / (pre_blocks * hop)));
+    out.best_rise = std::max(out.best_rise, rise);
+    if (rise < rule.min_db) continue;
+    // the wavefront: the window's first sample reaching half its peak
+    out.rise = rise;
+    out.onset = b * hop;
+    while (out.onset + 1 < total && std::abs(x[out.onset]) < 0.5 * level) ++out.onset;
+    break;
+  }
+  return out;
+}
+
+}  // namespace
+
+StrikeCheck CheckStrike(const Eigen::MatrixXf& audio, double sample_rate_hz,
+                        const StrikeRule& rule) {
+  if (!(sample_rate_hz > 0.0) || !(rule.hop_s > 0.0) || !(rule.rise_window_s > 0.0) ||
+      !(rule.pre_window_s > 0.0) || !(rule.noise_frame_s > 0.0)) {
+    throw ConfigError(fmt::format("strike check: the sample rate {} Hz and the windows (hop {} s, "
+                                  "rise {} s, pre {} s, noise frame {} s) must be > 0",
+                                  sample_rate_hz, rule.hop_s, rule.rise_window_s,
+                                  rule.pre_window_s, rule.noise_frame_s));
+  }
+  const auto samples = [&](double s) {
+    return std::max<int64_t>(1, std::llround(s * sample_rate_hz));
+  };
+  const int64_t hop = samples(rule.hop_s);
+  const int64_t rise_blocks = std::max<int64_t>(1, std::llround(rule.rise_window_s / rule.hop_s));
+  const int64_t pre_blocks = std::max<int64_t>(1, std::llround(rule.pre_window_s / rule.hop_s));
   StrikeCheck check;
   const int64_t total = audio.cols();
-  const int64_t frame = std::max<int64_t>(1, std::llround(frame_s * sample_rate_hz));
-  if (total < 3 * frame) {
-    check.reason = fmt::format("the record is {} samples long, under three {:.1f} ms frames",
-                               total, 1e3 * frame_s);
+  if (total <= (pre_blocks + rise_blocks) * hop) {
+    check.reason = fmt::format("the record is {} samples long, not over the {:.0f} ms the strike "
+                               "check reads",
+                               total, 1e3 * (rule.pre_window_s + rule.rise_window_s));
     return check;
   }
-  // each channel about its mean (C x T)
-  const Eigen::MatrixXf centred = audio.colwise() - audio.rowwise().mean();
-  // all-channel energy per frame, and its median (the floor) and peak
-  std::vector<double> energies;
-  for (int64_t start = 0; start < total; start += frame) {
-    const int64_t len = std::min(frame, total - start);  // the last frame may be short
-    energies.push_back(centred.middleCols(start, len).cast<double>().squaredNorm());
+  // each channel about its mean (a DC offset is no strike), the rule on each
+  std::vector<ChannelStrike> channels;
+  for (Eigen::Index c = 0; c < audio.rows(); ++c) {
+    const Eigen::ArrayXd x = audio.row(c).cast<double>().transpose().array();
+    channels.push_back(ChannelEvidence(x - x.mean(), rule, hop, rise_blocks, pre_blocks,
+                                       samples(rule.noise_frame_s)));
   }
-  std::vector<double> sorted = energies;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                   sorted.end());
-  const double floor = sorted[sorted.size() / 2];
-  const double peak = *std::max_element(energies.begin(), energies.end());
-  check.peak_to_floor_db = peak > 0.0 ? 10.0 * std::log10(peak / std::max(floor, 1e-300)) : 0.0;
-  check.onset_sample = DetectOnset(centred, sample_rate_hz, frame_s, threshold);
+  // the strike's channel: of those whose peak stands min_db above their noise and that rise,
+  // the first to rise; else the best rise of those channels (for the message)
+  int chosen = -1;
+  bool loud = false;
+  for (size_t c = 0; c < channels.size(); ++c) {
+    const ChannelStrike& ch = channels[c];
+    check.peak_to_noise_db = std::max(check.peak_to_noise_db, ch.peak_to_noise);
+    if (ch.peak_to_noise < rule.min_db) continue;
+    loud = true;
+    check.rise_db = std::max(check.rise_db, ch.best_rise);
+    if (ch.onset >= 0 &&
+        (chosen < 0 || ch.onset < channels[static_cast<size_t>(chosen)].onset))
+      chosen = static_cast<int>(c);
+  }
+  if (chosen >= 0) {
+    check.rise_db = channels[static_cast<size_t>(chosen)].rise;
+    check.onset_sample = channels[static_cast<size_t>(chosen)].onset;
+  }
   const double after_s = static_cast<double>(total - check.onset_sample) / sample_rate_hz;
-  if (!(peak > 0.0) || check.peak_to_floor_db < min_peak_to_floor_db) {
+  if (!loud) {
     check.reason = fmt::format(
-        "no strike found: the loudest {:.1f} ms frame stands {:.1f} dB above the record's median "
-        "frame, a strike at least {:.0f} dB (noise or a constant level alone?)",
-        1e3 * frame_s, check.peak_to_floor_db, min_peak_to_floor_db);
-  } else if (after_s < min_after_s) {
+        "no strike found: the loudest peak stands {:.1f} dB above the noise RMS, a strike at "
+        "least {:g} dB and rising within {:g} ms (noise, hum or a constant level alone?)",
+        check.peak_to_noise_db, rule.min_db, 1e3 * rule.rise_window_s);
+  } else if (chosen < 0) {
+    check.reason = fmt::format(
+        "no strike found: the loudest peak stands {:.1f} dB above the noise RMS, but no channel "
+        "rises within {:g} ms to within {:g} dB of its peak from a level more than {:.1f} dB "
+        "below it (the RMS of the {:g} ms before), a strike at least {:g} dB (arm motion or hum "
+        "alone?)",
+        check.peak_to_noise_db, 1e3 * rule.rise_window_s, rule.near_peak_db, check.rise_db,
+        1e3 * rule.pre_window_s, rule.min_db);
+  } else if (after_s < rule.min_after_s) {
     check.reason = fmt::format(
         "no strike found: its onset lies {:.1f} ms before the record's end, under the {:.0f} ms "
         "a strike needs (cut off?)",
-        1e3 * after_s, 1e3 * min_after_s);
+        1e3 * after_s, 1e3 * rule.min_after_s);
   }
   check.found = check.reason.empty();
+  if (check.found) check.channel = chosen;
   return check;
 }
 

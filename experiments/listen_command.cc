@@ -126,9 +126,9 @@ CommandResult RunListen(const GlobalOptions& g, const ListenOptions& o) {
     }
     for (const hardware::TriggeredRecord& r : records) {
       if (o.max_events > 0 && events >= o.max_events) break;
-      // a trigger on something that is no strike (noise, a level step) gets no line
-      const dsp::StrikeCheck check = dsp::CheckStrike(
-          r.audio, rate, config.features.onset_frame_s, config.features.onset_threshold);
+      // a trigger on something that is no strike (noise, hum, arm motion, a level step) gets no
+      // line
+      const dsp::StrikeCheck check = dsp::CheckStrike(r.audio, rate);
       if (!check.found) {
         spdlog::info("listen: trigger at {:.3f} s skipped: {}", r.onset_frame / rate,
                      check.reason);

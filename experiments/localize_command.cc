@@ -40,13 +40,11 @@ std::span<const EnumName<LocalizeMethod>> EnumNames(LocalizeMethod) {
 
 namespace {
 
-// A record with no strike in it (noise or a constant level alone, or one cut off at the end) is
-// refused, not answered with a location
+// A record with no strike in it (noise, hum, arm motion or a constant level alone, or one cut off
+// at the end: dsp::CheckStrike's rule) is refused, not answered with a location
 void RequireStrike(const Eigen::MatrixXf& audio, const SonicBoomConfig& config,
                    const std::string& wav) {
-  const dsp::StrikeCheck check =
-      dsp::CheckStrike(audio, config.audio.sample_rate_hz, config.features.onset_frame_s,
-                       config.features.onset_threshold);
+  const dsp::StrikeCheck check = dsp::CheckStrike(audio, config.audio.sample_rate_hz);
   if (!check.found) throw NumericalError(fmt::format("{}: {}", wav, check.reason));
 }
 
