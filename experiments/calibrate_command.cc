@@ -80,7 +80,7 @@ void RefuseRepeatedStrikes(const GlobalOptions& g, const SonicBoomConfig& config
 }  // namespace
 
 CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
-                           const std::vector<std::string>& data) {
+                           const std::vector<std::string>& data, learning::IntervalFit fit) {
   const SonicBoomConfig config = ResolveWithRun(g, model_dir);
   learning::Localizer localizer(model_dir);
   if (!localizer.has_uncertainty()) {
@@ -102,7 +102,7 @@ CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
   }
   std::string source;
   for (const std::string& path : data) source += (source.empty() ? "" : ", ") + path;
-  const learning::Recalibration r = learning::Recalibrate(model_dir, predictions, labels, source);
+  const learning::Recalibration r = learning::Recalibrate(model_dir, predictions, labels, source, fit);
   // the same records under the new scales
   const learning::Metrics before =
       learning::ComputeMetrics(predictions, labels, localizer.surface_radius_m());
@@ -130,6 +130,7 @@ void RegisterCalibrate(CLI::App& app, GlobalOptions& g, Runner* run) {
   struct Options {
     std::string model;
     std::vector<std::string> data;
+    learning::IntervalFit fit{learning::IntervalFit::kLikelihood};
   };
   auto o = std::make_shared<Options>();
   auto* calibrate = app.add_subcommand(
@@ -139,8 +140,11 @@ void RegisterCalibrate(CLI::App& app, GlobalOptions& g, Runner* run) {
   calibrate->add_option("--model", o->model, "run directory (one network or an ensemble)")
       ->required();
   calibrate->add_option("--data", o->data, "labelled dataset(s) (.h5), pooled")->required();
+  AddEnumOption(calibrate, "--fit", &o->fit,
+                "likelihood (the scales minimizing the mean NLL; default) | coverage (90 % of the "
+                "strikes inside their 90 % intervals: for strikes unlike the training's)");
   calibrate->callback([&g, run, o] {
-    *run = [&g, o] { return RunCalibrate(g, o->model, o->data); };
+    *run = [&g, o] { return RunCalibrate(g, o->model, o->data, o->fit); };
   });
 }
 

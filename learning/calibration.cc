@@ -14,6 +14,7 @@
 #include "internal/data.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
+#include "sonicboom/learning/conformal.h"
 #include "sonicboom/learning/learning.h"
 
 namespace sonicboom::learning {
@@ -62,11 +63,14 @@ namespace {
 
 // The "uncertainty" object of model.json or ensemble.json with `after` and its provenance.
 void StoreScales(nlohmann::json* u, const UncertaintyCalibration& after, const std::string& source,
-                 int64_t records) {
+                 int64_t records, IntervalFit fit) {
   (*u)["z_std_scale"] = after.z_std_scale;
   (*u)["kappa_scale"] = after.kappa_scale;
   (*u)["method"] = fmt::format(
-      "scales minimizing the mean NLL of {} ({} records; sonicboom calibrate)", source, records);
+      "scales {} of {} ({} records; sonicboom calibrate)",
+      fit == IntervalFit::kCoverage ? "covering 90 % with the 90 % intervals"
+                                       : "minimizing the mean NLL",
+      source, records);
   (*u)["records"] = records;
   (*u)["calibrated_on"] = source;
 }
@@ -74,7 +78,7 @@ void StoreScales(nlohmann::json* u, const UncertaintyCalibration& after, const s
 }  // namespace
 
 Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
-                          const FeatureSet& truth, const std::string& source) {
+                          const FeatureSet& truth, const std::string& source, IntervalFit fit) {
   const bool ensemble = !EnsembleMembers(run_dir).empty();
   const std::string path =
       (fs::path(run_dir) / (ensemble ? "ensemble.json" : "model.json")).string();
@@ -99,7 +103,8 @@ Recalibration Recalibrate(const std::string& run_dir, const std::vector<Predicti
   } else {
     j["uncertainty"] = nlohmann::json::object();
   }
-  r.relative = FitUncertaintyCalibration(predictions, truth);
+  r.relative = fit == IntervalFit::kCoverage ? FitCoverageCalibration(predictions, truth)
+                                                : FitUncertaintyCalibration(predictions, truth);
   // the product kept within the scales' bounds
   const auto bounded = [](double scale) {
     return std::clamp(scale, UncertaintyCalibration::kMinScale, UncertaintyCalibration::kMaxScale);
@@ -109,7 +114,7 @@ Recalibration Recalibrate(const std::string& run_dir, const std::vector<Predicti
   // what the refit applied on top of the stored scales, once bounded
   r.relative = {r.after.z_std_scale / r.before.z_std_scale,
                 r.after.kappa_scale / r.before.kappa_scale};
-  StoreScales(&j["uncertainty"], r.after, source, records);
+  StoreScales(&j["uncertainty"], r.after, source, records, fit);
   WriteTextAtomic(path, j.dump(2) + "\n");
   return r;
 }

@@ -60,6 +60,14 @@ TEST(PretrainCliTest, OneCommandMakesACalibratedRunAndKeepsItsOutput) {
   EXPECT_EQ(record["strikes"], 100);
   EXPECT_GT(record["valid_train"].get<int64_t>(), 80);
   EXPECT_GE(record["calibration"]["metrics_after"]["n"].get<int64_t>(), 30);
+  // the intervals fitted by coverage on the calibration strikes: 90 % of them inside (the
+  // conformal quantile covers at least the level)
+  EXPECT_EQ(record["calibration_fit"], "coverage");
+  EXPECT_GE(record["calibration"]["metrics_after"]["z_coverage_90"].get<double>(), 0.9);
+  const json ensemble = json::parse(ReadText(dir / "RUN/ensemble.json"));
+  EXPECT_NE(ensemble["uncertainty"]["method"].get<std::string>().find("covering 90 %"),
+            std::string::npos)
+      << ensemble["uncertainty"].dump();
   // the run's config is the recipe's: the as-built layer and the waveform model
   const std::string config = ReadText(dir / "RUN/config.yaml");
   EXPECT_NE(config.find("soft_striker_fraction: 0.25"), std::string::npos);

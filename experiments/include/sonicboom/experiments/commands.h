@@ -130,7 +130,8 @@ CommandResult RunEval(const GlobalOptions& g, const std::string& model_dir, cons
 /// `calibrate`: refits the run's interval scales (learning::Recalibrate) on the labelled strikes
 /// of `data` (pooled), with the run's features; the run keeps its weights.
 CommandResult RunCalibrate(const GlobalOptions& g, const std::string& model_dir,
-                           const std::vector<std::string>& data);
+                           const std::vector<std::string>& data,
+                           learning::IntervalFit fit = learning::IntervalFit::kLikelihood);
 /// `adapt`: a new run at `out_dir`, the run's input and BatchNorm statistics re-estimated on
 /// the strikes of `data` (learning::AdaptToUnlabelled; labels unread), its config.yaml beside.
 CommandResult RunAdapt(const GlobalOptions& g, const std::string& model_dir,

@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -360,7 +361,7 @@ struct Recalibration {
                                     // after / before once `after` is bounded)
   UncertaintyCalibration after;     // stored now: before x relative, scale by scale
 };
-/// Fits the scales minimizing the mean NLL of `truth` under `predictions` (the run's own
+/// Fits the scales (by `fit`) of `truth` under `predictions` (the run's own
 /// calibrated predictions of those records, Localizer(run_dir).Predict), multiplies them into
 /// the run's stored scales (model.json, or ensemble.json for an ensemble; written atomically)
 /// and records `source` and the record count beside them (a file without scales, written
@@ -369,8 +370,19 @@ struct Recalibration {
 /// (repeated refits on few strikes drove kappa to 1e-32). SchemaError naming the file when fewer
 /// than kMinFitRecords labelled records carry a predictive distribution, or predictions and
 /// labels differ in number.
+/// How Recalibrate fits: the scales minimizing the mean NLL (FitUncertaintyCalibration), or
+/// those under which 90 % of the records fall inside their 90 % intervals (FitCoverageCalibration,
+/// conformal.h: the honest choice on a family harder than the training's, whose errors are
+/// heavy-tailed).
+enum class IntervalFit { kLikelihood, kCoverage };
+inline constexpr EnumName<IntervalFit> kIntervalFitNames[] = {
+    {IntervalFit::kLikelihood, "likelihood"}, {IntervalFit::kCoverage, "coverage"}};
+inline std::span<const EnumName<IntervalFit>> EnumNames(IntervalFit) {
+  return kIntervalFitNames;
+}
 Recalibration Recalibrate(const std::string& run_dir, const std::vector<Prediction>& predictions,
-                          const FeatureSet& truth, const std::string& source);
+                          const FeatureSet& truth, const std::string& source,
+                          IntervalFit fit = IntervalFit::kLikelihood);
 
 /// Unlabelled adaptation (`sonicboom adapt`): a trained run's statistics of its inputs and
 /// hidden layers re-estimated on strikes of another structure, labels unread. The weights stay;
