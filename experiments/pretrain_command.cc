@@ -41,7 +41,7 @@ struct PretrainOptions {
   bool keep_data{false};              // keep the generated datasets in OUT/data
   // how the intervals are fitted to the calibration strikes (chosen on the as-built validation
   // families: docs/transfer.md, "Honest intervals")
-  learning::IntervalFit calibration_fit{learning::IntervalFit::kCoverage};
+  learning::IntervalFit calibration_fit{learning::IntervalFit::kLikelihood};
 };
 
 // the stationary scene with strikes anywhere on the tube (not on ts4's 2 cm marks)
@@ -198,7 +198,7 @@ void RegisterPretrain(CLI::App& app, GlobalOptions& g, Runner* run) {
                   "strikes of structures beyond the pool that the intervals are fitted on")
       ->check(NumberIn(30, 1e6, false, true));
   AddEnumOption(cmd, "--calibration-fit", &o->calibration_fit,
-                "coverage (default) | likelihood: how the intervals are fitted (calibrate --fit)");
+                "likelihood (default) | coverage: how the intervals are fitted (calibrate --fit)");
   cmd->add_option("--out", o->out, "run directory")->required();
   cmd->add_flag("--force", o->force, "replace an existing run (once the new one is done)");
   cmd->add_flag("--keep-data", o->keep_data,
