@@ -579,7 +579,13 @@ int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double 
   std::vector<double> energies;
   energies.reserve(static_cast<size_t>((total + frame - 1) / frame));
   for (int64_t start = 0; start < total; start += frame) energies.push_back(energy(start));
-  const double level = threshold * *std::max_element(energies.begin(), energies.end());
+  // above the threshold's share of the peak and above the floor (the median frame)
+  std::vector<double> sorted = energies;
+  const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), middle, sorted.end());
+  const double floor = *middle * std::pow(10.0, kOnsetOverFloorDb / 10.0);
+  const double level =
+      std::max(threshold * *std::max_element(energies.begin(), energies.end()), floor);
   for (size_t i = 0; i < energies.size(); ++i) {
     if (energies[i] >= level) return static_cast<int64_t>(i) * frame;
   }

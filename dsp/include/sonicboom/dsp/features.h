@@ -182,8 +182,11 @@ class GccPhat {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Onset: first frame where the all-channel energy envelope exceeds threshold * its peak.
-/// Returns the onset in samples.
+/// Onset: first frame where the all-channel energy envelope exceeds threshold * its peak and
+/// stands kOnsetOverFloorDb above the record's median frame (the noise floor: at 20-25 dB
+/// peak-to-noise the floor's own frames reach threshold * peak, and the window centred on the
+/// first of them missed the strike). Returns the onset in samples.
+inline constexpr double kOnsetOverFloorDb = 6.0;
 int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double frame_s,
                     double threshold);
 
