@@ -4,7 +4,9 @@ intervals"): per-strike predictions of `sonicboom eval --predictions` (z_std_m a
 the run's stored calibration gives them) are refitted on CALIBRATION.csv by the likelihood (the rms
 of the standardized z errors; the von Mises NLL root for kappa) and by coverage (the conformal
 90 % quantile), and the 90 % coverage of z and theta on every FAMILY.csv is printed under the
-stored scales and under each refit. Usage: interval_study.py CALIBRATION.csv FAMILY.csv..."""
+stored scales and under each refit. Usage: interval_study.py CALIBRATION.csv FAMILY.csv...
+or interval_study.py --first N FAMILY.csv: fitted on the family's first N strikes (the taps a
+user labels on their own tube), scored on the rest."""
 import csv
 import math
 import sys
@@ -81,7 +83,20 @@ def fit_coverage(cal):
     return zs, math.exp(lo)
 
 
+def take(fam, rows):
+    return {k: v[rows] for k, v in fam.items()}
+
+
 def main():
+    if sys.argv[1] == "--first":
+        n, fam = int(sys.argv[2]), read(sys.argv[3])
+        cal, rest = take(fam, slice(0, n)), take(fam, slice(n, None))
+        fits = {"stored": (1.0, 1.0), "likelihood": fit_likelihood(cal),
+                "coverage": fit_coverage(cal)}
+        cells = [" / ".join(f"{c:.2f}" for c in coverage(rest, *f)) for f in fits.values()]
+        print(f"fitted on the first {n}, scored on {len(rest['u'])}: " +
+              ", ".join(f"{k} z / θ {c}" for k, c in zip(fits, cells)))
+        return
     cal = read(sys.argv[1])
     fits = {"stored": (1.0, 1.0), "likelihood": fit_likelihood(cal), "coverage": fit_coverage(cal)}
     print("| family | " + " | ".join(f"{k} z / θ" for k in fits) + " |")
