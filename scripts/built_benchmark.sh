@@ -83,7 +83,7 @@ for f in $FAMILIES; do
   if [ "$f" = solid ]; then
     # the built family's strikes, their audio from the reference solid
     "$BIN" "${TS4[@]}" $(built_family_args built) --seed "$SEED" --threads "$THREADS" -q \
-      rerender --data "$OUT/${SPLIT}_built.h5" --out "$OUT/$name.h5" > /dev/null
+      rerender --in "$OUT/${SPLIT}_built.h5" --out "$OUT/$name.h5" --max-frequency 15000 > /dev/null
     continue
   fi
   # shellcheck disable=SC2046
