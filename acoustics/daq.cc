@@ -88,7 +88,6 @@ struct DaqChain::Impl {
   int channels{0};
   double fs{0.0};
   int64_t record_samples{0};
-  Eigen::VectorXd b0, a1;                   // (channels) bilinear high-pass coefficients
   Eigen::VectorXd preamp_noise_v;           // (channels)
   std::vector<Eigen::MatrixXf> recordings;  // each (channels x frames), full scale units
 };
@@ -104,9 +103,7 @@ DaqChain::DaqChain(const DaqConfig& daq, const NoiseConfig& noise, int channels,
   m.channels = channels;
   m.fs = sample_rate_hz;
   m.record_samples = record_samples;
-  // first-order high-pass of disc capacitance into the preamp input, per channel (bilinear)
-  m.b0.resize(channels);
-  m.a1.resize(channels);
+  // first-order high-pass of disc capacitance into the preamp input, per channel: below Nyquist
   m.preamp_noise_v.resize(channels);
   for (int c = 0; c < channels; ++c) {
     const double fc = daq.highpass_hz(c);
@@ -116,9 +113,6 @@ DaqChain::DaqChain(const DaqConfig& daq, const NoiseConfig& noise, int channels,
                       "below the Nyquist frequency {} Hz",
                       c, fc, 0.5 * sample_rate_hz));
     }
-    const double kk = std::tan(kPi * fc / sample_rate_hz);
-    m.b0[c] = 1.0 / (1.0 + kk);
-    m.a1[c] = (kk - 1.0) / (kk + 1.0);
     m.preamp_noise_v[c] = PerChannel(daq.channel_preamp_noise_v, daq.preamp_noise_v, c);
   }
   // recorded background: checked and held in memory once
@@ -195,10 +189,23 @@ struct Section {
   }
 };
 
-// bilinear sections at corner fc: first order (the RC) or second-order Butterworth
-Section HighPass(double fc, double fs, int order) {
+// the disc's RC high-pass at corner fc (bilinear, first order), in place
+void FirstOrderHighPass(double fc, double fs, Eigen::Ref<Eigen::ArrayXd> v) {
   const double kk = std::tan(kPi * fc / fs);
-  if (order == 1) return {1 / (1 + kk), -1 / (1 + kk), 0, (kk - 1) / (kk + 1), 0};
+  const double b0 = 1.0 / (1.0 + kk), a1 = (kk - 1.0) / (kk + 1.0);
+  double x_prev = 0, y_prev = 0;
+  for (Eigen::Index k = 0; k < v.size(); ++k) {
+    const double x = v[k];
+    const double y = b0 * (x - x_prev) - a1 * y_prev;
+    x_prev = x;
+    y_prev = y;
+    v[k] = y;
+  }
+}
+
+// bilinear second-order Butterworth high-pass at corner fc; the low-pass of either order
+Section ButterworthHighPass(double fc, double fs) {
+  const double kk = std::tan(kPi * fc / fs);
   const double n = 1 / (1 + std::numbers::sqrt2 * kk + kk * kk);
   return {n, -2 * n, n, 2 * (kk * kk - 1) * n, (1 - std::numbers::sqrt2 * kk + kk * kk) * n};
 }
@@ -222,7 +229,11 @@ void ApplyChainFilters(double highpass_hz, const ChainDraw& chain, double fs,
                                     fc, 0.5 * fs));
     }
   }
-  HighPass(highpass_hz, fs, chain.highpass_order).Run(v);
+  if (chain.highpass_order == 1) {
+    FirstOrderHighPass(highpass_hz, fs, v);
+  } else {
+    ButterworthHighPass(highpass_hz, fs).Run(v);
+  }
   if (chain.lowpass_hz > 0.0) LowPass(chain.lowpass_hz, fs, chain.lowpass_order).Run(v);
 }
 
@@ -314,25 +325,7 @@ bool DaqChain::Convert(const Eigen::MatrixXd& strain, std::span<const double> jo
         channel_gain[ci] * motor;
     const double corner_hz = chain.highpass_hz.empty() ? m.daq.highpass_hz(i)
                                                         : chain.highpass_hz[ci];
-    if (chain.highpass_order != 1 || chain.lowpass_hz > 0.0) {
-      ApplyChainFilters(corner_hz, chain, m.fs, v);
-      continue;
-    }
-    // high-pass of disc capacitance into the preamp input (bilinear, first order)
-    double b0 = m.b0[i], a1 = m.a1[i];
-    if (!chain.highpass_hz.empty()) {
-      const double kk = std::tan(kPi * corner_hz / m.fs);
-      b0 = 1.0 / (1.0 + kk);
-      a1 = (kk - 1.0) / (kk + 1.0);
-    }
-    double x_prev = 0, y_prev = 0;
-    for (int64_t k = 0; k < num_frames; ++k) {
-      const double x = v[k];
-      const double y = b0 * (x - x_prev) - a1 * y_prev;
-      x_prev = x;
-      y_prev = y;
-      v[k] = y;
-    }
+    ApplyChainFilters(corner_hz, chain, m.fs, v);
   }
   // a floor set by the strike's level: its peak over all channels, this many dB above the rms
   const double floor_by_peak_v =

@@ -73,6 +73,12 @@ double Draw(const std::vector<double>& range, Law law, double u) {
   return range[0] + (range[1] - range[0]) * u;
 }
 
+// a whole number uniform in [r[0], r[1]] (whole bounds) from u in [0, 1)
+int64_t WholeDraw(const std::vector<double>& r, double u) {
+  const auto lo = static_cast<int64_t>(r[0]), hi = static_cast<int64_t>(r[1]);
+  return std::min(hi, lo + static_cast<int64_t>(u * static_cast<double>(hi - lo + 1)));
+}
+
 }  // namespace
 
 void RandomizeConfig::Serialize(Archive* a) {
@@ -296,11 +302,7 @@ StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig&
   const double u_count = rng.Uniform();
   std::vector<double>& z = out.shell.bolt_z_m;
   if (!config.bolt_count.empty() && !base_shell.bolt_z_m.empty()) {
-    // a uniform integer in [min, max]
-    const auto lo_n = static_cast<int64_t>(config.bolt_count[0]);
-    const auto hi_n = static_cast<int64_t>(config.bolt_count[1]);
-    const int64_t n =
-        std::min(hi_n, lo_n + static_cast<int64_t>(u_count * static_cast<double>(hi_n - lo_n + 1)));
+    const int64_t n = WholeDraw(config.bolt_count, u_count);
     const auto [lo_it, hi_it] =
         std::minmax_element(base_shell.bolt_z_m.begin(), base_shell.bolt_z_m.end());
     const double lo = *lo_it, hi = *hi_it;
@@ -382,37 +384,34 @@ std::vector<std::string> VariationNames(const RandomizeConfig& config, int chann
 
 namespace {
 
-// a whole number uniform in [r[0], r[1]] from u in [0, 1)
-int WholeDraw(const std::vector<double>& r, double u) {
-  const double n = std::floor(r[0] + u * (r[1] - r[0] + 1.0));
-  return static_cast<int>(std::min(n, r[1]));
-}
-
-// the as-built draws, after every other draw of the sample (their numbers stay as they were)
-void DrawBuild(const RandomizeConfig& config, Rng* rng, Variation* v) {
-  const double u_soft = rng->Uniform();
-  if (config.soft_striker_fraction > 0.0) {
-    v->values.push_back(u_soft < config.soft_striker_fraction ? 1.0 : 0.0);
+// the as-built draws, after every other draw of the sample (their numbers stay as they were):
+// one uniform each whether its range is set or not; the set ones stored in BuildRanges' order
+void DrawBuild(const RandomizeConfig& c, Rng* rng, Variation* v) {
+  const double u_soft = rng->Uniform(), u_modulus = rng->Uniform(), u_snr = rng->Uniform(),
+               u_highpass = rng->Uniform(), u_lowpass = rng->Uniform(),
+               u_lowpass_order = rng->Uniform();
+  const auto keep = [v](double x) {
+    v->values.push_back(x);
+    return x;
+  };
+  const bool soft = c.soft_striker_fraction > 0.0 && u_soft < c.soft_striker_fraction;
+  if (c.soft_striker_fraction > 0.0) keep(soft ? 1.0 : 0.0);
+  if (!c.soft_striker_youngs_modulus_pa.empty()) {
+    const double e = keep(Draw(c.soft_striker_youngs_modulus_pa, Law::kLogUniform, u_modulus));
+    if (soft) v->striker.youngs_modulus_pa = e;
   }
-  std::vector<double> x;  // one draw per BuildRanges entry, NaN where not set
-  for (const NamedRange& r : BuildRanges(config)) {
-    const double u = rng->Uniform();  // drawn whether the range is set or not
-    const bool whole = std::string(r.name).ends_with("_order");
-    x.push_back(r.range->empty() ? std::nan("")
-                : whole          ? WholeDraw(*r.range, u)
-                                 : Draw(*r.range, std::string(r.name) == "peak_to_noise_db"
-                                                      ? Law::kUniform
-                                                      : Law::kLogUniform,
-                                        u));
-    if (!r.range->empty()) v->values.push_back(x.back());
+  if (!c.peak_to_noise_db.empty()) {
+    v->chain.peak_to_noise_db = keep(Draw(c.peak_to_noise_db, Law::kUniform, u_snr));
   }
-  if (config.soft_striker_fraction > 0.0 && u_soft < config.soft_striker_fraction) {
-    v->striker.youngs_modulus_pa = x[0];
+  if (!c.highpass_order.empty()) {
+    v->chain.highpass_order = static_cast<int>(keep(WholeDraw(c.highpass_order, u_highpass)));
   }
-  if (!std::isnan(x[1])) v->chain.peak_to_noise_db = x[1];
-  if (!std::isnan(x[2])) v->chain.highpass_order = static_cast<int>(x[2]);
-  if (!std::isnan(x[3])) v->chain.lowpass_hz = x[3];
-  if (!std::isnan(x[4])) v->chain.lowpass_order = static_cast<int>(x[4]);
+  if (!c.lowpass_hz.empty()) {
+    v->chain.lowpass_hz = keep(Draw(c.lowpass_hz, Law::kLogUniform, u_lowpass));
+  }
+  if (!c.lowpass_order.empty()) {
+    v->chain.lowpass_order = static_cast<int>(keep(WholeDraw(c.lowpass_order, u_lowpass_order)));
+  }
 }
 
 }  // namespace

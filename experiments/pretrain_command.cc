@@ -65,10 +65,6 @@ ConfigSources RecipeSources(const GlobalOptions& g, bool beyond) {
   return sources;
 }
 
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
 // one dataset of the recipe: reused when complete (its valid count then unknown: -1), resumed
 // from its .partial when interrupted
 int64_t GenerateStage(const SonicBoomConfig& config, const std::string& path,
@@ -115,11 +111,7 @@ CommandResult RunPretrain(const GlobalOptions& g, const PretrainOptions& o) {
   // asks for structures unlike the training's, not for many of them
   beyond.randomize.structure_variants =
       std::min<int64_t>(beyond.randomize.structure_variants, kCalibrationStructures);
-  if (fs::exists(o.out) && !o.force) {
-    throw IoError(fmt::format("{}: exists; give --force to replace it once the new run is done",
-                              o.out));
-  }
-  CheckOutput(g, {o.out, "--out", true}, {});
+  CheckOutput(g, {o.out, "--out", o.force}, {});
   // everything is made in OUT.partial (a rerun continues it) and becomes OUT once calibrated
   const std::string work = o.out + ".partial";
   const OutputLock lock(o.out);
@@ -140,19 +132,20 @@ CommandResult RunPretrain(const GlobalOptions& g, const PretrainOptions& o) {
                      .first_index = 240000,
                      .threads = g.threads,
                      .show_progress = !g.quiet});
-  const double generate_s = SecondsSince(start);
+  const double generate_s = MillisecondsSince(start) / 1e3;
 
   spdlog::info("pretrain 3/4: training {} ({} epochs, {} networks)", model_dir,
                config.train.epochs, config.train.ensemble_members);
   const auto train_start = Clock::now();
   const learning::Metrics validation = TrainStage(
       config, train_path, model_dir, (fs::path(work) / "trained.json").string(), g);
-  const double train_s = SecondsSince(train_start);
+  const double train_s = MillisecondsSince(train_start) / 1e3;
 
   spdlog::info("pretrain 4/4: calibrating the intervals on {}", calibration_path);
   GlobalOptions run_options = g;
   run_options.sources = {};
-  const CommandResult calibration = RunCalibrate(run_options, model_dir, {calibration_path}, o.calibration_fit);
+  const CommandResult calibration =
+      RunCalibrate(run_options, model_dir, {calibration_path}, o.calibration_fit);
   spdlog::info("{}", calibration.text);
 
   // the run becomes OUT: the model's files at its top, the recipe's record beside them
@@ -165,7 +158,7 @@ CommandResult RunPretrain(const GlobalOptions& g, const PretrainOptions& o) {
                        {"calibration_fit", NameOf(o.calibration_fit)},
                        {"generate_s", generate_s},
                        {"train_s", train_s},
-                       {"wall_s", SecondsSince(start)},
+                       {"wall_s", MillisecondsSince(start) / 1e3},
                        {"threads", g.threads}};
   WriteTextAtomic((fs::path(model_dir) / "pretrain.json").string(), record.dump(2) + "\n");
   if (o.keep_data) {
@@ -180,7 +173,7 @@ CommandResult RunPretrain(const GlobalOptions& g, const PretrainOptions& o) {
           fmt::format("pretrained {}: validation MED {:.2f} cm, angle {:.1f} deg ({} strikes); "
                       "wall {:.0f} s (simulate {:.0f} s, train {:.0f} s)\n{}",
                       o.out, validation.med_cm, validation.angle_err_deg, validation.n,
-                      SecondsSince(start), generate_s, train_s, calibration.text)};
+                      MillisecondsSince(start) / 1e3, generate_s, train_s, calibration.text)};
 }
 
 }  // namespace
