@@ -424,6 +424,14 @@ double AmplitudeDb(double num, double den) {
   return 20.0 * std::log10(num / std::max(den, 1e-15 * num));
 }
 
+// The upper median of `values` (the middle one of an odd count, the upper of the two of an even
+// one); values non-empty, taken by value and reordered
+double UpperMedian(std::vector<double> values) {
+  const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
+}
+
 // Noise RMS of one channel (T, about its mean): the median of its frame-sample frames' RMS
 // values, so that a strike's frames (a few of the record's) do not count
 double NoiseRms(const Eigen::ArrayXd& x, int64_t frame) {
@@ -432,9 +440,7 @@ double NoiseRms(const Eigen::ArrayXd& x, int64_t frame) {
   std::vector<double> rms(static_cast<size_t>(frames));
   for (int64_t f = 0; f < frames; ++f)
     rms[static_cast<size_t>(f)] = std::sqrt(x.segment(f * len, len).square().mean());
-  const auto mid = rms.begin() + static_cast<std::ptrdiff_t>(rms.size() / 2);
-  std::nth_element(rms.begin(), mid, rms.end());
-  return *mid;
+  return UpperMedian(std::move(rms));
 }
 
 // The rule on one channel (T, about its mean); windows in samples: onsets tried every hop, each
@@ -580,10 +586,7 @@ int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double 
   energies.reserve(static_cast<size_t>((total + frame - 1) / frame));
   for (int64_t start = 0; start < total; start += frame) energies.push_back(energy(start));
   // above the threshold's share of the peak and above the floor (the median frame)
-  std::vector<double> sorted = energies;
-  const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), middle, sorted.end());
-  const double floor = *middle * std::pow(10.0, kOnsetOverFloorDb / 10.0);
+  const double floor = UpperMedian(energies) * std::pow(10.0, kOnsetOverFloorDb / 10.0);
   const double level =
       std::max(threshold * *std::max_element(energies.begin(), energies.end()), floor);
   for (size_t i = 0; i < energies.size(); ++i) {
