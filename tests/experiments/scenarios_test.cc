@@ -172,19 +172,21 @@ TEST(RandomizedPresetTest, LayersOverTs4AndStoresTheDraws) {
   EXPECT_FALSE(fs::exists(bad));
 }
 
-// configs/beyond.yaml (calibration structures beyond the pool) widens every range of the
-// preset it names to 1.5x its width about its centre, in log for the log-uniform scales (integer
-// bolt counts rounded outwards), and resolves over ts4 and the preset.
-TEST(BeyondPresetTest, WidensEachPresetRangeOneAndAHalfTimes) {
-  const YAML::Node preset = YAML::LoadFile(ConfigPath("randomized.yaml"))["randomize"];
-  const YAML::Node beyond = YAML::LoadFile(ConfigPath("beyond.yaml"))["randomize"];
+// Each range `layer` sets widens `preset`'s range of that key to 1.5x its width about its
+// centre, in log for the log-uniform scales (integer bolt counts rounded outwards); returns how
+// many ranges the layer sets
+int ExpectRangesWidenedOneAndAHalfTimes(const std::string& preset_file,
+                                        const std::string& layer_file) {
+  const YAML::Node preset = YAML::LoadFile(ConfigPath(preset_file.c_str()))["randomize"];
+  const YAML::Node layer = YAML::LoadFile(ConfigPath(layer_file.c_str()))["randomize"];
   const std::set<std::string> log_uniform = {"bolt_stiffness_scale", "flange_mount_scale",
                                              "tool_mount_scale"};
   int ranges = 0;
-  for (const auto& entry : beyond) {
+  for (const auto& entry : layer) {
     const std::string key = entry.first.as<std::string>();
     if (!entry.second.IsSequence()) continue;
-    ASSERT_TRUE(preset[key]) << key << " is not a range of configs/randomized.yaml";
+    EXPECT_TRUE(preset[key]) << key << " is not a range of configs/" << preset_file;
+    if (!preset[key]) continue;
     const bool log = log_uniform.count(key) > 0;
     const auto at = [&](const YAML::Node& range, int k) {
       return log ? std::log(range[k].as<double>()) : range[k].as<double>();
@@ -193,17 +195,26 @@ TEST(BeyondPresetTest, WidensEachPresetRangeOneAndAHalfTimes) {
     const double wide_lo = at(entry.second, 0), wide_hi = at(entry.second, 1);
     const double centre = 0.5 * (lo + hi), half = 0.75 * (hi - lo);
     if (key == "bolt_count") {
-      EXPECT_EQ(wide_lo, std::floor(centre - half)) << key;
-      EXPECT_EQ(wide_hi, std::ceil(centre + half)) << key;
+      EXPECT_EQ(wide_lo, std::floor(centre - half)) << layer_file << ": " << key;
+      EXPECT_EQ(wide_hi, std::ceil(centre + half)) << layer_file << ": " << key;
     } else {
       // the file's values carry 3-4 significant digits
-      EXPECT_NEAR(wide_lo, centre - half, 0.002 * (hi - lo) + (log ? 1e-3 : 0.0)) << key;
-      EXPECT_NEAR(wide_hi, centre + half, 0.002 * (hi - lo) + (log ? 1e-3 : 0.0)) << key;
+      EXPECT_NEAR(wide_lo, centre - half, 0.002 * (hi - lo) + (log ? 1e-3 : 0.0))
+          << layer_file << ": " << key;
+      EXPECT_NEAR(wide_hi, centre + half, 0.002 * (hi - lo) + (log ? 1e-3 : 0.0))
+          << layer_file << ": " << key;
     }
     ++ranges;
   }
-  EXPECT_EQ(ranges, 11);
-  EXPECT_EQ(beyond["structure_variants"].as<int>(), 48);
+  return ranges;
+}
+
+// configs/beyond.yaml (calibration structures beyond the pool) widens every range of the
+// preset it names to 1.5x, and resolves over ts4 and the preset.
+TEST(BeyondPresetTest, WidensEachPresetRangeOneAndAHalfTimes) {
+  EXPECT_EQ(ExpectRangesWidenedOneAndAHalfTimes("randomized.yaml", "beyond.yaml"), 11);
+  EXPECT_EQ(YAML::LoadFile(ConfigPath("beyond.yaml"))["randomize"]["structure_variants"].as<int>(),
+            48);
   TempDir dir;
   const auto run = RunCli("--config '" + ConfigPath("ts4.yaml") + "' --config '" +
                               ConfigPath("randomized.yaml") + "' --config '" +
@@ -211,6 +222,19 @@ TEST(BeyondPresetTest, WidensEachPresetRangeOneAndAHalfTimes) {
                           dir.path().string());
   EXPECT_EQ(run.exit_code, 0) << run.err;
   EXPECT_NE(run.out.find("0.0894"), std::string::npos) << run.out;
+}
+
+// configs/built_beyond.yaml (pretrain's calibration tubes) widens each structure and placement
+// range of configs/built.yaml to 1.5x, every one of them, and sets no other key
+TEST(BeyondPresetTest, BuiltBeyondWidensEachAsBuiltStructureRangeOneAndAHalfTimes) {
+  const YAML::Node built = YAML::LoadFile(ConfigPath("built.yaml"))["randomize"];
+  const std::set<std::string> structure = {"youngs_modulus_scale", "mic_z_offset_m",
+                                           "mic_theta_offset_deg", "flange_mount_scale",
+                                           "tool_mount_scale", "bolt_stiffness_scale"};
+  for (const std::string& key : structure) EXPECT_TRUE(built[key]) << key;
+  EXPECT_EQ(ExpectRangesWidenedOneAndAHalfTimes("built.yaml", "built_beyond.yaml"),
+            static_cast<int>(structure.size()));
+  EXPECT_EQ(YAML::LoadFile(ConfigPath("built_beyond.yaml"))["randomize"].size(), structure.size());
 }
 
 // configs/two_theories.yaml (the recommended pretraining set) resolves over ts4 and the preset,
