@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "common/workspace.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -25,25 +26,33 @@ using sonicboom::testing::RunCli;
 using sonicboom::testing::TempDir;
 using ::testing::HasSubstr;
 
-// One workspace: a tiny run pretrained on 40 short strikes, 12 and 4 more of the same kind.
+// The suite's workspace: a tiny run pretrained on 40 short strikes, 12 and 4 more of the same kind.
+void BuildWorkspace(const fs::path& dir) {
+  sonicboom::testing::RunEach(
+      {kShortRecordArgs + "-q generate --count 40 --out P.h5",
+       kShortRecordArgs + "-q generate --count 12 --first-index 2000 --out F12.h5",
+       kShortRecordArgs + "-q generate --count 4 --first-index 3000 --out F4.h5",
+       kShortRecordArgs + kTinyModelArgs + "--set train.epochs=3 -q train --data P.h5 --out PRE"},
+      dir);
+}
+
+// Built once per ctest run (the suite's fixture) for its tests to copy
+TEST(FineTuneCliWorkspace, IsBuilt) {
+  sonicboom::testing::PublishWorkspace("fine_tune_cli", BuildWorkspace);
+}
+
+// Each test process works in its own copy of the workspace
 class FineTuneCliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new TempDir();
-    Must(kShortRecordArgs + "-q generate --count 40 --out P.h5");
-    Must(kShortRecordArgs + "-q generate --count 12 --first-index 2000 --out F12.h5");
-    Must(kShortRecordArgs + "-q generate --count 4 --first-index 3000 --out F4.h5");
-    Must(kShortRecordArgs + kTinyModelArgs + "--set train.epochs=3 -q train --data P.h5 --out PRE");
+    sonicboom::testing::UseWorkspace("fine_tune_cli", dir_->path(), BuildWorkspace);
   }
   static void TearDownTestSuite() {
     delete dir_;
     dir_ = nullptr;
   }
   static CliRun Cli(const std::string& args) { return RunCli(args, dir_->path().string()); }
-  static void Must(const std::string& args) {
-    const CliRun run = Cli(args);
-    ASSERT_EQ(run.exit_code, 0) << args << "\n" << run.err;
-  }
   static fs::path At(const std::string& name) { return dir_->path() / name; }
   static json ReadJson(const std::string& name) { return json::parse(ReadBytes(At(name))); }
   static TempDir* dir_;
@@ -78,14 +87,16 @@ TEST_F(FineTuneCliTest, AutoRecordsItsCandidatesAndIsNeverWorseOnTheFolds) {
   if (j["chosen"] == "pretrained") {
     // the pretrained run kept as it is, calibration included
     EXPECT_EQ(ReadBytes(At("AUTO/model.pt")), ReadBytes(At("PRE/model.pt")));
-    EXPECT_EQ(ReadJson("AUTO/model.json")["uncertainty"], ReadJson("PRE/model.json")["uncertainty"]);
+    EXPECT_EQ(ReadJson("AUTO/model.json")["uncertainty"],
+              ReadJson("PRE/model.json")["uncertainty"]);
   }
 }
 
 TEST_F(FineTuneCliTest, TooFewStrikesOrARecipeBesideAutoAreRefused) {
   CliRun run = Cli("train --init-from PRE --data F4.h5 --out FEW -q");
   EXPECT_EQ(run.exit_code, 1);
-  EXPECT_THAT(run.err, HasSubstr("4 labelled strikes: --tune auto cross-validates over at least 5"));
+  EXPECT_THAT(run.err,
+              HasSubstr("4 labelled strikes: --tune auto cross-validates over at least 5"));
   EXPECT_FALSE(fs::exists(At("FEW")));
   EXPECT_FALSE(fs::exists(At("FEW.partial")));
   run = Cli("train --init-from PRE --data F12.h5 --out X --tune auto --lr 1e-3 -q");
@@ -103,8 +114,9 @@ TEST_F(FineTuneCliTest, TooFewStrikesOrARecipeBesideAutoAreRefused) {
 }
 
 TEST_F(FineTuneCliTest, AGivenRecipeIsTrainedAsGiven) {
-  const CliRun run = Cli("train --init-from PRE --data F12.h5 --out FIXED --freeze all-but-head "
-                         "--epochs 1 -q");
+  const CliRun run =
+      Cli("train --init-from PRE --data F12.h5 --out FIXED --freeze all-but-head "
+          "--epochs 1 -q");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_EQ(ReadJson("FIXED/fine_tune.json"),
             (json{{"init_from", "PRE"}, {"freeze", "all-but-head"}, {"norm", "keep"}}));

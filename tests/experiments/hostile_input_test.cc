@@ -2,8 +2,8 @@
 // non-zero exit, a message naming the file, key or value, and that no existing file changed.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdint>
@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "common/test_util.h"
+#include "common/workspace.h"
 
 namespace sonicboom::experiments {
 namespace {
@@ -66,41 +67,11 @@ std::vector<float> StrikeLikeRecord(int frames = 26460, int channels = 6) {
   return x;
 }
 
-// One shared workspace: a short-record dataset, a tiny trained run, a strike WAV, a robot log,
-// shards, and the damaged inputs made from them.
-class HostileInputTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    dir_ = new TempDir();
-    const std::string cwd = dir_->path().string();
-    auto must = [&](const std::string& args) {
-      const CliRun run = RunCli(args, cwd);
-      ASSERT_EQ(run.exit_code, 0) << args << "\n" << run.err;
-    };
-    must(kShortRecordArgs + "-q generate --count 24 --out D.h5");
-    must(kShortRecordArgs + kTinyModelArgs + "--set train.epochs=1 -q train --data D.h5 --out RUN");
-    must(kShortRecordArgs + "-q synth --out X.wav");
-    must("-q export --layout trial --in D.h5 --out TR");
-    for (int s = 0; s < 2; ++s) {
-      must(kShortRecordArgs + "-q generate --count 8 --shard " + std::to_string(s) +
-           " --num-shards 2 --out S" + std::to_string(s) + ".h5");
-    }
-    must(kShortRecordArgs + "-q generate --count 6 --shard 1 --num-shards 2 --out T1.h5");
-    std::ofstream(dir_->path() / "P.csv")
-        << "t_s,x_m,y_m,z_m,qw,qx,qy,qz,vx_m_s,vy_m_s,vz_m_s\n0,0.5,0,0.5,1,0,0,0,0,0,0\n";
-    MakeDamagedDatasets();
-  }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
-
-  // Copies of D.h5 damaged with h5py: z as int32 millimetres, z as float millimetres, a NaN in
-  // the proprioception, a repeated sample index, an infinite angle, 1000-frame records, and the
-  // `complete` mark removed.
-  static void MakeDamagedDatasets() {
-    const fs::path script = dir_->path() / "damage.py";
-    std::ofstream(script) << R"(import shutil, sys, h5py, numpy as np
+// Copies of D.h5 damaged with h5py: z as int32 millimetres, z as float millimetres, a NaN in the
+// proprioception, a repeated sample index, an infinite angle, 1000-frame records, and the
+// `complete` mark removed.
+void MakeDamagedDatasets(const fs::path& dir) {
+  std::ofstream(dir / "damage.py") << R"(import shutil, sys, h5py, numpy as np
 def variant(name, fn):
     shutil.copy('D.h5', name)
     with h5py.File(name, 'r+') as f: fn(f)
@@ -123,9 +94,46 @@ for name, fn in [('ZINT.h5', z_int_mm), ('ZMM.h5', z_float_mm), ('NANP.h5', nan_
                  ('PART.h5', incomplete)]:
     variant(name, fn)
 )";
-    const CliRun run =
-        sonicboom::testing::RunProgram({"/usr/bin/python3", "damage.py"}, dir_->path().string());
-    ASSERT_EQ(run.exit_code, 0) << run.err;
+  const CliRun run =
+      sonicboom::testing::RunProgram({"/usr/bin/python3", "damage.py"}, dir.string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+}
+
+// The suite's workspace: a short-record dataset, a tiny trained run, a strike WAV, a robot log,
+// shards, and the damaged inputs made from them.
+void BuildWorkspace(const fs::path& dir) {
+  std::vector<std::string> commands = {
+      kShortRecordArgs + "-q generate --count 24 --out D.h5",
+      kShortRecordArgs + kTinyModelArgs + "--set train.epochs=1 -q train --data D.h5 --out RUN",
+      kShortRecordArgs + "-q synth --out X.wav", "-q export --layout trial --in D.h5 --out TR"};
+  for (int s = 0; s < 2; ++s) {
+    commands.push_back(kShortRecordArgs + "-q generate --count 8 --shard " + std::to_string(s) +
+                       " --num-shards 2 --out S" + std::to_string(s) + ".h5");
+  }
+  commands.push_back(kShortRecordArgs +
+                     "-q generate --count 6 --shard 1 --num-shards 2 --out T1.h5");
+  sonicboom::testing::RunEach(commands, dir);
+  if (::testing::Test::HasFatalFailure()) return;
+  std::ofstream(dir / "P.csv")
+      << "t_s,x_m,y_m,z_m,qw,qx,qy,qz,vx_m_s,vy_m_s,vz_m_s\n0,0.5,0,0.5,1,0,0,0,0,0,0\n";
+  MakeDamagedDatasets(dir);
+}
+
+// Built once per ctest run (the suite's fixture) for its tests to copy
+TEST(HostileInputWorkspace, IsBuilt) {
+  sonicboom::testing::PublishWorkspace("hostile_input", BuildWorkspace);
+}
+
+// Each test process works in its own copy of the workspace
+class HostileInputTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir();
+    sonicboom::testing::UseWorkspace("hostile_input", dir_->path(), BuildWorkspace);
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
   }
 
   // Runs `args`; expects exit `exit_code` (any non-zero when 0 is passed), every substring in
@@ -353,8 +361,8 @@ TEST_F(HostileInputTest, OutputsNeverOverwriteInputsOrFinishedWork) {
                 {"side.h5.config.yaml: exists (a config sidecar beside no --out side.h5)"}, 1);
   ExpectRefused(kShortRecordArgs + "synth --out s2.wav",
                 {"s2.wav.config.yaml: exists", "--force replaces it"}, 1);
-  ExpectRefused(kShortRecordArgs + "features --in D.h5 --out F.h5",
-                {"F.h5.config.yaml: exists"}, 1);
+  ExpectRefused(kShortRecordArgs + "features --in D.h5 --out F.h5", {"F.h5.config.yaml: exists"},
+                1);
   ExpectRefused("merge --out side.h5 S0.h5 S1.h5", {"side.h5.config.yaml: exists"}, 1);
   // inspect --png replaces neither a figure nor its data without --force
   std::ofstream(Path("mine.png")) << "a figure of the user's\n";
@@ -381,16 +389,17 @@ TEST_F(HostileInputTest, CaptureDirectoriesAreConfinedToThemselves) {
   fs::copy_file(Path("X.wav"), cap / "a.wav");
   fs::copy_file(Path("X.wav"), outside.path() / "secret.wav");
   fs::create_symlink("../secret.wav", cap / "b.wav");
-  const std::string import = "import --layout capture --min-duration-s 0.5 --out I.h5 --in " +
-                             cap.string();
+  const std::string import =
+      "import --layout capture --min-duration-s 0.5 --out I.h5 --in " + cap.string();
   auto labels = [&](const std::string& rows) {
     std::ofstream(cap / "labels.csv") << "file,z_m,theta_rad,robot_log\n" << rows;
   };
   labels((outside.path() / "secret.wav").string() + ",0,0,\n");
   ExpectRefused(import, {"labels.csv:2: file '", "is not a file inside the capture"}, 1);
   labels("../secret.wav,0,0,\nb.wav,0,0,\n");
-  ExpectRefused(import, {"labels.csv:2: file '../secret.wav' is not a file inside",
-                         "labels.csv:3: file 'b.wav' is not a file inside"},
+  ExpectRefused(import,
+                {"labels.csv:2: file '../secret.wav' is not a file inside",
+                 "labels.csv:3: file 'b.wav' is not a file inside"},
                 1);
   // a robot log outside: refused by row, and nothing of that file is printed
   labels("a.wav,0,0,/etc/passwd\n");
@@ -457,8 +466,8 @@ TEST_F(HostileInputTest, SpecialFilesAndFileSystemRefusalsAreErrorsNamingThePath
   fs::create_symlink(special.path() / "loop_a", special.path() / "loop_b");
   const std::string loop = (special.path() / "loop_a").string();
   ExpectRefused("inspect " + loop, {"loop_a", "Too many levels of symbolic links"}, 1);
-  ExpectRefused(kShortRecordArgs + kTinyModelArgs + "train --data D.h5 --out " + loop,
-                {"loop_a"}, 1);
+  ExpectRefused(kShortRecordArgs + kTinyModelArgs + "train --data D.h5 --out " + loop, {"loop_a"},
+                1);
   ExpectRefused("eval --model " + loop + " --data D.h5", {"loop_a"}, 1);
   // no permission (only without root: root reads every file)
   if (::geteuid() != 0) {

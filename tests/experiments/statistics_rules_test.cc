@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "common/workspace.h"
 #include "sonicboom/core/dataset.h"
 
 namespace sonicboom::experiments {
@@ -36,17 +37,28 @@ json ReadJson(const fs::path& path) {
   return json::parse(ReadBytes(path));
 }
 
-// One workspace: 16 and 40 short strikes (other indices), a tiny one-epoch run on the 40 (about 8
-// validation strikes), a strike WAV of the same config.
+// The suite's workspace: 16 and 40 short strikes (other indices), a tiny one-epoch run on the 40
+// (about 8 validation strikes), a strike WAV of the same config.
+void BuildWorkspace(const fs::path& dir) {
+  sonicboom::testing::RunEach(
+      {kShortRecordArgs + "-q generate --count 16 --out d16.h5",
+       kShortRecordArgs + "-q generate --count 40 --first-index 1000 --out d40.h5",
+       kShortRecordArgs + kTinyModelArgs + "--set train.epochs=1 -q train --data d40.h5 --out RUN",
+       kShortRecordArgs + "-q synth --out X.wav --index 3"},
+      dir);
+}
+
+// Built once per ctest run (the suite's fixture) for its tests to copy
+TEST(StatisticsRulesWorkspace, IsBuilt) {
+  sonicboom::testing::PublishWorkspace("statistics_rules", BuildWorkspace);
+}
+
+// Each test process works in its own copy of the workspace
 class StatisticsRulesTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new TempDir();
-    Must(kShortRecordArgs + "-q generate --count 16 --out d16.h5");
-    Must(kShortRecordArgs + "-q generate --count 40 --first-index 1000 --out d40.h5");
-    Must(kShortRecordArgs + kTinyModelArgs +
-         "--set train.epochs=1 -q train --data d40.h5 --out RUN");
-    Must(kShortRecordArgs + "-q synth --out X.wav --index 3");
+    sonicboom::testing::UseWorkspace("statistics_rules", dir_->path(), BuildWorkspace);
   }
   static void TearDownTestSuite() {
     delete dir_;

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "common/workspace.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 
@@ -62,66 +63,80 @@ std::vector<std::string> Entries(const fs::path& dir) {
   return names;
 }
 
-// One workspace: 16 short strikes, a tiny run, their export as trials, its import, and copies
-// of the strikes with one value of one valid row made unknown or impossible.
+// The rows of dataset `path` that hold a valid strike.
+std::vector<int64_t> ValidRows(const fs::path& path) {
+  const DatasetReader d(path.string());
+  std::vector<int64_t> valid;
+  for (int64_t r = 0; r < d.size(); ++r) {
+    if (d.ReadMeta(r).valid) valid.push_back(r);
+  }
+  return valid;
+}
+
+// Copies of D.h5 (in `dir`) with one change to the valid row valid[k] (or to every sample).
+void MakeDamagedCopies(const fs::path& dir, const std::vector<int64_t>& valid) {
+  auto at = [&](size_t k, std::function<void(StrikeSample*)> f) {
+    return [row = valid[k], f](int64_t r, StrikeSample* s) {
+      if (r == row) f(s);
+    };
+  };
+  const fs::path d = dir / "D.h5";
+  CopyDataset(d, dir / "TNAN.h5", at(3, [](StrikeSample* s) { s->label.time_s = kNaN; }));
+  CopyDataset(d, dir / "TNEG.h5", at(2, [](StrikeSample* s) { s->label.time_s = -0.1; }));
+  CopyDataset(d, dir / "QUAT.h5",
+              at(4, [](StrikeSample* s) { s->proprio.middleCols(3, 4).setZero(); }));
+  CopyDataset(d, dir / "ZNAN.h5", at(5, [](StrikeSample* s) {
+                s->label.z_m = kNaN;
+                s->label.point_m.z() = kNaN;
+              }));
+  CopyDataset(d, dir / "THETA.h5", at(2, [](StrikeSample* s) { s->label.theta_rad = kNaN; }));
+  CopyDataset(d, dir / "SPEED.h5",
+              at(1, [](StrikeSample* s) { s->label.normal_speed_m_s = kNaN; }));
+  CopyDataset(d, dir / "MASS.h5", at(6, [](StrikeSample* s) {
+                ASSERT_FALSE(s->contacts.empty());
+                s->contacts[0].effective_mass_kg = kNaN;
+              }));
+  CopyDataset(d, dir / "ALLNAN.h5", [](int64_t, StrikeSample* s) { s->label.z_m = kNaN; });
+  // an import of before this fix: 0 for what the capture did not record
+  CopyDataset(
+      d, dir / "OLD.h5",
+      [](int64_t, StrikeSample* s) { s->label.time_s = s->label.normal_speed_m_s = 0.0; },
+      [](DatasetInfo* info) { info->source = "hardware"; });
+}
+
+// The suite's workspace: 16 short strikes, a tiny run, their export as trials, its import, and
+// copies of the strikes with one value of one valid row made unknown or impossible.
+void BuildWorkspace(const fs::path& dir) {
+  const std::string args = kShortRecordArgs + "-q --threads 1 ";
+  sonicboom::testing::RunEach(
+      {args + "generate --count 16 --out D.h5",
+       args + kTinyModelArgs + "--set train.epochs=1 train --data D.h5 --out RUN",
+       "-q export --layout trial --in D.h5 --out TR",
+       args + "import --layout trial --min-duration-s 0.5 --in TR --out I.h5"},
+      dir);
+  if (::testing::Test::HasFatalFailure()) return;
+  const std::vector<int64_t> valid = ValidRows(dir / "D.h5");
+  ASSERT_GE(valid.size(), 8u);
+  MakeDamagedCopies(dir, valid);
+}
+
+// Built once per ctest run (the suite's fixture) for its tests to copy
+TEST(UnknownLabelsWorkspace, IsBuilt) {
+  sonicboom::testing::PublishWorkspace("unknown_labels", BuildWorkspace);
+}
+
+// Each test process works in its own copy of the workspace
 class UnknownLabelsTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new TempDir();
-    const std::string cwd = dir_->path().string();
-    auto must = [&](const std::string& args) {
-      const CliRun run = RunCli(args, cwd);
-      ASSERT_EQ(run.exit_code, 0) << args << "\n" << run.err;
-    };
-    const std::string args = kShortRecordArgs + "-q --threads 1 ";
-    must(args + "generate --count 16 --out D.h5");
-    must(args + kTinyModelArgs + "--set train.epochs=1 train --data D.h5 --out RUN");
-    must("-q export --layout trial --in D.h5 --out TR");
-    must(args + "import --layout trial --min-duration-s 0.5 --in TR --out I.h5");
-    const DatasetReader d(Path("D.h5").string());
-    for (int64_t r = 0; r < d.size(); ++r) {
-      if (d.ReadMeta(r).valid) valid_.push_back(r);
-    }
+    sonicboom::testing::UseWorkspace("unknown_labels", dir_->path(), BuildWorkspace);
+    valid_ = ValidRows(Path("D.h5"));
     ASSERT_GE(valid_.size(), 8u);
-    MakeDamagedCopies();
   }
   static void TearDownTestSuite() {
     delete dir_;
     dir_ = nullptr;
-  }
-
-  // D.h5 with one change to the valid row valid_[k] (or to every sample).
-  static void MakeDamagedCopies() {
-    auto at = [](size_t k, std::function<void(StrikeSample*)> f) {
-      return [k, f](int64_t r, StrikeSample* s) {
-        if (r == valid_[k]) f(s);
-      };
-    };
-    CopyDataset(Path("D.h5"), Path("TNAN.h5"),
-                at(3, [](StrikeSample* s) { s->label.time_s = kNaN; }));
-    CopyDataset(Path("D.h5"), Path("TNEG.h5"),
-                at(2, [](StrikeSample* s) { s->label.time_s = -0.1; }));
-    CopyDataset(Path("D.h5"), Path("QUAT.h5"),
-                at(4, [](StrikeSample* s) { s->proprio.middleCols(3, 4).setZero(); }));
-    CopyDataset(Path("D.h5"), Path("ZNAN.h5"), at(5, [](StrikeSample* s) {
-                  s->label.z_m = kNaN;
-                  s->label.point_m.z() = kNaN;
-                }));
-    CopyDataset(Path("D.h5"), Path("THETA.h5"),
-                at(2, [](StrikeSample* s) { s->label.theta_rad = kNaN; }));
-    CopyDataset(Path("D.h5"), Path("SPEED.h5"),
-                at(1, [](StrikeSample* s) { s->label.normal_speed_m_s = kNaN; }));
-    CopyDataset(Path("D.h5"), Path("MASS.h5"), at(6, [](StrikeSample* s) {
-                  ASSERT_FALSE(s->contacts.empty());
-                  s->contacts[0].effective_mass_kg = kNaN;
-                }));
-    CopyDataset(Path("D.h5"), Path("ALLNAN.h5"),
-                [](int64_t, StrikeSample* s) { s->label.z_m = kNaN; });
-    // an import of before this fix: 0 for what the capture did not record
-    CopyDataset(
-        Path("D.h5"), Path("OLD.h5"),
-        [](int64_t, StrikeSample* s) { s->label.time_s = s->label.normal_speed_m_s = 0.0; },
-        [](DatasetInfo* info) { info->source = "hardware"; });
   }
 
   // Runs `args`; expects exit 1 and every substring in stderr.
