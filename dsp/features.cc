@@ -443,10 +443,22 @@ double NoiseRms(const Eigen::ArrayXd& x, int64_t frame) {
   return UpperMedian(std::move(rms));
 }
 
-// The rule on one channel (T, about its mean); windows in samples: onsets tried every hop, each
-// with the peak of the rise window after it and the RMS of the pre window before it
-ChannelStrike ChannelEvidence(const Eigen::ArrayXd& x, const StrikeRule& rule, int64_t hop,
-                              int64_t rise_blocks, int64_t pre_blocks, int64_t noise_frame) {
+// A rule's windows: the hop and the noise frame in samples, the others in hops
+struct RuleBlocks {
+  int64_t hop{1};
+  int64_t rise{1};         // the rise window
+  int64_t pre{1};          // the level before the onset
+  int64_t follow{1};       // the strike's own peak after the onset
+  int64_t noise_frame{1};
+};
+
+// The rule on one channel (T, about its mean): onsets tried every hop, each with the peak of the
+// rise window after it against the loudest of the follow window after it, and the RMS of the
+// pre window before it
+ChannelStrike ChannelEvidence(const Eigen::ArrayXd& x, const StrikeRule& rule,
+                              const RuleBlocks& w) {
+  const int64_t hop = w.hop, rise_blocks = w.rise, pre_blocks = w.pre;
+  const int64_t follow_blocks = std::max(w.follow, w.rise);
   const int64_t total = x.size();
   const int64_t blocks = (total + hop - 1) / hop;
   // per hop block: peak |x| and the sum of squares before it (blocks + 1)
@@ -460,14 +472,15 @@ ChannelStrike ChannelEvidence(const Eigen::ArrayXd& x, const StrikeRule& rule, i
   }
   const double peak = *std::max_element(block_peak.begin(), block_peak.end());
   ChannelStrike out;
-  out.peak_to_noise = AmplitudeDb(peak, NoiseRms(x, noise_frame));
-  // onsets whose window comes near the peak: the best rise, and the first that passes (the
-  // strike; a later swell, such as a press at the record's end, is not its onset)
-  const double near = peak * std::pow(10.0, -rule.near_peak_db / 20.0);
+  out.peak_to_noise = AmplitudeDb(peak, NoiseRms(x, w.noise_frame));
+  // onsets whose window comes near the loudest that follows: the best rise, and the first that
+  // passes (the strike; a later swell, such as a press at the record's end, is not its onset)
+  const double near = std::pow(10.0, -rule.near_peak_db / 20.0);
   for (int64_t b = pre_blocks; b < blocks; ++b) {
     const auto first = block_peak.begin() + b;
     const double level = *std::max_element(first, first + std::min(rise_blocks, blocks - b));
-    if (!(level > 0.0) || level < near) continue;
+    const double follows = *std::max_element(first, first + std::min(follow_blocks, blocks - b));
+    if (!(level > 0.0) || level < near * follows) continue;
     const double pre_energy = energy_before[static_cast<size_t>(b)] -
                               energy_before[static_cast<size_t>(b - pre_blocks)];
     const double rise =
@@ -488,18 +501,23 @@ ChannelStrike ChannelEvidence(const Eigen::ArrayXd& x, const StrikeRule& rule, i
 StrikeCheck CheckStrike(const Eigen::MatrixXf& audio, double sample_rate_hz,
                         const StrikeRule& rule) {
   if (!(sample_rate_hz > 0.0) || !(rule.hop_s > 0.0) || !(rule.rise_window_s > 0.0) ||
-      !(rule.pre_window_s > 0.0) || !(rule.noise_frame_s > 0.0)) {
+      !(rule.pre_window_s > 0.0) || !(rule.noise_frame_s > 0.0) ||
+      !(rule.follow_window_s > 0.0)) {
     throw ConfigError(fmt::format("strike check: the sample rate {} Hz and the windows (hop {} s, "
-                                  "rise {} s, pre {} s, noise frame {} s) must be > 0",
+                                  "rise {} s, follow {} s, pre {} s, noise frame {} s) must be > 0",
                                   sample_rate_hz, rule.hop_s, rule.rise_window_s,
-                                  rule.pre_window_s, rule.noise_frame_s));
+                                  rule.follow_window_s, rule.pre_window_s, rule.noise_frame_s));
   }
   const auto samples = [&](double s) {
     return std::max<int64_t>(1, std::llround(s * sample_rate_hz));
   };
-  const int64_t hop = samples(rule.hop_s);
-  const int64_t rise_blocks = std::max<int64_t>(1, std::llround(rule.rise_window_s / rule.hop_s));
-  const int64_t pre_blocks = std::max<int64_t>(1, std::llround(rule.pre_window_s / rule.hop_s));
+  const auto blocks_of = [&](double s) {
+    return std::max<int64_t>(1, std::llround(s / rule.hop_s));
+  };
+  const RuleBlocks w{samples(rule.hop_s), blocks_of(rule.rise_window_s),
+                     blocks_of(rule.pre_window_s), blocks_of(rule.follow_window_s),
+                     samples(rule.noise_frame_s)};
+  const int64_t hop = w.hop, rise_blocks = w.rise, pre_blocks = w.pre;
   StrikeCheck check;
   const int64_t total = audio.cols();
   if (total <= (pre_blocks + rise_blocks) * hop) {
@@ -512,8 +530,7 @@ StrikeCheck CheckStrike(const Eigen::MatrixXf& audio, double sample_rate_hz,
   std::vector<ChannelStrike> channels;
   for (Eigen::Index c = 0; c < audio.rows(); ++c) {
     const Eigen::ArrayXd x = audio.row(c).cast<double>().transpose().array();
-    channels.push_back(ChannelEvidence(x - x.mean(), rule, hop, rise_blocks, pre_blocks,
-                                       samples(rule.noise_frame_s)));
+    channels.push_back(ChannelEvidence(x - x.mean(), rule, w));
   }
   // the strike's channel: of those whose peak stands min_db above their noise and that rise,
   // the first to rise; else the best rise of those channels (for the message)
@@ -542,10 +559,11 @@ StrikeCheck CheckStrike(const Eigen::MatrixXf& audio, double sample_rate_hz,
   } else if (chosen < 0) {
     check.reason = fmt::format(
         "no strike found: the loudest peak stands {:.1f} dB above the noise RMS, but no channel "
-        "rises within {:g} ms to within {:g} dB of its peak from a level more than {:.1f} dB "
-        "below it (the RMS of the {:g} ms before), a strike at least {:g} dB (arm motion or hum "
-        "alone?)",
-        check.peak_to_noise_db, 1e3 * rule.rise_window_s, rule.near_peak_db, check.rise_db,
+        "rises within {:g} ms to within {:g} dB of the loudest of the {:g} ms that follow from a "
+        "level more than {:.1f} dB below it (the RMS of the {:g} ms before), a strike at least "
+        "{:g} dB (arm motion or hum alone?)",
+        check.peak_to_noise_db, 1e3 * rule.rise_window_s, rule.near_peak_db,
+        1e3 * std::max(rule.follow_window_s, rule.rise_window_s), check.rise_db,
         1e3 * rule.pre_window_s, rule.min_db);
   } else if (after_s < rule.min_after_s) {
     check.reason = fmt::format(

@@ -503,6 +503,21 @@ TEST(CheckStrikeTest, NoiseHumAndArmMotionAreRefused) {
                                          std::sin(2 * std::numbers::pi * 3000.0 * s + 0.5));
   }), kFs);
   EXPECT_TRUE(struck.found) << struck.reason;
+  // a strike 20 dB above the floor at 0.3 s, before that motion (whose peak stands 15 dB and
+  // more above the strike's): the strike's peak is its own, and it is found where it rises (the
+  // rule that measured it against the record's peak refused it)
+  const StrikeCheck before = CheckStrike(NoisyRecord(floor, 25, [&](int64_t t) {
+    const double s = (t - 13230) / kFs;
+    return motor(t) + (s < 0 ? 0.0 : 10 * floor * std::exp(-s / 0.01) *
+                                         std::sin(2 * std::numbers::pi * 3000.0 * s + 0.5));
+  }), kFs);
+  EXPECT_TRUE(before.found) << before.reason;
+  EXPECT_GT(before.peak_to_noise_db, 35.0);  // the channel's peak: the motion's
+  EXPECT_NEAR(static_cast<double>(before.onset_sample), 13230.0, 0.0015 * kFs);
+  // a follow window of zero is refused, naming it
+  StrikeRule bad;
+  bad.follow_window_s = 0.0;
+  EXPECT_THROW(CheckStrike(NoisyRecord(floor, 26), kFs, bad), ConfigError);
 }
 
 TEST(FeatureExtractorTest, WindowCentredOnOnsetWithZeroPadding) {

@@ -192,9 +192,11 @@ int64_t DetectOnset(const Eigen::MatrixXf& audio, double sample_rate_hz, double 
 
 /// The rule CheckStrike applies (docs/robustness.md, "No strike"). A strike is an impulse: on
 /// some channel (about its mean) its peak stands min_db above the channel's noise RMS, and it
-/// rises: within rise_window_s of its onset the channel reaches within near_peak_db of that peak,
-/// a level min_db above the RMS of the pre_window_s before the onset (a motor ramp or mains hum
-/// does not: their level just before is within a few dB of their peaks).
+/// rises: within rise_window_s of its onset the channel reaches within near_peak_db of the
+/// loudest it gets in the follow_window_s after the onset, a level min_db above the RMS of the
+/// pre_window_s before the onset (a motor ramp or mains hum does not: their level just before is
+/// within a few dB of their peaks, and a ramp keeps rising). The peak is the strike's own, not
+/// the record's: an arm motion louder than the strike elsewhere in the record does not hide it.
 struct StrikeRule {
   // 17 dB: Gaussian noise over 88 200 samples x 6 channels peaks at about 5 sigma (14 dB), and
   // reaches 7.1 sigma (17 dB) in under one record in a million; a strike 20 dB above the noise
@@ -202,6 +204,9 @@ struct StrikeRule {
   double min_db{17.0};
   double rise_window_s{0.005};   // a contact of up to 5 ms reaches its force peak in 2.5 ms
   double near_peak_db{6.0};      // the first arrival against later reflections' build-up
+  // the strike's own peak: the loudest this long after its onset (a strike has rung down by
+  // then; a motor ramp of 0.1 s or more has not reached its top)
+  double follow_window_s{0.1};
   double pre_window_s{0.02};     // the level before the onset (one 50 Hz period)
   double noise_frame_s{0.02};    // the noise RMS: the median of these frames' RMS values
   double min_after_s{0.02};      // record left after the onset (a strike cut off at the end)
