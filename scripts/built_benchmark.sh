@@ -42,38 +42,12 @@ BIN=${SONICBOOM_BIN:-$ROOT/build/bin/sonicboom}
 mkdir -p "$OUT"
 # shellcheck source=scripts/transfer_common.sh
 source "$ROOT/scripts/transfer_common.sh"
-BUILT=(--config "$ROOT/configs/built.yaml")
 
 case $SPLIT in
   val) SEED=13; FIRST=500000 ;;
   test) SEED=11; FIRST=400000 ;;
   *) echo "SPLIT is val or test, not '$SPLIT'" >&2; exit 2 ;;
 esac
-
-# the config arguments of an as-built family (after TS4)
-built_family_args() {
-  case $1 in
-    nominal) echo "" ;;
-    in) echo "${RAND[*]} ${BUILT[*]}" ;;
-    soft) echo "${RAND[*]} ${ONE[*]} --set randomize.soft_striker_fraction=1
-      --set randomize.soft_striker_youngs_modulus_pa=[1.5e6,3.0e7]" ;;
-    noisy) echo "${RAND[*]} ${ONE[*]} --set randomize.noise_floor_v=[]
-      --set randomize.peak_to_noise_db=[18,26] --set randomize.highpass_hz=[200,400]
-      --set randomize.highpass_order=[2,2] --set randomize.lowpass_hz=[5000,7000]
-      --set randomize.lowpass_order=[2,2]" ;;
-    built|solid) echo "${RAND[*]} ${ONE[*]} --set randomize.noise_floor_v=[]
-      --set randomize.peak_to_noise_db=[30,45]
-      --set randomize.soft_striker_fraction=0.2
-      --set randomize.soft_striker_youngs_modulus_pa=[3.0e6,1.0e8]
-      --set shell.bolt_z_m=[-0.121,0.013,0.087] --set shell.bolt_stiffness_scale=[0.05,1,8]
-      --set shell.flange_mount_stiffness_n_m2=2.5e5 --set shell.tool_mount_stiffness_n_m2=2.0e7
-      --set mics.z_m=[-0.1335,-0.1265,-0.1338,0.1263,0.1336,0.1268]
-      --set mics.theta_deg=[3.5,116.5,244,-3.5,123.5,236.5]
-      --set randomize.mic_z_offset_m=[] --set randomize.mic_theta_offset_deg=[]
-      --set material.youngs_modulus_pa=2.28e9 --set randomize.youngs_modulus_scale=[]
-      --set randomize.temperature_c=[]" ;;
-  esac
-}
 
 FAMILIES="nominal in soft noisy built"
 [ "$REFERENCE" = 1 ] && FAMILIES="$FAMILIES solid"

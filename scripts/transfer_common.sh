@@ -1,5 +1,5 @@
-# Shared by scripts/transfer_ablation.sh, scripts/transfer_benchmark.sh and
-# scripts/fewshot_study.sh (sourced, after ROOT, OUT, BIN and THREADS are set): the stationary ts4
+# Shared by scripts/transfer_ablation.sh, scripts/transfer_benchmark.sh, scripts/built_benchmark.sh,
+# scripts/built_fewshot.sh and scripts/fewshot_study.sh (sourced, after ROOT, OUT, BIN and THREADS are set): the stationary ts4
 # scene, the randomized preset, the switch that turns its structure pool off, the held-out
 # families' settings (transfer_benchmark.sh describes them), and a resumable dataset generator.
 TS4=(--config "$ROOT/configs/ts4.yaml" --set scene.stationary.z_grid_m=0)
@@ -31,6 +31,33 @@ family_args() {
     fine) echo "--set shell.axial_spacing_m=0.005 --set shell.dispersion=thin" ;;
     chain) echo "--set shell.bolt_model=tie --set daq.input_resistance_ohm=99500 --set randomize.highpass_hz=[] --set randomize.hum_hz=[50,50] --set randomize.hum_rms_v=[3.0e-3,3.0e-3] --set randomize.hum_harmonics=9" ;;
     halfspace) echo "--set acoustics.contact.wall=rigid" ;;
+  esac
+}
+
+# the config arguments of an as-built family of scripts/built_benchmark.sh (after TS4; that script
+# describes them)
+BUILT=(--config "$ROOT/configs/built.yaml")
+built_family_args() {
+  case $1 in
+    nominal) echo "" ;;
+    in) echo "${RAND[*]} ${BUILT[*]}" ;;
+    soft) echo "${RAND[*]} ${ONE[*]} --set randomize.soft_striker_fraction=1
+      --set randomize.soft_striker_youngs_modulus_pa=[1.5e6,3.0e7]" ;;
+    noisy) echo "${RAND[*]} ${ONE[*]} --set randomize.noise_floor_v=[]
+      --set randomize.peak_to_noise_db=[18,26] --set randomize.highpass_hz=[200,400]
+      --set randomize.highpass_order=[2,2] --set randomize.lowpass_hz=[5000,7000]
+      --set randomize.lowpass_order=[2,2]" ;;
+    built|solid) echo "${RAND[*]} ${ONE[*]} --set randomize.noise_floor_v=[]
+      --set randomize.peak_to_noise_db=[30,45]
+      --set randomize.soft_striker_fraction=0.2
+      --set randomize.soft_striker_youngs_modulus_pa=[3.0e6,1.0e8]
+      --set shell.bolt_z_m=[-0.121,0.013,0.087] --set shell.bolt_stiffness_scale=[0.05,1,8]
+      --set shell.flange_mount_stiffness_n_m2=2.5e5 --set shell.tool_mount_stiffness_n_m2=2.0e7
+      --set mics.z_m=[-0.1335,-0.1265,-0.1338,0.1263,0.1336,0.1268]
+      --set mics.theta_deg=[3.5,116.5,244,-3.5,123.5,236.5]
+      --set randomize.mic_z_offset_m=[] --set randomize.mic_theta_offset_deg=[]
+      --set material.youngs_modulus_pa=2.28e9 --set randomize.youngs_modulus_scale=[]
+      --set randomize.temperature_c=[]" ;;
   esac
 }
 
