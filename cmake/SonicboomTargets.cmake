@@ -16,14 +16,15 @@ function(sonicboom_add_library module)
 endfunction()
 
 # sonicboom_add_test(<name> SOURCES ... DEPS ... GROUPS "<label>=<gtest filter>" ...
-#                    WORKSPACES "<builder suite>=<suite>" ...)
+#                    WORKSPACES "<builder suite>=<gtest filter>" ...)
 # Every test gets one ctest label: a GROUPS entry's label for the tests its filter selects
 # (suites or single tests, ':'-separated; groups must not overlap), `unit` for the rest. Labels:
 # unit (fast logic checks), physics (physical values against theory), golden (stored reference
 # outputs), slow (end-to-end runs of the CLI, training).
 # A WORKSPACES entry makes the tests of the builder suite a ctest fixture (FIXTURES_SETUP) that
-# every test of the suite requires: the builder publishes the workspace the suite's tests copy
-# (tests/common/workspace.h), so ctest builds it once per run and before them.
+# the tests its filter selects (suites or single tests, ':'-separated) require: the builder
+# publishes the workspace they copy (tests/common/workspace.h), so ctest builds it once per run
+# and before them.
 function(sonicboom_add_test name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;GROUPS;WORKSPACES" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
@@ -72,11 +73,15 @@ function(sonicboom_add_test name)
     foreach(entry IN LISTS ARG_WORKSPACES)
       string(REPLACE "=" ";" pair "${entry}")
       list(GET pair 0 builder)
-      list(GET pair 1 suite)
+      list(GET pair 1 filter)
+      # the filter as a regular expression: '.' itself, '*' any text, ':' or
+      string(REPLACE "." "\\\\." users "${filter}")
+      string(REPLACE "*" ".*" users "${users}")
+      string(REPLACE ":" "|" users "${users}")
       string(APPEND script
         "  if(test MATCHES \"^${builder}\\\\.\")\n"
         "    set_tests_properties(\"\${test}\" PROPERTIES FIXTURES_SETUP ${builder})\n"
-        "  elseif(test MATCHES \"^${suite}\\\\.\")\n"
+        "  elseif(test MATCHES \"^(${users})$\")\n"
         "    set_tests_properties(\"\${test}\" PROPERTIES FIXTURES_REQUIRED ${builder})\n"
         "  endif()\n")
     endforeach()

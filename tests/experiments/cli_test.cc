@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/test_util.h"
+#include "common/workspace.h"
 #include "sonicboom/core/audio_io.h"
 #include "sonicboom/core/dataset.h"
 #include "sonicboom/core/files.h"
@@ -168,10 +169,11 @@ TEST(CliTest, FidelityQuickWritesItsTable) {
   // shell renders the solid's polarity, and the table, its JSON and its figure land where asked
   TempDir dir;
   const std::string plot = std::string(SONICBOOM_SOURCE_DIR) + "/scripts/plot.py";
-  const auto run =
-      RunCli("fidelity --quick --strikes 1 --window-s 0.006 --out F.md --json -q --signals S "
-             "--plot " + plot,
-             dir.path().string());
+  const auto run = RunCli(
+      "fidelity --quick --strikes 1 --window-s 0.006 --out F.md --json -q --signals S "
+      "--plot " +
+          plot,
+      dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json j = json::parse(run.out);
   ASSERT_EQ(j["rungs"].size(), 25u);
@@ -311,12 +313,21 @@ TEST(CliTest, RotateRingsNeedsRingsOfThreeDiscs) {
   EXPECT_TRUE(fs::exists(dir / "RUN/model.pt"));
 }
 
+// 30 short strikes, the dataset of the tiny-model tests below
+void BuildThirtyStrikes(const fs::path& dir) {
+  testing::RunEach({kShort + "generate --count 30 --out D.h5 -q"}, dir);
+}
+
+// Built once per ctest run (the fixture of the tests below) for them to copy
+TEST(CliStrikesWorkspace, IsBuilt) {
+  testing::PublishWorkspace("cli_thirty_strikes", BuildThirtyStrikes);
+}
+
 TEST(CliTest, TrainEvalLocalizeTinyModel) {
   TempDir dir;
+  testing::UseWorkspace("cli_thirty_strikes", dir.path(), BuildThirtyStrikes);
   const std::string tiny = kShort + testing::kTinyModelArgs + "--set train.epochs=2 ";
-  auto run = RunCli(tiny + "generate --count 30 --out D.h5 -q", dir.path().string());
-  ASSERT_EQ(run.exit_code, 0) << run.err;
-  run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
+  auto run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_TRUE(fs::exists(dir / "RUN/config.yaml"));
   EXPECT_TRUE(fs::exists(dir / "RUN/model.pt"));
@@ -434,10 +445,9 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
 // reported
 TEST(CliTest, PseudoLabelsAreThePretrainedRunsSurestAnswers) {
   TempDir dir;
+  testing::UseWorkspace("cli_thirty_strikes", dir.path(), BuildThirtyStrikes);
   const std::string tiny = kShort + testing::kTinyModelArgs + "--set train.epochs=2 ";
-  auto run = RunCli(tiny + "generate --count 30 --out D.h5 -q", dir.path().string());
-  ASSERT_EQ(run.exit_code, 0) << run.err;
-  run = RunCli(tiny + "train --data D.h5 --out RUN -q", dir.path().string());
+  auto run = RunCli(tiny + "train --data D.h5 --out RUN -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   run = RunCli("eval --model RUN --data D.h5 -q --predictions P.csv", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
@@ -486,11 +496,10 @@ TEST(CliTest, PseudoLabelsAreThePretrainedRunsSurestAnswers) {
 
 TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   TempDir dir;
+  testing::UseWorkspace("cli_thirty_strikes", dir.path(), BuildThirtyStrikes);
   const std::string tiny =
       kShort + testing::kTinyModelArgs + "--set train.epochs=1 --set train.ensemble_members=2 ";
-  auto run = RunCli(tiny + "generate --count 30 --out D.h5 -q", dir.path().string());
-  ASSERT_EQ(run.exit_code, 0) << run.err;
-  run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
+  auto run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   for (const char* file : {"RUN/ensemble.json", "RUN/config.yaml", "RUN/member0/model.pt",
                            "RUN/member1/model.pt", "RUN/member1/config.yaml"}) {
