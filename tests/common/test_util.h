@@ -44,12 +44,16 @@ class TempDir {
   std::filesystem::path path_;
 };
 
-// The bytes of a file ("" when it cannot be read).
+// The bytes of a file ("" when it cannot be read), read at once into a string of its size (a
+// snapshot of a workspace reads tens of megabytes around every refused command).
 inline std::string ReadBytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  const std::streamoff size = in ? static_cast<std::streamoff>(in.tellg()) : -1;
+  if (size < 0) return "";
+  std::string bytes(static_cast<size_t>(size), '\0');
+  in.seekg(0);
+  in.read(bytes.data(), static_cast<std::streamsize>(size));
+  return in ? bytes : "";
 }
 
 // The bytes of every regular file under `root`, by path: a snapshot to compare after a refused
