@@ -186,7 +186,8 @@ bool FifoOpenedWhile(const std::string& fifo, F run) {
 // The hang: a FIFO at the reference solid's cache entry blocked `rerender` forever. Its
 // reader never opens it: a warning names it, the modes are solved again and the entry replaced.
 TEST_F(CacheCliTest, AFifoAtTheSolidsCacheEntryIsSolvedAgainNotWaitedOn) {
-  const std::string coarse = " --max-frequency 1500 --element-m 0.06 -q";
+  // the solid at its coarsest (two solves of 2 s): what is checked is its cache entry
+  const std::string coarse = " --max-frequency 1000 --element-m 0.12 -q";
   // the strikes with the suite's own cache (the shell's modes solved once), the solid with `cache`
   ASSERT_EQ(testing::RunCli(testing::kShortRecordArgs + "generate --count 2 --out D.h5 -q",
                             dir_.path().string())
