@@ -6,9 +6,9 @@
 // the same files for every test. Now the suite's builder test (a TEST that calls
 // PublishWorkspace) builds them into the build tree's test-work/<name>, stamped with the binaries
 // that made them; tests/CMakeLists.txt makes it the suite's ctest fixture (FIXTURES_SETUP), so it
-// runs first in every ctest run. Each test process then copies it (UseWorkspace). A process that
-// finds no workspace stamped with its binaries (a test binary run by hand after a rebuild) builds
-// its own, as the builder does.
+// runs first in every ctest run. Each test process then copies it (UseWorkspace, or the suite's
+// fixture WorkspaceTest). A process that finds no workspace stamped with its binaries (a test
+// binary run by hand after a rebuild) builds its own, as the builder does.
 #include <fcntl.h>
 #include <sys/file.h>
 #include <unistd.h>
@@ -17,7 +17,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <sstream>
 #include <string>
 #include <system_error>
@@ -27,8 +26,12 @@
 
 namespace sonicboom::testing {
 
-// Fills an empty directory with a suite's inputs.
-using WorkspaceBuild = std::function<void(const std::filesystem::path& dir)>;
+// A suite's workspace: its name under the build tree's test-work and what fills an empty
+// directory with it.
+struct Workspace {
+  const char* name;
+  void (*build)(const std::filesystem::path& dir);
+};
 
 namespace workspace_detail {
 
@@ -90,11 +93,12 @@ inline void RunEach(const std::vector<std::string>& commands, const std::filesys
   }
 }
 
-// The builder test's body: builds workspace `name` and puts it in place of an older one; a build
-// that fails leaves none, so the suite's tests build their own.
-inline void PublishWorkspace(const std::string& name, const WorkspaceBuild& build) {
+// The builder test's body: builds `workspace` and puts it in place of an older one; a build that
+// fails leaves none, so the suite's tests build their own.
+inline void PublishWorkspace(const Workspace& workspace) {
   namespace fs = std::filesystem;
   using workspace_detail::Lock;
+  const std::string name = workspace.name;
   const fs::path root = workspace_detail::Root(), published = root / name;
   const std::string pid = std::to_string(::getpid());
   const fs::path fresh = root / (name + ".new." + pid), old = root / (name + ".old." + pid);
@@ -104,7 +108,7 @@ inline void PublishWorkspace(const std::string& name, const WorkspaceBuild& buil
   }
   fs::remove_all(fresh);
   fs::create_directories(fresh);
-  build(fresh);
+  workspace.build(fresh);
   const std::string self_named = workspace_detail::NamesItsOwnPath(fresh);
   EXPECT_EQ(self_named, "") << "a workspace file names the workspace's own path";
   if (::testing::Test::HasFailure()) {
@@ -118,21 +122,36 @@ inline void PublishWorkspace(const std::string& name, const WorkspaceBuild& buil
   fs::remove_all(old);
 }
 
-// Fills the empty directory `dir` with workspace `name`: a copy of the published one if the
-// binaries that made it are this process's, else built here by `build`.
-inline void UseWorkspace(const std::string& name, const std::filesystem::path& dir,
-                         const WorkspaceBuild& build) {
+// Fills the empty directory `dir` with `workspace`: a copy of the published one if the binaries
+// that made it are this process's, else built here.
+inline void UseWorkspace(const Workspace& workspace, const std::filesystem::path& dir) {
   namespace fs = std::filesystem;
-  const fs::path published = workspace_detail::Root() / name;
+  const fs::path published = workspace_detail::Root() / workspace.name;
   {
-    const workspace_detail::Lock lock(name, LOCK_SH);
+    const workspace_detail::Lock lock(workspace.name, LOCK_SH);
     if (ReadBytes(published / ".stamp") == workspace_detail::Stamp()) {
       fs::copy(published, dir, fs::copy_options::recursive | fs::copy_options::copy_symlinks);
       fs::remove(dir / ".stamp");
       return;
     }
   }
-  build(dir);
+  workspace.build(dir);
 }
+
+// The fixture of a suite whose tests work in one copy of workspace `kWorkspace` a test process,
+// at dir_: `class FooTest : public WorkspaceTest<kFooWorkspace>`.
+template <const Workspace& kWorkspace>
+class WorkspaceTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir();
+    UseWorkspace(kWorkspace, dir_->path());
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static inline TempDir* dir_ = nullptr;
+};
 
 }  // namespace sonicboom::testing

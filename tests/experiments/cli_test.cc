@@ -318,14 +318,16 @@ void BuildThirtyStrikes(const fs::path& dir) {
   testing::RunEach({kShort + "generate --count 30 --out D.h5 -q"}, dir);
 }
 
+constexpr testing::Workspace kThirtyStrikes{"cli_thirty_strikes", BuildThirtyStrikes};
+
 // Built once per ctest run (the fixture of the tests below) for them to copy
 TEST(CliStrikesWorkspace, IsBuilt) {
-  testing::PublishWorkspace("cli_thirty_strikes", BuildThirtyStrikes);
+  testing::PublishWorkspace(kThirtyStrikes);
 }
 
 TEST(CliTest, TrainEvalLocalizeTinyModel) {
   TempDir dir;
-  testing::UseWorkspace("cli_thirty_strikes", dir.path(), BuildThirtyStrikes);
+  testing::UseWorkspace(kThirtyStrikes, dir.path());
   const std::string tiny = kShort + testing::kTinyModelArgs + "--set train.epochs=2 ";
   auto run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
@@ -445,7 +447,7 @@ TEST(CliTest, TrainEvalLocalizeTinyModel) {
 // reported
 TEST(CliTest, PseudoLabelsAreThePretrainedRunsSurestAnswers) {
   TempDir dir;
-  testing::UseWorkspace("cli_thirty_strikes", dir.path(), BuildThirtyStrikes);
+  testing::UseWorkspace(kThirtyStrikes, dir.path());
   const std::string tiny = kShort + testing::kTinyModelArgs + "--set train.epochs=2 ";
   auto run = RunCli(tiny + "train --data D.h5 --out RUN -q", dir.path().string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
@@ -496,7 +498,7 @@ TEST(CliTest, PseudoLabelsAreThePretrainedRunsSurestAnswers) {
 
 TEST(CliTest, EnsembleRunIsOneModelForEvalLocalizeAndInspect) {
   TempDir dir;
-  testing::UseWorkspace("cli_thirty_strikes", dir.path(), BuildThirtyStrikes);
+  testing::UseWorkspace(kThirtyStrikes, dir.path());
   const std::string tiny =
       kShort + testing::kTinyModelArgs + "--set train.epochs=1 --set train.ensemble_members=2 ";
   auto run = RunCli(tiny + "train --data D.h5 --out RUN -q --json", dir.path().string());

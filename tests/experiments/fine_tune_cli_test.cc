@@ -36,28 +36,20 @@ void BuildWorkspace(const fs::path& dir) {
       dir);
 }
 
+constexpr sonicboom::testing::Workspace kWorkspace{"fine_tune_cli", BuildWorkspace};
+
 // Built once per ctest run (the suite's fixture) for its tests to copy
 TEST(FineTuneCliWorkspace, IsBuilt) {
-  sonicboom::testing::PublishWorkspace("fine_tune_cli", BuildWorkspace);
+  sonicboom::testing::PublishWorkspace(kWorkspace);
 }
 
 // Each test process works in its own copy of the workspace
-class FineTuneCliTest : public ::testing::Test {
+class FineTuneCliTest : public sonicboom::testing::WorkspaceTest<kWorkspace> {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = new TempDir();
-    sonicboom::testing::UseWorkspace("fine_tune_cli", dir_->path(), BuildWorkspace);
-  }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
   static CliRun Cli(const std::string& args) { return RunCli(args, dir_->path().string()); }
   static fs::path At(const std::string& name) { return dir_->path() / name; }
   static json ReadJson(const std::string& name) { return json::parse(ReadBytes(At(name))); }
-  static TempDir* dir_;
 };
-TempDir* FineTuneCliTest::dir_ = nullptr;
 
 TEST_F(FineTuneCliTest, AutoRecordsItsCandidatesAndIsNeverWorseOnTheFolds) {
   const CliRun run = Cli("train --init-from PRE --data F12.h5 --out AUTO --epochs 1 -q --json");

@@ -119,23 +119,16 @@ void BuildWorkspace(const fs::path& dir) {
   MakeDamagedDatasets(dir);
 }
 
+constexpr sonicboom::testing::Workspace kWorkspace{"hostile_input", BuildWorkspace};
+
 // Built once per ctest run (the suite's fixture) for its tests to copy
 TEST(HostileInputWorkspace, IsBuilt) {
-  sonicboom::testing::PublishWorkspace("hostile_input", BuildWorkspace);
+  sonicboom::testing::PublishWorkspace(kWorkspace);
 }
 
 // Each test process works in its own copy of the workspace
-class HostileInputTest : public ::testing::Test {
+class HostileInputTest : public sonicboom::testing::WorkspaceTest<kWorkspace> {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = new TempDir();
-    sonicboom::testing::UseWorkspace("hostile_input", dir_->path(), BuildWorkspace);
-  }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
-
   // Runs `args`; expects exit `exit_code` (any non-zero when 0 is passed), every substring in
   // stderr, and no file of the workspace changed or added (but files the case names in `new_ok`).
   static void ExpectRefused(const std::string& args, const std::vector<std::string>& substrings,
@@ -167,9 +160,7 @@ class HostileInputTest : public ::testing::Test {
   }
 
   static fs::path Path(const std::string& name) { return dir_->path() / name; }
-  static TempDir* dir_;
 };
-TempDir* HostileInputTest::dir_ = nullptr;
 
 TEST_F(HostileInputTest, WavRecordsAreRefusedNamingFileFrameAndChannel) {
   const std::vector<float> good = StrikeLikeRecord();

@@ -48,22 +48,16 @@ void BuildWorkspace(const fs::path& dir) {
       dir);
 }
 
+constexpr sonicboom::testing::Workspace kWorkspace{"statistics_rules", BuildWorkspace};
+
 // Built once per ctest run (the suite's fixture) for its tests to copy
 TEST(StatisticsRulesWorkspace, IsBuilt) {
-  sonicboom::testing::PublishWorkspace("statistics_rules", BuildWorkspace);
+  sonicboom::testing::PublishWorkspace(kWorkspace);
 }
 
 // Each test process works in its own copy of the workspace
-class StatisticsRulesTest : public ::testing::Test {
+class StatisticsRulesTest : public sonicboom::testing::WorkspaceTest<kWorkspace> {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = new TempDir();
-    sonicboom::testing::UseWorkspace("statistics_rules", dir_->path(), BuildWorkspace);
-  }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
   static void Must(const std::string& args) {
     const CliRun run = RunCli(args, Cwd());
     ASSERT_EQ(run.exit_code, 0) << args << "\n" << run.err;
@@ -75,11 +69,7 @@ class StatisticsRulesTest : public ::testing::Test {
   static void CopyRun(const std::string& name) {
     fs::copy(At("RUN"), At(name), fs::copy_options::recursive);
   }
-
-  static TempDir* dir_;
 };
-
-TempDir* StatisticsRulesTest::dir_ = nullptr;
 
 // A dataset given twice, or a renamed copy, counted 16 strikes as 32 and passed the minimum.
 TEST_F(StatisticsRulesTest, CalibrateCountsEachStrikeOnce) {

@@ -120,23 +120,20 @@ void BuildWorkspace(const fs::path& dir) {
   MakeDamagedCopies(dir, valid);
 }
 
+constexpr sonicboom::testing::Workspace kWorkspace{"unknown_labels", BuildWorkspace};
+
 // Built once per ctest run (the suite's fixture) for its tests to copy
 TEST(UnknownLabelsWorkspace, IsBuilt) {
-  sonicboom::testing::PublishWorkspace("unknown_labels", BuildWorkspace);
+  sonicboom::testing::PublishWorkspace(kWorkspace);
 }
 
 // Each test process works in its own copy of the workspace
-class UnknownLabelsTest : public ::testing::Test {
+class UnknownLabelsTest : public sonicboom::testing::WorkspaceTest<kWorkspace> {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new TempDir();
-    sonicboom::testing::UseWorkspace("unknown_labels", dir_->path(), BuildWorkspace);
+    WorkspaceTest::SetUpTestSuite();
     valid_ = ValidRows(Path("D.h5"));
     ASSERT_GE(valid_.size(), 8u);
-  }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
   }
 
   // Runs `args`; expects exit 1 and every substring in stderr.
@@ -154,10 +151,8 @@ class UnknownLabelsTest : public ::testing::Test {
   }
 
   static fs::path Path(const std::string& name) { return dir_->path() / name; }
-  static TempDir* dir_;
   static std::vector<int64_t> valid_;
 };
-TempDir* UnknownLabelsTest::dir_ = nullptr;
 std::vector<int64_t> UnknownLabelsTest::valid_;
 
 // contact time, impulse, speed, duration, striker mass and peak force are NaN, not 0; the
