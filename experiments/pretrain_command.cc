@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <yaml-cpp/yaml.h>
 
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/files.h"
@@ -69,15 +70,17 @@ ConfigSources RecipeSources(const GlobalOptions& g, bool beyond) {
   return sources;
 }
 
-// the as-built structure ranges of the calibration tubes (configs/built_beyond.yaml's keys), as
-// the run resolved them
-json CalibrationRanges(const acoustics::RandomizeConfig& r) {
-  return {{"youngs_modulus_scale", r.youngs_modulus_scale},
-          {"mic_z_offset_m", r.mic_z_offset_m},
-          {"mic_theta_offset_deg", r.mic_theta_offset_deg},
-          {"flange_mount_scale", r.flange_mount_scale},
-          {"tool_mount_scale", r.tool_mount_scale},
-          {"bolt_stiffness_scale", r.bolt_stiffness_scale}};
+// the ranges configs/built_beyond.yaml sets, as the calibration config resolved them (a user's
+// layer may override them)
+json CalibrationRanges(const SonicBoomConfig& calibration) {
+  const YAML::Node layer = YAML::Load(kEmbedded_built_beyond_yaml)["randomize"];
+  const YAML::Node resolved = YAML::Load(ConfigToYaml(calibration))["randomize"];
+  json ranges = json::object();
+  for (const auto& entry : layer) {
+    const std::string key = entry.first.as<std::string>();
+    ranges[key] = resolved[key].as<std::vector<double>>();
+  }
+  return ranges;
 }
 
 // one dataset of the recipe: reused when complete (its valid count then unknown: -1), resumed
@@ -172,7 +175,7 @@ CommandResult RunPretrain(const GlobalOptions& g, const PretrainOptions& o) {
                        {"validation", MetricsJson(validation)},
                        {"calibration", json::parse(calibration.json)},
                        {"calibration_fit", NameOf(o.calibration_fit)},
-                       {"calibration_ranges", CalibrationRanges(beyond.randomize)},
+                       {"calibration_ranges", CalibrationRanges(beyond)},
                        {"generate_s", generate_s},
                        {"train_s", train_s},
                        {"wall_s", MillisecondsSince(start) / 1e3},
