@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <deque>
 #include <functional>
 #include <string>
 #include <utility>
@@ -443,6 +444,22 @@ double NoiseRms(const Eigen::ArrayXd& x, int64_t frame) {
   return UpperMedian(std::move(rms));
 }
 
+// max(v[b], ..., v[min(b + w, n) - 1]) for every b (w >= 1), in one backward pass: a deque of
+// indices whose values decrease from its front
+std::vector<double> ForwardWindowMax(const std::vector<double>& v, int64_t w) {
+  const int64_t n = static_cast<int64_t>(v.size());
+  std::vector<double> out(v.size());
+  std::deque<int64_t> best;
+  for (int64_t b = n - 1; b >= 0; --b) {
+    const double x = v[static_cast<size_t>(b)];
+    while (!best.empty() && v[static_cast<size_t>(best.back())] <= x) best.pop_back();
+    best.push_back(b);
+    while (best.front() >= b + w) best.pop_front();
+    out[static_cast<size_t>(b)] = v[static_cast<size_t>(best.front())];
+  }
+  return out;
+}
+
 // A rule's windows: the hop and the noise frame in samples, the others in hops
 struct RuleBlocks {
   int64_t hop{1};
@@ -476,11 +493,11 @@ ChannelStrike ChannelEvidence(const Eigen::ArrayXd& x, const StrikeRule& rule,
   // onsets whose window comes near the loudest that follows: the best rise, and the first that
   // passes (the strike; a later swell, such as a press at the record's end, is not its onset)
   const double near = std::pow(10.0, -rule.near_peak_db / 20.0);
+  const std::vector<double> rise_peak = ForwardWindowMax(block_peak, rise_blocks);
+  const std::vector<double> follow_peak = ForwardWindowMax(block_peak, follow_blocks);
   for (int64_t b = pre_blocks; b < blocks; ++b) {
-    const auto first = block_peak.begin() + b;
-    const double level = *std::max_element(first, first + std::min(rise_blocks, blocks - b));
-    const double follows = *std::max_element(first, first + std::min(follow_blocks, blocks - b));
-    if (!(level > 0.0) || level < near * follows) continue;
+    const double level = rise_peak[static_cast<size_t>(b)];
+    if (!(level > 0.0) || level < near * follow_peak[static_cast<size_t>(b)]) continue;
     const double pre_energy = energy_before[static_cast<size_t>(b)] -
                               energy_before[static_cast<size_t>(b - pre_blocks)];
     const double rise =
