@@ -1,11 +1,4 @@
 #pragma once
-/// Small summaries of measured values shared by the experiments. Private to experiments.
+/// Small summaries of measured values shared by the experiments (sonicboom::Median is core's).
 
-#include <vector>
-
-namespace sonicboom::experiments {
-
-/// Median of the values (the mean of the middle two for an even count; NaN when empty).
-double Median(std::vector<double> values);
-
-}  // namespace sonicboom::experiments
+#include "sonicboom/core/statistics.h"

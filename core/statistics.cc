@@ -1,10 +1,10 @@
-#include "internal/statistics.h"
+#include "sonicboom/core/statistics.h"
 
 #include <algorithm>
 #include <cstddef>
 #include <limits>
 
-namespace sonicboom::experiments {
+namespace sonicboom {
 
 double Median(std::vector<double> values) {
   if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -16,4 +16,4 @@ double Median(std::vector<double> values) {
                                           values.begin() + static_cast<std::ptrdiff_t>(mid)));
 }
 
-}  // namespace sonicboom::experiments
+}  // namespace sonicboom
