@@ -39,6 +39,13 @@ std::vector<ShellMode> SimplySupportedModes(const TubeConfig& tube, const Materi
   const double omega_scale =
       std::sqrt(material.youngs_modulus_pa / (material.density_kg_m3 * (1 - nu * nu))) / R;
   std::vector<ShellMode> modes;
+  // m = 0: v = w = 0 (they carry sin(k x)), u = cos(n th) uniform along the tube, an in-plane
+  // shear of the wall; Flügge's (1, 1) entry at lambda = 0 (n = 0 is the rigid slide)
+  for (int n = 1; n < 400; ++n) {
+    const double f = std::sqrt((1 - nu) * n * n * (1 + k) / 2) * omega_scale / (2 * kPi);
+    if (f > max_frequency_hz) break;
+    modes.push_back({0, n, 0, f, 1.0, 0.0, 0.0});
+  }
   for (int m = 1; m < 400; ++m) {
     const double lambda = m * kPi * R / tube.length_m;
     double lowest_over_n = std::numeric_limits<double>::infinity();

@@ -530,6 +530,18 @@ int64_t ShellModel::WIndex(int i, int j) const {
   return d >= 0 ? d : -1;
 }
 
+int64_t ShellModel::UIndex(int i, int j) const {
+  if (i < 0 || i >= nz_ || j < 0 || j >= nth_) return -1;
+  const int64_t d = u_index_[static_cast<size_t>(i) * nth_ + j];
+  return d >= 0 ? d : -1;
+}
+
+int64_t ShellModel::VIndex(int i, int j) const {
+  if (i < 0 || i > nz_ || j < 0 || j >= nth_) return -1;
+  const int64_t d = v_index_[static_cast<size_t>(i) * nth_ + j];
+  return d >= 0 ? d : -1;
+}
+
 bool ShellModel::ArcLinked(int i, int j) const {
   if (WIndex(i, j) < 0 || WIndex(i, (j + 1) % nth_) < 0) return false;
   return v_index_[static_cast<size_t>(i) * nth_ + j] != kAbsent;

@@ -44,7 +44,7 @@ int RunCli(int argc, char** argv) {
   Runner run;
   for (auto* register_subcommand :
        {RegisterDemo,      RegisterGenerate, RegisterMerge,     RegisterSynth,
-        RegisterModes,     RegisterFidelity, RegisterReference, RegisterRerender,
+        RegisterModes,     RegisterExact,    RegisterFidelity, RegisterReference, RegisterRerender,
         RegisterVariants,  RegisterFeatures, RegisterTrain,     RegisterPretrain,
         RegisterEval,
         RegisterCalibrate, RegisterBaseline, RegisterAblate,    RegisterLocalize,

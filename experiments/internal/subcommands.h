@@ -59,6 +59,7 @@ void RegisterGenerate(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterMerge(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterSynth(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterModes(CLI::App& app, GlobalOptions& g, Runner* run);
+void RegisterExact(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterFidelity(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterReference(CLI::App& app, GlobalOptions& g, Runner* run);
 void RegisterRerender(CLI::App& app, GlobalOptions& g, Runner* run);

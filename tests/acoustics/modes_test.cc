@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "sonicboom/acoustics/cylinder_modes.h"
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 
 namespace sonicboom::acoustics {
@@ -50,6 +51,28 @@ TEST(CylinderModesTest, PvcSimplySupportedTable) {
   EXPECT_NEAR(Lowest(modes, 2, 3), 850, 1.5);
   EXPECT_NEAR(Lowest(modes, 3, 4), 1513, 2.0);
   EXPECT_NEAR(Lowest(modes, 1, 0), 1446, 2.0);  // torsion = c_S / 2L
+}
+
+// m = 0: u = cos(n th) along the whole tube, an in-plane shear of the wall at c_s n / R (with
+// Flügge's h^2 / 12 R^2 term), no radial part
+TEST(CylinderModesTest, AxiallyUniformShearFamilyIsShearSpeedTimesNOverRadius) {
+  const TubeConfig tube;
+  const MaterialConfig pvc;
+  const double cs = std::sqrt(pvc.youngs_modulus_pa / (2 * (1 + pvc.poisson_ratio)) /
+                              pvc.density_kg_m3);
+  const double r = tube.mid_radius_m(), h = tube.wall_thickness_m;
+  const double f1 = cs / (2 * kPi * r) * std::sqrt(1 + h * h / (12 * r * r));
+  const auto modes = SimplySupportedModes(tube, pvc, 6000.0);
+  EXPECT_NEAR(Lowest(modes, 0, 1) / f1, 1.0, 1e-12);
+  EXPECT_NEAR(Lowest(modes, 0, 2) / f1, 2.0, 1e-12);
+  int uniform = 0;
+  for (const ShellMode& m : modes) {
+    if (m.m != 0) continue;
+    ++uniform;
+    EXPECT_EQ(m.w, 0.0);
+    EXPECT_GE(m.n, 1);
+  }
+  EXPECT_EQ(uniform, 2);  // n = 1, 2 below 6 kHz (n = 3 at 8.1 kHz)
 }
 
 TEST(CylinderModesTest, RayleighFreeFreeValues) {

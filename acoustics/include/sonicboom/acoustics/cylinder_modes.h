@@ -10,7 +10,7 @@
 
 namespace sonicboom::acoustics {
 
-/// One mode family (m axial half-waves, n circumferential waves, one of 3 roots).
+/// One mode family (m axial half-waves, m >= 0, n circumferential waves, one of 3 roots).
 /// Shapes: u = U cos(k x) cos(n th), v = V sin(k x) sin(n th), w = W sin(k x) cos(n th),
 /// x in [0, L] from one end, k = m pi / L, w radial outward; (U, V, W) has unit norm.
 /// For n >= 1 the mode is a degenerate pair (the same shape turned by pi / (2n)).
@@ -22,7 +22,8 @@ struct ShellMode {
   double u{0.0}, v{0.0}, w{0.0};
 };
 
-/// All simply-supported modes with frequency <= max_frequency_hz, ascending.
+/// All simply-supported modes with frequency <= max_frequency_hz, ascending; m = 0 holds the
+/// axially uniform shear modes u = cos(n th) (v = w = 0: no radial force drives them).
 std::vector<ShellMode> SimplySupportedModes(const TubeConfig& tube, const MaterialConfig& material,
                                             double max_frequency_hz);
 

@@ -160,6 +160,10 @@ class ShellModel {
   double StrainEnergy(const Eigen::VectorXd& q_m) const;
   /// The w DOF index of node (i, theta index j), -1 when absent or fixed.
   int64_t WIndex(int i, int j) const;
+  /// The u (axial) DOF at (i + 1/2, j), i in [0, axial_points() - 1), -1 when absent or fixed.
+  int64_t UIndex(int i, int j) const;
+  /// The v (arc) DOF at (i, j + 1/2), -1 when absent or fixed.
+  int64_t VIndex(int i, int j) const;
   /// Whether w nodes (i, j) and (i, j + 1 mod circumferential_points) are joined by wall (false
   /// across a seam's kerf or a hole).
   bool ArcLinked(int i, int j) const;
