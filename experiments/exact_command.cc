@@ -246,6 +246,14 @@ CommandResult RunExact(const GlobalOptions& g, const ExactOptions& o) {
                       has_hi ? std::to_string(rank_hi.model_count) : "–", ComparisonCell(fam_lo),
                       has_hi ? ComparisonCell(fam_hi) : "–", ComparisonCell(rank_lo), has_hi ? ComparisonCell(rank_hi) : "–",
                       r.seconds);
+    if (!fam_lo.worst.empty()) {
+      std::string list;
+      for (const auto& [e, err] : fam_lo.worst)
+        list += fmt::format("{}({}, {}, {}) {:.1f} Hz {:+.2f} %", list.empty() ? "" : ", ", e.m,
+                            e.n, e.branch, e.frequency_hz, 100 * err);
+      notes += fmt::format("- {} ({}), worst below {:.0f} Hz by family: {}\n", r.rung, r.grid,
+                           b_lo, list);
+    }
     if (!fam_hi.unmatched.empty()) {
       std::string list;
       for (size_t i = 0; i < fam_hi.unmatched.size() && i < 12; ++i) {

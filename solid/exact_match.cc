@@ -152,7 +152,7 @@ ExactComparison CompareByFamily(const ExactModeList& exact, const std::vector<La
   std::sort(by_family.begin(), by_family.end(), [](const ExactMode& x, const ExactMode& y) {
     return std::tie(x.m, x.n, x.branch) < std::tie(y.m, y.n, y.branch);
   });
-  std::vector<std::pair<double, double>> pairs;  // (exact, model) Hz
+  std::vector<std::pair<ExactMode, double>> errors;  // every matched exact mode, its error
   for (const ExactMode& e : by_family) {
     const auto key = std::make_pair(e.m, e.n);
     size_t& next = taken[key];
@@ -163,13 +163,20 @@ ExactComparison CompareByFamily(const ExactModeList& exact, const std::vector<La
         c.unmatched.push_back(e);
         continue;
       }
-      pairs.emplace_back(e.frequency_hz, it->second[next]);
+      errors.emplace_back(e, it->second[next] / e.frequency_hz - 1.0);
     }
   }
   c.exact_count = exact.CountBelow(band_hz);
-  std::sort(pairs.begin(), pairs.end());
-  for (const auto& [fe, fm] : pairs) c.relative_error.push_back(fm / fe - 1.0);
+  std::stable_sort(errors.begin(), errors.end(), [](const auto& x, const auto& y) {
+    return x.first.frequency_hz < y.first.frequency_hz;
+  });
+  for (const auto& [e, err] : errors) c.relative_error.push_back(err);
   Summarize(&c);
+  std::stable_sort(errors.begin(), errors.end(), [](const auto& x, const auto& y) {
+    return std::abs(x.second) > std::abs(y.second);
+  });
+  errors.resize(std::min<size_t>(errors.size(), 5));
+  c.worst = errors;
   return c;
 }
 

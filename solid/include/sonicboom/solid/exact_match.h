@@ -67,6 +67,8 @@ struct ExactComparison {
   std::vector<double> relative_error;  // (matched) f_model / f_exact - 1, in the exact order
   double median_abs{0.0}, max_abs{0.0}, signed_median{0.0};
   std::vector<ExactMode> unmatched;  // exact modes below the band left without a model mode
+  // by family: the matched exact modes of the largest |error|, largest first (at most 5)
+  std::vector<std::pair<ExactMode, double>> worst;
 };
 
 /// By (m, n, branch): within each (m, n) the model's modes (all of `model`, past the band too,
