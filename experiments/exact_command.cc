@@ -8,7 +8,6 @@
 #include <array>
 #include <chrono>
 #include <memory>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,14 +54,18 @@ double SecondsSince(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
 
-// one model of the table, its modes labelled where it has shapes
+// one model of the table and its modes, each labelled (m, n)
 struct ExactRow {
   std::string rung, grid;
   double band_hz{0.0};  // what the rung is compared up to
   int64_t dofs{0};
   double seconds{0.0};
-  std::vector<double> frequencies_hz;
-  std::optional<std::vector<solid::LabelledMode>> labelled;
+  std::vector<solid::LabelledMode> labelled;
+  std::vector<double> FrequenciesHz() const {
+    std::vector<double> f;
+    for (const solid::LabelledMode& m : labelled) f.push_back(m.frequency_hz);
+    return f;
+  }
 };
 
 // a (rows x columns) grid component, zero where a DOF is absent or held
@@ -86,7 +89,7 @@ std::array<ExactRow, 2> ShellRows(const SonicBoomConfig& config, double arc_m, d
   shell.axial_spacing_m = axial_m;
   const auto t0 = Clock::now();
   const acoustics::ShellModel model(config.tube, config.material, shell);
-  const acoustics::ShellModes modes = acoustics::CachedShellModes(
+  acoustics::ShellModes modes = acoustics::CachedShellModes(
       model, kSolveMargin * band_hz, 0, true, config.acoustics.ModeCacheDir());
   const double seconds = SecondsSince(t0);
   const int rows = model.axial_points(), cols = model.circumferential_points();
@@ -99,31 +102,30 @@ std::array<ExactRow, 2> ShellRows(const SonicBoomConfig& config, double arc_m, d
   const int64_t max_m = std::min(40, rows - 2), max_n = std::min(30, (cols - 1) / 2);
   std::vector<int64_t> all(static_cast<size_t>(model.dofs()));
   for (size_t d = 0; d < all.size(); ++d) all[d] = static_cast<int64_t>(d);
-  const Eigen::VectorXd factors =
-      acoustics::ThickPlateFrequencyFactors(model, acoustics::ModeRows::Of(modes, all));
+  // every DOF's row: the shapes move in whole (ModeRows::Of would copy them)
+  const acoustics::ModeRows rows_of_all{modes.omega_rad_s, modes.rigid_body_modes, std::move(all),
+                                        std::move(modes.shapes)};
+  const Eigen::MatrixXd& shapes = rows_of_all.shapes;  // (dofs x modes)
+  const Eigen::VectorXd factors = acoustics::ThickPlateFrequencyFactors(model, rows_of_all);
   std::array<ExactRow, 2> out;
   const std::string grid = fmt::format("shell, {:.1f} x {:.1f} mm", 1e3 * arc_m, 1e3 * axial_m);
-  out[0] = {"thin (as solved; FD integrates this K)", grid, band_hz, model.dofs(), seconds, {}, {}};
-  out[1] = {"thick-plate", grid, band_hz, model.dofs(), seconds, {}, {}};
-  out[0].labelled.emplace();
-  out[1].labelled.emplace();
+  out[0] = {"thin (as solved; FD integrates this K)", grid, band_hz, model.dofs(), seconds, {}};
+  out[1] = {"thick-plate", grid, band_hz, model.dofs(), seconds, {}};
   for (Eigen::Index k = 0; k < modes.omega_rad_s.size(); ++k) {
     std::array<solid::SurfaceComponent, 3> c{GridComponent(zw, thw), GridComponent(zw, thv),
                                              GridComponent(zu, thw)};
     for (int i = 0; i < rows; ++i) {
       for (int j = 0; j < cols; ++j) {
         const int64_t w = model.WIndex(i, j), v = model.VIndex(i, j), u = model.UIndex(i, j);
-        if (w >= 0) c[0].values(i, j) = modes.shapes(w, k);
-        if (v >= 0) c[1].values(i, j) = modes.shapes(v, k);
-        if (u >= 0) c[2].values(i, j) = modes.shapes(u, k);
+        if (w >= 0) c[0].values(i, j) = shapes(w, k);
+        if (v >= 0) c[1].values(i, j) = shapes(v, k);
+        if (u >= 0) c[2].values(i, j) = shapes(u, k);
       }
     }
     const solid::ModeLabel label = solid::LabelSimplySupportedMode(config.tube, c, max_m, max_n);
     const double f = modes.omega_rad_s(k) / (2 * kPi);
-    out[0].frequencies_hz.push_back(f);
-    out[1].frequencies_hz.push_back(f * factors(k));
-    out[0].labelled->push_back({f, label});
-    out[1].labelled->push_back({f * factors(k), label});
+    out[0].labelled.push_back({f, label});
+    out[1].labelled.push_back({f * factors(k), label});
   }
   return out;
 }
@@ -146,21 +148,17 @@ ExactRow SolidRow(const SonicBoomConfig& config, double element_m, double band_h
   ExactRow row{"reference solid",
                fmt::format("solid, h {:.1f} mm, p {}/{}", 1e3 * element_m, mesh.degree_wall,
                            mesh.degree_thickness),
-               band_hz, model.dofs(), SecondsSince(t0), {},
-               solid::LabelSolidModes(model, grid, modes)};
-  for (const solid::LabelledMode& m : *row.labelled) row.frequencies_hz.push_back(m.frequency_hz);
+               band_hz, model.dofs(), SecondsSince(t0), solid::LabelSolidModes(model, grid, modes)};
   return row;
 }
 
 // Flügge's thin shell: its (m, n, root) are labels by construction
 ExactRow FluggeRow(const SonicBoomConfig& config, double band_hz) {
-  ExactRow row{"closed form (Flügge)", "ideal simply supported tube", band_hz, 0, 0.0, {},
-               std::vector<solid::LabelledMode>{}};
+  ExactRow row{"closed form (Flügge)", "ideal simply supported tube", band_hz, 0, 0.0, {}};
   for (const acoustics::ShellMode& m :
        acoustics::SimplySupportedModes(config.tube, config.material, kSolveMargin * band_hz)) {
     for (int copy = 0; copy < (m.n == 0 ? 1 : 2); ++copy) {
-      row.frequencies_hz.push_back(m.frequency_hz);
-      row.labelled->push_back({m.frequency_hz, {m.m, m.n, 1.0}});
+      row.labelled.push_back({m.frequency_hz, {m.m, m.n, 1.0}});
     }
   }
   return row;
@@ -228,19 +226,14 @@ CommandResult RunExact(const GlobalOptions& g, const ExactOptions& o) {
   std::string notes;  // the exact modes each rung leaves unmatched by family
   for (const ExactRow& r : rows) {
     const double b_lo = std::min(lo, r.band_hz), b_hi = std::min(hi, r.band_hz);
-    const auto rank_lo = solid::CompareByRank(exact, r.frequencies_hz, b_lo);
-    const auto rank_hi = solid::CompareByRank(exact, r.frequencies_hz, b_hi);
-    solid::ExactComparison fam_lo, fam_hi;
-    if (r.labelled) {
-      fam_lo = solid::CompareByFamily(exact, *r.labelled, b_lo);
-      fam_hi = solid::CompareByFamily(exact, *r.labelled, b_hi);
-    }
+    const auto rank_lo = solid::CompareByRank(exact, r.FrequenciesHz(), b_lo);
+    const auto rank_hi = solid::CompareByRank(exact, r.FrequenciesHz(), b_hi);
+    const auto fam_lo = solid::CompareByFamily(exact, r.labelled, b_lo);
+    const auto fam_hi = solid::CompareByFamily(exact, r.labelled, b_hi);
     const bool has_hi = r.band_hz >= hi;
     double purity = 1.0;  // the least clear label below the band
-    if (r.labelled) {
-      for (const solid::LabelledMode& m : *r.labelled)
-        if (m.frequency_hz < b_hi) purity = std::min(purity, m.label.purity);
-    }
+    for (const solid::LabelledMode& m : r.labelled)
+      if (m.frequency_hz < b_hi) purity = std::min(purity, m.label.purity);
     md += fmt::format("| {} | {} | {:.0f} | {} / {} | {} | {} | {} | {} | {:.0f} |\n", r.rung,
                       r.grid, r.band_hz / 1000, rank_lo.model_count,
                       has_hi ? std::to_string(rank_hi.model_count) : "–", ComparisonCell(fam_lo),
