@@ -1,6 +1,7 @@
 #include "sonicboom/acoustics/shell.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <numbers>
@@ -52,6 +53,9 @@ void ShellConfig::Serialize(Archive* a) {
   a->Visit("hole_diameter_m", &hole_diameter_m, Bounds::Closed(0.0, 0.1));
   a->Visit("flange_mount_stiffness_n_m2", &flange_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
   a->Visit("tool_mount_stiffness_n_m2", &tool_mount_stiffness_n_m2, Bounds::Closed(0.0, 1e12));
+  a->Visit("attached_mass_kg", &attached_mass_kg, Bounds::Closed(0.0, 10.0));
+  a->Visit("attached_mass_z_m", &attached_mass_z_m);
+  a->Visit("attached_mass_theta_deg", &attached_mass_theta_deg, Bounds::Closed(-360.0, 360.0));
   a->Visit("damping", &damping);
   a->Visit("loss_exponent", &loss_exponent, Bounds{-1.0, 2.0, false, true});
   a->Visit("loss_reference_hz", &loss_reference_hz, Bounds::Open(0.0, 1e6));
@@ -103,6 +107,19 @@ void ShellConfig::Validate(const TubeConfig& tube) const {
     if (!(std::abs(z) <= half_length_m)) {
       throw ConfigError(fmt::format("shell.hole_z_m entry {} m lies off the tube (|z| <= {} m)", z,
                                     half_length_m));
+    }
+  }
+  if (attached_mass_z_m.size() != attached_mass_kg.size() ||
+      attached_mass_theta_deg.size() != attached_mass_kg.size()) {
+    throw ConfigError(fmt::format(
+        "shell.attached_mass_kg has {} entries, shell.attached_mass_z_m {} and "
+        "shell.attached_mass_theta_deg {}: one place per mass",
+        attached_mass_kg.size(), attached_mass_z_m.size(), attached_mass_theta_deg.size()));
+  }
+  for (double z : attached_mass_z_m) {
+    if (!(std::abs(z) <= half_length_m)) {
+      throw ConfigError(fmt::format(
+          "shell.attached_mass_z_m entry {} m lies off the tube (|z| <= {} m)", z, half_length_m));
     }
   }
   if (!(loss_high_hz > loss_low_hz)) {
@@ -234,6 +251,45 @@ DofNumbering NumberDofs(const GridLayout& g, double rho_h) {
   n.mass_kg =
       Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size()));
   return n;
+}
+
+// The attached masses lumped onto the grid: each mass shared bilinearly among the four points
+// of every field around it (w at nodes, u half a row up, v half a column over), the share of a
+// point in a hole given to the others, the share of a fixed point dropped (it does not move).
+// Throws ConfigError naming the entry when the mass sits in a hole (half its w share absent).
+void AddAttachedMasses(const GridLayout& g, DofNumbering* n) {
+  const ShellConfig& s = g.shell;
+  for (size_t k = 0; k < s.attached_mass_kg.size(); ++k) {
+    const double x = (s.attached_mass_z_m[k] + 0.5 * g.tube.length_m) / g.dz;
+    const double y = WrapAngle(s.attached_mass_theta_deg[k] * kPi / 180.0) / g.dth;
+    const auto share = [&](const std::vector<int64_t>& index, int rows, double i_offset,
+                           double j_offset) {
+      const double xf = x - i_offset, yf = y - j_offset;
+      const int i0 = std::clamp(static_cast<int>(std::floor(xf)), 0, rows - 2);
+      const double fx = std::clamp(xf - i0, 0.0, 1.0), fy = yf - std::floor(yf);
+      const int j0 = g.Wrap(static_cast<int>(std::floor(yf)));
+      // (dof or kAbsent / kFixed, weight) of the four points, and the absent share
+      std::array<std::pair<int64_t, double>, 4> points;
+      double absent = 0.0;
+      for (int c = 0; c < 4; ++c) {
+        const int di = c / 2, dj = c % 2;
+        const double wgt = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
+        points[c] = {index[static_cast<size_t>(i0 + di) * g.nth + g.Wrap(j0 + dj)], wgt};
+        if (points[c].first == kAbsent) absent += wgt;
+      }
+      for (const auto& [d, wgt] : points) {
+        if (d >= 0) n->mass_kg[d] += s.attached_mass_kg[k] * wgt / (1.0 - absent);
+      }
+      return absent;
+    };
+    if (share(n->w, g.nz + 1, 0.0, 0.0) > 0.5) {
+      throw ConfigError(fmt::format(
+          "shell.attached_mass entry {} (z = {} m, theta = {} deg) lies in a hole of the shell", k,
+          s.attached_mass_z_m[k], s.attached_mass_theta_deg[k]));
+    }
+    share(n->u, g.nz, 0.5, 0.0);
+    share(n->v, g.nz + 1, 0.0, 0.5);
+  }
 }
 
 // Strain samples of the energy: each row b_r with weight w_r adds w_r (b_r q)^2 / 2, so that
@@ -489,6 +545,7 @@ ShellModel::ShellModel(const TubeConfig& tube, const MaterialConfig& material,
   dz_m_ = grid.dz;
   dth_rad_ = grid.dth;
   DofNumbering dofs = NumberDofs(grid, material.density_kg_m3 * tube.wall_thickness_m);
+  AddAttachedMasses(grid, &dofs);
   // K from the shell's energy and the springs
   StrainRows rows(grid, dofs);
   AddShellEnergy(grid, material, tube.wall_thickness_m, &rows);

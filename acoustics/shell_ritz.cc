@@ -92,8 +92,9 @@ Eigen::MatrixXd ProjectSparse(const SpMat& a, const Eigen::MatrixXd& phi) {
 
 struct ShellRitzProjector::Impl {
   const ShellModel* base{nullptr};
-  Eigen::MatrixXd phi;    // (dofs x N) base shapes
-  Eigen::MatrixXf phi_f;  // the same in float, for the shapes of a variant
+  Eigen::MatrixXd phi;     // (dofs x N) base shapes
+  Eigen::MatrixXf phi_f;   // the same in float, for the shapes of a variant
+  Eigen::VectorXd omega2;  // (N) the base modes' omega^2, 1/s^2
   int64_t enrichment{0};
   // Phi^T X_i Phi of the three parts of K_shell(nu) = X1 / (1 - nu) + X2 / (1 + nu) + X3, (N x N)
   std::array<Eigen::MatrixXd, 3> reduced_part;
@@ -140,6 +141,7 @@ ShellRitzProjector::ShellRitzProjector(const ShellModel& base, const ShellModes&
   m.base = &base;
   m.phi = base_modes.shapes;
   m.phi_f = m.phi.cast<float>();
+  m.omega2 = base_modes.omega_rad_s.cwiseAbs2();
   m.enrichment = std::min<int64_t>(enrichment, m.phi.cols());
   // X3 (free edges) has few rows: projected directly. Phi^T K_base Phi = Lambda gives
   // X1 / (1 - nu0) + X2 / (1 + nu0) = Lambda - Phi^T (X3 + springs) Phi, so one projection (X2)
@@ -201,18 +203,78 @@ ModeRows ShellRitzProjector::Project(const ShellModel& varied, double max_freque
   return out;
 }
 
+namespace {
+
+// Refuses a variant the base's projections do not hold: another grid, or another wall (the
+// reduced stiffness parts were made for the base's geometry, modulus and density)
+void CheckRitzVariant(const ShellModel& base, const ShellModel& varied) {
+  const TubeConfig &bt = base.tube(), &vt = varied.tube();
+  const MaterialConfig &bm = base.material(), &vm = varied.material();
+  const ShellConfig &bs = base.shell(), &vs = varied.shell();
+  const bool same_layout = bs.grid_spacing_m == vs.grid_spacing_m &&
+                           bs.AxialSpacing() == vs.AxialSpacing() && bs.ends == vs.ends &&
+                           bs.ideal == vs.ideal && bs.seam_theta_deg == vs.seam_theta_deg &&
+                           bs.hole_z_m == vs.hole_z_m && bs.hole_theta_deg == vs.hole_theta_deg &&
+                           bs.hole_diameter_m == vs.hole_diameter_m;
+  if (!same_layout || varied.dofs() != base.dofs() || bt.outer_radius_m != vt.outer_radius_m ||
+      bt.wall_thickness_m != vt.wall_thickness_m || bt.length_m != vt.length_m ||
+      bm.youngs_modulus_pa != vm.youngs_modulus_pa || bm.density_kg_m3 != vm.density_kg_m3) {
+    throw ConfigError(fmt::format(
+        "a Ritz structure variant must keep the base grid and wall ({} DOFs against {}): "
+        "holes, seams, grid spacing, the tube's size, its modulus, density and wall thickness "
+        "need a full mode solve",
+        varied.dofs(), base.dofs()));
+  }
+}
+
+// Q_s^T diag(d) Q_s over the rows where d is nonzero (attached masses: a few DOFs), (k x k)
+Eigen::MatrixXd ProjectDiagonal(const Eigen::VectorXd& d, const Eigen::MatrixXd& phi,
+                                const Eigen::MatrixXd& x) {
+  const Eigen::Index k = phi.cols() + x.cols();
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(k, k);
+  Eigen::RowVectorXd q(k);
+  for (Eigen::Index r = 0; r < d.size(); ++r) {
+    if (d[r] == 0.0) continue;
+    q << phi.row(r), (x.cols() > 0 ? Eigen::RowVectorXd(x.row(r)) : Eigen::RowVectorXd(0));
+    out.noalias() += d[r] * q.transpose() * q;
+  }
+  return out;
+}
+
+// Static corrections K_v^-1 r_k of the lowest base modes to the variant's residual
+// r_k = (dK - omega_k^2 dM) phi_k, M-orthonormal and M-orthogonal to Phi (base mass); none when
+// nothing changed or K_v cannot be factored
+Eigen::MatrixXd StaticCorrections(const ShellRitzProjector::Impl& m, const SpMat& kv,
+                                  const SpMat& dk, const Eigen::VectorXd& dm) {
+  const bool stiffer = dk.norm() > 0.0, heavier = !dm.isZero(0.0);
+  if (m.enrichment <= 0 || (!stiffer && !heavier)) return {};
+  const Eigen::SimplicialLDLT<SpMat> ldlt(kv);
+  if (ldlt.info() != Eigen::Success) return {};
+  const Eigen::MatrixXd phi = m.phi.leftCols(m.enrichment);  // (dofs x e)
+  Eigen::MatrixXd residual = dk * phi;
+  if (heavier) {
+    residual -= dm.asDiagonal() * (phi * m.omega2.head(m.enrichment).asDiagonal());
+  }
+  Eigen::MatrixXd x = ldlt.solve(residual);
+  // twice, for round-off: orthogonal to the base modes, then orthonormal among themselves
+  const Eigen::VectorXd& mass = m.base->mass_kg();
+  for (int pass = 0; pass < 2; ++pass) {
+    DeflateAgainst(m.phi, mass, &x);
+    x = MassOrthonormal(x, mass, 1e-10);
+  }
+  return x;
+}
+
+}  // namespace
+
 RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& varied,
                        double max_frequency_hz) {
   const ShellModel& base = *m.base;
-  if (varied.dofs() != base.dofs() || !(varied.mass_kg() - base.mass_kg()).isZero(0.0)) {
-    throw ConfigError(fmt::format(
-        "a Ritz structure variant must keep the base grid and mass ({} DOFs against {}): "
-        "holes, seams, grid spacing, density and wall thickness need a full mode solve",
-        varied.dofs(), base.dofs()));
-  }
-  const Eigen::VectorXd& mass = base.mass_kg();
+  CheckRitzVariant(base, varied);
   const SpMat& kv = varied.stiffness();
   const double nu = varied.material().poisson_ratio;
+  // (dofs) the variant's added mass (attached masses), kg
+  const Eigen::VectorXd dm = varied.mass_kg() - base.mass_kg();
 
   // Phi^T K_v Phi: the shell at nu from its three parts, plus the variant's springs
   const std::array<double, 3> f = PoissonFactors(nu);
@@ -224,21 +286,10 @@ RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& vari
   springs.prune(tiny, 1.0);
   k_pp += ProjectSparse(springs, m.phi);
 
-  // static corrections of the lowest base modes to the stiffness change
-  Eigen::MatrixXd x;
+  // static corrections of the lowest base modes to the stiffness and mass change
   SpMat dk = kv - base.stiffness();
   dk.prune(tiny, 1.0);
-  if (m.enrichment > 0 && dk.norm() > 0.0) {
-    Eigen::SimplicialLDLT<SpMat> ldlt(kv);
-    if (ldlt.info() == Eigen::Success) {
-      x = ldlt.solve(Eigen::MatrixXd(dk * m.phi.leftCols(m.enrichment)));
-      // twice, for round-off: orthogonal to the base modes, then orthonormal among themselves
-      for (int pass = 0; pass < 2; ++pass) {
-        DeflateAgainst(m.phi, mass, &x);
-        x = MassOrthonormal(x, mass, 1e-10);
-      }
-    }
-  }
+  Eigen::MatrixXd x = StaticCorrections(m, kv, dk, dm);
   const Eigen::Index n = m.phi.cols(), e = x.cols();
 
   // the reduced problem on Q = [Phi, X] (M-orthonormal): [K_pp, K_px; K_xp, K_xx]
@@ -251,11 +302,28 @@ RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& vari
     reduced.bottomRightCorner(e, e) = x.transpose() * kx;
   }
   reduced = 0.5 * (reduced + reduced.transpose()).eval();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(reduced);
-  if (eig.info() != Eigen::Success) {
+  // the reduced mass is I, or I + Q^T dM Q with attached masses: a generalized problem whose
+  // eigenvectors come out normalized to it (shapes Q y mass-normalized for the variant)
+  Eigen::VectorXd lambda;
+  Eigen::MatrixXd vectors;
+  bool converged = false;
+  if (dm.isZero(0.0)) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(reduced);
+    converged = eig.info() == Eigen::Success;
+    lambda = eig.eigenvalues();
+    vectors = eig.eigenvectors();
+  } else {
+    Eigen::MatrixXd reduced_mass = ProjectDiagonal(dm, m.phi, x);
+    reduced_mass.diagonal().array() += 1.0;
+    reduced_mass = 0.5 * (reduced_mass + reduced_mass.transpose()).eval();
+    const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(reduced, reduced_mass);
+    converged = eig.info() == Eigen::Success;
+    lambda = eig.eigenvalues();
+    vectors = eig.eigenvectors();
+  }
+  if (!converged) {
     throw NumericalError("the Ritz eigenproblem of a structure variant did not converge");
   }
-  const Eigen::VectorXd& lambda = eig.eigenvalues();
 
   // the elastic modes of the band
   const double lo = std::pow(2.0 * std::numbers::pi * kRigidBodyHz, 2);
@@ -273,7 +341,7 @@ RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& vari
   out.y.resize(n + e, kept);
   out.omega_rad_s.resize(kept);
   for (Eigen::Index j = 0; j < kept; ++j) {
-    out.y.col(j) = eig.eigenvectors().col(keep[static_cast<size_t>(j)]);
+    out.y.col(j) = vectors.col(keep[static_cast<size_t>(j)]);
     out.omega_rad_s[j] = std::sqrt(lambda[keep[static_cast<size_t>(j)]]);
   }
   out.x = std::move(x);

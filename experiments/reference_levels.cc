@@ -15,6 +15,13 @@ solid::SolidStructure ReferenceStructure(const acoustics::ShellConfig& shell, Tu
                                          bool ideal) {
   solid::SolidStructure s;
   s.ends = ends;
+  // the solid has no lumped masses: a tube with them would be rendered without them
+  if (!shell.attached_mass_kg.empty()) {
+    throw ConfigError(fmt::format(
+        "shell.attached_mass_kg: the reference solid carries no attached masses ({} set); "
+        "render a tube with them by the shell rungs",
+        shell.attached_mass_kg.size()));
+  }
   if (ideal || shell.ideal) return s;
   s.seam_theta_deg = shell.seam_theta_deg;
   s.bolt_z_m = shell.bolt_z_m;

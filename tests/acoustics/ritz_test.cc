@@ -82,6 +82,40 @@ TEST(RitzTest, BoltsMountsAndPoissonMatchAFullSolve) {
   }
 }
 
+TEST(RitzTest, AttachedMassesMatchAFullSolve) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  const ShellModel base(tube, material, Coarse());
+  const ShellModes base_modes = SolveShellModes(base, 12000.0, 0, true);
+  // a 30 g connector near the flange, a 10 g cable clamp mid-tube, 2 g on each of two discs,
+  // and a tighter bolt row (stiffness and mass change together)
+  ShellConfig s = Coarse();
+  s.attached_mass_kg = {0.03, 0.01, 0.002, 0.002};
+  s.attached_mass_z_m = {-0.12, 0.02, -0.13, 0.13};
+  s.attached_mass_theta_deg = {60.0, -150.0, 0.0, 120.0};
+  s.bolt_stiffness_n_m = 6.0e6;
+  const ShellModel varied(tube, material, s);
+  // the masses are all there: 44 g more in each of the three directions
+  EXPECT_NEAR(varied.mass_kg().sum() - base.mass_kg().sum(), 3.0 * 0.044, 1e-12);
+  const ShellModes exact = SolveShellModes(varied, 8000.0, 0, true);
+  const ShellModes ritz = RitzShellModes(base, base_modes, varied, 8000.0);
+  // mass-normalized for the variant's own mass
+  const Eigen::MatrixXd gram =
+      ritz.shapes.transpose() * varied.mass_kg().asDiagonal() * ritz.shapes;
+  EXPECT_LT((gram - Eigen::MatrixXd::Identity(gram.rows(), gram.cols())).cwiseAbs().maxCoeff(),
+            1e-8);
+  const double moved = WorstFrequencyError(base_modes, exact, 5000.0);
+  const double err = WorstFrequencyError(ritz, exact, 5000.0);
+  std::cout << "base vs massed: " << moved << ", Ritz vs massed: " << err << " (modes < 5 kHz)\n";
+  EXPECT_GT(moved, 0.01);
+  EXPECT_LT(err, 0.2 * moved);
+  EXPECT_LT(err, 0.01);
+  EXPECT_GT(WorstShapeMatch(ritz, exact, varied.mass_kg(), 5000.0), 0.97);
+  for (Eigen::Index k = 0; k < std::min<Eigen::Index>(20, exact.omega_rad_s.size()); ++k) {
+    EXPECT_GE(ritz.omega_rad_s[k], exact.omega_rad_s[k] * (1.0 - 1e-9)) << k;
+  }
+}
+
 TEST(RitzTest, RefusesAnotherGrid) {
   const TubeConfig tube;
   const MaterialConfig material;
@@ -98,6 +132,14 @@ TEST(RitzTest, RefusesAnotherGrid) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("full mode solve"), std::string::npos) << e.what();
   }
+  // the same grid with a thicker wall: the projections were made for the base's wall
+  TubeConfig thick = tube;
+  thick.wall_thickness_m *= 1.1;
+  const ShellModel walled(thick, material, Coarse());
+  ASSERT_EQ(walled.dofs(), base.dofs());
+  const std::string refusal = testing::ThrownMessage<ConfigError>(
+      [&] { RitzShellModes(base, base_modes, walled, 3000.0); });
+  EXPECT_NE(refusal.find("wall thickness"), std::string::npos) << refusal;
 }
 
 TEST(RitzTest, CacheReadsBackWhatItWrote) {

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "common/test_util.h"
 #include "sonicboom/acoustics/cylinder_modes.h"
 #include "sonicboom/acoustics/shell.h"
 #include "sonicboom/acoustics/shell_bank.h"
@@ -28,6 +29,7 @@
 namespace sonicboom::acoustics {
 namespace {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 
 using sonicboom::kPi;
@@ -240,6 +242,12 @@ TEST(ShellModelTest, CacheKeyFollowsEveryFieldThatSetsAModeAndNoOther) {
   EXPECT_NE(key_with([](T&, M&, S& s) { s.bolt_model = BoltModel::kTie; }), base);
   EXPECT_NE(key_with([](T&, M&, S& s) { s.hole_diameter_m = 0.005; }), base);
   EXPECT_NE(key_with([](T&, M&, S& s) { s.tool_mount_stiffness_n_m2 = 2e6; }), base);
+  EXPECT_NE(key_with([](T&, M&, S& s) {
+              s.attached_mass_kg = {0.01};
+              s.attached_mass_z_m = {0.0};
+              s.attached_mass_theta_deg = {30.0};
+            }),
+            base);
   EXPECT_EQ(key_with([](T&, M& m, S&) { m.loss_factor = 0.05; }), base);
   EXPECT_EQ(key_with([](T& t, M&, S&) { t.contact_z_max_m = 0.09; }), base);
   EXPECT_EQ(key_with([](T&, M&, S& s) {
@@ -273,6 +281,46 @@ TEST(ShellModelTest, BadSettingsAreConfigErrors) {
   s.hole_z_m = {0.5};
   s.hole_theta_deg = {0.0};
   EXPECT_THROW(ShellModel(tube, material, s), ConfigError);
+}
+
+// an attached mass lands on the grid points around it: the total is kept (none on a fixed
+// point), split among w, u and v alike, nearer points getting more; one in a hole, off the tube
+// or without its place is refused naming the key
+TEST(ShellModelTest, AttachedMassesLandAroundTheirPlace) {
+  const TubeConfig tube;
+  const MaterialConfig material;
+  ShellConfig coarse;
+  coarse.grid_spacing_m = 0.01;
+  coarse.axial_spacing_m = 0.01;
+  const ShellModel bare(tube, material, coarse);
+  ShellConfig s = coarse;
+  s.attached_mass_kg = {0.02};
+  s.attached_mass_z_m = {bare.NodeZ(10) + 0.25 * bare.dz_m()};  // a quarter step above row 10
+  s.attached_mass_theta_deg = {5.0 * bare.dtheta_rad() * 180.0 / kPi};  // on column 5
+  const ShellModel massed(tube, material, s);
+  ASSERT_EQ(massed.dofs(), bare.dofs());
+  const Eigen::VectorXd added = massed.mass_kg() - bare.mass_kg();
+  EXPECT_NEAR(added.sum(), 3.0 * 0.02, 1e-12);  // it moves radially, axially and around
+  EXPECT_NEAR(added[massed.WIndex(10, 5)], 0.75 * 0.02, 1e-12);
+  EXPECT_NEAR(added[massed.WIndex(11, 5)], 0.25 * 0.02, 1e-12);
+  EXPECT_NEAR(added[massed.WIndex(10, 6)], 0.0, 1e-12);
+  EXPECT_NEAR(added[massed.UIndex(10, 5)], 0.75 * 0.02, 1e-12);  // u at row 10.5
+  EXPECT_NEAR(added[massed.VIndex(10, 4)] + added[massed.VIndex(10, 5)], 0.75 * 0.02, 1e-12);
+  // in a hole (the default cable holes: 6 mm at z = +-0.146 m beside the discs)
+  ShellConfig holed;
+  holed.attached_mass_kg = {0.01};
+  holed.attached_mass_z_m = {0.146};
+  holed.attached_mass_theta_deg = {120.0};
+  const auto refusal = [&] {
+    return sonicboom::testing::ThrownMessage<ConfigError>(
+        [&] { ShellModel m(tube, material, holed); });
+  };
+  EXPECT_THAT(refusal(), AllOf(HasSubstr("shell.attached_mass entry 0"), HasSubstr("hole")));
+  holed.attached_mass_z_m = {0.2};
+  EXPECT_THAT(refusal(), AllOf(HasSubstr("shell.attached_mass_z_m"), HasSubstr("off the tube")));
+  holed.attached_mass_z_m = {};
+  EXPECT_THAT(refusal(),
+              AllOf(HasSubstr("shell.attached_mass_kg"), HasSubstr("one place per mass")));
 }
 
 // a derived grid keeps 8 points per flexural wavelength at the top of the band: the wavelength

@@ -87,6 +87,12 @@ struct ShellConfig {
   double hole_diameter_m{0.006};              // cable holes beside the discs
   double flange_mount_stiffness_n_m2{5.0e6};  // springs to ground per metre of the flange-end rim
   double tool_mount_stiffness_n_m2{1.0e6};    // the same at the tool end (cap)
+  // point masses on the wall (a connector, a cable clamp, a disc with its epoxy and leads): each
+  // moves with the wall where it sits (lumped onto the w, u and v points around it); no
+  // stiffness of its own, no rotary inertia. Entries pair up by index.
+  std::vector<double> attached_mass_kg;
+  std::vector<double> attached_mass_z_m;  // tube frame
+  std::vector<double> attached_mass_theta_deg;
   // loss, eta(f) = 2 zeta(f). law: every mode of the modal rung has the loss of the law
   // eta(f) = material.loss_factor (f / loss_reference_hz)^loss_exponent (0: constant eta, PVC's
   // nearly flat loss); the FD rung, whose damping matrix is C = alpha M + beta K, uses the

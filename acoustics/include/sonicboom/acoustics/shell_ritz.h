@@ -1,13 +1,16 @@
 #pragma once
 /// Modes of a varied structure without a new eigensolve: a Rayleigh-Ritz projection of the varied
-/// stiffness onto the base structure's modes, enriched by static corrections. A variant must share
-/// the base's grid, degrees of freedom and mass: bolts (count, positions, stiffness), mounts and
-/// Poisson's ratio may change; holes, seams, grid, density and thickness need a full solve.
+/// stiffness and mass onto the base structure's modes, enriched by static corrections. A variant
+/// must share the base's grid, degrees of freedom and wall: bolts (count, positions, stiffness),
+/// mounts, Poisson's ratio and attached masses may change; holes, seams, grid, the tube's size,
+/// modulus, density and thickness need a full solve.
 ///
 /// Basis: the base modes Phi (dofs x N, mass-normalized) and, for the lowest `enrichment` of
-/// them, the static response K_v^-1 (K_v - K) phi_k of the variant to the stiffness change (the
-/// first-order shape correction in its quasi-static limit), made M-orthonormal and M-orthogonal
-/// to Phi. The reduced problem Q^T K_v Q y = omega^2 y is solved densely; the shapes are Q y.
+/// them, the static response K_v^-1 (dK - omega_k^2 dM) phi_k of the variant to its stiffness
+/// and mass change (the first-order shape correction in its quasi-static limit), made
+/// M-orthonormal and M-orthogonal to Phi under the base mass M. The reduced problem
+/// Q^T K_v Q y = omega^2 Q^T M_v Q y (Q^T M_v Q = I + Q^T dM Q: the identity when no mass is
+/// added) is solved densely; the shapes Q y are mass-normalized for the variant.
 ///
 /// Cost: the shell's stiffness depends on Poisson's ratio only through three factors,
 /// K_shell(nu) = X1 / (1 - nu) + X2 / (1 + nu) + X3 (membrane and bending pair energies, shear and
@@ -42,7 +45,7 @@ class ShellRitzProjector {
   ShellRitzProjector& operator=(const ShellRitzProjector&) = delete;
 
   /// The variant's elastic modes up to max_frequency_hz (ascending, mass-normalized shapes,
-  /// dofs x modes). Throws ConfigError when the variant differs from the base in DOFs or mass.
+  /// dofs x modes). Throws ConfigError when the variant differs from the base in DOFs or wall.
   ShellModes Project(const ShellModel& varied, double max_frequency_hz) const;
   /// The same with the shapes at `rows` only (computed in single precision).
   ModeRows Project(const ShellModel& varied, double max_frequency_hz,
