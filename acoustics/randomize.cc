@@ -5,9 +5,11 @@
 #include <cmath>
 #include <functional>
 #include <numbers>
+#include <utility>
 
 #include <fmt/format.h>
 
+#include "sonicboom/core/constants.h"
 #include "sonicboom/core/errors.h"
 #include "sonicboom/core/rng.h"
 
@@ -113,6 +115,10 @@ void RandomizeConfig::Serialize(Archive* a) {
   a->Visit("flange_mount_scale", &flange_mount_scale, {0.0, 1e4, true, false});
   a->Visit("tool_mount_scale", &tool_mount_scale, {0.0, 1e4, true, false});
   a->Visit("poisson_ratio", &poisson_ratio, {0.0, 0.5, true, true});
+  a->Visit("attached_mass_count", &attached_mass_count,
+           Bounds::Closed(0, static_cast<double>(kMaxAttachedMasses)));
+  a->Visit("attached_mass_kg", &attached_mass_kg, {0.0, 1.0, true, false});
+  a->Visit("disc_mass_kg", &disc_mass_kg, Bounds::Closed(0.0, 0.1));
   a->Visit("reference_fraction", &reference_fraction, Bounds::Closed(0.0, 1.0));
   a->Visit("reference_max_frequency_hz", &reference_max_frequency_hz,
            {100.0, 40000.0, true, false});
@@ -144,7 +150,10 @@ std::vector<NamedRange> StructureRanges(const RandomizeConfig& c) {
           {"bolt_stiffness_scale", &c.bolt_stiffness_scale},
           {"flange_mount_scale", &c.flange_mount_scale},
           {"tool_mount_scale", &c.tool_mount_scale},
-          {"poisson_ratio", &c.poisson_ratio}};
+          {"poisson_ratio", &c.poisson_ratio},
+          {"attached_mass_count", &c.attached_mass_count},
+          {"attached_mass_kg", &c.attached_mass_kg},
+          {"disc_mass_kg", &c.disc_mass_kg}};
 }
 
 void CheckRange(const char* name, const std::vector<double>& r) {
@@ -212,11 +221,18 @@ void RandomizeConfig::Validate() const {
                       r.name));
     }
   }
-  for (const double n : bolt_count) {
-    if (n != std::floor(n)) {
-      throw ConfigError(
-          fmt::format("randomize.bolt_count = {}: a count of bolts is a whole number", n));
+  for (const auto& [name, range] : {std::pair{"bolt_count", &bolt_count},
+                                    std::pair{"attached_mass_count", &attached_mass_count}}) {
+    for (const double n : *range) {
+      if (n != std::floor(n)) {
+        throw ConfigError(fmt::format("randomize.{} = {}: a count is a whole number", name, n));
+      }
     }
+  }
+  if (attached_mass_count.empty() != attached_mass_kg.empty()) {
+    throw ConfigError(
+        "randomize.attached_mass_count and randomize.attached_mass_kg go together: how many "
+        "masses and how heavy each is");
   }
   ValidateBuild(*this);
   // the modulus must stay positive over the temperature range
@@ -275,6 +291,59 @@ bool RandomizeConfig::mic_placement() const {
   return false;
 }
 
+namespace {
+
+// A place on the wall clear of the holes: one within a hole's diameter of a hole's centre is
+// moved a diameter and a half towards the tube's middle
+std::pair<double, double> ClearOfHoles(const StructureBase& base, double z_m, double theta_deg) {
+  const ShellConfig& s = base.shell;
+  const double r = base.tube.mid_radius_m(), d = s.hole_diameter_m;
+  for (size_t k = 0; k < s.hole_z_m.size(); ++k) {
+    const double arc = r * std::abs(WrapAngle((theta_deg - s.hole_theta_deg[k]) * kDeg));
+    if (std::hypot(z_m - s.hole_z_m[k], arc) < d) z_m -= std::copysign(1.5 * d, s.hole_z_m[k]);
+  }
+  return {z_m, theta_deg};
+}
+
+// The attached masses of a variant, after every other structure draw: the count, then per slot
+// (drawn whether the mass exists or not) its mass, z and theta, then each disc's load
+void DrawAttachedMasses(const RandomizeConfig& config, const StructureBase& base, Rng* rng,
+                        StructureVariant* out) {
+  ShellConfig& shell = out->shell;
+  const double u_count = rng->Uniform();
+  const int64_t count =
+      config.attached_mass_count.empty() ? 0 : WholeDraw(config.attached_mass_count, u_count);
+  const double half_m = 0.5 * base.tube.length_m - 0.005;  // a mass's centre 5 mm inside the ends
+  double attached_kg = 0.0;
+  for (int64_t k = 0; k < kMaxAttachedMasses; ++k) {
+    const double u_mass = rng->Uniform(), u_z = rng->Uniform(), u_theta = rng->Uniform();
+    if (k >= count) continue;
+    const double kg = Draw(config.attached_mass_kg, Law::kLogUniform, u_mass);
+    const auto [z, theta] = ClearOfHoles(base, half_m * (2.0 * u_z - 1.0), 360.0 * u_theta - 180.0);
+    shell.attached_mass_kg.push_back(kg);
+    shell.attached_mass_z_m.push_back(z);
+    shell.attached_mass_theta_deg.push_back(theta);
+    attached_kg += kg;
+  }
+  if (!config.attached_mass_count.empty()) {
+    out->values.push_back(static_cast<double>(count));
+    out->values.push_back(attached_kg);
+  }
+  double disc_kg = 0.0;
+  for (int c = 0; c < base.mics.count(); ++c) {
+    const double u = rng->Uniform();
+    if (config.disc_mass_kg.empty()) continue;
+    const double kg = Draw(config.disc_mass_kg, Law::kUniform, u);
+    shell.attached_mass_kg.push_back(kg);
+    shell.attached_mass_z_m.push_back(base.mics.z_m[static_cast<size_t>(c)]);
+    shell.attached_mass_theta_deg.push_back(base.mics.theta_deg[static_cast<size_t>(c)]);
+    disc_kg += kg;
+  }
+  if (!config.disc_mass_kg.empty()) out->values.push_back(disc_kg / base.mics.count());
+}
+
+}  // namespace
+
 std::vector<std::string> StructureValueNames(const RandomizeConfig& config) {
   std::vector<std::string> names;
   if (!config.structure()) return names;
@@ -285,11 +354,12 @@ std::vector<std::string> StructureValueNames(const RandomizeConfig& config) {
   return names;
 }
 
-StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig& base_shell,
-                               double base_poisson_ratio, uint64_t global_seed, int64_t variant) {
+StructureVariant DrawStructure(const RandomizeConfig& config, const StructureBase& base,
+                               uint64_t global_seed, int64_t variant) {
+  const ShellConfig& base_shell = base.shell;
   StructureVariant out;
   out.shell = base_shell;
-  out.poisson_ratio = base_poisson_ratio;
+  out.poisson_ratio = base.poisson_ratio;
   out.values.push_back(static_cast<double>(variant));
   // the variant's own stream: sample seeds count down from the top of the index space
   Rng rng(SampleSeed(global_seed, ~uint64_t{0} - 1024 - static_cast<uint64_t>(variant)),
@@ -340,6 +410,7 @@ StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig&
     out.poisson_ratio = nu;
     out.values.push_back(nu);
   }
+  DrawAttachedMasses(config, base, &rng, &out);
   return out;
 }
 

@@ -204,8 +204,8 @@ void ModalRenderer::BuildPool(const ShellModes& base_modes, double placement_mar
   const std::string cache = c_.synth.ModeCacheDir();
   // each variant alone: its draws, its shell, Ritz modes to the base band, its bank
   tbb::parallel_for(int64_t{0}, count, [&](int64_t v) {
-    const StructureVariant draw =
-        DrawStructure(c_.randomize, c_.shell, c_.material.poisson_ratio, c_.seed, v);
+    const StructureVariant draw = DrawStructure(
+        c_.randomize, {c_.tube, c_.shell, c_.mics, c_.material.poisson_ratio}, c_.seed, v);
     MaterialConfig material = c_.material;
     material.poisson_ratio = draw.poisson_ratio;
     Variant& out = pool_[static_cast<size_t>(v)];

@@ -124,8 +124,8 @@ CommandResult RunVariants(const GlobalOptions& g, int64_t check, const std::stri
   json rows = json::array();
   double ritz_total_s = 0.0;
   for (int64_t v = 0; v < r.structure_variants; ++v) {
-    const acoustics::StructureVariant draw =
-        acoustics::DrawStructure(r, config.shell, config.material.poisson_ratio, config.seed, v);
+    const acoustics::StructureVariant draw = acoustics::DrawStructure(
+        r, {config.tube, config.shell, config.mics, config.material.poisson_ratio}, config.seed, v);
     MaterialConfig material = config.material;
     material.poisson_ratio = draw.poisson_ratio;
     const acoustics::ShellModel varied(config.tube, material, draw.shell);

@@ -3,6 +3,7 @@
 // corners as drawn.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <set>
@@ -420,11 +421,14 @@ TEST(RandomizeStructureTest, VariantsFollowTheSeedAndTheRanges) {
   c.bolt_stiffness_scale = {0.1, 10.0};
   c.flange_mount_scale = {0.2, 5.0};
   c.poisson_ratio = {0.35, 0.42};
-  const ShellConfig base;
+  const TubeConfig tube;
+  const ShellConfig shell;
+  const MicArrayConfig mics;
+  const StructureBase base{tube, shell, mics, 0.38};
   std::set<size_t> counts;
   for (int64_t v = 0; v < c.structure_variants; ++v) {
-    const StructureVariant a = DrawStructure(c, base, 0.38, 7, v);
-    const StructureVariant b = DrawStructure(c, base, 0.38, 7, v);
+    const StructureVariant a = DrawStructure(c, base, 7, v);
+    const StructureVariant b = DrawStructure(c, base, 7, v);
     EXPECT_EQ(a.shell.bolt_z_m, b.shell.bolt_z_m);
     EXPECT_EQ(a.values, b.values);
     ASSERT_EQ(a.values.size(), StructureValueNames(c).size());
@@ -441,11 +445,11 @@ TEST(RandomizeStructureTest, VariantsFollowTheSeedAndTheRanges) {
     }
     EXPECT_GE(a.poisson_ratio, 0.35);
     EXPECT_LE(a.poisson_ratio, 0.42);
-    EXPECT_NEAR(a.shell.tool_mount_stiffness_n_m2, base.tool_mount_stiffness_n_m2, 0.0);
+    EXPECT_NEAR(a.shell.tool_mount_stiffness_n_m2, shell.tool_mount_stiffness_n_m2, 0.0);
   }
   EXPECT_GE(counts.size(), 3u);  // the counts spread over the range
   // another global seed, another pool
-  EXPECT_NE(DrawStructure(c, base, 0.38, 8, 0).values, DrawStructure(c, base, 0.38, 7, 0).values);
+  EXPECT_NE(DrawStructure(c, base, 8, 0).values, DrawStructure(c, base, 7, 0).values);
   // a sample picks a variant in range, and the placement draws per channel
   c.mic_z_offset_m = {-0.002, 0.002};
   c.disc_diameter_m = {0.015, 0.025};
@@ -503,12 +507,87 @@ TEST(RandomizeStructureTest, MovedDiscsRenderAsABankBuiltForThem) {
   }
 }
 
+// attached masses are drawn after every other structure draw: turning them on leaves the bolts,
+// mounts and Poisson's ratio of every variant as they were, and adds the count, the masses in
+// range at places on the wall clear of the holes, and a load at each disc's mark
+TEST(RandomizeStructureTest, AttachedMassesLeaveTheOtherDrawsAsTheyWere) {
+  RandomizeConfig c;
+  c.structure_variants = 16;
+  c.bolt_count = {2, 5};
+  c.bolt_stiffness_scale = {0.1, 10.0};
+  c.poisson_ratio = {0.35, 0.42};
+  RandomizeConfig massed = c;
+  massed.attached_mass_count = {1, 4};
+  massed.attached_mass_kg = {0.002, 0.03};
+  massed.disc_mass_kg = {0.0005, 0.002};
+  massed.Validate();
+  const TubeConfig tube;
+  const ShellConfig shell;
+  const MicArrayConfig mics;
+  const StructureBase base{tube, shell, mics, 0.38};
+  const std::vector<std::string> names = StructureValueNames(massed);
+  ASSERT_EQ(names.size(), StructureValueNames(c).size() + 3);
+  EXPECT_EQ(names.back(), "disc_mass_kg");
+  std::set<int64_t> counts;
+  for (int64_t v = 0; v < c.structure_variants; ++v) {
+    const StructureVariant a = DrawStructure(c, base, 7, v);
+    const StructureVariant b = DrawStructure(massed, base, 7, v);
+    EXPECT_EQ(a.shell.bolt_z_m, b.shell.bolt_z_m);
+    EXPECT_EQ(a.shell.bolt_stiffness_scale, b.shell.bolt_stiffness_scale);
+    EXPECT_EQ(a.poisson_ratio, b.poisson_ratio);
+    ASSERT_EQ(b.values.size(), names.size());
+    EXPECT_TRUE(std::equal(a.values.begin(), a.values.end(), b.values.begin()));
+    EXPECT_TRUE(a.shell.attached_mass_kg.empty());
+    const auto count = static_cast<int64_t>(b.values[a.values.size()]);
+    counts.insert(count);
+    ASSERT_GE(count, 1);
+    ASSERT_LE(count, 4);
+    ASSERT_EQ(b.shell.attached_mass_kg.size(), static_cast<size_t>(count) + 6);
+    double total = 0.0;
+    for (int64_t k = 0; k < count; ++k) {
+      const double kg = b.shell.attached_mass_kg[static_cast<size_t>(k)];
+      const double z = b.shell.attached_mass_z_m[static_cast<size_t>(k)];
+      EXPECT_GE(kg, 0.002);
+      EXPECT_LE(kg, 0.03);
+      EXPECT_LE(std::abs(z), 0.5 * tube.length_m - 0.005);
+      total += kg;
+      for (size_t h = 0; h < shell.hole_z_m.size(); ++h) {
+        const double arc = tube.mid_radius_m() *
+                           std::abs(WrapAngle((b.shell.attached_mass_theta_deg[k] -
+                                               shell.hole_theta_deg[h]) * kDeg));
+        EXPECT_GE(std::hypot(z - shell.hole_z_m[h], arc), shell.hole_diameter_m) << v << " " << k;
+      }
+    }
+    EXPECT_NEAR(b.values[a.values.size() + 1], total, 1e-15);
+    for (int d = 0; d < 6; ++d) {
+      const size_t k = static_cast<size_t>(count + d);
+      EXPECT_EQ(b.shell.attached_mass_z_m[k], mics.z_m[d]);
+      EXPECT_EQ(b.shell.attached_mass_theta_deg[k], mics.theta_deg[d]);
+      EXPECT_GE(b.shell.attached_mass_kg[k], 0.0005);
+      EXPECT_LE(b.shell.attached_mass_kg[k], 0.002);
+    }
+  }
+  EXPECT_GE(counts.size(), 3u);
+  // a count without masses, or a fractional count, is refused naming the key
+  RandomizeConfig bad = c;
+  bad.attached_mass_count = {0, 3};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { bad.Validate(); }),
+                    "randomize.attached_mass_kg"));
+  bad.attached_mass_kg = {0.001, 0.01};
+  bad.attached_mass_count = {0, 2.5};
+  EXPECT_TRUE(Names(ThrownMessage<ConfigError>([&] { bad.Validate(); }),
+                    "randomize.attached_mass_count"));
+}
+
 TEST(RandomizeStructureTest, PoolVariantsAreDrawnStructuresWithTheirOwnModes) {
   AcousticModelConfig c = Coarse();
   c.audio.record_duration_s = 0.06;
   c.randomize.structure_variants = 3;
   c.randomize.bolt_stiffness_scale = {0.1, 10.0};
   c.randomize.flange_mount_scale = {0.2, 5.0};
+  c.randomize.attached_mass_count = {1, 3};
+  c.randomize.attached_mass_kg = {0.005, 0.03};
+  c.randomize.disc_mass_kg = {0.001, 0.002};
   c.seed = 11;
   const StrikeSynthesizer synth(c);
   ASSERT_EQ(synth.structure_variants(), 3);
@@ -529,7 +608,7 @@ TEST(RandomizeStructureTest, PoolVariantsAreDrawnStructuresWithTheirOwnModes) {
   }
   // a variant renders as the same structure solved in full (the Ritz error, to 1 %)
   const StructureVariant draw =
-      DrawStructure(c.randomize, c.shell, c.material.poisson_ratio, 11, 1);
+      DrawStructure(c.randomize, {c.tube, c.shell, c.mics, c.material.poisson_ratio}, 11, 1);
   AcousticModelConfig full = Coarse();
   full.audio.record_duration_s = 0.06;
   full.shell = draw.shell;

@@ -255,5 +255,27 @@ TEST(BeyondPresetTest, TwoTheoriesLayerSetsTheReferenceFractionAlone) {
   EXPECT_EQ(YAML::Dump(a), YAML::Dump(b));
 }
 
+// configs/attached_masses.yaml resolves over ts4, the preset and the as-built layer, and sets
+// the three attached-mass ranges and nothing else
+TEST(BeyondPresetTest, AttachedMassesLayerSetsItsThreeRangesAlone) {
+  TempDir dir;
+  const std::string base = "--config '" + ConfigPath("ts4.yaml") + "' --config '" +
+                           ConfigPath("randomized.yaml") + "' --config '" +
+                           ConfigPath("built.yaml") + "' ";
+  const auto plain = RunCli(base + "config", dir.path().string());
+  const auto layered = RunCli(
+      base + "--config '" + ConfigPath("attached_masses.yaml") + "' config", dir.path().string());
+  ASSERT_EQ(layered.exit_code, 0) << layered.err;
+  const YAML::Node a = YAML::Load(plain.out);
+  YAML::Node b = YAML::Load(layered.out);
+  EXPECT_EQ(a["randomize"]["attached_mass_count"].size(), 0u);
+  EXPECT_EQ(b["randomize"]["attached_mass_count"][1].as<double>(), 3.0);
+  EXPECT_EQ(b["randomize"]["attached_mass_kg"][1].as<double>(), 0.03);
+  EXPECT_EQ(b["randomize"]["disc_mass_kg"][0].as<double>(), 0.0005);
+  for (const char* key : {"attached_mass_count", "attached_mass_kg", "disc_mass_kg"})
+    b["randomize"][key] = a["randomize"][key];
+  EXPECT_EQ(YAML::Dump(a), YAML::Dump(b));
+}
+
 }  // namespace
 }  // namespace sonicboom

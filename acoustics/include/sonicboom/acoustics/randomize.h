@@ -67,6 +67,13 @@ struct RandomizeConfig {
   std::vector<double> flange_mount_scale;    // x shell.flange_mount_stiffness_n_m2, log-uniform
   std::vector<double> tool_mount_scale;      // x shell.tool_mount_stiffness_n_m2, log-uniform
   std::vector<double> poisson_ratio;         // material.poisson_ratio, uniform
+  // masses a hand build glues or clamps on the wall (shell.attached_mass_*): a count of them
+  // (integer, uniform, at most kMaxAttachedMasses), each of a mass (log-uniform) at a place
+  // drawn uniformly over the wall; and each disc's own load (the disc with its epoxy, solder and
+  // leads) at its mark, per disc, uniform
+  std::vector<double> attached_mass_count;
+  std::vector<double> attached_mass_kg;
+  std::vector<double> disc_mass_kg;
   // another theory in the training set: this fraction of the strikes (drawn per sample) is
   // rendered by the reference solid (docs/reference_model.md) with its own striker, damping and
   // sensor chain instead of this model; its modes up to reference_max_frequency_hz on elements of
@@ -108,6 +115,9 @@ struct RandomizeConfig {
   bool mic_placement() const;
 };
 
+/// The most masses randomize.attached_mass_count draws.
+inline constexpr int64_t kMaxAttachedMasses = 8;
+
 /// One structure variant of the pool: the shell and material it was drawn to, and the drawn
 /// values (StructureValueNames' order).
 struct StructureVariant {
@@ -117,15 +127,26 @@ struct StructureVariant {
 };
 
 /// Names of a variant's stored values: "structure_variant" (its number), then one per set
-/// structure range (bolt_stiffness_scale: the geometric mean over the bolts).
+/// structure range (bolt_stiffness_scale: the geometric mean over the bolts; attached_mass_kg:
+/// the total attached; disc_mass_kg: the mean over the discs).
 std::vector<std::string> StructureValueNames(const RandomizeConfig& config);
 
-/// Variant `variant` of the pool drawn under global_seed from the base shell and Poisson ratio:
-/// bolts evenly spaced between the base's first and last bolt (the centre for one) plus the
-/// jitter, each with its own stiffness scale; mounts scaled. Depends on nothing else, so every
-/// thread, shard and run draws the same pool.
-StructureVariant DrawStructure(const RandomizeConfig& config, const ShellConfig& base_shell,
-                               double base_poisson_ratio, uint64_t global_seed, int64_t variant);
+/// The configured structure a pool's variants are drawn from.
+struct StructureBase {
+  const TubeConfig& tube;
+  const ShellConfig& shell;
+  const MicArrayConfig& mics;  // the discs' marks (their loads sit there)
+  double poisson_ratio{0.0};
+};
+
+/// Variant `variant` of the pool drawn under global_seed from the base: bolts evenly spaced
+/// between the base's first and last bolt (the centre for one) plus the jitter, each with its own
+/// stiffness scale; mounts scaled; attached masses at uniform places of the wall (one that would
+/// sit within a hole's diameter of a hole's centre is moved a diameter and a half towards the
+/// tube's middle) and a load at each disc's mark, added to the base's own attached masses.
+/// Depends on nothing else, so every thread, shard and run draws the same pool.
+StructureVariant DrawStructure(const RandomizeConfig& config, const StructureBase& base,
+                               uint64_t global_seed, int64_t variant);
 
 /// The structure part of a sample's draws: how the modes it is played on differ from the solved
 /// ones. Default-constructed, it is the configured structure (Nominal()).
