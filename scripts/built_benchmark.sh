@@ -20,6 +20,10 @@
 #            and a stiff cap (20x; training 0.2-5x), every disc 3-4 mm and 3-4 degrees off
 #            (training +-2), a 5 % softer wall (E 0.76x of nominal at 20 C; training 0.85-1.15x
 #            and temperature), a fifth of the strikes soft, peak 30-45 dB above the floor
+#   massed   the `built` tube with what a build glues on it: a 45 g connector near the flange and a
+#            35 g clamp past the middle, each disc loaded with 2.8-3.4 g (pretrain draws no
+#            attached mass; the configs/attached_masses.yaml layer draws up to three of 1-30 g and
+#            disc loads of 0.5-2.5 g)
 #   solid    the `built` strikes rendered again by the reference solid (sonicboom rerender: a 3-D
 #            elastic solid with its own contact, damping and sensor chain); REFERENCE=1 only
 #            (its mode solve takes about 10 minutes on 2 cores)
@@ -49,7 +53,7 @@ case $SPLIT in
   *) echo "SPLIT is val or test, not '$SPLIT'" >&2; exit 2 ;;
 esac
 
-FAMILIES="nominal in soft noisy built"
+FAMILIES=${FAMILIES:-"nominal in soft noisy built massed"}
 [ "$REFERENCE" = 1 ] && FAMILIES="$FAMILIES solid"
 for f in $FAMILIES; do
   name=${SPLIT}_$f

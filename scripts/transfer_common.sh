@@ -8,7 +8,8 @@ RAND=(--config "$ROOT/configs/randomized.yaml")
 ONE=(--set randomize.structure_variants=0 --set 'randomize.bolt_count=[]'
      --set 'randomize.bolt_z_jitter_m=[]' --set 'randomize.bolt_stiffness_scale=[]'
      --set 'randomize.flange_mount_scale=[]' --set 'randomize.tool_mount_scale=[]'
-     --set 'randomize.poisson_ratio=[]')
+     --set 'randomize.poisson_ratio=[]' --set 'randomize.attached_mass_count=[]'
+     --set 'randomize.attached_mass_kg=[]' --set 'randomize.disc_mass_kg=[]')
 
 # A calibration set of structures beyond the pool (with RAND): configs/beyond.yaml widens every
 # structure and placement range of the preset to 1.5x its width about its centre and draws a pool
@@ -58,6 +59,10 @@ built_family_args() {
       --set randomize.mic_z_offset_m=[] --set randomize.mic_theta_offset_deg=[]
       --set material.youngs_modulus_pa=2.28e9 --set randomize.youngs_modulus_scale=[]
       --set randomize.temperature_c=[]" ;;
+    massed) echo "$(built_family_args built)
+      --set shell.attached_mass_kg=[0.045,0.035,0.0031,0.0028,0.0034,0.0029,0.0033,0.003]
+      --set shell.attached_mass_z_m=[-0.118,0.061,-0.1335,-0.1265,-0.1338,0.1263,0.1336,0.1268]
+      --set shell.attached_mass_theta_deg=[175,-62,3.5,116.5,244,-3.5,123.5,236.5]" ;;
   esac
 }
 
