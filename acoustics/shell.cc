@@ -253,6 +253,24 @@ DofNumbering NumberDofs(const GridLayout& g, double rho_h) {
   return n;
 }
 
+// The four points of one field's grid around a fractional grid position (xf along its `rows`
+// rows, yf around its nth columns) and their bilinear weights: (index entry: a DOF, kAbsent or
+// kFixed; weight), rows i0 and i0 + 1 (clamped inside the grid), columns j0 and j0 + 1 (wrapped)
+std::array<std::pair<int64_t, double>, 4> BilinearPoints(const std::vector<int64_t>& index,
+                                                         int rows, int nth, double xf, double yf) {
+  const int i0 = std::clamp(static_cast<int>(std::floor(xf)), 0, rows - 2);
+  const double fx = std::clamp(xf - i0, 0.0, 1.0), fy = yf - std::floor(yf);
+  const int j0 = static_cast<int>(std::floor(yf));
+  std::array<std::pair<int64_t, double>, 4> points;
+  for (int c = 0; c < 4; ++c) {
+    const int di = c / 2, dj = c % 2;
+    const int j = (((j0 + dj) % nth) + nth) % nth;
+    points[c] = {index[static_cast<size_t>(i0 + di) * nth + j],
+                 (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy)};
+  }
+  return points;
+}
+
 // The attached masses lumped onto the grid: each mass shared bilinearly among the four points
 // of every field around it (w at nodes, u half a row up, v half a column over), the share of a
 // point in a hole given to the others, the share of a fixed point dropped (it does not move).
@@ -261,21 +279,14 @@ void AddAttachedMasses(const GridLayout& g, DofNumbering* n) {
   const ShellConfig& s = g.shell;
   for (size_t k = 0; k < s.attached_mass_kg.size(); ++k) {
     const double x = (s.attached_mass_z_m[k] + 0.5 * g.tube.length_m) / g.dz;
-    const double y = WrapAngle(s.attached_mass_theta_deg[k] * kPi / 180.0) / g.dth;
+    const double y = WrapAngle(s.attached_mass_theta_deg[k] * kDeg) / g.dth;
+    // the mass shared among one field's four points; returns the absent share
     const auto share = [&](const std::vector<int64_t>& index, int rows, double i_offset,
                            double j_offset) {
-      const double xf = x - i_offset, yf = y - j_offset;
-      const int i0 = std::clamp(static_cast<int>(std::floor(xf)), 0, rows - 2);
-      const double fx = std::clamp(xf - i0, 0.0, 1.0), fy = yf - std::floor(yf);
-      const int j0 = g.Wrap(static_cast<int>(std::floor(yf)));
-      // (dof or kAbsent / kFixed, weight) of the four points, and the absent share
-      std::array<std::pair<int64_t, double>, 4> points;
+      const auto points = BilinearPoints(index, rows, g.nth, x - i_offset, y - j_offset);
       double absent = 0.0;
-      for (int c = 0; c < 4; ++c) {
-        const int di = c / 2, dj = c % 2;
-        const double wgt = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
-        points[c] = {index[static_cast<size_t>(i0 + di) * g.nth + g.Wrap(j0 + dj)], wgt};
-        if (points[c].first == kAbsent) absent += wgt;
+      for (const auto& [d, wgt] : points) {
+        if (d == kAbsent) absent += wgt;
       }
       for (const auto& [d, wgt] : points) {
         if (d >= 0) n->mass_kg[d] += s.attached_mass_kg[k] * wgt / (1.0 - absent);
@@ -628,18 +639,11 @@ Eigen::VectorXd ShellModel::PointWeights(double z_m, double theta_rad, double* a
   }
   double y = WrapAngle(theta_rad) / dth_rad_;
   if (y < 0.0) y += nth_;
-  const int i0 = std::clamp(static_cast<int>(std::floor(x)), 0, nz_ - 1);
-  const int j0 = static_cast<int>(std::floor(y)) % nth_;
-  const double fx = std::clamp(x - i0, 0.0, 1.0), fy = y - std::floor(y);
   Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
   *absent = 0.0;
-  for (int di = 0; di < 2; ++di) {
-    for (int dj = 0; dj < 2; ++dj) {
-      const double wgt = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
-      const int64_t d = w_index_[static_cast<size_t>(i0 + di) * nth_ + (j0 + dj) % nth_];
-      if (d >= 0) out[d] += wgt;
-      if (d == kAbsent) *absent += wgt;
-    }
+  for (const auto& [d, wgt] : BilinearPoints(w_index_, nz_ + 1, nth_, x, y)) {
+    if (d >= 0) out[d] += wgt;
+    if (d == kAbsent) *absent += wgt;
   }
   return out;
 }

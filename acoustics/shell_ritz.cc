@@ -227,18 +227,24 @@ void CheckRitzVariant(const ShellModel& base, const ShellModel& varied) {
   }
 }
 
-// Q_s^T diag(d) Q_s over the rows where d is nonzero (attached masses: a few DOFs), (k x k)
+// Q_s^T diag(d_s) Q_s over the rows s where d is nonzero (attached masses: a few DOFs), with
+// Q = [phi, x], (k x k)
 Eigen::MatrixXd ProjectDiagonal(const Eigen::VectorXd& d, const Eigen::MatrixXd& phi,
                                 const Eigen::MatrixXd& x) {
-  const Eigen::Index k = phi.cols() + x.cols();
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(k, k);
-  Eigen::RowVectorXd q(k);
+  std::vector<Eigen::Index> rows;
   for (Eigen::Index r = 0; r < d.size(); ++r) {
-    if (d[r] == 0.0) continue;
-    q << phi.row(r), (x.cols() > 0 ? Eigen::RowVectorXd(x.row(r)) : Eigen::RowVectorXd(0));
-    out.noalias() += d[r] * q.transpose() * q;
+    if (d[r] != 0.0) rows.push_back(r);
   }
-  return out;
+  const auto n = static_cast<Eigen::Index>(rows.size());
+  Eigen::MatrixXd q_s(n, phi.cols() + x.cols());
+  Eigen::VectorXd d_s(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Index r = rows[static_cast<size_t>(i)];
+    q_s.row(i).head(phi.cols()) = phi.row(r);
+    q_s.row(i).tail(x.cols()) = x.row(r);
+    d_s[i] = d[r];
+  }
+  return q_s.transpose() * d_s.asDiagonal() * q_s;
 }
 
 // Static corrections K_v^-1 r_k of the lowest base modes to the variant's residual
@@ -250,7 +256,7 @@ Eigen::MatrixXd StaticCorrections(const ShellRitzProjector::Impl& m, const SpMat
   if (m.enrichment <= 0 || (!stiffer && !heavier)) return {};
   const Eigen::SimplicialLDLT<SpMat> ldlt(kv);
   if (ldlt.info() != Eigen::Success) return {};
-  const Eigen::MatrixXd phi = m.phi.leftCols(m.enrichment);  // (dofs x e)
+  const auto phi = m.phi.leftCols(m.enrichment);  // (dofs x e), a view
   Eigen::MatrixXd residual = dk * phi;
   if (heavier) {
     residual -= dm.asDiagonal() * (phi * m.omega2.head(m.enrichment).asDiagonal());
@@ -306,23 +312,20 @@ RitzSolution SolveRitz(const ShellRitzProjector::Impl& m, const ShellModel& vari
   // eigenvectors come out normalized to it (shapes Q y mass-normalized for the variant)
   Eigen::VectorXd lambda;
   Eigen::MatrixXd vectors;
-  bool converged = false;
-  if (dm.isZero(0.0)) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(reduced);
-    converged = eig.info() == Eigen::Success;
+  const auto take = [&](const auto& eig) {
+    if (eig.info() != Eigen::Success) {
+      throw NumericalError("the Ritz eigenproblem of a structure variant did not converge");
+    }
     lambda = eig.eigenvalues();
     vectors = eig.eigenvectors();
+  };
+  if (dm.isZero(0.0)) {
+    take(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(reduced));
   } else {
     Eigen::MatrixXd reduced_mass = ProjectDiagonal(dm, m.phi, x);
     reduced_mass.diagonal().array() += 1.0;
     reduced_mass = 0.5 * (reduced_mass + reduced_mass.transpose()).eval();
-    const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(reduced, reduced_mass);
-    converged = eig.info() == Eigen::Success;
-    lambda = eig.eigenvalues();
-    vectors = eig.eigenvectors();
-  }
-  if (!converged) {
-    throw NumericalError("the Ritz eigenproblem of a structure variant did not converge");
+    take(Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd>(reduced, reduced_mass));
   }
 
   // the elastic modes of the band

@@ -34,6 +34,14 @@ using ::testing::HasSubstr;
 
 using sonicboom::kPi;
 
+// the default structure on a square grid of spacing_m
+ShellConfig Square(double spacing_m) {
+  ShellConfig s;
+  s.grid_spacing_m = spacing_m;
+  s.axial_spacing_m = spacing_m;
+  return s;
+}
+
 ShellConfig Ideal(TubeEnds ends, double arc_m, double axial_m) {
   ShellConfig s;
   s.ideal = true;
@@ -221,9 +229,7 @@ TEST(ShellModelTest, CacheKeyFollowsEveryFieldThatSetsAModeAndNoOther) {
   // damping keys and the contact region do not (the modes stay the same entry)
   const TubeConfig tube;
   const MaterialConfig material;
-  ShellConfig coarse;
-  coarse.grid_spacing_m = 0.02;
-  coarse.axial_spacing_m = 0.02;
+  const ShellConfig coarse = Square(0.02);
   const std::string base = ShellModel(tube, material, coarse).key();
   const auto key_with = [&](auto edit) {
     TubeConfig t = tube;
@@ -289,9 +295,7 @@ TEST(ShellModelTest, BadSettingsAreConfigErrors) {
 TEST(ShellModelTest, AttachedMassesLandAroundTheirPlace) {
   const TubeConfig tube;
   const MaterialConfig material;
-  ShellConfig coarse;
-  coarse.grid_spacing_m = 0.01;
-  coarse.axial_spacing_m = 0.01;
+  const ShellConfig coarse = Square(0.01);
   const ShellModel bare(tube, material, coarse);
   ShellConfig s = coarse;
   s.attached_mass_kg = {0.02};
